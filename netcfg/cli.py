@@ -1,0 +1,62 @@
+"""Command line: netcfg check | schema. Exit codes: 0 ok, 1 spec errors or not schedulable, 2 usage or I/O."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from netcfg import __version__
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="netcfg", description="Control-network configuration compiler.")
+    parser.add_argument("--version", action="version", version=f"netcfg {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    p_check = sub.add_parser("check", help="validate specs and analyse their timing; writes nothing")
+    p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC")
+    p_check.add_argument("--format", choices=("text", "json"), default="text")
+    sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "check":
+            return cmd_check(args.specs, args.format)
+        if args.command == "schema":
+            return cmd_schema()
+    except BrokenPipeError:  # e.g. `netcfg check x | head`
+        return 0
+    return 2  # pragma: no cover - argparse rejects unknown commands
+
+
+def cmd_check(paths: list[Path], fmt: str) -> int:
+    from netcfg.check import check
+    from netcfg.report_text import render
+
+    reports: list[dict[str, Any]] = []
+    for path in paths:
+        try:
+            reports.append(check(path))
+        except OSError as exc:
+            print(f"netcfg: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
+    if fmt == "json":
+        doc = reports[0] if len(reports) == 1 else {"ok": all(r["ok"] for r in reports), "results": reports}
+        print(json.dumps(doc, indent=2))
+    else:
+        for report in reports:
+            print(render(report))
+            for d in report["errors"]:
+                print(f"{d['file']}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
+    return 0 if all(r["ok"] for r in reports) else 1
+
+
+def cmd_schema() -> int:
+    from netcfg.spec.schema import Spec
+
+    schema = Spec.model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "netcfg spec"
+    print(json.dumps(schema, indent=2, sort_keys=True))
+    return 0

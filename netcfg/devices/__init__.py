@@ -1,0 +1,136 @@
+"""CANopen device profiles: the objects a device has, their data types, access and PDO mappability.
+
+A profile comes either from netcfg's own built-in files (devices/profiles/*.yaml, written from the
+CiA 301/402 standards and the vendors' firmware documentation) or from a vendor EDS file, read with the
+`canopen` package's EDS importer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+from importlib import resources
+
+import yaml
+
+# CiA 301 table 44: static data types -> (name, size in bits, kind). Strings and domains have no fixed size.
+DATA_TYPES: dict[int, tuple[str, int, str]] = {
+    0x01: ("BOOLEAN", 1, "unsigned"),
+    0x02: ("INTEGER8", 8, "signed"),
+    0x03: ("INTEGER16", 16, "signed"),
+    0x04: ("INTEGER32", 32, "signed"),
+    0x05: ("UNSIGNED8", 8, "unsigned"),
+    0x06: ("UNSIGNED16", 16, "unsigned"),
+    0x07: ("UNSIGNED32", 32, "unsigned"),
+    0x08: ("REAL32", 32, "float"),
+    0x09: ("VISIBLE_STRING", 0, "string"),
+    0x0A: ("OCTET_STRING", 0, "string"),
+    0x0B: ("UNICODE_STRING", 0, "string"),
+    0x0C: ("TIME_OF_DAY", 48, "unsigned"),
+    0x0D: ("TIME_DIFFERENCE", 48, "unsigned"),
+    0x0F: ("DOMAIN", 0, "string"),
+    0x10: ("INTEGER24", 24, "signed"),
+    0x11: ("REAL64", 64, "float"),
+    0x12: ("INTEGER40", 40, "signed"),
+    0x13: ("INTEGER48", 48, "signed"),
+    0x14: ("INTEGER56", 56, "signed"),
+    0x15: ("INTEGER64", 64, "signed"),
+    0x16: ("UNSIGNED24", 24, "unsigned"),
+    0x18: ("UNSIGNED40", 40, "unsigned"),
+    0x19: ("UNSIGNED48", 48, "unsigned"),
+    0x1A: ("UNSIGNED56", 56, "unsigned"),
+    0x1B: ("UNSIGNED64", 64, "unsigned"),
+}
+DATA_TYPE_CODES = {name: code for code, (name, _, _) in DATA_TYPES.items()}
+
+READABLE = frozenset({"ro", "rw", "rwr", "rww", "const"})
+WRITABLE = frozenset({"wo", "rw", "rwr", "rww"})
+ACCESS_TYPES = READABLE | WRITABLE
+
+
+@dataclass(frozen=True)
+class ObjectEntry:
+    index: int
+    sub: int
+    name: str
+    data_type: int
+    access: str
+    pdo_mappable: bool
+    default: int | None = None
+
+    @property
+    def bits(self) -> int:
+        return DATA_TYPES.get(self.data_type, ("?", 0, "?"))[1]
+
+    @property
+    def type_name(self) -> str:
+        return DATA_TYPES.get(self.data_type, (f"0x{self.data_type:04X}", 0, "?"))[0]
+
+    @property
+    def readable(self) -> bool:
+        return self.access in READABLE
+
+    @property
+    def writable(self) -> bool:
+        return self.access in WRITABLE
+
+    @property
+    def ref(self) -> str:
+        return f"0x{self.index:04X}:{self.sub}"
+
+
+@dataclass
+class DeviceProfile:
+    name: str
+    source: str  # "builtin:<name>" or the EDS file path as written in the spec
+    objects: dict[tuple[int, int], ObjectEntry] = field(default_factory=dict)
+    vendor_id: int | None = None
+    product_code: int | None = None
+    rpdo_count: int = 4
+    tpdo_count: int = 4
+    max_mapped_objects: int = 8
+    tpdo_event_timer: bool = True  # whether 0x18xx sub 5 exists
+    tpdo_inhibit_time: bool = True  # whether 0x18xx sub 3 exists
+
+    def lookup(self, index: int, sub: int) -> ObjectEntry | None:
+        return self.objects.get((index, sub))
+
+    def has_index(self, index: int) -> bool:
+        return any(i == index for i, _ in self.objects)
+
+
+def builtin_profile_names() -> list[str]:
+    folder = resources.files("netcfg.devices").joinpath("profiles")
+    return sorted(p.name.removesuffix(".yaml") for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+@cache
+def builtin_profile(name: str) -> DeviceProfile:
+    """Load a built-in profile by name; raises KeyError for an unknown name."""
+    if name not in builtin_profile_names():
+        raise KeyError(name)
+    text = resources.files("netcfg.devices").joinpath("profiles", f"{name}.yaml").read_text("utf-8")
+    raw = yaml.safe_load(text)
+    profile = DeviceProfile(
+        name=name,
+        source=f"builtin:{name}",
+        vendor_id=raw.get("vendor_id"),
+        product_code=raw.get("product_code"),
+        rpdo_count=raw["rpdo_count"],
+        tpdo_count=raw["tpdo_count"],
+        max_mapped_objects=raw["max_mapped_objects"],
+        tpdo_event_timer=raw["tpdo_event_timer"],
+        tpdo_inhibit_time=raw["tpdo_inhibit_time"],
+    )
+    for obj in raw["objects"]:
+        entry = ObjectEntry(
+            index=obj["index"],
+            sub=obj.get("sub", 0),
+            name=obj["name"],
+            data_type=DATA_TYPE_CODES[obj["type"]],
+            access=obj["access"],
+            pdo_mappable=obj.get("pdo", False),
+            default=obj.get("default"),
+        )
+        profile.objects[(entry.index, entry.sub)] = entry
+    return profile

@@ -1,0 +1,60 @@
+"""Import a vendor EDS/DCF (CiA 306) into a DeviceProfile, using the `canopen` package's importer."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from netcfg.devices import DeviceProfile, ObjectEntry
+
+
+class EdsError(Exception):
+    pass
+
+
+def _entries(od: object) -> list[object]:
+    import canopen.objectdictionary as cod
+
+    out: list[object] = []
+    for obj in od.values():  # type: ignore[attr-defined]
+        if isinstance(obj, cod.ODVariable):
+            out.append(obj)
+        else:
+            out.extend(obj.values())
+    return out
+
+
+def import_eds(path: Path, name: str) -> DeviceProfile:
+    """Read an EDS file; EdsError carries a message for the user if canopen cannot parse it."""
+    import canopen
+
+    logging.getLogger("canopen").setLevel(logging.ERROR)
+    try:
+        od = canopen.import_od(str(path))
+    except Exception as exc:  # canopen raises many kinds for bad files; report them all the same way
+        raise EdsError(f"canopen could not read the EDS file: {exc}") from exc
+    profile = DeviceProfile(name=name, source=str(path))
+    for var in _entries(od):
+        entry = ObjectEntry(
+            index=var.index,  # type: ignore[attr-defined]
+            sub=var.subindex,  # type: ignore[attr-defined]
+            name=var.name,  # type: ignore[attr-defined]
+            data_type=var.data_type or 0,  # type: ignore[attr-defined]
+            access=var.access_type,  # type: ignore[attr-defined]
+            pdo_mappable=bool(var.pdo_mappable),  # type: ignore[attr-defined]
+            default=var.default if isinstance(var.default, int) else None,  # type: ignore[attr-defined]
+        )
+        profile.objects[(entry.index, entry.sub)] = entry
+    identity = od.get(0x1018)
+    if identity is not None and 1 in identity:
+        profile.vendor_id = identity[1].default if isinstance(identity[1].default, int) else None
+    if identity is not None and 2 in identity:
+        profile.product_code = identity[2].default if isinstance(identity[2].default, int) else None
+    profile.rpdo_count = sum(1 for i in range(0x1400, 0x1600) if i in od)
+    profile.tpdo_count = sum(1 for i in range(0x1800, 0x1A00) if i in od)
+    if 0x1A00 in od:
+        profile.max_mapped_objects = len(od[0x1A00]) - 1
+    if 0x1800 in od:
+        profile.tpdo_event_timer = 5 in od[0x1800]
+        profile.tpdo_inhibit_time = 3 in od[0x1800]
+    return profile

@@ -1,0 +1,241 @@
+"""The spec language: pydantic models of what a user writes in YAML.
+
+These models check shape and types only (unknown keys are errors). Cross-references, identifiers, device
+objects and timing rules are checked when the spec is resolved into the Model (netcfg.model).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Literal
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+
+from netcfg.spec.units import BitRateField, DurationField, FrequencyField, OffsetField
+
+# Names end up as file names, C identifiers, Python keys and DBC names: one safe alphabet for all of them.
+_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
+C_KEYWORDS = frozenset(
+    "auto break case char const continue default do double else enum extern float for goto if inline int long "
+    "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile "
+    "while _Bool _Complex _Imaginary _Alignas _Alignof _Atomic _Generic _Noreturn _Static_assert "
+    "_Thread_local bool true false NULL".split()
+)
+RESERVED_FILE_NAMES = frozenset(
+    ["con", "prn", "aux", "nul"] + [f"com{i}" for i in range(1, 10)] + [f"lpt{i}" for i in range(1, 10)]
+)
+
+
+def check_name(value: str) -> str:
+    if not _NAME.match(value):
+        raise ValueError(
+            f"{value!r} is not a safe name: names become file names and C identifiers, so use a letter "
+            "followed by letters, digits or '_' (at most 63 characters), e.g. 'hip_right'"
+        )
+    if value in C_KEYWORDS:
+        raise ValueError(f"{value!r} is a C keyword; pick another name, e.g. '{value}_node'")
+    if value.lower() in RESERVED_FILE_NAMES:
+        raise ValueError(f"{value!r} is a reserved file name on Windows; pick another name")
+    return value
+
+
+Name = Annotated[str, AfterValidator(check_name)]
+# "node.task" references to tasks; flows and triggers use them.
+TaskRef = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$")]
+ObjectRef = Annotated[
+    int | str,
+    Field(description="a device object: 0x6064 (sub-index 0) or '0x30D1:2' (index:sub-index)"),
+]
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class FttParams(Strict):
+    """FTT-CAN: the master's elementary cycle and trigger message (Almeida, Pedreiras, Fonseca 2002)."""
+
+    ec: DurationField = Field(description="elementary-cycle length")
+    tm_size: int = Field(ge=1, le=8, description="trigger-message payload in bytes; each byte announces 8 ids")
+    lsw: DurationField | None = Field(None, description="maximum length of the synchronous window (LSW)")
+    tm_id: int = Field(0, ge=0, description="CAN identifier of the trigger message (the highest priority)")
+    sync_id_base: int = Field(
+        0x100, ge=0, description="CAN id of a synchronous message without an explicit id = this + its FTT id"
+    )
+    master: Name | None = Field(None, description="node that sends the trigger message (default: role master)")
+
+
+class CanopenParams(Strict):
+    sync_period: DurationField = Field(description="communication cycle period, object 0x1006")
+    sync_window: DurationField | None = Field(None, description="synchronous window length, object 0x1007")
+    read_window: DurationField | None = Field(
+        None, description="how long the master waits for the synchronous TPDOs after SYNC"
+    )
+    sync_producer: Name | None = Field(None, description="node producing SYNC (default: the node with role master)")
+    sync_id: int = Field(0x80, ge=1, le=0x7FF, description="COB-ID of SYNC, object 0x1005")
+    sync_counter: bool = Field(False, description="SYNC carries a 1-byte counter (CiA 301 0x1019)")
+
+
+class SwitchPort(Strict):
+    port: int = Field(ge=1, le=1024)
+    to: Name = Field(description="the node or switch on the other end of the cable")
+    cable: float = Field(0.0, ge=0, le=100_000, description="cable length in metres (Tprop at 0.7 c)")
+
+
+class Switch(Strict):
+    name: Name
+    ports: list[SwitchPort] = Field(min_length=1)
+    latency: DurationField = Field(
+        default_factory=lambda: _ns(0),
+        description="store-and-forward multiplexing delay Tmux after a frame is fully received",
+    )
+
+
+def _ns(ns: int) -> object:
+    from netcfg.spec.units import Duration
+
+    return Duration(ns=ns)
+
+
+class EthernetParams(Strict):
+    switches: list[Switch] = Field(default_factory=list)
+
+
+class Bus(Strict):
+    name: Name
+    protocol: Literal["can", "canopen", "ftt-can", "ethernet-udp"]
+    bitrate: BitRateField = Field(description="bit rate, or link speed for Ethernet")
+    id_bits: Literal[11, 29] = Field(11, description="default identifier length on CAN buses")
+    ftt: FttParams | None = None
+    canopen: CanopenParams | None = None
+    ethernet: EthernetParams | None = None
+    description: str | None = None
+
+
+class Task(Strict):
+    name: Name
+    period: DurationField | None = Field(None, description="activation period (omit when a trigger activates it)")
+    offset: DurationField = Field(default_factory=lambda: _ns(0))
+    on_message: Name | None = Field(None, description="event-driven: the task runs when this message arrives")
+    wcet: DurationField = Field(description="worst-case execution time")
+    bcet: DurationField | None = Field(None, description="best-case execution time (default: the WCET)")
+    description: str | None = None
+
+
+class EdsDevice(Strict):
+    eds: str = Field(description="path of a vendor EDS file, relative to the spec")
+
+
+class Node(Strict):
+    name: Name
+    node_id: int | None = Field(None, description="CANopen node id 1..127, or an FTT-CAN/CAN station number")
+    buses: list[Name] = Field(min_length=1)
+    role: Literal["master", "slave"] = "slave"
+    device: Name | EdsDevice | None = Field(
+        None, description="CANopen device profile: a built-in name (e.g. 'epos4') or {eds: file.eds}"
+    )
+    heartbeat: DurationField | None = Field(None, description="CANopen producer heartbeat time (0x1017)")
+    ip: str | None = Field(None, pattern=r"^\d{1,3}(\.\d{1,3}){3}$")
+    tx_delay: DurationField | None = Field(None, description="Ethernet: sender processing Tpre (seed 001, eq. 6.3)")
+    rx_delay: DurationField | None = Field(None, description="Ethernet: receiver processing Tpost")
+    tasks: list[Task] = Field(default_factory=list)
+    description: str | None = None
+
+
+class Signal(Strict):
+    name: Name
+    bits: int = Field(ge=1, le=64)
+    signed: bool = False
+    scale: float = 1.0
+    offset: float = 0.0
+    min: float | None = None
+    max: float | None = None
+    unit: str | None = None
+
+
+class PdoEntry(Strict):
+    object: ObjectRef
+    name: Name | None = Field(None, description="signal name in generated code (default: from the object name)")
+
+
+class Pdo(Strict):
+    tpdo: int | None = Field(None, ge=1, le=512, description="this is TPDO n of the producer")
+    rpdo: int | None = Field(None, ge=1, le=512, description="this is RPDO n of the (single) consumer")
+    transmission: int = Field(255, ge=0, le=255, description="transmission type (0x1800/0x1400 sub 2)")
+    inhibit: DurationField | None = Field(None, description="inhibit time, stored in units of 100 us")
+    event_timer: DurationField | None = Field(None, description="event timer, stored in ms")
+    sync_start: int | None = Field(None, ge=0, le=240, description="SYNC start value (0x1800 sub 6)")
+    map: list[ObjectRef | PdoEntry] = Field(min_length=0, description="mapped objects, first byte first")
+
+    @model_validator(mode="after")
+    def _one_side(self) -> Pdo:
+        if (self.tpdo is None) == (self.rpdo is None):
+            raise ValueError("say which PDO this is with exactly one of 'tpdo: N' or 'rpdo: N'")
+        return self
+
+
+class Udp(Strict):
+    src_port: int = Field(ge=1, le=65535)
+    dst_port: int = Field(ge=1, le=65535)
+
+
+class Message(Strict):
+    name: Name
+    bus: Name | None = Field(None, description="default: the one bus producer and consumers share")
+    producer: Name
+    consumers: list[Name] = Field(min_length=1)
+    id: int | None = Field(None, ge=0, description="CAN identifier, or the application message id on UDP")
+    extended: bool | None = Field(None, description="29-bit identifier (default: the bus's id_bits)")
+    size: int | None = Field(None, ge=0, description="payload bytes (or give signals / a PDO map)")
+    signals: list[Signal] | None = None
+    pdo: Pdo | None = None
+    type: Literal["periodic", "sporadic", "on-demand"] | None = Field(
+        None,
+        description="periodic (period), sporadic (min_interarrival) or on-demand (start-up/mode changes only, "
+        "not part of the steady-state load). Default: from the keys given",
+    )
+    period: DurationField | None = None
+    rate: FrequencyField | None = Field(None, description="alternative to period: transmissions per second")
+    period_range: tuple[DurationField, DurationField] | None = Field(
+        None, description="FTT-CAN on-line rate adaptation: [fastest, slowest]; load uses the fastest"
+    )
+    offset: OffsetField | None = None
+    min_interarrival: DurationField | None = None
+    deadline: DurationField | None = Field(None, description="default: the period (or min_interarrival)")
+    jitter: DurationField | None = Field(None, description="queuing jitter of the release")
+    window: Literal["sync", "async"] | None = Field(None, description="FTT-CAN window (default: sync if periodic)")
+    ftt_id: int | None = Field(None, ge=0, description="FTT-CAN synchronous id (bit in the EC-schedule)")
+    udp: Udp | None = None
+    description: str | None = None
+
+
+class Trigger(Strict):
+    name: Name
+    bus: Name
+    ftt_id: int = Field(ge=0)
+    period: DurationField
+    period_range: tuple[DurationField, DurationField] | None = None
+    offset: OffsetField = Field(default_factory=lambda: _ns(0))
+    tasks: list[TaskRef] = Field(min_length=1, description="tasks this trigger activates, as node.task")
+    description: str | None = None
+
+
+class Flow(Strict):
+    name: Name
+    chain: list[str | list[str]] = Field(
+        min_length=2,
+        description="steps from the first producer to the last consumer: node.task or message names; a list is "
+        "several items in parallel (all their data is needed). Tasks on one node may follow each other",
+    )
+    deadline: DurationField | None = None
+    description: str | None = None
+
+
+class Spec(Strict):
+    system: Name
+    description: str | None = None
+    buses: list[Bus] = Field(min_length=1)
+    nodes: list[Node] = Field(min_length=1)
+    messages: list[Message] = Field(default_factory=list)
+    triggers: list[Trigger] = Field(default_factory=list)
+    flows: list[Flow] = Field(default_factory=list)

@@ -1,0 +1,121 @@
+"""YAML with source positions.
+
+PyYAML's constructor forgets where values came from. We compose the node tree ourselves and record the
+position of every mapping key and value and every sequence item under its path, so that any later error
+(pydantic's or our own) can name file, line and column. Duplicate keys, which PyYAML silently overwrites,
+are reported here.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+
+from netcfg.diagnostics import Collector, Position
+
+Path = tuple[str | int, ...]
+
+
+class SourceMap:
+    """Maps a path inside the spec, e.g. ("messages", 3, "period"), to where it was written."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+        self._values: dict[Path, Position] = {}
+        self._keys: dict[Path, Position] = {}
+
+    def record(self, path: Path, value: Position, key: Position | None = None) -> None:
+        self._values[path] = value
+        if key is not None:
+            self._keys[path] = key
+
+    def at(self, path: Path) -> Position:
+        """Position of the value at path, or of its nearest recorded ancestor."""
+        p = tuple(path)
+        while p:
+            if p in self._values:
+                return self._values[p]
+            p = p[:-1]
+        return self._values.get((), Position(self.file, 1, 1))
+
+    def key_at(self, path: Path) -> Position:
+        """Position of the key that introduces path (falls back to the value, then to ancestors)."""
+        return self._keys.get(tuple(path)) or self.at(path)
+
+    def has(self, path: Path) -> bool:
+        return tuple(path) in self._values
+
+
+def _pos(file: str, node: yaml.Node) -> Position:
+    return Position(file, node.start_mark.line + 1, node.start_mark.column + 1)
+
+
+def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
+    """Parse YAML text. Syntax errors and duplicate keys go to diags; returns (data, source map)."""
+    smap = SourceMap(file)
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        pos = Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
+        what = exc.problem or "invalid YAML"
+        ctx = f" ({exc.context})" if exc.context else ""
+        diags.add("yaml-syntax", f"YAML syntax error: {what}{ctx}; fix the indentation or quoting here", pos)
+        return None, smap
+    except yaml.YAMLError as exc:  # e.g. reader errors on binary input
+        diags.add("yaml-syntax", f"cannot read YAML: {exc}", Position(file, 1, 1))
+        return None, smap
+    if root is None:
+        diags.add("empty-spec", "the spec is empty; start with 'system: <name>'", Position(file, 1, 1))
+        return None, smap
+    constructor = yaml.SafeLoader("")
+    smap.record((), _pos(file, root))
+    try:
+        return _build(root, (), file, smap, constructor, diags), smap
+    except yaml.constructor.ConstructorError as exc:
+        mark = exc.problem_mark
+        pos = Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
+        diags.add("yaml-value", f"cannot read this value: {exc.problem}", pos)
+        return None, smap
+
+
+def _build(
+    node: yaml.Node, path: Path, file: str, smap: SourceMap, ctor: yaml.SafeLoader, diags: Collector
+) -> Any:
+    if isinstance(node, yaml.MappingNode):
+        own = sum(1 for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge")
+        ctor.flatten_mapping(node)  # resolve YAML merge keys (<<): merged pairs first, then the mapping's own
+        n_merged = len(node.value) - own
+        out: dict[Any, Any] = {}
+        merged_keys: set[str] = set()
+        for pair_no, (key_node, value_node) in enumerate(node.value):
+            key = ctor.construct_object(key_node, deep=True)
+            if not isinstance(key, (str, int)):
+                diags.add("yaml-key", f"keys must be plain words, not {type(key).__name__}", _pos(file, key_node))
+                continue
+            key = str(key) if not isinstance(key, bool) else str(key).lower()
+            if pair_no < n_merged:
+                merged_keys.add(key)
+            elif key in merged_keys:
+                merged_keys.discard(key)  # an explicit key overrides the merged one
+                out.pop(key, None)
+            if key in out:
+                diags.add(
+                    "duplicate-key",
+                    f"key '{key}' appears twice in this mapping; keep one",
+                    _pos(file, key_node),
+                )
+                continue
+            child = (*path, key)
+            smap.record(child, _pos(file, value_node), _pos(file, key_node))
+            out[key] = _build(value_node, child, file, smap, ctor, diags)
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        items = []
+        for i, item in enumerate(node.value):
+            child = (*path, i)
+            smap.record(child, _pos(file, item))
+            items.append(_build(item, child, file, smap, ctor, diags))
+        return items
+    return ctor.construct_object(node, deep=True)

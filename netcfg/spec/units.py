@@ -1,0 +1,168 @@
+"""Quantities as engineers write them: '5 ms', '250 us', '250 kbit/s', '1 Mbit/s', '15 kHz', '2 EC'.
+
+Time is exact inside netcfg: durations become integer nanoseconds, rates integer bit/s. A bare number is
+refused because '250' alone could mean anything; the error says which units are understood.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from decimal import Decimal, InvalidOperation
+from fractions import Fraction
+from typing import Annotated, Any
+
+from pydantic import PlainSerializer, PlainValidator, WithJsonSchema
+
+_NUMBER = r"([0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+_QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-zµμ/]+)\s*$")
+
+TIME_UNITS_NS: dict[str, int] = {
+    "ns": 1,
+    "us": 1_000,
+    "µs": 1_000,
+    "μs": 1_000,
+    "ms": 1_000_000,
+    "s": 1_000_000_000,
+}
+RATE_UNITS: dict[str, int] = {
+    "bit/s": 1,
+    "bps": 1,
+    "kbit/s": 1_000,
+    "kbps": 1_000,
+    "mbit/s": 1_000_000,
+    "mbps": 1_000_000,
+    "gbit/s": 1_000_000_000,
+    "gbps": 1_000_000_000,
+}
+FREQ_UNITS: dict[str, int] = {"hz": 1, "khz": 1_000, "mhz": 1_000_000}
+EC_UNITS = ("ec", "ecs")
+
+
+def _split(value: Any, kind: str, example: str) -> tuple[Decimal, str]:
+    if isinstance(value, bool) or not isinstance(value, str):
+        raise ValueError(f"write the {kind} with a unit as a string, for example '{example}' (got {value!r})")
+    m = _QUANTITY.match(value)
+    if not m:
+        raise ValueError(f"cannot read {value!r} as a {kind}; write it like '{example}'")
+    try:
+        number = Decimal(m.group(1))
+    except InvalidOperation as exc:  # pragma: no cover - the regex only admits decimals
+        raise ValueError(f"cannot read the number in {value!r}") from exc
+    return number, m.group(m.lastindex or 0)
+
+
+@dataclass(frozen=True, order=True)
+class Duration:
+    """A duration given either in time units (ns) or in FTT-CAN elementary cycles (ec)."""
+
+    ns: int | None = None
+    ec: int | None = None
+
+    def __str__(self) -> str:
+        if self.ec is not None:
+            return f"{self.ec} EC"
+        return format_ns(self.ns or 0)
+
+    def to_ns(self, ec_ns: int | None) -> int | None:
+        """Nanoseconds; None when the duration is in ECs and no EC length is known."""
+        if self.ec is not None:
+            return None if ec_ns is None else self.ec * ec_ns
+        return self.ns
+
+
+def format_ns(ns: int | float) -> str:
+    for unit, scale in (("s", 1_000_000_000), ("ms", 1_000_000), ("us", 1_000)):
+        if abs(ns) >= scale and (ns % scale == 0 or unit != "s"):
+            text = f"{ns / scale:.6f}".rstrip("0").rstrip(".")
+            return f"{text} {unit}"
+    return f"{ns} ns"
+
+
+def parse_duration(value: Any) -> Duration:
+    if isinstance(value, Duration):
+        return value
+    if value == 0 and isinstance(value, int) and not isinstance(value, bool):
+        return Duration(ns=0)  # zero needs no unit
+    number, unit = _split(value, "duration", "5 ms")
+    key = unit.lower()
+    if key in EC_UNITS:
+        if number != number.to_integral_value() or number < 0:
+            raise ValueError(f"{value!r}: a count of elementary cycles must be a whole number >= 0")
+        return Duration(ec=int(number))
+    scale = TIME_UNITS_NS.get(unit) or TIME_UNITS_NS.get(key)
+    if scale is None:
+        raise ValueError(f"unknown time unit '{unit}' in {value!r}; use ns, us, ms, s or EC")
+    ns = number * scale
+    if ns != ns.to_integral_value():
+        raise ValueError(f"{value!r} is finer than 1 ns; netcfg keeps time in whole nanoseconds")
+    if ns < 0:
+        raise ValueError(f"{value!r}: durations cannot be negative")
+    return Duration(ns=int(ns))
+
+
+def parse_bitrate(value: Any) -> int:
+    number, unit = _split(value, "bit rate", "250 kbit/s")
+    scale = RATE_UNITS.get(unit.lower())
+    if scale is None:
+        raise ValueError(f"unknown bit-rate unit '{unit}' in {value!r}; use bit/s, kbit/s, Mbit/s or Gbit/s")
+    rate = number * scale
+    if rate != rate.to_integral_value() or rate <= 0:
+        raise ValueError(f"{value!r}: a bit rate must be a positive whole number of bit/s")
+    return int(rate)
+
+
+def parse_frequency(value: Any) -> Fraction:
+    number, unit = _split(value, "frequency", "15 kHz")
+    scale = FREQ_UNITS.get(unit.lower())
+    if scale is None:
+        raise ValueError(f"unknown frequency unit '{unit}' in {value!r}; use Hz, kHz or MHz")
+    f = Fraction(number) * scale
+    if f <= 0:
+        raise ValueError(f"{value!r}: a frequency must be positive")
+    return f
+
+
+_DURATION_SCHEMA = {
+    "anyOf": [
+        {"type": "string", "pattern": rf"^\s*{_NUMBER}\s*(ns|us|µs|ms|s|EC|ec)\s*$"},
+        {"const": 0},
+    ],
+    "description": "a duration with its unit, e.g. '5 ms', '250 us', or elementary cycles on FTT-CAN, e.g. '2 EC'",
+}
+_BITRATE_SCHEMA = {
+    "type": "string",
+    "pattern": rf"^\s*{_NUMBER}\s*(?i:bit/s|bps|kbit/s|kbps|Mbit/s|Mbps|Gbit/s|Gbps)\s*$",
+    "description": "a bit rate with its unit, e.g. '250 kbit/s', '1 Mbit/s', '100 Mbit/s'",
+}
+_FREQ_SCHEMA = {
+    "type": "string",
+    "pattern": rf"^\s*{_NUMBER}\s*(?i:Hz|kHz|MHz)\s*$",
+    "description": "a frequency with its unit, e.g. '15 kHz'",
+}
+
+DurationField = Annotated[
+    Duration,
+    PlainValidator(parse_duration),
+    PlainSerializer(str),
+    WithJsonSchema(_DURATION_SCHEMA),
+]
+BitRateField = Annotated[int, PlainValidator(parse_bitrate), WithJsonSchema(_BITRATE_SCHEMA)]
+FrequencyField = Annotated[
+    Fraction, PlainValidator(parse_frequency), PlainSerializer(lambda f: f"{float(f):g} Hz"), WithJsonSchema(_FREQ_SCHEMA)
+]
+
+
+def parse_offset(value: Any) -> Duration | str:
+    """An offset is a duration or 'auto' (derived from the flows it belongs to, FTT-CAN)."""
+    if value == "auto":
+        return "auto"
+    return parse_duration(value)
+
+
+OffsetField = Annotated[
+    Duration | str,
+    PlainValidator(parse_offset),
+    PlainSerializer(str),
+    WithJsonSchema({"anyOf": [_DURATION_SCHEMA, {"const": "auto"}]}),
+]

@@ -1,0 +1,56 @@
+"""Bus load: per-message transmission times and per-bus (or per-link) utilisation.
+
+Periodic messages count at their fastest admissible period, sporadic ones at their minimum inter-arrival
+time; on-demand messages (start-up, mode changes) are not part of the steady-state load.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from netcfg import model
+from netcfg.timing.frames import bits_to_ns, can_frame_bits, udp_frame_bytes
+
+
+@dataclass(frozen=True)
+class FrameTiming:
+    bits_worst: int
+    bits_nominal: int
+    tx_ns: int  # worst case on the wire
+    utilization: float  # tx_ns / interval, 0 for on-demand
+
+
+def frame_timing(msg: model.Message, bitrate: int) -> FrameTiming:
+    """One classical CAN data frame."""
+    worst = can_frame_bits(msg.size, msg.extended, "worst")
+    nominal = can_frame_bits(msg.size, msg.extended, "nominal")
+    tx = bits_to_ns(worst, bitrate)
+    return FrameTiming(worst, nominal, tx, tx / msg.interval_ns if msg.interval_ns else 0.0)
+
+
+def udp_timing(msg: model.Message, bitrate: int) -> FrameTiming:
+    """One UDP datagram: the 1-byte application message id (seed 001, Table 6.1) + the data."""
+    bits = 8 * udp_frame_bytes(1 + msg.size)
+    tx = bits_to_ns(bits, bitrate)
+    return FrameTiming(bits, bits, tx, tx * float(rate_hz(msg)) / 1e9)
+
+
+def rate_hz(msg: model.Message) -> float:
+    """Transmissions per second at the fastest admissible rate (exact when the spec gave a rate)."""
+    if msg.kind == "on-demand" or not msg.interval_ns:
+        return 0.0
+    if msg.rate_hz is not None and msg.period_ns == msg.interval_ns:
+        return float(msg.rate_hz)
+    return 1e9 / msg.interval_ns
+
+
+def can_bus_load(bus: model.Bus) -> tuple[dict[str, FrameTiming], float, float]:
+    """-> (timing per message, worst-case utilisation, utilisation without stuff bits)."""
+    timings = {m.name: frame_timing(m, bus.bitrate) for m in bus.messages}
+    worst = sum(t.utilization for t in timings.values())
+    nominal = sum(
+        bits_to_ns(t.bits_nominal, bus.bitrate) / m.interval_ns
+        for m, t in zip(bus.messages, timings.values())
+        if m.interval_ns and m.kind != "on-demand"
+    )
+    return timings, worst, nominal
