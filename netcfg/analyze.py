@@ -10,7 +10,7 @@ from typing import Any
 
 from netcfg import model
 from netcfg.diagnostics import Collector
-from netcfg.timing import ethernet, load
+from netcfg.timing import can_rta, canopen_sync, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
 
@@ -18,38 +18,24 @@ def us(ns: float | int | None) -> float | None:
     return None if ns is None else round(ns / 1000, 3)
 
 
+class _Analysis:
+    """Per-bus results that flows need: how each message delivers data, and the FTT-CAN schedules."""
+
+    def __init__(self) -> None:
+        self.chained: dict[str, flows.Delivery] = {}  # as analysed on its own bus (FTT windows, RTA, links)
+        self.plain: dict[str, flows.Delivery] = {}  # the same bus as plain, unsynchronised CAN
+        self.ftt: dict[str, flows.FttTimes] = {}
+
+
 def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
-    buses = [analyze_bus(m, bus, diags) for bus in m.buses.values()]
-    return {"buses": buses, "flows": []}
-
-
-def analyze_bus(m: model.Model, bus: model.Bus, diags: Collector) -> dict[str, Any]:
-    if bus.protocol == "ethernet-udp":
-        return analyze_ethernet(m, bus, diags)
-    timings, worst, nominal = load.can_bus_load(bus)
-    out: dict[str, Any] = {
-        "name": bus.name,
-        "protocol": bus.protocol,
-        "bitrate": bus.bitrate,
-        "utilization": round(worst, 6),
-        "utilization_nominal": round(nominal, 6),
-        "messages": [message_row(msg, timings[msg.name]) for msg in bus.messages],
-    }
-    if bus.ftt is not None:
-        tm_bits = can_frame_bits(bus.ftt.tm_size, bus.id_bits == 29)
-        tm_ns = bits_to_ns(tm_bits, bus.bitrate)
-        out["ftt"] = {
-            "ec_us": us(bus.ftt.ec_ns),
-            "tm_bits": tm_bits,
-            "tm_us": us(tm_ns),
-            "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
-            "lsw_us": us(bus.ftt.lsw_ns),
-        }
-        out["utilization_with_tm"] = round(worst + tm_ns / bus.ftt.ec_ns, 6)
-    if worst > 1:
-        diags.add("overload", f"bus '{bus.name}' is loaded at {worst:.1%} in the worst case; it cannot carry its "
-                  "messages: slow some down or raise the bit rate", m.source.at(bus.path))
-    return out
+    acc = _Analysis()
+    buses = []
+    for bus in m.buses.values():
+        if bus.protocol == "ethernet-udp":
+            buses.append(analyze_ethernet(m, bus, diags, acc))
+        else:
+            buses.append(analyze_can(m, bus, diags, acc))
+    return {"buses": buses, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
 
 
 def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
@@ -60,9 +46,10 @@ def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
         "size": msg.size,
         "kind": msg.kind,
         "producer": msg.producer,
+        "consumers": list(msg.consumers),
         "period_us": us(msg.period_ns),
         "interval_us": us(msg.interval_ns),
-        "min_interarrival_us": us(msg.interval_ns) if msg.kind == "sporadic" else None,
+        "offset_us": us(msg.offset_ns),
         "frame_bits_worst": t.bits_worst,
         "frame_bits_nominal": t.bits_nominal,
         "tx_us": us(t.tx_ns),
@@ -72,62 +59,6 @@ def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
         "slack_us": None,
         "schedulable": None,
     }
-
-
-def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector) -> dict[str, Any]:
-    timings = {msg.name: load.udp_timing(msg, bus.bitrate) for msg in bus.messages}
-    links, delays = ethernet.analyse(bus, m.nodes)
-    f_max = ethernet.max_min_frame_rate(bus.bitrate)
-    worst: dict[str, ethernet.PathDelay] = {}
-    for d in delays:
-        if d.message not in worst or _later(d, worst[d.message]):
-            worst[d.message] = d
-    rows = []
-    for msg in bus.messages:
-        row = message_row(msg, timings[msg.name])
-        row["frame_bytes"] = timings[msg.name].bits_worst // 8
-        row["rate_hz"] = round(load.rate_hz(msg), 6)
-        d = worst.get(msg.name)
-        if d is not None:
-            row["wcrt_us"] = us(d.total_ns)
-            row["delay_us"] = {"pre": us(d.tpre_ns), "wait": us(d.twait_ns), "frame": us(d.tframe_ns),
-                               "prop": us(d.tprop_ns), "switch": us(d.tswitch_ns), "post": us(d.tpost_ns),
-                               "consumer": d.consumer, "hops": len(d.hops)}
-            set_verdict(row, d.total_ns, msg.deadline_ns)
-        rows.append(row)
-    link_rows = []
-    for ll in links:
-        n = len(ll.senders)
-        link_rows.append({
-            "from": ll.src, "to": ll.dst, "messages": ll.messages, "senders": n,
-            "frames_per_s": round(ll.frames_per_s, 3), "utilization": round(ll.utilization, 6),
-            "f_max_hz": round(f_max, 3), "f_max_per_sender_hz": round(f_max / n, 3),
-            "busy_period_us": us(ll.busy_period_ns), "ok": ll.utilization < 1,
-        })
-        if ll.utilization >= 1:
-            sender_rate = max(load.rate_hz(msg) for msg in bus.messages if msg.name in ll.messages)
-            diags.add("link-overload", f"link {ll.src} -> {ll.dst} on bus '{bus.name}' must carry "
-                      f"{ll.frames_per_s / 1000:.2f} kHz of frames ({ll.utilization:.1%} of its capacity, "
-                      f"{ll.utilization - 1:.1%} too much): with {n} senders f_transm must stay below f_max/n = "
-                      f"{f_max / n / 1000:.2f} kHz, but one sends at {sender_rate / 1000:.2f} kHz",
-                      m.source.at(bus.path))
-    report_deadlines(m, bus, rows, diags)
-    return {
-        "name": bus.name,
-        "protocol": bus.protocol,
-        "bitrate": bus.bitrate,
-        "utilization": round(max((ll.utilization for ll in links), default=0.0), 6),
-        "messages": rows,
-        "min_frame_us": us(ethernet.min_frame_ns(bus.bitrate)),
-        "f_max_hz": round(f_max, 3),
-        "links": link_rows,
-    }
-
-
-def _later(a: ethernet.PathDelay, b: ethernet.PathDelay) -> bool:
-    if a.total_ns is None:
-        return b.total_ns is not None
-    return b.total_ns is not None and a.total_ns > b.total_ns
 
 
 def set_verdict(row: dict[str, Any], wcrt_ns: int | None, deadline_ns: int | None) -> None:
@@ -151,3 +82,238 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
                         f"deadline of {row['deadline_us']:g} us")
             diags.add("deadline", text + "; lower the load, raise its priority or relax the deadline",
                       m.source.at(msg.path))
+
+
+def rta_frames(bus: model.Bus, msgs: list[model.Message]) -> list[can_rta.CanFrame]:
+    return [
+        can_rta.CanFrame(msg.name, msg.id, msg.extended, bits_to_ns(can_frame_bits(msg.size, msg.extended),
+                         bus.bitrate), msg.interval_ns, msg.jitter_ns, msg.deadline_ns)
+        for msg in msgs
+    ]
+
+
+def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
+    timings, worst, nominal = load.can_bus_load(bus)
+    rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
+    tau = bits_to_ns(1, bus.bitrate)
+    plain = can_rta.analyse(rta_frames(bus, bus.messages), tau)
+    for msg in bus.messages:
+        best = bits_to_ns(timings[msg.name].bits_nominal, bus.bitrate)
+        acc.plain[msg.name] = flows.Delivery(best, plain[msg.name].wcrt_ns)
+    out: dict[str, Any] = {
+        "name": bus.name,
+        "protocol": bus.protocol,
+        "bitrate": bus.bitrate,
+        "utilization": round(worst, 6),
+        "utilization_nominal": round(nominal, 6),
+        "messages": rows,
+    }
+    if bus.ftt is not None:
+        out["ftt"] = analyze_ftt(m, bus, rows, timings, diags, acc)
+        out["utilization_with_tm"] = round(worst + out["ftt"]["tm_overhead"], 6)
+    else:
+        for row, msg in zip(rows, bus.messages):
+            r = plain[msg.name]
+            set_verdict(row, r.wcrt_ns, msg.deadline_ns)
+            row["blocking_us"] = us(r.blocking_ns)
+            row["busy_period_us"] = us(r.busy_period_ns)
+            row["instances"] = r.instances
+            acc.chained[msg.name] = acc.plain[msg.name]
+    if bus.canopen is not None:
+        out["sync"] = analyze_sync(m, bus, timings, diags)
+    if worst > 1:
+        diags.add("overload", f"bus '{bus.name}' is loaded at {worst:.1%} in the worst case, "
+                  f"{worst - 1:.1%} over its capacity: slow some messages down or raise the bit rate",
+                  m.source.at(bus.path))
+    report_deadlines(m, bus, rows, diags)
+    return out
+
+
+def analyze_sync(m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming],
+                 diags: Collector) -> dict[str, Any]:
+    co = bus.canopen
+    assert co is not None
+    cycles = canopen_sync.analyse(bus, {k: t.tx_ns for k, t in timings.items()})
+    rows = []
+    for c in cycles:
+        rows.append({"cycle": c.index, "tpdos": len(c.tpdos), "completion_us": us(c.completion_ns),
+                     "limit_us": us(c.limit_ns), "slack_us": None if c.completion_ns is None else
+                     us(c.limit_ns - c.completion_ns)})
+    for c in cycles:
+        if c.completion_ns is None or c.completion_ns > c.limit_ns:
+            how = ("never: the other traffic alone fills the bus" if c.completion_ns is None else
+                   f"{c.completion_ns / 1000:g} us after SYNC, {(c.completion_ns - c.limit_ns) / 1000:g} us too late")
+            diags.add("sync-cycle", f"SYNC cycle {c.index} of bus '{bus.name}': the last of its {len(c.tpdos)} "
+                      f"synchronous TPDOs completes {how} for {c.limit_name} ({c.limit_ns / 1000:g} us); lengthen "
+                      "the cycle, move TPDOs to other cycles (transmission type n > 1) or raise the bit rate",
+                      m.source.at((*bus.path, "canopen")))
+            break
+    finished = [c.completion_ns for c in cycles if c.completion_ns is not None]
+    return {
+        "period_us": us(co.sync_period_ns),
+        "window_us": us(co.sync_window_ns),
+        "read_window_us": us(co.read_window_ns),
+        "producer": co.sync_producer,
+        "cycles_analysed": len(cycles),
+        "worst_completion_us": us(max(finished)) if len(finished) == len(cycles) and finished else None,
+        "max_tpdos_per_cycle": max((len(c.tpdos) for c in cycles), default=0),
+        "cycles": rows[:64],
+    }
+
+
+def analyze_ftt(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
+                timings: dict[str, load.FrameTiming], diags: Collector, acc: _Analysis) -> dict[str, Any]:
+    assert bus.ftt is not None
+    triggers = [t for t in m.triggers.values() if t.bus == bus.name]
+    entries = ftt.srt(bus, triggers)
+    sched = ftt.build_schedule(bus, entries)
+    fastest = ftt.build_schedule(bus, entries, fastest=True)
+    frame_ns = {msg.name: (bits_to_ns(timings[msg.name].bits_nominal, bus.bitrate), timings[msg.name].tx_ns)
+                for msg in bus.messages}
+    acc.ftt[bus.name] = flows.FttTimes(sched, frame_ns, {e.name: (e.period_ec, e.init_ec) for e in entries})
+    for label, s in (("", sched), (" at the fastest periods of period_range", fastest)):
+        for slot in s.slots:
+            if slot.sync_ns > s.lsw_ns:
+                diags.add("lsw", f"EC {slot.index}{label} of bus '{bus.name}': the synchronous messages "
+                          f"{', '.join(slot.messages)} need {slot.sync_ns / 1000:g} us, "
+                          f"{(slot.sync_ns - s.lsw_ns) / 1000:g} us more than the LSW of {s.lsw_ns / 1000:g} us; "
+                          "move an offset or lengthen the LSW", m.source.at((*bus.path, "ftt")))
+                break
+    # synchronous messages: their frame ends within the window of each EC they are due in
+    sync_worst: dict[str, int] = {}
+    for slot in sched.slots:
+        for name in slot.messages:
+            end = sched.completion(name, slot.index, frame_ns)[1]
+            sync_worst[name] = max(sync_worst.get(name, 0), end)
+    async_msgs = [msg for msg in bus.messages if msg.window == "async"]
+    async_frames = [ftt.AsyncFrame(msg.name, msg.id, timings[msg.name].tx_ns, msg.interval_ns, msg.jitter_ns)
+                    for msg in async_msgs]
+    async_worst = ftt.async_response_times(sched, async_frames)
+    for row, msg in zip(rows, bus.messages):
+        if msg.window == "sync":
+            wcrt = sync_worst.get(msg.name)
+            row["window"] = "sync"
+            row["ftt_id"] = msg.ftt_id
+        else:
+            wcrt = async_worst.get(msg.name)
+            row["window"] = "async"
+        set_verdict(row, wcrt, msg.deadline_ns)
+        row["wcrt_plain_can_us"] = us(acc.plain[msg.name].worst_ns)
+        acc.chained[msg.name] = flows.Delivery(frame_ns[msg.name][0], wcrt)
+    worst = max(sched.slots, key=lambda s: (s.sync_ns, -s.index))
+    worst_fast = max(fastest.slots, key=lambda s: (s.sync_ns, -s.index))
+    tm_ns = sched.tm_ns
+    return {
+        "ec_us": us(bus.ftt.ec_ns),
+        "tm_bits": can_frame_bits(bus.ftt.tm_size, bus.id_bits == 29),
+        "tm_us": us(tm_ns),
+        "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
+        "lsw_us": us(sched.lsw_ns),
+        "master": bus.ftt.master,
+        "macro_cycle_ec": sched.macro_cycle,
+        "srt": [srt_row(e) for e in entries],
+        "worst_ec": {"index": worst.index, "sync_us": us(worst.sync_ns), "messages": list(worst.messages),
+                     "fits": worst.sync_ns <= sched.lsw_ns},
+        "worst_ec_fastest": {"index": worst_fast.index, "sync_us": us(worst_fast.sync_ns),
+                             "messages": list(worst_fast.messages), "fits": worst_fast.sync_ns <= fastest.lsw_ns},
+        "ecs": [{"index": s.index, "ids": list(s.ids), "ec_schedule": ftt.ec_schedule_mask(s),
+                 "messages": list(s.messages), "triggers": list(s.triggers), "sync_us": us(s.sync_ns),
+                 "async_us": us(s.async_ns)} for s in sched.slots],
+    }
+
+
+def srt_row(e: ftt.SrtEntry) -> dict[str, Any]:
+    return {
+        "id": e.ftt_id, "name": e.name, "type": e.kind, "producer": e.producer, "targets": list(e.targets),
+        "size": e.size, "can_id": e.can_id, "c_bits": e.c_bits, "c_us": us(e.c_ns), "period_ec": e.period_ec,
+        "fastest_period_ec": e.fastest_period_ec, "init_ec": e.init_ec, "deadline_us": us(e.deadline_ns),
+    }
+
+
+def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
+    timings = {msg.name: load.udp_timing(msg, bus.bitrate) for msg in bus.messages}
+    links, delays = ethernet.analyse(bus, m.nodes)
+    f_max = ethernet.max_min_frame_rate(bus.bitrate)
+    worst: dict[str, ethernet.PathDelay] = {}
+    for d in delays:
+        if d.message not in worst or _later(d, worst[d.message]):
+            worst[d.message] = d
+    rows = []
+    for msg in bus.messages:
+        row = message_row(msg, timings[msg.name])
+        row["frame_bytes"] = timings[msg.name].bits_worst // 8
+        row["rate_hz"] = round(load.rate_hz(msg), 6)
+        d = worst[msg.name]
+        row["delay_us"] = {"pre": us(d.tpre_ns), "wait": us(d.twait_ns), "frame": us(d.tframe_ns),
+                           "prop": us(d.tprop_ns), "switch": us(d.tswitch_ns), "post": us(d.tpost_ns),
+                           "consumer": d.consumer, "hops": len(d.hops)}
+        set_verdict(row, d.total_ns, msg.deadline_ns)
+        best = min(x.tframe_ns + x.tprop_ns for x in delays if x.message == msg.name)
+        acc.chained[msg.name] = acc.plain[msg.name] = flows.Delivery(best, d.total_ns)
+        rows.append(row)
+    link_rows = []
+    for ll in links:
+        n = len(ll.senders)
+        link_rows.append({
+            "from": ll.src, "to": ll.dst, "messages": ll.messages, "senders": n,
+            "frames_per_s": round(ll.frames_per_s, 3), "utilization": round(ll.utilization, 6),
+            "f_max_hz": round(f_max, 3), "f_max_per_sender_hz": round(f_max / n, 3),
+            "busy_period_us": us(ll.busy_period_ns), "ok": ll.utilization < 1,
+        })
+        if ll.utilization >= 1:
+            sender_rate = max(load.rate_hz(msg) for msg in bus.messages if msg.name in ll.messages)
+            diags.add("link-overload", f"link {ll.src} -> {ll.dst} on bus '{bus.name}' must carry "
+                      f"{ll.frames_per_s / 1000:.2f} kHz of frames, {ll.utilization:.1%} of its capacity "
+                      f"({ll.utilization - 1:.1%} too much): with {n} senders, f_transm must stay below "
+                      f"f_max/n = {f_max / n / 1000:.2f} kHz but one sends at {sender_rate / 1000:.2f} kHz",
+                      m.source.at(bus.path))
+    report_deadlines(m, bus, rows, diags)
+    return {
+        "name": bus.name,
+        "protocol": bus.protocol,
+        "bitrate": bus.bitrate,
+        "utilization": round(max((ll.utilization for ll in links), default=0.0), 6),
+        "messages": rows,
+        "min_frame_us": us(ethernet.min_frame_ns(bus.bitrate)),
+        "f_max_hz": round(f_max, 3),
+        "links": link_rows,
+    }
+
+
+def _later(a: ethernet.PathDelay, b: ethernet.PathDelay) -> bool:
+    if a.total_ns is None:
+        return b.total_ns is not None
+    return b.total_ns is not None and a.total_ns > b.total_ns
+
+
+def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collector) -> dict[str, Any]:
+    unsync, delivery = flows.unsynchronised(m, flow, acc.plain)
+    sync = None
+    ftt_bus = next((m.messages[r].bus for s in flow.steps if s.kind == "message" for r in s.refs
+                    if m.messages[r].bus in acc.ftt), None)
+    if ftt_bus is not None:
+        sync = flows.synchronised(m, flow, acc.ftt[ftt_bus], acc.chained)
+    lo, hi = (sync[0] if sync else unsync)
+    out: dict[str, Any] = {
+        "name": flow.name,
+        "mode": "synchronised" if sync else "unsynchronised",
+        "latency_min_us": us(lo),
+        "latency_max_us": us(hi),
+        "jitter_us": None if hi is None else us(hi - lo),
+        "deadline_us": us(flow.deadline_ns),
+        "unsynchronised": {"latency_min_us": us(unsync[0]), "latency_max_us": us(unsync[1])},
+        "steps": [list(s.refs) if len(s.refs) > 1 else s.refs[0] for s in flow.steps],
+    }
+    if sync:
+        out["synchronised"] = {"latency_min_us": us(sync[0][0]), "latency_max_us": us(sync[0][1])}
+        if sync[1]:
+            out["synchronised"]["delivery_min_us"] = us(sync[1][0])
+            out["synchronised"]["delivery_max_us"] = us(sync[1][1])
+    if delivery:
+        out["unsynchronised"]["delivery_min_us"] = us(delivery[0])
+        out["unsynchronised"]["delivery_max_us"] = us(delivery[1])
+    if flow.deadline_ns is not None and (hi is None or hi > flow.deadline_ns):
+        how = "is unbounded" if hi is None else f"reaches {hi / 1000:g} us, {(hi - flow.deadline_ns) / 1000:g} us late"
+        diags.add("flow-deadline", f"flow '{flow.name}' {how} for its deadline of {flow.deadline_ns / 1000:g} us",
+                  m.source.at(flow.path))
+    return out

@@ -20,6 +20,7 @@ from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
 from netcfg.spec.units import Duration, format_ns
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, MAX_UDP_PAYLOAD, bits_to_ns, can_frame_bits
+from netcfg.timing.offsets import derive_offsets
 
 CAN_PROTOCOLS = ("can", "canopen", "ftt-can")
 MAX_CAN_BITRATE = 1_000_000  # classical CAN, ISO 11898-1
@@ -89,6 +90,8 @@ class _Resolver:
         self.check_identifiers()
         self.resolve_topologies()
         self.resolve_flows()
+        if not self.d.errors:
+            derive_offsets(self.model, self.err)
         self.model.warnings = list(self.d.warnings)
 
     def check_unique_names(self) -> None:
@@ -453,7 +456,7 @@ class _Resolver:
             udp_ports=(m.udp.src_port, m.udp.dst_port) if m.udp else None,
         )
 
-    def resolve_timing(self, m: schema.Message, bus: model.Bus, pdo: model.Pdo | None, path: Path, ec: int | None):  # noqa: C901
+    def resolve_timing(self, m: schema.Message, bus: model.Bus, pdo: model.Pdo | None, path: Path, ec: int | None):
         """-> (kind, period, interval, offset, offset_auto, rate) or None."""
         period = self.ns(m.period, (*path, "period"), ec)
         mit = self.ns(m.min_interarrival, (*path, "min_interarrival"), ec)
@@ -571,7 +574,7 @@ class _Resolver:
             return None
         return index, sub
 
-    def resolve_pdo(self, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path):  # noqa: C901
+    def resolve_pdo(self, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path):
         p = m.pdo
         assert p is not None
         ppath = (*path, "pdo")

@@ -1,0 +1,69 @@
+"""The CANopen SYNC cycle (CiA 301): does every synchronous TPDO answer in time?
+
+In cycle k the SYNC producer sends SYNC; every TPDO with transmission type n in 1..240 and k % n == 0 (and
+every acyclic synchronous TPDO, type 0, in the worst case) is queued on its reception. The last of them is
+done, at the latest, when the bus has carried: one frame already on the bus when SYNC was queued (blocking),
+SYNC itself, all synchronous TPDOs of that cycle, and every other frame that can be released meanwhile
+(RPDOs written by the master, event-driven PDOs, heartbeats, ...):
+    W_k = B + C_SYNC + sum over TPDOs due in k of C + sum over others of ceil(W_k / T) * C
+It must fit the synchronous window (0x1007), the master's read window and the communication cycle (0x1006).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import lcm
+
+from netcfg import model
+
+MAX_CYCLES = 240 * 8
+
+
+@dataclass(frozen=True)
+class SyncCycle:
+    index: int
+    tpdos: tuple[str, ...]
+    completion_ns: int | None  # from SYNC being queued to the last synchronous TPDO's end; None: never
+    limit_ns: int
+    limit_name: str
+
+
+def sync_transmissions(bus: model.Bus) -> dict[str, int]:
+    """Synchronous TPDOs of the bus and every how many SYNCs they go out (type 0 counts as every SYNC)."""
+    out = {}
+    for m in bus.messages:
+        if m.pdo is not None and m.pdo.kind == "tpdo" and m.pdo.transmission <= 240:
+            out[m.name] = max(1, m.pdo.transmission)
+    return out
+
+
+def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
+    co = bus.canopen
+    assert co is not None
+    sync_msg = next(m for m in bus.messages if m.implicit == "SYNC")
+    every = sync_transmissions(bus)
+    cycles = min(lcm(*every.values()) if every else 1, MAX_CYCLES)
+    limits = [(co.sync_period_ns, "the SYNC period")]
+    if co.sync_window_ns is not None:
+        limits.append((co.sync_window_ns, "the synchronous window (0x1007)"))
+    if co.read_window_ns is not None:
+        limits.append((co.read_window_ns, "the master's read window"))
+    limit_ns, limit_name = min(limits)
+    blocking = max(frame_ns.values(), default=0)
+    out = []
+    for k in range(cycles):
+        due = tuple(name for name, n in every.items() if k % n == 0)
+        others = [m for m in bus.messages if m is not sync_msg and m.name not in every]
+        fixed = frame_ns[sync_msg.name] + sum(frame_ns[n] for n in due) + blocking
+        rate = sum(frame_ns[m.name] / m.interval_ns for m in others if m.interval_ns)
+        if rate >= 1:
+            out.append(SyncCycle(k, due, None, limit_ns, limit_name))
+            continue
+        w = fixed + sum(frame_ns[m.name] for m in others)
+        while True:
+            nxt = fixed + sum(frame_ns[m.name] * (-(-w // m.interval_ns) if m.interval_ns else 1) for m in others)
+            if nxt == w:
+                break
+            w = nxt
+        out.append(SyncCycle(k, due, w, limit_ns, limit_name))
+    return out

@@ -1,0 +1,211 @@
+"""End-to-end latency of flows: from the first producer's activation to the last consumer's use.
+
+Two models, reported side by side where both apply (seed 002, Table 3 and Figure 4):
+
+* unsynchronised: every node runs on its own clock. A task that consumes data waits up to one of its periods
+  for its next activation (0 for a task started by the message itself); a message sent by the task that
+  produced the data goes out at once and takes between its nominal frame time and its worst-case response
+  time; a message with its own period, different from its producer's, first waits up to one period.
+* synchronised (FTT-CAN): the master's schedule fixes when every synchronous message is sent and every
+  triggered task starts, so each step takes the first instance at or after the moment its data is ready,
+  and the latency range comes out of the schedule itself, over every instance of the macro-cycle.
+
+A step may hold several items in parallel; the data of all of them is needed, so the step ends with the last.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from netcfg import model
+from netcfg.timing.ftt import Schedule
+
+
+@dataclass(frozen=True)
+class Delivery:
+    """From the moment a message is queued to its reception: (best, worst); worst None when unbounded."""
+
+    best_ns: int
+    worst_ns: int | None
+
+
+@dataclass(frozen=True)
+class FttTimes:
+    schedule: Schedule
+    frame_ns: dict[str, tuple[int, int]]  # message -> (nominal, worst) frame time
+    entries: dict[str, tuple[int, int]]  # synchronous message or trigger -> (period, init) in ECs
+
+
+@dataclass(frozen=True)
+class FlowLatency:
+    name: str
+    unsync: tuple[int, int | None]
+    sync: tuple[int, int] | None
+    delivery_unsync: tuple[int, int | None] | None  # to the last message's reception
+    delivery_sync: tuple[int, int] | None
+
+
+def _add(a: int | None, b: int | None) -> int | None:
+    return None if a is None or b is None else a + b
+
+
+def task_period(m: model.Model, task: model.Task) -> int | None:
+    if task.on_message is not None:
+        return 0
+    if task.trigger is not None:
+        return m.triggers[task.trigger].interval_ns
+    return task.period_ns
+
+
+def unsynchronised(m: model.Model, flow: model.Flow, chained: dict[str, Delivery]) -> tuple[
+        tuple[int, int | None], tuple[int, int | None] | None]:
+    lo, hi = 0, 0  # type: int, int | None
+    refresh: int | None = None  # how often the data reaching this step is renewed
+    delivery: tuple[int, int | None] | None = None
+    prev: model.FlowStep | None = None
+    for i, step in enumerate(flow.steps):
+        last = i == len(flow.steps) - 1
+        outs: list[tuple[int, int | None]] = []
+        periods: list[int] = []
+        for ref in step.refs:
+            if step.kind == "message":
+                msg = m.messages[ref]
+                d = chained[ref]
+                wait = 0
+                if msg.kind == "periodic" and i and not _sent_by_producer(m, msg, prev):
+                    wait = _sampling(msg.interval_ns, refresh)
+                outs.append((lo + d.best_ns, _add(_add(hi, wait), d.worst_ns)))
+                periods.append(msg.interval_ns or 0)
+            else:
+                task = m.task(ref)
+                period = task_period(m, task)
+                wait = _sampling(period, refresh) if i and task.on_message is None else 0
+                start_hi = _add(hi, wait)
+                outs.append((lo, start_hi) if last else (lo + task.bcet_ns, _add(start_hi, task.wcet_ns)))
+                periods.append(period or 0)
+        lo = max(o[0] for o in outs)
+        hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
+        if step.kind == "message":
+            delivery = (lo, hi)
+        # an event-driven task passes its input's rate on
+        refresh = max(periods) or refresh
+        prev = step
+    return (lo, hi), delivery
+
+
+def _sampling(consumer_period: int | None, refresh: int | None) -> int:
+    """Worst sampling delay of a free-running consumer: up to one of its periods, and never more than the
+    input's renewal period (a slower consumer always reads data renewed within that period: its age counts)."""
+    candidates = [p for p in (consumer_period, refresh) if p]
+    return min(candidates) if candidates else 0
+
+
+def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> bool:
+    """True when the task before the message in the flow sends it as it finishes (same rate)."""
+    if prev is None or prev.kind != "task":
+        return False
+    for ref in prev.refs:
+        task = m.task(ref)
+        if task.node == msg.producer and task_period(m, task) in (msg.period_ns, msg.interval_ns):
+            return True
+    return False
+
+
+def synchronised(m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery]) -> tuple[
+        tuple[int, int], tuple[int, int] | None] | None:
+    """Latency range over every start instance in the macro-cycle; None when some step is not time-triggered."""
+    s = ftt.schedule
+    ec = s.ec_ns
+
+    def sync_msg(ref: str) -> bool:
+        return ref in ftt.entries and ref in ftt.frame_ns
+
+    def send_time(ref: str, k: int) -> int:
+        return k * ec + s.window_start(k)
+
+    def due(ref: str, k: int) -> bool:
+        period, init = ftt.entries[ref]
+        return (k - init) % period == 0
+
+    def next_send(ref: str, t: int) -> int:
+        k = t // ec - 1
+        while not (due(ref, k) and send_time(ref, k) >= t):
+            k += 1
+        return k
+
+    def next_activation(task: model.Task, t: int) -> int:
+        period, init = ftt.entries[task.trigger]  # type: ignore[index]
+        k = -(-(t - s.tm_ns) // ec)
+        while (k - init) % period:
+            k += 1
+        return k * ec + s.tm_ns
+
+    first = flow.steps[0]
+    for step in flow.steps:
+        for ref in step.refs:
+            if step.kind == "task":
+                task = m.task(ref)
+                if task.trigger is None and task.on_message is None:
+                    return None
+            elif ref not in chained:
+                return None
+    # start instances: every activation / transmission of the first step's first item, over two macro-cycles
+    # (the second only to see which start's data the next use actually takes)
+    starts = []
+    head = first.refs[0]
+    for k in range(2 * s.macro_cycle):
+        if first.kind == "task":
+            task = m.task(head)
+            if task.trigger is not None and due(task.trigger, k):
+                starts.append(k * ec + s.tm_ns)
+        elif sync_msg(head) and due(head, k):
+            starts.append(send_time(head, k))
+    if not starts:
+        return None
+    runs = []
+    for start in starts:
+        lo = hi = start
+        got: tuple[int, int] | None = None
+        for i, step in enumerate(flow.steps):
+            last = i == len(flow.steps) - 1
+            outs = []
+            for ref in step.refs:
+                if step.kind == "message" and sync_msg(ref):
+                    k_lo, k_hi = next_send(ref, lo), next_send(ref, hi)
+                    outs.append((k_lo * ec + s.completion(ref, k_lo, ftt.frame_ns)[0],
+                                 k_hi * ec + s.completion(ref, k_hi, ftt.frame_ns)[1]))
+                elif step.kind == "message":
+                    d = chained[ref]
+                    if d.worst_ns is None:
+                        return None
+                    outs.append((lo + d.best_ns, hi + d.worst_ns))
+                else:
+                    task = m.task(ref)
+                    if task.trigger is not None:
+                        a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
+                    else:  # started by a message
+                        a_lo, a_hi = lo, hi
+                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + task.wcet_ns))
+            lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
+            if step.kind == "message":
+                got = (lo, hi)
+        runs.append((start, lo, hi, got))
+    # Data age: a use takes the freshest data, so of several starts that reach the same use only the last counts.
+    lat_lo: int | None = None
+    lat_hi = 0
+    del_lo: int | None = None
+    del_hi = 0
+    for (start, lo, hi, got), nxt in zip(runs, runs[1:]):
+        if start >= s.macro_cycle * ec:
+            break
+        if nxt[1] > lo:
+            lat_lo = lo - start if lat_lo is None else min(lat_lo, lo - start)
+            if got:
+                del_lo = got[0] - start if del_lo is None else min(del_lo, got[0] - start)
+        if nxt[2] > hi:
+            lat_hi = max(lat_hi, hi - start)
+            if got:
+                del_hi = max(del_hi, got[1] - start)
+    if lat_lo is None:
+        return None
+    return (lat_lo, lat_hi), (None if del_lo is None else (del_lo, del_hi))

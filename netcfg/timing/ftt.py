@@ -1,0 +1,200 @@
+"""FTT-CAN: the Synchronous Requirements Table, the master's per-EC schedule, and the windows' analysis.
+
+Following Almeida, Pedreiras and Fonseca, "The FTT-CAN protocol: why and how", IEEE Transactions on
+Industrial Electronics 49(6), 2002, and the CAMBADA paper (seed 002, section 5.1): the master starts every
+elementary cycle (EC) with the trigger message (TM), whose EC-schedule has one bit per synchronous id due in
+that EC (messages and task triggers). The asynchronous window follows the TM; the synchronous window closes
+the EC, its length the worst-case transmission time of the messages due, bounded by LSW. An asynchronous
+frame is started only if it can finish before the synchronous window, so up to one maximum asynchronous frame
+of inserted idle time precedes it (Almeida and Fonseca, "Analysis of a simple model for non-preemptive
+blocking-free scheduling", ECRTS 2001).
+
+Asynchronous messages are analysed as in Pedreiras and Almeida, "Combining event-triggered and time-triggered
+traffic in FTT-CAN: analysis of the asynchronous messaging system", WFCS 2000: a message released just after
+the last instant an asynchronous frame could start in some EC waits for the windows that follow; its response
+is the time at which the asynchronous service, window by window, has carried its level-m workload
+W(t) = C_m + max lower-priority C + sum over hp of ceil((t + J_k) / T_k) * C_k.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import lcm
+
+from netcfg import model
+from netcfg.timing.frames import bits_to_ns, can_frame_bits
+
+
+@dataclass(frozen=True)
+class SrtEntry:
+    ftt_id: int
+    name: str
+    kind: str  # "message" | "trigger"
+    producer: str | None
+    targets: tuple[str, ...]  # consumers of a message, node.task activated by a trigger
+    size: int
+    can_id: int | None
+    c_bits: int
+    c_ns: int
+    period_ec: int
+    fastest_period_ec: int
+    init_ec: int  # first EC in which it is due (Table 2's "init time")
+    deadline_ns: int | None
+
+    def due(self, ec: int, period: int | None = None) -> bool:
+        p = period or self.period_ec
+        return (ec - self.init_ec) % p == 0
+
+
+@dataclass(frozen=True)
+class EcSlot:
+    index: int
+    messages: tuple[str, ...]  # synchronous messages in window order (CAN arbitration: lowest id first)
+    triggers: tuple[str, ...]
+    ids: tuple[int, ...]  # FTT ids announced by the TM
+    sync_ns: int  # synchronous window length (worst-case frames)
+    async_ns: int  # what is left for the asynchronous window
+
+
+@dataclass(frozen=True)
+class Schedule:
+    ec_ns: int
+    tm_ns: int
+    lsw_ns: int
+    entries: tuple[SrtEntry, ...]
+    slots: tuple[EcSlot, ...]  # one per EC of the macro-cycle
+
+    @property
+    def macro_cycle(self) -> int:
+        return len(self.slots)
+
+    def window_start(self, ec: int) -> int:
+        """Start of EC ec's synchronous window, from the EC start."""
+        return self.ec_ns - self.slots[ec % self.macro_cycle].sync_ns
+
+    def completion(self, name: str, ec: int, frame_ns: dict[str, tuple[int, int]]) -> tuple[int, int]:
+        """(best, worst) end of message `name`'s frame in EC ec, from the EC start. frame_ns gives each
+        message's (nominal, worst-case) frame time; the window's frames go out in identifier order."""
+        slot = self.slots[ec % self.macro_cycle]
+        best = worst = self.window_start(ec)
+        for other in slot.messages:
+            best += frame_ns[other][0]
+            worst += frame_ns[other][1]
+            if other == name:
+                return best, worst
+        raise KeyError(name)
+
+
+def tm_time_ns(bus: model.Bus) -> int:
+    assert bus.ftt is not None
+    return bits_to_ns(can_frame_bits(bus.ftt.tm_size, bus.id_bits == 29), bus.bitrate)
+
+
+def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
+    """The Synchronous Requirements Table: every synchronous message and trigger, by FTT id."""
+    assert bus.ftt is not None
+    ec = bus.ftt.ec_ns
+    out = []
+    for m in bus.messages:
+        if m.window != "sync" or m.ftt_id is None or m.period_ns is None:
+            continue
+        bits = can_frame_bits(m.size, m.extended)
+        out.append(SrtEntry(
+            ftt_id=m.ftt_id, name=m.name, kind="message", producer=m.producer, targets=m.consumers, size=m.size,
+            can_id=m.id, c_bits=bits, c_ns=bits_to_ns(bits, bus.bitrate), period_ec=m.period_ns // ec,
+            fastest_period_ec=(m.interval_ns or m.period_ns) // ec, init_ec=(m.offset_ns or 0) // ec,
+            deadline_ns=m.deadline_ns,
+        ))
+    for t in triggers:
+        out.append(SrtEntry(
+            ftt_id=t.ftt_id, name=t.name, kind="trigger", producer=None, targets=t.tasks, size=0, can_id=None,
+            c_bits=0, c_ns=0, period_ec=t.period_ns // ec, fastest_period_ec=t.interval_ns // ec,
+            init_ec=(t.offset_ns or 0) // ec, deadline_ns=None,
+        ))
+    return sorted(out, key=lambda e: e.ftt_id)
+
+
+def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = False) -> Schedule:
+    """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs)."""
+    assert bus.ftt is not None
+    ec = bus.ftt.ec_ns
+    tm = tm_time_ns(bus)
+    periods = [e.fastest_period_ec if fastest else e.period_ec for e in entries]
+    macro = lcm(*periods) if periods else 1
+    by_can_id = sorted((e for e in entries if e.kind == "message"), key=lambda e: e.can_id or 0)
+    slots = []
+    for k in range(macro):
+        msgs = [e for e in by_can_id if e.due(k, e.fastest_period_ec if fastest else None)]
+        trigs = [e for e in entries if e.kind == "trigger" and e.due(k, e.fastest_period_ec if fastest else None)]
+        sync = sum(e.c_ns for e in msgs)
+        due = sorted(e.ftt_id for e in (*msgs, *trigs))
+        slots.append(EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync,
+                            ec - tm - sync))
+    lsw = bus.ftt.lsw_ns if bus.ftt.lsw_ns is not None else ec - tm
+    return Schedule(ec, tm, lsw, tuple(entries), tuple(slots))
+
+
+def ec_schedule_mask(slot: EcSlot) -> int:
+    """The TM's EC-schedule as an integer: bit i set when FTT id i is due."""
+    mask = 0
+    for i in slot.ids:
+        mask |= 1 << i
+    return mask
+
+
+@dataclass(frozen=True)
+class AsyncFrame:
+    name: str
+    can_id: int
+    c_ns: int
+    t_ns: int | None
+    j_ns: int = 0
+
+
+def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str, int | None]:
+    """Worst-case response of each asynchronous message over all ECs of the macro-cycle (None: unbounded)."""
+    if not frames:
+        return {}
+    idle = max(f.c_ns for f in frames)  # inserted idle time before each synchronous window
+    supply = [max(0, s.async_ns - idle) for s in sched.slots]
+    cycle_supply = sum(supply)
+    if cycle_supply == 0:
+        return {f.name: None for f in frames}
+    ordered = sorted(frames, key=lambda f: f.can_id)
+    out: dict[str, int | None] = {}
+    for i, f in enumerate(ordered):
+        hp = ordered[:i]
+        blocking = max((g.c_ns for g in ordered[i + 1:]), default=0)
+        rate = sum(g.c_ns / g.t_ns for g in hp if g.t_ns) * sched.ec_ns * sched.macro_cycle
+        if rate >= cycle_supply:
+            out[f.name] = None
+            continue
+        worst = 0
+        for start in range(sched.macro_cycle):
+            t = 0
+            while True:
+                demand = f.c_ns + blocking + sum(
+                    g.c_ns * (-(-(t + g.j_ns) // g.t_ns) if g.t_ns else 1) for g in hp
+                )
+                served = _time_to_serve(sched, supply, start, demand)
+                if served <= t:
+                    break
+                t = served
+            worst = max(worst, t + f.j_ns)
+        out[f.name] = worst
+    return out
+
+
+def _time_to_serve(sched: Schedule, supply: list[int], start: int, demand: int) -> int:
+    """Time, from the end of EC start's usable asynchronous window, until `demand` ns of asynchronous
+    service have been given in the following ECs' windows."""
+    ec, tm, n = sched.ec_ns, sched.tm_ns, sched.macro_cycle
+    origin = start * ec + tm + supply[start]  # just too late to start in this EC's window
+    k = start + 1
+    left = demand
+    while True:
+        cap = supply[k % n]
+        if left <= cap:
+            return k * ec + tm + left - origin
+        left -= cap
+        k += 1
