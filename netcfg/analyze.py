@@ -75,19 +75,31 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
         if row["schedulable"] is False:
             msg = by_name[row["name"]]
             if row["wcrt_us"] is None:
-                text = (f"message '{msg.name}' has no bounded worst-case response time: the traffic at its "
-                        "priority or on its path reaches 100% of the capacity")
+                text = (
+                    f"message '{msg.name}' has no bounded worst-case response time: the traffic at its "
+                    "priority or on its path reaches 100% of the capacity"
+                )
             else:
-                text = (f"message '{msg.name}' can take {row['wcrt_us']:g} us, {-row['slack_us']:g} us past its "
-                        f"deadline of {row['deadline_us']:g} us")
-            diags.add("deadline", text + "; lower the load, raise its priority or relax the deadline",
-                      m.source.at(msg.path))
+                text = (
+                    f"message '{msg.name}' can take {row['wcrt_us']:g} us, {-row['slack_us']:g} us past its "
+                    f"deadline of {row['deadline_us']:g} us"
+                )
+            diags.add(
+                "deadline", text + "; lower the load, raise its priority or relax the deadline", m.source.at(msg.path)
+            )
 
 
 def rta_frames(bus: model.Bus, msgs: list[model.Message]) -> list[can_rta.CanFrame]:
     return [
-        can_rta.CanFrame(msg.name, msg.id, msg.extended, bits_to_ns(can_frame_bits(msg.size, msg.extended),
-                         bus.bitrate), msg.interval_ns, msg.jitter_ns, msg.deadline_ns)
+        can_rta.CanFrame(
+            msg.name,
+            msg.id,
+            msg.extended,
+            bits_to_ns(can_frame_bits(msg.size, msg.extended), bus.bitrate),
+            msg.interval_ns,
+            msg.jitter_ns,
+            msg.deadline_ns,
+        )
         for msg in msgs
     ]
 
@@ -122,31 +134,47 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     if bus.canopen is not None:
         out["sync"] = analyze_sync(m, bus, timings, diags)
     if worst > 1:
-        diags.add("overload", f"bus '{bus.name}' is loaded at {worst:.1%} in the worst case, "
-                  f"{worst - 1:.1%} over its capacity: slow some messages down or raise the bit rate",
-                  m.source.at(bus.path))
+        diags.add(
+            "overload",
+            f"bus '{bus.name}' is loaded at {worst:.1%} in the worst case, "
+            f"{worst - 1:.1%} over its capacity: slow some messages down or raise the bit rate",
+            m.source.at(bus.path),
+        )
     report_deadlines(m, bus, rows, diags)
     return out
 
 
-def analyze_sync(m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming],
-                 diags: Collector) -> dict[str, Any]:
+def analyze_sync(
+    m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming], diags: Collector
+) -> dict[str, Any]:
     co = bus.canopen
     assert co is not None
     cycles = canopen_sync.analyse(bus, {k: t.tx_ns for k, t in timings.items()})
     rows = []
     for c in cycles:
-        rows.append({"cycle": c.index, "tpdos": len(c.tpdos), "completion_us": us(c.completion_ns),
-                     "limit_us": us(c.limit_ns), "slack_us": None if c.completion_ns is None else
-                     us(c.limit_ns - c.completion_ns)})
+        rows.append(
+            {
+                "cycle": c.index,
+                "tpdos": len(c.tpdos),
+                "completion_us": us(c.completion_ns),
+                "limit_us": us(c.limit_ns),
+                "slack_us": None if c.completion_ns is None else us(c.limit_ns - c.completion_ns),
+            }
+        )
     for c in cycles:
         if c.completion_ns is None or c.completion_ns > c.limit_ns:
-            how = ("never: the other traffic alone fills the bus" if c.completion_ns is None else
-                   f"{c.completion_ns / 1000:g} us after SYNC, {(c.completion_ns - c.limit_ns) / 1000:g} us too late")
-            diags.add("sync-cycle", f"SYNC cycle {c.index} of bus '{bus.name}': the last of its {len(c.tpdos)} "
-                      f"synchronous TPDOs completes {how} for {c.limit_name} ({c.limit_ns / 1000:g} us); lengthen "
-                      "the cycle, move TPDOs to other cycles (transmission type n > 1) or raise the bit rate",
-                      m.source.at((*bus.path, "canopen")))
+            how = (
+                "never: the other traffic alone fills the bus"
+                if c.completion_ns is None
+                else f"{c.completion_ns / 1000:g} us after SYNC, {(c.completion_ns - c.limit_ns) / 1000:g} us too late"
+            )
+            diags.add(
+                "sync-cycle",
+                f"SYNC cycle {c.index} of bus '{bus.name}': the last of its {len(c.tpdos)} "
+                f"synchronous TPDOs completes {how} for {c.limit_name} ({c.limit_ns / 1000:g} us); lengthen "
+                "the cycle, move TPDOs to other cycles (transmission type n > 1) or raise the bit rate",
+                m.source.at((*bus.path, "canopen")),
+            )
             break
     finished = [c.completion_ns for c in cycles if c.completion_ns is not None]
     return {
@@ -161,23 +189,35 @@ def analyze_sync(m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTi
     }
 
 
-def analyze_ftt(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
-                timings: dict[str, load.FrameTiming], diags: Collector, acc: _Analysis) -> dict[str, Any]:
+def analyze_ftt(
+    m: model.Model,
+    bus: model.Bus,
+    rows: list[dict[str, Any]],
+    timings: dict[str, load.FrameTiming],
+    diags: Collector,
+    acc: _Analysis,
+) -> dict[str, Any]:
     assert bus.ftt is not None
     triggers = [t for t in m.triggers.values() if t.bus == bus.name]
     entries = ftt.srt(bus, triggers)
     sched = ftt.build_schedule(bus, entries)
     fastest = ftt.build_schedule(bus, entries, fastest=True)
-    frame_ns = {msg.name: (bits_to_ns(timings[msg.name].bits_nominal, bus.bitrate), timings[msg.name].tx_ns)
-                for msg in bus.messages}
+    frame_ns = {
+        msg.name: (bits_to_ns(timings[msg.name].bits_nominal, bus.bitrate), timings[msg.name].tx_ns)
+        for msg in bus.messages
+    }
     acc.ftt[bus.name] = flows.FttTimes(sched, frame_ns, {e.name: (e.period_ec, e.init_ec) for e in entries})
     for label, s in (("", sched), (" at the fastest periods of period_range", fastest)):
         for slot in s.slots:
             if slot.sync_ns > s.lsw_ns:
-                diags.add("lsw", f"EC {slot.index}{label} of bus '{bus.name}': the synchronous messages "
-                          f"{', '.join(slot.messages)} need {slot.sync_ns / 1000:g} us, "
-                          f"{(slot.sync_ns - s.lsw_ns) / 1000:g} us more than the LSW of {s.lsw_ns / 1000:g} us; "
-                          "move an offset or lengthen the LSW", m.source.at((*bus.path, "ftt")))
+                diags.add(
+                    "lsw",
+                    f"EC {slot.index}{label} of bus '{bus.name}': the synchronous messages "
+                    f"{', '.join(slot.messages)} need {slot.sync_ns / 1000:g} us, "
+                    f"{(slot.sync_ns - s.lsw_ns) / 1000:g} us more than the LSW of {s.lsw_ns / 1000:g} us; "
+                    "move an offset or lengthen the LSW",
+                    m.source.at((*bus.path, "ftt")),
+                )
                 break
     # synchronous messages: their frame ends within the window of each EC they are due in
     sync_worst: dict[str, int] = {}
@@ -186,8 +226,9 @@ def analyze_ftt(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
             end = sched.completion(name, slot.index, frame_ns)[1]
             sync_worst[name] = max(sync_worst.get(name, 0), end)
     async_msgs = [msg for msg in bus.messages if msg.window == "async"]
-    async_frames = [ftt.AsyncFrame(msg.name, msg.id, timings[msg.name].tx_ns, msg.interval_ns, msg.jitter_ns)
-                    for msg in async_msgs]
+    async_frames = [
+        ftt.AsyncFrame(msg.name, msg.id, timings[msg.name].tx_ns, msg.interval_ns, msg.jitter_ns) for msg in async_msgs
+    ]
     async_worst = ftt.async_response_times(sched, async_frames)
     for row, msg in zip(rows, bus.messages):
         if msg.window == "sync":
@@ -212,21 +253,48 @@ def analyze_ftt(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
         "master": bus.ftt.master,
         "macro_cycle_ec": sched.macro_cycle,
         "srt": [srt_row(e) for e in entries],
-        "worst_ec": {"index": worst.index, "sync_us": us(worst.sync_ns), "messages": list(worst.messages),
-                     "fits": worst.sync_ns <= sched.lsw_ns},
-        "worst_ec_fastest": {"index": worst_fast.index, "sync_us": us(worst_fast.sync_ns),
-                             "messages": list(worst_fast.messages), "fits": worst_fast.sync_ns <= fastest.lsw_ns},
-        "ecs": [{"index": s.index, "ids": list(s.ids), "ec_schedule": ftt.ec_schedule_mask(s),
-                 "messages": list(s.messages), "triggers": list(s.triggers), "sync_us": us(s.sync_ns),
-                 "async_us": us(s.async_ns)} for s in sched.slots],
+        "worst_ec": {
+            "index": worst.index,
+            "sync_us": us(worst.sync_ns),
+            "messages": list(worst.messages),
+            "fits": worst.sync_ns <= sched.lsw_ns,
+        },
+        "worst_ec_fastest": {
+            "index": worst_fast.index,
+            "sync_us": us(worst_fast.sync_ns),
+            "messages": list(worst_fast.messages),
+            "fits": worst_fast.sync_ns <= fastest.lsw_ns,
+        },
+        "ecs": [
+            {
+                "index": s.index,
+                "ids": list(s.ids),
+                "ec_schedule": ftt.ec_schedule_mask(s),
+                "messages": list(s.messages),
+                "triggers": list(s.triggers),
+                "sync_us": us(s.sync_ns),
+                "async_us": us(s.async_ns),
+            }
+            for s in sched.slots
+        ],
     }
 
 
 def srt_row(e: ftt.SrtEntry) -> dict[str, Any]:
     return {
-        "id": e.ftt_id, "name": e.name, "type": e.kind, "producer": e.producer, "targets": list(e.targets),
-        "size": e.size, "can_id": e.can_id, "c_bits": e.c_bits, "c_us": us(e.c_ns), "period_ec": e.period_ec,
-        "fastest_period_ec": e.fastest_period_ec, "init_ec": e.init_ec, "deadline_us": us(e.deadline_ns),
+        "id": e.ftt_id,
+        "name": e.name,
+        "type": e.kind,
+        "producer": e.producer,
+        "targets": list(e.targets),
+        "size": e.size,
+        "can_id": e.can_id,
+        "c_bits": e.c_bits,
+        "c_us": us(e.c_ns),
+        "period_ec": e.period_ec,
+        "fastest_period_ec": e.fastest_period_ec,
+        "init_ec": e.init_ec,
+        "deadline_us": us(e.deadline_ns),
     }
 
 
@@ -244,9 +312,16 @@ def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Ana
         row["frame_bytes"] = timings[msg.name].bits_worst // 8
         row["rate_hz"] = round(load.rate_hz(msg), 6)
         d = worst[msg.name]
-        row["delay_us"] = {"pre": us(d.tpre_ns), "wait": us(d.twait_ns), "frame": us(d.tframe_ns),
-                           "prop": us(d.tprop_ns), "switch": us(d.tswitch_ns), "post": us(d.tpost_ns),
-                           "consumer": d.consumer, "hops": len(d.hops)}
+        row["delay_us"] = {
+            "pre": us(d.tpre_ns),
+            "wait": us(d.twait_ns),
+            "frame": us(d.tframe_ns),
+            "prop": us(d.tprop_ns),
+            "switch": us(d.tswitch_ns),
+            "post": us(d.tpost_ns),
+            "consumer": d.consumer,
+            "hops": len(d.hops),
+        }
         set_verdict(row, d.total_ns, msg.deadline_ns)
         best = min(x.tframe_ns + x.tprop_ns for x in delays if x.message == msg.name)
         acc.chained[msg.name] = acc.plain[msg.name] = flows.Delivery(best, d.total_ns)
@@ -254,19 +329,30 @@ def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Ana
     link_rows = []
     for ll in links:
         n = len(ll.senders)
-        link_rows.append({
-            "from": ll.src, "to": ll.dst, "messages": ll.messages, "senders": n,
-            "frames_per_s": round(ll.frames_per_s, 3), "utilization": round(ll.utilization, 6),
-            "f_max_hz": round(f_max, 3), "f_max_per_sender_hz": round(f_max / n, 3),
-            "busy_period_us": us(ll.busy_period_ns), "ok": ll.utilization < 1,
-        })
+        link_rows.append(
+            {
+                "from": ll.src,
+                "to": ll.dst,
+                "messages": ll.messages,
+                "senders": n,
+                "frames_per_s": round(ll.frames_per_s, 3),
+                "utilization": round(ll.utilization, 6),
+                "f_max_hz": round(f_max, 3),
+                "f_max_per_sender_hz": round(f_max / n, 3),
+                "busy_period_us": us(ll.busy_period_ns),
+                "ok": ll.utilization < 1,
+            }
+        )
         if ll.utilization >= 1:
             sender_rate = max(load.rate_hz(msg) for msg in bus.messages if msg.name in ll.messages)
-            diags.add("link-overload", f"link {ll.src} -> {ll.dst} on bus '{bus.name}' must carry "
-                      f"{ll.frames_per_s / 1000:.2f} kHz of frames, {ll.utilization:.1%} of its capacity "
-                      f"({ll.utilization - 1:.1%} too much): with {n} senders, f_transm must stay below "
-                      f"f_max/n = {f_max / n / 1000:.2f} kHz but one sends at {sender_rate / 1000:.2f} kHz",
-                      m.source.at(bus.path))
+            diags.add(
+                "link-overload",
+                f"link {ll.src} -> {ll.dst} on bus '{bus.name}' must carry "
+                f"{ll.frames_per_s / 1000:.2f} kHz of frames, {ll.utilization:.1%} of its capacity "
+                f"({ll.utilization - 1:.1%} too much): with {n} senders, f_transm must stay below "
+                f"f_max/n = {f_max / n / 1000:.2f} kHz but one sends at {sender_rate / 1000:.2f} kHz",
+                m.source.at(bus.path),
+            )
     report_deadlines(m, bus, rows, diags)
     return {
         "name": bus.name,
@@ -289,11 +375,13 @@ def _later(a: ethernet.PathDelay, b: ethernet.PathDelay) -> bool:
 def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collector) -> dict[str, Any]:
     unsync, delivery = flows.unsynchronised(m, flow, acc.plain)
     sync = None
-    ftt_bus = next((m.messages[r].bus for s in flow.steps if s.kind == "message" for r in s.refs
-                    if m.messages[r].bus in acc.ftt), None)
+    ftt_bus = next(
+        (m.messages[r].bus for s in flow.steps if s.kind == "message" for r in s.refs if m.messages[r].bus in acc.ftt),
+        None,
+    )
     if ftt_bus is not None:
         sync = flows.synchronised(m, flow, acc.ftt[ftt_bus], acc.chained)
-    lo, hi = (sync[0] if sync else unsync)
+    lo, hi = sync[0] if sync else unsync
     out: dict[str, Any] = {
         "name": flow.name,
         "mode": "synchronised" if sync else "unsynchronised",
@@ -314,6 +402,9 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
         out["unsynchronised"]["delivery_max_us"] = us(delivery[1])
     if flow.deadline_ns is not None and (hi is None or hi > flow.deadline_ns):
         how = "is unbounded" if hi is None else f"reaches {hi / 1000:g} us, {(hi - flow.deadline_ns) / 1000:g} us late"
-        diags.add("flow-deadline", f"flow '{flow.name}' {how} for its deadline of {flow.deadline_ns / 1000:g} us",
-                  m.source.at(flow.path))
+        diags.add(
+            "flow-deadline",
+            f"flow '{flow.name}' {how} for its deadline of {flow.deadline_ns / 1000:g} us",
+            m.source.at(flow.path),
+        )
     return out

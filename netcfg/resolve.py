@@ -97,17 +97,27 @@ class _Resolver:
     def check_unique_names(self) -> None:
         kinds: list[tuple[str, list[tuple[str, Path]]]] = [
             ("bus", [(b.name, ("buses", i, "name")) for i, b in enumerate(self.spec.buses)]),
-            ("node or switch", [(n.name, ("nodes", i, "name")) for i, n in enumerate(self.spec.nodes)]
-             + [(s.name, ("buses", i, "ethernet", "switches", j, "name"))
-                for i, b in enumerate(self.spec.buses) if b.ethernet
-                for j, s in enumerate(b.ethernet.switches)]),
-            ("message or trigger", [(m.name, ("messages", i, "name")) for i, m in enumerate(self.spec.messages)]
-             + [(t.name, ("triggers", i, "name")) for i, t in enumerate(self.spec.triggers)]),
+            (
+                "node or switch",
+                [(n.name, ("nodes", i, "name")) for i, n in enumerate(self.spec.nodes)]
+                + [
+                    (s.name, ("buses", i, "ethernet", "switches", j, "name"))
+                    for i, b in enumerate(self.spec.buses)
+                    if b.ethernet
+                    for j, s in enumerate(b.ethernet.switches)
+                ],
+            ),
+            (
+                "message or trigger",
+                [(m.name, ("messages", i, "name")) for i, m in enumerate(self.spec.messages)]
+                + [(t.name, ("triggers", i, "name")) for i, t in enumerate(self.spec.triggers)],
+            ),
             ("flow", [(f.name, ("flows", i, "name")) for i, f in enumerate(self.spec.flows)]),
         ]
         for i, n in enumerate(self.spec.nodes):
-            kinds.append((f"task of node {n.name}", [(t.name, ("nodes", i, "tasks", j, "name"))
-                                                     for j, t in enumerate(n.tasks)]))
+            kinds.append(
+                (f"task of node {n.name}", [(t.name, ("nodes", i, "tasks", j, "name")) for j, t in enumerate(n.tasks)])
+            )
         for kind, items in kinds:
             seen: dict[str, str] = {}
             for name, path in items:
@@ -124,21 +134,35 @@ class _Resolver:
             sections = {"ftt-can": "ftt", "canopen": "canopen", "ethernet-udp": "ethernet"}
             for proto, key in sections.items():
                 if getattr(b, key) is not None and b.protocol != proto:
-                    self.err("wrong-section", f"bus '{b.name}' is {b.protocol}; '{key}:' belongs to {proto} buses",
-                             (*path, key))
+                    self.err(
+                        "wrong-section",
+                        f"bus '{b.name}' is {b.protocol}; '{key}:' belongs to {proto} buses",
+                        (*path, key),
+                    )
             if b.protocol in CAN_PROTOCOLS and b.bitrate > MAX_CAN_BITRATE:
-                self.err("bitrate", f"classical CAN runs at most 1 Mbit/s; bus '{b.name}' says {b.bitrate} bit/s",
-                         (*path, "bitrate"))
-            bus = model.Bus(name=b.name, protocol=b.protocol, bitrate=b.bitrate, id_bits=b.id_bits,
-                            nodes=[n.name for n in self.spec.nodes if b.name in n.buses], messages=[], path=path)
+                self.err(
+                    "bitrate",
+                    f"classical CAN runs at most 1 Mbit/s; bus '{b.name}' says {b.bitrate} bit/s",
+                    (*path, "bitrate"),
+                )
+            bus = model.Bus(
+                name=b.name,
+                protocol=b.protocol,
+                bitrate=b.bitrate,
+                id_bits=b.id_bits,
+                nodes=[n.name for n in self.spec.nodes if b.name in n.buses],
+                messages=[],
+                path=path,
+            )
             if b.protocol == "ftt-can":
                 self.resolve_ftt(b, bus, path)
             elif b.protocol == "canopen":
                 self.resolve_canopen(b, bus, path)
             elif b.protocol == "ethernet-udp" and b.ethernet:
                 bus.switches = [
-                    model.Switch(s.name, {p.port: p.to for p in s.ports}, {p.port: p.cable for p in s.ports},
-                                 s.latency.ns or 0)
+                    model.Switch(
+                        s.name, {p.port: p.to for p in s.ports}, {p.port: p.cable for p in s.ports}, s.latency.ns or 0
+                    )
                     for s in b.ethernet.switches
                 ]
             self.model.buses[b.name] = bus
@@ -159,14 +183,22 @@ class _Resolver:
         lsw = self.ns(f.lsw, (*fpath, "lsw"), ec)
         tm_ns = bits_to_ns(can_frame_bits(f.tm_size, b.id_bits == 29), b.bitrate)
         if lsw is not None and lsw + tm_ns > ec:
-            self.err("lsw", f"LSW {format_ns(lsw)} plus the trigger message ({format_ns(tm_ns)}) exceeds the "
-                     f"EC of {format_ns(ec)}; shorten the LSW", (*fpath, "lsw"))
+            self.err(
+                "lsw",
+                f"LSW {format_ns(lsw)} plus the trigger message ({format_ns(tm_ns)}) exceeds the "
+                f"EC of {format_ns(ec)}; shorten the LSW",
+                (*fpath, "lsw"),
+            )
         master = f.master
         if master is None:
             ms = self.masters(b.name)
             if len(ms) != 1:
-                self.err("ftt-master", f"FTT-CAN bus '{b.name}' needs one node with 'role: master' (found "
-                         f"{len(ms)}) or 'ftt: {{master: <node>}}'", fpath)
+                self.err(
+                    "ftt-master",
+                    f"FTT-CAN bus '{b.name}' needs one node with 'role: master' (found "
+                    f"{len(ms)}) or 'ftt: {{master: <node>}}'",
+                    fpath,
+                )
                 return
             master = ms[0]
         elif master not in self.spec_nodes or b.name not in self.spec_nodes[master].buses:
@@ -186,28 +218,40 @@ class _Resolver:
         if period is None:
             return
         if period == 0 or period % 1000:
-            self.err("sync-period", "the SYNC period (0x1006) is a whole, positive number of microseconds",
-                     (*cpath, "sync_period"))
+            self.err(
+                "sync-period",
+                "the SYNC period (0x1006) is a whole, positive number of microseconds",
+                (*cpath, "sync_period"),
+            )
         for name, value in (("sync_window", window), ("read_window", read)):
             if value is not None and value > period:
-                self.err("sync-window", f"{name} {format_ns(value)} is longer than the SYNC period "
-                         f"{format_ns(period)}", (*cpath, name))
+                self.err(
+                    "sync-window",
+                    f"{name} {format_ns(value)} is longer than the SYNC period {format_ns(period)}",
+                    (*cpath, name),
+                )
         producer = c.sync_producer
         if producer is None:
             ms = self.masters(b.name)
             if len(ms) != 1:
-                self.err("sync-producer", f"CANopen bus '{b.name}' needs one node with 'role: master' (found "
-                         f"{len(ms)}) or 'canopen: {{sync_producer: <node>}}'", cpath)
+                self.err(
+                    "sync-producer",
+                    f"CANopen bus '{b.name}' needs one node with 'role: master' (found "
+                    f"{len(ms)}) or 'canopen: {{sync_producer: <node>}}'",
+                    cpath,
+                )
                 return
             producer = ms[0]
         elif producer not in self.spec_nodes or b.name not in self.spec_nodes[producer].buses:
-            self.err("unknown-node", f"SYNC producer '{producer}' is not a node on bus '{b.name}'",
-                     (*cpath, "sync_producer"))
+            self.err(
+                "unknown-node", f"SYNC producer '{producer}' is not a node on bus '{b.name}'", (*cpath, "sync_producer")
+            )
             return
         if c.sync_id > 0x7FF:
             self.err("id-range", "the SYNC COB-ID must be an 11-bit identifier", (*cpath, "sync_id"))
-        bus.canopen = model.CanopenBus(sync_period_ns=period, sync_window_ns=window, read_window_ns=read,
-                                       sync_producer=producer, sync_id=c.sync_id)
+        bus.canopen = model.CanopenBus(
+            sync_period_ns=period, sync_window_ns=window, read_window_ns=read, sync_producer=producer, sync_id=c.sync_id
+        )
 
     def resolve_nodes(self) -> None:
         ids: dict[tuple[str, int], str] = {}
@@ -215,34 +259,46 @@ class _Resolver:
             path: Path = ("nodes", i)
             for j, bname in enumerate(n.buses):
                 if bname not in self.spec_buses:
-                    self.err("unknown-bus", f"node '{n.name}' sits on bus '{bname}', which is not defined; "
-                             f"known buses: {', '.join(sorted(self.spec_buses)) or 'none'}", (*path, "buses", j))
+                    self.err(
+                        "unknown-bus",
+                        f"node '{n.name}' sits on bus '{bname}', which is not defined; "
+                        f"known buses: {', '.join(sorted(self.spec_buses)) or 'none'}",
+                        (*path, "buses", j),
+                    )
             if len(set(n.buses)) != len(n.buses):
                 self.err("duplicate-name", f"node '{n.name}' lists the same bus twice", (*path, "buses"))
             protocols = {self.spec_buses[b].protocol for b in n.buses if b in self.spec_buses}
             on_canopen = "canopen" in protocols
             if n.node_id is not None:
                 if on_canopen and not 1 <= n.node_id <= 127:
-                    self.err("node-id", f"CANopen node ids are 1..127; '{n.name}' has {n.node_id}",
-                             (*path, "node_id"))
+                    self.err("node-id", f"CANopen node ids are 1..127; '{n.name}' has {n.node_id}", (*path, "node_id"))
                 elif not 0 <= n.node_id <= 255:
                     self.err("node-id", f"node ids are 0..255; '{n.name}' has {n.node_id}", (*path, "node_id"))
                 for bname in n.buses:
                     key = (bname, n.node_id)
                     if key in ids:
-                        self.err("duplicate-node-id", f"node id {n.node_id} of '{n.name}' is already used by "
-                                 f"'{ids[key]}' on bus '{bname}'", (*path, "node_id"))
+                        self.err(
+                            "duplicate-node-id",
+                            f"node id {n.node_id} of '{n.name}' is already used by '{ids[key]}' on bus '{bname}'",
+                            (*path, "node_id"),
+                        )
                     ids[key] = n.name
             elif on_canopen:
                 self.err("node-id", f"node '{n.name}' is on a CANopen bus and needs a node_id (1..127)", path)
             device = self.load_device(n, path, on_canopen)
             if n.heartbeat is not None and not on_canopen:
-                self.err("wrong-section", "heartbeat is a CANopen service; this node is on no CANopen bus",
-                         (*path, "heartbeat"))
+                self.err(
+                    "wrong-section",
+                    "heartbeat is a CANopen service; this node is on no CANopen bus",
+                    (*path, "heartbeat"),
+                )
             hb = self.ns(n.heartbeat, (*path, "heartbeat"), None)
             if hb is not None and (hb % 1_000_000 or hb > 65_535_000_000):
-                self.err("heartbeat", "the heartbeat time (0x1017) is whole milliseconds, at most 65535 ms",
-                         (*path, "heartbeat"))
+                self.err(
+                    "heartbeat",
+                    "the heartbeat time (0x1017) is whole milliseconds, at most 65535 ms",
+                    (*path, "heartbeat"),
+                )
             if n.ip is not None and any(int(p) > 255 for p in n.ip.split(".")):
                 self.err("ip", f"'{n.ip}' is not an IPv4 address", (*path, "ip"))
             ec = self.ec_of(n.buses)
@@ -250,8 +306,15 @@ class _Resolver:
             for j, t in enumerate(n.tasks):
                 tasks[t.name] = self.resolve_task(n.name, t, (*path, "tasks", j), ec)
             self.model.nodes[n.name] = model.Node(
-                name=n.name, node_id=n.node_id, buses=tuple(n.buses), role=n.role, device=device,
-                heartbeat_ns=hb or None, ip=n.ip, tasks=tasks, path=path,
+                name=n.name,
+                node_id=n.node_id,
+                buses=tuple(n.buses),
+                role=n.role,
+                device=device,
+                heartbeat_ns=hb or None,
+                ip=n.ip,
+                tasks=tasks,
+                path=path,
                 tx_delay_ns=self.ns(n.tx_delay, (*path, "tx_delay"), None) or 0,
                 rx_delay_ns=self.ns(n.rx_delay, (*path, "rx_delay"), None) or 0,
             )
@@ -261,21 +324,26 @@ class _Resolver:
             return None
         dpath = (*path, "device")
         if not on_canopen:
-            self.err("wrong-section", "device profiles describe CANopen devices; this node is on no CANopen bus",
-                     dpath)
+            self.err("wrong-section", "device profiles describe CANopen devices; this node is on no CANopen bus", dpath)
             return None
         if isinstance(n.device, str):
             try:
                 return builtin_profile(n.device)
             except KeyError:
-                self.err("unknown-device", f"no built-in device profile '{n.device}'; built-in: "
-                         f"{', '.join(builtin_profile_names())}, or give a vendor file as 'device: {{eds: x.eds}}'",
-                         dpath)
+                self.err(
+                    "unknown-device",
+                    f"no built-in device profile '{n.device}'; built-in: "
+                    f"{', '.join(builtin_profile_names())}, or give a vendor file as 'device: {{eds: x.eds}}'",
+                    dpath,
+                )
                 return None
         file = (self.spec_dir / n.device.eds).resolve()
         if not file.is_file():
-            self.err("eds-missing", f"EDS file '{n.device.eds}' not found (looked for {file}); paths are relative "
-                     "to the spec", (*dpath, "eds"))
+            self.err(
+                "eds-missing",
+                f"EDS file '{n.device.eds}' not found (looked for {file}); paths are relative to the spec",
+                (*dpath, "eds"),
+            )
             return None
         try:
             return _cached_eds(str(file), file.stat().st_mtime_ns, n.device.eds)
@@ -299,15 +367,30 @@ class _Resolver:
                 self.err("period", "a task period must be above zero", (*path, "period"))
             else:
                 if offset >= period:
-                    self.err("offset", f"offset {format_ns(offset)} must be smaller than the period "
-                             f"{format_ns(period)}", (*path, "offset"))
+                    self.err(
+                        "offset",
+                        f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
+                        (*path, "offset"),
+                    )
                 if wcet > period:
-                    self.err("wcet", f"WCET {format_ns(wcet)} exceeds the period {format_ns(period)}: the task "
-                             "can never keep up", (*path, "wcet"))
+                    self.err(
+                        "wcet",
+                        f"WCET {format_ns(wcet)} exceeds the period {format_ns(period)}: the task can never keep up",
+                        (*path, "wcet"),
+                    )
         if t.on_message is not None and t.period is not None:
             self.err("task-period", "an event-driven task ('on_message') has no period", (*path, "period"))
-        return model.Task(node=node, name=t.name, period_ns=period, offset_ns=offset, wcet_ns=wcet,
-                          bcet_ns=bcet, trigger=None, on_message=t.on_message, path=path)
+        return model.Task(
+            node=node,
+            name=t.name,
+            period_ns=period,
+            offset_ns=offset,
+            wcet_ns=wcet,
+            bcet_ns=bcet,
+            trigger=None,
+            on_message=t.on_message,
+            path=path,
+        )
 
     # -- messages ------------------------------------------------------------------------------------------
     def message_bus(self, m: schema.Message, path: Path) -> schema.Bus | None:
@@ -315,14 +398,21 @@ class _Resolver:
         for k, name in enumerate(ends):
             if name not in self.spec_nodes:
                 where = (*path, "producer") if k == 0 else (*path, "consumers", k - 1)
-                self.err("unknown-node", f"message '{m.name}' names node '{name}', which is not defined; "
-                         f"known nodes: {_some(self.spec_nodes)}", where)
+                self.err(
+                    "unknown-node",
+                    f"message '{m.name}' names node '{name}', which is not defined; "
+                    f"known nodes: {_some(self.spec_nodes)}",
+                    where,
+                )
         if any(name not in self.spec_nodes for name in ends):
             return None
         if m.bus is not None:
             if m.bus not in self.spec_buses:
-                self.err("unknown-bus", f"bus '{m.bus}' is not defined; known buses: {_some(self.spec_buses)}",
-                         (*path, "bus"))
+                self.err(
+                    "unknown-bus",
+                    f"bus '{m.bus}' is not defined; known buses: {_some(self.spec_buses)}",
+                    (*path, "bus"),
+                )
                 return None
             bus = self.spec_buses[m.bus]
         else:
@@ -330,8 +420,12 @@ class _Resolver:
             for c in m.consumers:
                 common &= set(self.spec_nodes[c].buses)
             if len(common) != 1:
-                self.err("which-bus", f"message '{m.name}': producer and consumers share "
-                         f"{'no bus' if not common else 'several buses'}; say 'bus: <name>'", path)
+                self.err(
+                    "which-bus",
+                    f"message '{m.name}': producer and consumers share "
+                    f"{'no bus' if not common else 'several buses'}; say 'bus: <name>'",
+                    path,
+                )
                 return None
             bus = self.spec_buses[common.pop()]
         for k, name in enumerate(ends):
@@ -375,8 +469,11 @@ class _Resolver:
             pdo, signals = got
             pdo_size = math.ceil(sum(e.bits for e in pdo.entries) / 8)
             if size is not None and size != pdo_size:
-                self.err("size", f"size {size} disagrees with the PDO map, which fills {pdo_size} bytes; "
-                         "drop 'size'", (*path, "size"))
+                self.err(
+                    "size",
+                    f"size {size} disagrees with the PDO map, which fills {pdo_size} bytes; drop 'size'",
+                    (*path, "size"),
+                )
             size = pdo_size
         if m.signals is not None:
             if pdo is not None:
@@ -390,11 +487,18 @@ class _Resolver:
             self.err("size", f"message '{m.name}' needs a payload: 'size: <bytes>', 'signals:' or a PDO map", path)
             return None
         if proto in CAN_PROTOCOLS and size > CAN_MAX_PAYLOAD:
-            self.err("payload", f"{size} bytes do not fit a classical CAN frame (at most 8); split the message",
-                     (*path, "size") if m.size is not None else path)
+            self.err(
+                "payload",
+                f"{size} bytes do not fit a classical CAN frame (at most 8); split the message",
+                (*path, "size") if m.size is not None else path,
+            )
         if proto == "ethernet-udp" and size + 1 > MAX_UDP_PAYLOAD:
-            self.err("payload", f"{size} bytes plus the 1-byte message id exceed one unfragmented UDP datagram "
-                     f"({MAX_UDP_PAYLOAD} bytes)", (*path, "size"))
+            self.err(
+                "payload",
+                f"{size} bytes plus the 1-byte message id exceed one unfragmented UDP datagram "
+                f"({MAX_UDP_PAYLOAD} bytes)",
+                (*path, "size"),
+            )
         # --- when it is sent
         timing = self.resolve_timing(m, bus, pdo, path, ec)
         if timing is None:
@@ -415,26 +519,39 @@ class _Resolver:
             window = m.window or ("sync" if kind == "periodic" else "async")
             if window == "sync":
                 if kind != "periodic":
-                    self.err("ftt-window", "only periodic messages go in the synchronous window; make it 'window: "
-                             "async' or give it a period", (*path, "window"))
+                    self.err(
+                        "ftt-window",
+                        "only periodic messages go in the synchronous window; make it 'window: "
+                        "async' or give it a period",
+                        (*path, "window"),
+                    )
                 ftt_id = m.ftt_id  # None -> assigned after all explicit ids are known
             elif m.ftt_id is not None:
                 self.err("ftt-window", "ftt_id names synchronous messages; this one is asynchronous", (*path, "ftt_id"))
             if window == "async" and ident is None:
-                self.err("id-missing", "asynchronous FTT-CAN messages need an explicit CAN 'id' (lower = higher "
-                         "priority in the asynchronous window)", path)
+                self.err(
+                    "id-missing",
+                    "asynchronous FTT-CAN messages need an explicit CAN 'id' (lower = higher "
+                    "priority in the asynchronous window)",
+                    path,
+                )
         else:
             for key in ("window", "ftt_id"):
                 if getattr(m, key) is not None:
-                    self.err("wrong-section", f"'{key}' is an FTT-CAN setting; bus '{sbus.name}' is {proto}",
-                             (*path, key))
+                    self.err(
+                        "wrong-section", f"'{key}' is an FTT-CAN setting; bus '{sbus.name}' is {proto}", (*path, key)
+                    )
         if pdo is not None and ident is None:
             node = self.spec_nodes[pdo.device_node]
             if node.node_id is not None:
                 ident = cia301.default_pdo_cob_id(pdo.kind, pdo.number, node.node_id)
             if ident is None:
-                self.err("id-missing", f"{pdo.kind.upper()} {pdo.number} has no CiA 301 default COB-ID (only PDOs 1-4 "
-                         "have one); give an explicit 'id'", path)
+                self.err(
+                    "id-missing",
+                    f"{pdo.kind.upper()} {pdo.number} has no CiA 301 default COB-ID (only PDOs 1-4 "
+                    "have one); give an explicit 'id'",
+                    path,
+                )
         if ident is None and proto in ("can", "canopen", "ethernet-udp"):
             what = "the application message id (Table 6.1 style, 0..255)" if proto == "ethernet-udp" else "a CAN id"
             if pdo is None:
@@ -449,10 +566,26 @@ class _Resolver:
         if m.udp is not None and proto != "ethernet-udp":
             self.err("wrong-section", "'udp' belongs to ethernet-udp buses", (*path, "udp"))
         return model.Message(
-            name=m.name, bus=sbus.name, producer=m.producer, consumers=tuple(m.consumers), id=ident if ident is not
-            None else -1, extended=bool(extended) and proto != "ethernet-udp", size=size, kind=kind,
-            period_ns=period, interval_ns=interval, offset_ns=offset, offset_auto=offset_auto, deadline_ns=deadline,
-            jitter_ns=jitter, path=path, window=window, ftt_id=ftt_id, pdo=pdo, signals=signals, rate_hz=rate,
+            name=m.name,
+            bus=sbus.name,
+            producer=m.producer,
+            consumers=tuple(m.consumers),
+            id=ident if ident is not None else -1,
+            extended=bool(extended) and proto != "ethernet-udp",
+            size=size,
+            kind=kind,
+            period_ns=period,
+            interval_ns=interval,
+            offset_ns=offset,
+            offset_auto=offset_auto,
+            deadline_ns=deadline,
+            jitter_ns=jitter,
+            path=path,
+            window=window,
+            ftt_id=ftt_id,
+            pdo=pdo,
+            signals=signals,
+            rate_hz=rate,
             udp_ports=(m.udp.src_port, m.udp.dst_port) if m.udp else None,
         )
 
@@ -476,9 +609,12 @@ class _Resolver:
             if 1 <= tt <= 240:
                 derived = tt * sync
                 if period is not None and period != derived:
-                    self.err("period", f"transmission type {tt} sends on every {tt}. SYNC, i.e. every "
-                             f"{format_ns(derived)}; the period {format_ns(period)} disagrees (drop it)",
-                             (*path, "period"))
+                    self.err(
+                        "period",
+                        f"transmission type {tt} sends on every {tt}. SYNC, i.e. every "
+                        f"{format_ns(derived)}; the period {format_ns(period)} disagrees (drop it)",
+                        (*path, "period"),
+                    )
                 period, kind = derived, kind or "periodic"
             elif tt == 0 and period is None and mit is None:
                 mit, kind = sync, kind or "sporadic"  # acyclic synchronous: at most once per SYNC
@@ -493,8 +629,12 @@ class _Resolver:
             elif mit is not None:
                 kind = "sporadic"
             else:
-                self.err("message-type", f"say how often '{m.name}' is sent: 'period: 10 ms', "
-                         "'min_interarrival: 100 ms' (sporadic) or 'type: on-demand'", path)
+                self.err(
+                    "message-type",
+                    f"say how often '{m.name}' is sent: 'period: 10 ms', "
+                    "'min_interarrival: 100 ms' (sporadic) or 'type: on-demand'",
+                    path,
+                )
                 return None
         if kind == "periodic":
             if period is None:
@@ -510,8 +650,11 @@ class _Resolver:
                 self.err("min-interarrival", "a sporadic message needs 'min_interarrival' above zero", path)
                 return None
             if m.period is not None or m.rate is not None:
-                self.err("message-type", "sporadic messages have 'min_interarrival', not a period",
-                         (*path, "period" if m.period is not None else "rate"))
+                self.err(
+                    "message-type",
+                    "sporadic messages have 'min_interarrival', not a period",
+                    (*path, "period" if m.period is not None else "rate"),
+                )
         else:  # on-demand
             for key in ("period", "rate", "min_interarrival", "period_range"):
                 if getattr(m, key) is not None:
@@ -526,13 +669,20 @@ class _Resolver:
                 hi = self.ns(m.period_range[1], (*path, "period_range", 1), ec)
                 if lo is not None and hi is not None and period is not None:
                     if not (0 < lo <= period <= hi):
-                        self.err("period-range", f"need 0 < fastest <= period <= slowest; got {format_ns(lo)}, "
-                                 f"{format_ns(period)}, {format_ns(hi)}", (*path, "period_range"))
+                        self.err(
+                            "period-range",
+                            f"need 0 < fastest <= period <= slowest; got {format_ns(lo)}, "
+                            f"{format_ns(period)}, {format_ns(hi)}",
+                            (*path, "period_range"),
+                        )
                     interval = lo
                     for k, v in ((0, lo), (1, hi)):
                         if ec and v % ec:
-                            self.err("ec-multiple", f"{format_ns(v)} is not a whole number of ECs ({format_ns(ec)})",
-                                     (*path, "period_range", k))
+                            self.err(
+                                "ec-multiple",
+                                f"{format_ns(v)} is not a whole number of ECs ({format_ns(ec)})",
+                                (*path, "period_range", k),
+                            )
         offset_auto = m.offset == "auto"
         offset = None
         if isinstance(m.offset, Duration):
@@ -540,17 +690,26 @@ class _Resolver:
         if m.offset is not None and kind != "periodic":
             self.err("offset", "only periodic messages have an offset", (*path, "offset"))
         if offset_auto and bus.protocol != "ftt-can":
-            self.err("offset", "'offset: auto' is derived from FTT-CAN flows; give this message a duration",
-                     (*path, "offset"))
+            self.err(
+                "offset",
+                "'offset: auto' is derived from FTT-CAN flows; give this message a duration",
+                (*path, "offset"),
+            )
         if offset is not None and period is not None and offset >= period:
-            self.err("offset", f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
-                     (*path, "offset"))
+            self.err(
+                "offset",
+                f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
+                (*path, "offset"),
+            )
         if bus.protocol == "ftt-can" and ec and kind == "periodic" and (m.window or "sync") == "sync":
             for key, value in (("period", period), ("offset", offset)):
                 if value is not None and value % ec:
-                    self.err("ec-multiple", f"{key} {format_ns(value)} is not a whole number of elementary cycles "
-                             f"({format_ns(ec)}); use a multiple such as {format_ns(max(ec, value // ec * ec))}",
-                             (*path, key if key != "period" or m.rate is None else "rate"))
+                    self.err(
+                        "ec-multiple",
+                        f"{key} {format_ns(value)} is not a whole number of elementary cycles "
+                        f"({format_ns(ec)}); use a multiple such as {format_ns(max(ec, value // ec * ec))}",
+                        (*path, key if key != "period" or m.rate is None else "rate"),
+                    )
             if offset is None and not offset_auto:
                 offset = 0
         return kind, (period if kind == "periodic" else None), interval, offset, offset_auto, rate
@@ -563,14 +722,18 @@ class _Resolver:
         else:
             mm = _OBJECT_REF.match(ref)
             if not mm:
-                self.err("object-ref", f"cannot read object {ref!r}; write 0x6064 or '0x30D1:2' (index:sub-index)",
-                         path)
+                self.err(
+                    "object-ref", f"cannot read object {ref!r}; write 0x6064 or '0x30D1:2' (index:sub-index)", path
+                )
                 return None
             index = int(mm.group(1), 0)
             sub = int(mm.group(2), 0) if mm.group(2) else 0
         if not (0 <= index <= 0xFFFF and 0 <= sub <= 0xFF):
-            self.err("object-ref", f"object 0x{index:X}:{sub} is outside the object dictionary (index <= 0xFFFF, "
-                     "sub-index <= 0xFF)", path)
+            self.err(
+                "object-ref",
+                f"object 0x{index:X}:{sub} is outside the object dictionary (index <= 0xFFFF, sub-index <= 0xFF)",
+                path,
+            )
             return None
         return index, sub
 
@@ -586,33 +749,53 @@ class _Resolver:
         else:
             holders = list(m.consumers)
             if len(holders) > 1 and m.id is None:
-                self.err("id-missing", "an RPDO received by several nodes has no single default COB-ID; give 'id'",
-                         ppath)
+                self.err(
+                    "id-missing", "an RPDO received by several nodes has no single default COB-ID; give 'id'", ppath
+                )
         device_node = holders[0]
         devices = [(h, self.model.nodes[h].device) for h in holders if h in self.model.nodes]
         for h, dev in devices:
             if dev is None:
                 role = "produces" if kind == "tpdo" else "receives"
-                self.err("no-device", f"'{h}' {role} this {kind.upper()} but has no device profile to check the map "
-                         "against; give it 'device: <profile>' or 'device: {eds: file.eds}'", ppath)
+                self.err(
+                    "no-device",
+                    f"'{h}' {role} this {kind.upper()} but has no device profile to check the map "
+                    "against; give it 'device: <profile>' or 'device: {eds: file.eds}'",
+                    ppath,
+                )
                 continue
             count = dev.tpdo_count if kind == "tpdo" else dev.rpdo_count
             if number > count:
-                self.err("pdo-number", f"device {dev.name} of '{h}' has {count} {kind.upper()}s; "
-                         f"{kind.upper()} {number} does not exist", (*ppath, kind))
+                self.err(
+                    "pdo-number",
+                    f"device {dev.name} of '{h}' has {count} {kind.upper()}s; {kind.upper()} {number} does not exist",
+                    (*ppath, kind),
+                )
             if kind == "tpdo" and p.event_timer is not None and not dev.tpdo_event_timer:
-                self.err("event-timer", f"device {dev.name} has no TPDO event timer (0x18xx sub-index 5); use a "
-                         "SYNC transmission type instead", (*ppath, "event_timer"))
+                self.err(
+                    "event-timer",
+                    f"device {dev.name} has no TPDO event timer (0x18xx sub-index 5); use a "
+                    "SYNC transmission type instead",
+                    (*ppath, "event_timer"),
+                )
             if kind == "tpdo" and p.inhibit is not None and not dev.tpdo_inhibit_time:
-                self.err("inhibit", f"device {dev.name} has no TPDO inhibit time (0x18xx sub-index 3)",
-                         (*ppath, "inhibit"))
+                self.err(
+                    "inhibit", f"device {dev.name} has no TPDO inhibit time (0x18xx sub-index 3)", (*ppath, "inhibit")
+                )
             if len(p.map) > dev.max_mapped_objects:
-                self.err("pdo-length", f"device {dev.name} maps at most {dev.max_mapped_objects} objects per PDO; "
-                         f"this map has {len(p.map)}", (*ppath, "map"))
+                self.err(
+                    "pdo-length",
+                    f"device {dev.name} maps at most {dev.max_mapped_objects} objects per PDO; "
+                    f"this map has {len(p.map)}",
+                    (*ppath, "map"),
+                )
         tt = p.transmission
         if 241 <= tt <= 251:
-            self.err("transmission", f"transmission type {tt} is reserved (CiA 301); use 0-240, 254 or 255",
-                     (*ppath, "transmission"))
+            self.err(
+                "transmission",
+                f"transmission type {tt} is reserved (CiA 301); use 0-240, 254 or 255",
+                (*ppath, "transmission"),
+            )
         elif kind == "rpdo" and tt in (252, 253):
             self.err("transmission", "transmission types 252/253 (RTR) exist only for TPDOs", (*ppath, "transmission"))
         inhibit = self.ns(p.inhibit, (*ppath, "inhibit"), None)
@@ -621,8 +804,9 @@ class _Resolver:
             if kind == "rpdo":
                 self.err("inhibit", "inhibit times limit transmitters: set it on TPDOs", (*ppath, "inhibit"))
             if inhibit % 100_000 or inhibit > 65_535 * 100_000:
-                self.err("inhibit", "the inhibit time is stored in units of 100 us (at most 6.5535 s)",
-                         (*ppath, "inhibit"))
+                self.err(
+                    "inhibit", "the inhibit time is stored in units of 100 us (at most 6.5535 s)", (*ppath, "inhibit")
+                )
             inhibit_100us = inhibit // 100_000
         timer = self.ns(p.event_timer, (*ppath, "event_timer"), None)
         timer_ms = None
@@ -631,8 +815,11 @@ class _Resolver:
                 self.err("event-timer", "the event timer is whole milliseconds, 1..65535 ms", (*ppath, "event_timer"))
             timer_ms = timer // 1_000_000
             if tt < 254:
-                self.warn("event-timer", f"the event timer only acts with transmission type 254/255, not {tt}",
-                          (*ppath, "event_timer"))
+                self.warn(
+                    "event-timer",
+                    f"the event timer only acts with transmission type 254/255, not {tt}",
+                    (*ppath, "event_timer"),
+                )
         entries: list[model.PdoEntry] = []
         names: dict[str, int] = {}
         for k, item in enumerate(p.map):
@@ -656,28 +843,41 @@ class _Resolver:
                 found = dev.lookup(index, sub)
                 where = f"device {dev.name} of '{h}' ({dev.source})"
                 if found is None:
-                    hint = " (it has sub-indices: give '0x%04X:1')" % index if dev.has_index(index) and sub == 0 else ""
+                    hint = f" (it has sub-indices: give '0x{index:04X}:1')" if dev.has_index(index) and sub == 0 else ""
                     self.err("unknown-object", f"object 0x{index:04X}:{sub} does not exist in {where}{hint}", epath)
                     continue
                 if not found.pdo_mappable:
-                    self.err("not-mappable", f"object 0x{index:04X}:{sub} '{found.name}' of {where} is not "
-                             "PDO-mappable", epath)
+                    self.err(
+                        "not-mappable",
+                        f"object 0x{index:04X}:{sub} '{found.name}' of {where} is not PDO-mappable",
+                        epath,
+                    )
                 elif kind == "rpdo" and not found.writable:
-                    self.err("pdo-direction", f"object 0x{index:04X}:{sub} '{found.name}' is read-only "
-                             f"({found.access}) and cannot be written by an RPDO; map it in a TPDO", epath)
+                    self.err(
+                        "pdo-direction",
+                        f"object 0x{index:04X}:{sub} '{found.name}' is read-only "
+                        f"({found.access}) and cannot be written by an RPDO; map it in a TPDO",
+                        epath,
+                    )
                 elif kind == "tpdo" and not found.readable:
-                    self.err("pdo-direction", f"object 0x{index:04X}:{sub} '{found.name}' is write-only "
-                             f"({found.access}) and cannot be sent in a TPDO", epath)
+                    self.err(
+                        "pdo-direction",
+                        f"object 0x{index:04X}:{sub} '{found.name}' is write-only "
+                        f"({found.access}) and cannot be sent in a TPDO",
+                        epath,
+                    )
                 if found.bits == 0:
-                    self.err("not-mappable", f"object 0x{index:04X}:{sub} has no fixed size ({found.type_name})",
-                             epath)
+                    self.err("not-mappable", f"object 0x{index:04X}:{sub} has no fixed size ({found.type_name})", epath)
                 obj = obj or found
             if obj is None:
                 continue
             name = item.name if isinstance(item, schema.PdoEntry) and item.name else snake(obj.name)
             if name in names:
-                self.err("duplicate-name", f"signal name '{name}' appears twice in this PDO; name one with "
-                         "'{object: ..., name: ...}'", epath)
+                self.err(
+                    "duplicate-name",
+                    f"signal name '{name}' appears twice in this PDO; name one with '{{object: ..., name: ...}}'",
+                    epath,
+                )
             names[name] = k
             entries.append(model.PdoEntry(index, sub, obj.bits, name, obj.data_type))
         total = sum(e.bits for e in entries)
@@ -687,9 +887,16 @@ class _Resolver:
             self.err("pdo-length", "a PDO needs at least one mapped object", (*ppath, "map"))
         if len(entries) != len(p.map):
             return None
-        pdo = model.Pdo(kind=kind, number=number, device_node=device_node, transmission=tt,
-                        inhibit_100us=inhibit_100us, event_timer_ms=timer_ms, sync_start=p.sync_start,
-                        entries=tuple(entries))
+        pdo = model.Pdo(
+            kind=kind,
+            number=number,
+            device_node=device_node,
+            transmission=tt,
+            inhibit_100us=inhibit_100us,
+            event_timer_ms=timer_ms,
+            sync_start=p.sync_start,
+            entries=tuple(entries),
+        )
         signals, start = [], 0
         for e in entries:
             kind_name = DATA_TYPES.get(e.data_type, ("", 0, "unsigned"))[2]
@@ -719,23 +926,48 @@ class _Resolver:
             others = tuple(n for n in bus.nodes if n != co.sync_producer)
             cpath: Path = (*bus.path, "canopen")
             sync = model.Message(
-                name=f"{bus.name}_SYNC", bus=bus.name, producer=co.sync_producer, consumers=others or (co.sync_producer,),
-                id=co.sync_id, extended=False, size=size, kind="periodic", period_ns=co.sync_period_ns,
-                interval_ns=co.sync_period_ns, offset_ns=0, offset_auto=False, deadline_ns=co.sync_window_ns or
-                co.sync_period_ns, jitter_ns=0, path=cpath, implicit="SYNC",
+                name=f"{bus.name}_SYNC",
+                bus=bus.name,
+                producer=co.sync_producer,
+                consumers=others or (co.sync_producer,),
+                id=co.sync_id,
+                extended=False,
+                size=size,
+                kind="periodic",
+                period_ns=co.sync_period_ns,
+                interval_ns=co.sync_period_ns,
+                offset_ns=0,
+                offset_auto=False,
+                deadline_ns=co.sync_window_ns or co.sync_period_ns,
+                jitter_ns=0,
+                path=cpath,
+                implicit="SYNC",
             )
             bus.messages.insert(0, sync)
             for name in bus.nodes:
                 node = self.model.nodes.get(name)
                 if node is None or node.heartbeat_ns is None or node.node_id is None:
                     continue
-                bus.messages.append(model.Message(
-                    name=f"{name}_heartbeat", bus=bus.name, producer=name,
-                    consumers=tuple(n for n in bus.nodes if n != name) or (name,),
-                    id=cia301.HEARTBEAT_BASE + node.node_id, extended=False, size=1, kind="periodic",
-                    period_ns=node.heartbeat_ns, interval_ns=node.heartbeat_ns, offset_ns=None, offset_auto=False,
-                    deadline_ns=node.heartbeat_ns, jitter_ns=0, path=(*node.path, "heartbeat"), implicit="heartbeat",
-                ))
+                bus.messages.append(
+                    model.Message(
+                        name=f"{name}_heartbeat",
+                        bus=bus.name,
+                        producer=name,
+                        consumers=tuple(n for n in bus.nodes if n != name) or (name,),
+                        id=cia301.HEARTBEAT_BASE + node.node_id,
+                        extended=False,
+                        size=1,
+                        kind="periodic",
+                        period_ns=node.heartbeat_ns,
+                        interval_ns=node.heartbeat_ns,
+                        offset_ns=None,
+                        offset_auto=False,
+                        deadline_ns=node.heartbeat_ns,
+                        jitter_ns=0,
+                        path=(*node.path, "heartbeat"),
+                        implicit="heartbeat",
+                    )
+                )
 
     # -- FTT-CAN triggers and ids --------------------------------------------------------------------------
     def resolve_triggers(self) -> None:
@@ -744,20 +976,27 @@ class _Resolver:
             if m.ftt_id is not None:
                 key = (m.bus, m.ftt_id)
                 if key in used:
-                    self.err("duplicate-ftt-id", f"FTT id {m.ftt_id} is already used by '{used[key]}'",
-                             (*m.path, "ftt_id"))
+                    self.err(
+                        "duplicate-ftt-id", f"FTT id {m.ftt_id} is already used by '{used[key]}'", (*m.path, "ftt_id")
+                    )
                 used[key] = m.name
         for i, t in enumerate(self.spec.triggers):
             path: Path = ("triggers", i)
             sbus = self.spec_buses.get(t.bus)
             bus = self.model.buses.get(t.bus)
             if sbus is None or bus is None:
-                self.err("unknown-bus", f"bus '{t.bus}' is not defined; known buses: {_some(self.spec_buses)}",
-                         (*path, "bus"))
+                self.err(
+                    "unknown-bus",
+                    f"bus '{t.bus}' is not defined; known buses: {_some(self.spec_buses)}",
+                    (*path, "bus"),
+                )
                 continue
             if sbus.protocol != "ftt-can":
-                self.err("wrong-section", f"triggers are FTT-CAN synchronous triggers; bus '{t.bus}' is "
-                         f"{sbus.protocol}", (*path, "bus"))
+                self.err(
+                    "wrong-section",
+                    f"triggers are FTT-CAN synchronous triggers; bus '{t.bus}' is {sbus.protocol}",
+                    (*path, "bus"),
+                )
                 continue
             if bus.ftt is None:
                 continue
@@ -773,35 +1012,57 @@ class _Resolver:
                 interval = self.ns(t.period_range[0], (*path, "period_range", 0), ec) or period
             for key_name, value in (("period", period), ("offset", offset), ("period_range", interval)):
                 if value is not None and value % ec:
-                    self.err("ec-multiple", f"{key_name} {format_ns(value)} is not a whole number of elementary "
-                             f"cycles ({format_ns(ec)})", (*path, key_name))
+                    self.err(
+                        "ec-multiple",
+                        f"{key_name} {format_ns(value)} is not a whole number of elementary cycles ({format_ns(ec)})",
+                        (*path, key_name),
+                    )
             if period <= 0:
                 self.err("period", "a trigger period must be at least one EC", (*path, "period"))
             elif offset is not None and offset >= period:
-                self.err("offset", f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
-                         (*path, "offset"))
+                self.err(
+                    "offset",
+                    f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
+                    (*path, "offset"),
+                )
             for j, ref in enumerate(t.tasks):
                 node_name, task_name = ref.split(".", 1)
                 node = self.model.nodes.get(node_name)
                 if node is None or task_name not in node.tasks:
-                    self.err("unknown-task", f"trigger '{t.name}' activates '{ref}', which is not a task "
-                             f"(write node.task)", (*path, "tasks", j))
+                    self.err(
+                        "unknown-task",
+                        f"trigger '{t.name}' activates '{ref}', which is not a task (write node.task)",
+                        (*path, "tasks", j),
+                    )
                     continue
                 if t.bus not in node.buses:
                     self.err("not-on-bus", f"node '{node_name}' is not on bus '{t.bus}'", (*path, "tasks", j))
                 task = node.tasks[task_name]
                 if task.trigger is not None:
-                    self.err("task-trigger", f"task '{ref}' is already activated by trigger '{task.trigger}'",
-                             (*path, "tasks", j))
+                    self.err(
+                        "task-trigger",
+                        f"task '{ref}' is already activated by trigger '{task.trigger}'",
+                        (*path, "tasks", j),
+                    )
                     continue
                 if task.period_ns is not None and task.period_ns != period:
-                    self.err("task-trigger", f"task '{ref}' has period {format_ns(task.period_ns)} but its trigger "
-                             f"fires every {format_ns(period)}; drop the task's period", (*path, "tasks", j))
-                node.tasks[task_name] = _replace_task(task, period_ns=period, trigger=t.name,
-                                                      offset_ns=offset or 0)
+                    self.err(
+                        "task-trigger",
+                        f"task '{ref}' has period {format_ns(task.period_ns)} but its trigger "
+                        f"fires every {format_ns(period)}; drop the task's period",
+                        (*path, "tasks", j),
+                    )
+                node.tasks[task_name] = _replace_task(task, period_ns=period, trigger=t.name, offset_ns=offset or 0)
             self.model.triggers[t.name] = model.Trigger(
-                name=t.name, bus=t.bus, ftt_id=t.ftt_id, period_ns=period, interval_ns=interval, offset_ns=offset,
-                offset_auto=t.offset == "auto", tasks=tuple(t.tasks), path=path,
+                name=t.name,
+                bus=t.bus,
+                ftt_id=t.ftt_id,
+                period_ns=period,
+                interval_ns=interval,
+                offset_ns=offset,
+                offset_auto=t.offset == "auto",
+                tasks=tuple(t.tasks),
+                path=path,
             )
         # Synchronous messages without an explicit FTT id take the lowest free ones, in spec order.
         for bus in self.model.buses.values():
@@ -819,8 +1080,12 @@ class _Resolver:
                 if bname == bus.name and k >= capacity:
                     item = self.model.messages.get(owner) or self.model.triggers.get(owner)
                     path = item.path if item else bus.path
-                    self.err("ftt-id-range", f"FTT id {k} of '{owner}' does not fit the {bus.ftt.tm_size}-byte "
-                             f"trigger message (ids 0..{capacity - 1}); raise tm_size or renumber", path)
+                    self.err(
+                        "ftt-id-range",
+                        f"FTT id {k} of '{owner}' does not fit the {bus.ftt.tm_size}-byte "
+                        f"trigger message (ids 0..{capacity - 1}); raise tm_size or renumber",
+                        path,
+                    )
 
     def check_tasks_activated(self) -> None:
         for node in self.model.nodes.values():
@@ -828,16 +1093,25 @@ class _Resolver:
                 if task.on_message is not None:
                     msg = self.model.messages.get(task.on_message)
                     if msg is None:
-                        self.err("unknown-message", f"task '{task.ref}' runs on message '{task.on_message}', which is "
-                                 "not defined", (*task.path, "on_message"))
+                        self.err(
+                            "unknown-message",
+                            f"task '{task.ref}' runs on message '{task.on_message}', which is not defined",
+                            (*task.path, "on_message"),
+                        )
                     elif node.name not in msg.consumers:
-                        self.err("on-message", f"'{node.name}' does not consume '{msg.name}'; add it to the consumers",
-                                 (*task.path, "on_message"))
+                        self.err(
+                            "on-message",
+                            f"'{node.name}' does not consume '{msg.name}'; add it to the consumers",
+                            (*task.path, "on_message"),
+                        )
                     if task.trigger is not None:
                         self.err("task-trigger", f"task '{task.ref}' is both event-driven and triggered", task.path)
                 elif task.period_ns is None and task.trigger is None:
-                    self.err("task-period", f"task '{task.ref}' has no period, no trigger and no 'on_message'; say what "
-                             "activates it", task.path)
+                    self.err(
+                        "task-period",
+                        f"task '{task.ref}' has no period, no trigger and no 'on_message'; say what activates it",
+                        task.path,
+                    )
 
     # -- identifiers ---------------------------------------------------------------------------------------
     def check_identifiers(self) -> None:
@@ -849,8 +1123,11 @@ class _Resolver:
                         continue
                     key = (m.producer, m.id)
                     if key in seen_eth:
-                        self.err("duplicate-id", f"'{m.producer}' already sends message id 0x{m.id:02X} as "
-                                 f"'{seen_eth[key]}'", (*m.path, "id"))
+                        self.err(
+                            "duplicate-id",
+                            f"'{m.producer}' already sends message id 0x{m.id:02X} as '{seen_eth[key]}'",
+                            (*m.path, "id"),
+                        )
                     seen_eth[key] = m.name
                 continue
             taken: dict[tuple[bool, int], str] = {}
@@ -873,13 +1150,20 @@ class _Resolver:
                     continue
                 key = (m.extended, m.id)
                 if key in taken:
-                    self.err("duplicate-id", f"identifier 0x{m.id:03X} of '{m.name}' collides with {taken[key]}; "
-                             "pick a free one", (*m.path, "id") if self.smap.has((*m.path, "id")) else m.path)
+                    self.err(
+                        "duplicate-id",
+                        f"identifier 0x{m.id:03X} of '{m.name}' collides with {taken[key]}; pick a free one",
+                        (*m.path, "id") if self.smap.has((*m.path, "id")) else m.path,
+                    )
                     continue
                 taken[key] = f"'{m.name}'"
                 if bus.canopen is not None and m.pdo is not None and not m.extended and cia301.restricted(m.id):
-                    self.err("restricted-id", f"COB-ID 0x{m.id:03X} is restricted by CiA 301 (reserved for NMT, "
-                             "SYNC/EMCY, TIME, SDO, heartbeat or LSS); PDOs must not use it", m.path)
+                    self.err(
+                        "restricted-id",
+                        f"COB-ID 0x{m.id:03X} is restricted by CiA 301 (reserved for NMT, "
+                        "SYNC/EMCY, TIME, SDO, heartbeat or LSS); PDOs must not use it",
+                        m.path,
+                    )
 
     # -- Ethernet topology ---------------------------------------------------------------------------------
     def resolve_topologies(self) -> None:
@@ -895,8 +1179,12 @@ class _Resolver:
                 for k, (port, to) in enumerate(sw.ports.items()):
                     ppath = (*spath, "ports", k, "to")
                     if to not in switch_names and to not in bus.nodes:
-                        self.err("unknown-node", f"switch '{sw.name}' port {port} leads to '{to}', which is neither a "
-                                 f"switch nor a node on bus '{bus.name}'", ppath)
+                        self.err(
+                            "unknown-node",
+                            f"switch '{sw.name}' port {port} leads to '{to}', which is neither a "
+                            f"switch nor a node on bus '{bus.name}'",
+                            ppath,
+                        )
                         continue
                     if to in attached and to not in switch_names:
                         self.err("topology", f"node '{to}' is cabled twice (also to {attached[to]})", ppath)
@@ -909,16 +1197,23 @@ class _Resolver:
                 if len(bus.nodes) == 2:
                     graph.add_edge(*bus.nodes)
                 elif len(bus.nodes) > 2:
-                    self.err("topology", f"bus '{bus.name}' has {len(bus.nodes)} nodes but no switch; add 'ethernet: "
-                             "{switches: [...]}' saying which node hangs on which port", bus.path)
+                    self.err(
+                        "topology",
+                        f"bus '{bus.name}' has {len(bus.nodes)} nodes but no switch; add 'ethernet: "
+                        "{switches: [...]}' saying which node hangs on which port",
+                        bus.path,
+                    )
                     continue
             for n in bus.nodes:
                 if bus.switches and n not in graph:
                     self.err("topology", f"node '{n}' is on bus '{bus.name}' but on no switch port", bus.path)
             if graph.number_of_nodes() and not nx.is_tree(graph):
                 why = "has a loop" if nx.cycle_basis(graph) else "is not connected"
-                self.err("topology", f"the cabling of bus '{bus.name}' {why}; switched Ethernet without spanning "
-                         "tree needs a tree", (*bus.path, "ethernet"))
+                self.err(
+                    "topology",
+                    f"the cabling of bus '{bus.name}' {why}; switched Ethernet without spanning tree needs a tree",
+                    (*bus.path, "ethernet"),
+                )
 
     # -- flows ---------------------------------------------------------------------------------------------
     def resolve_flows(self) -> None:
@@ -946,8 +1241,11 @@ class _Resolver:
                     elif ref in self.model.messages:
                         kinds.add("message")
                     else:
-                        self.err("unknown-message", f"flow '{f.name}': '{ref}' is neither a message nor a task "
-                                 "(tasks are written node.task)", rpath)
+                        self.err(
+                            "unknown-message",
+                            f"flow '{f.name}': '{ref}' is neither a message nor a task (tasks are written node.task)",
+                            rpath,
+                        )
                         ok = False
                 if len(kinds) > 1:
                     self.err("flow-chain", "a parallel step holds either tasks or messages, not both", spath)
@@ -957,10 +1255,15 @@ class _Resolver:
             if ok:
                 ok = self.check_flow_links(f.name, steps, path)
             if ok and steps[-1].kind != "task":
-                self.err("flow-chain", f"flow '{f.name}' must end with the task that uses the data (node.task)",
-                         (*path, "chain", len(steps) - 1))
+                self.err(
+                    "flow-chain",
+                    f"flow '{f.name}' must end with the task that uses the data (node.task)",
+                    (*path, "chain", len(steps) - 1),
+                )
             self.model.flows[f.name] = model.Flow(
-                name=f.name, steps=tuple(steps), deadline_ns=self.ns(f.deadline, (*path, "deadline"), None),
+                name=f.name,
+                steps=tuple(steps),
+                deadline_ns=self.ns(f.deadline, (*path, "deadline"), None),
                 path=path,
             )
 
@@ -972,16 +1275,22 @@ class _Resolver:
             before, after = steps[j - 1], steps[j]
             where = (*path, "chain", j)
             if before.kind == "message" and after.kind == "message":
-                self.err("flow-chain", f"flow '{flow}': two message steps in a row; put the task that relays the "
-                         "data between them", where)
+                self.err(
+                    "flow-chain",
+                    f"flow '{flow}': two message steps in a row; put the task that relays the data between them",
+                    where,
+                )
                 ok = False
             elif before.kind == "task" and after.kind == "message":
                 nodes = {r.split(".")[0] for r in before.refs}
                 for ref in after.refs:
                     msg = self.model.messages[ref]
                     if msg.producer not in nodes:
-                        self.err("flow-chain", f"flow '{flow}': '{ref}' is produced by '{msg.producer}', not by "
-                                 f"{_names(nodes)}", where)
+                        self.err(
+                            "flow-chain",
+                            f"flow '{flow}': '{ref}' is produced by '{msg.producer}', not by {_names(nodes)}",
+                            where,
+                        )
                         ok = False
             elif before.kind == "message" and after.kind == "task":
                 for ref in after.refs:
@@ -993,8 +1302,12 @@ class _Resolver:
                 nodes = {r.split(".")[0] for r in before.refs}
                 for ref in after.refs:
                     if ref.split(".")[0] not in nodes:
-                        self.err("flow-chain", f"flow '{flow}': '{ref}' follows tasks of {_names(nodes)} without a "
-                                 "message in between; data crosses nodes only in messages", where)
+                        self.err(
+                            "flow-chain",
+                            f"flow '{flow}': '{ref}' follows tasks of {_names(nodes)} without a "
+                            "message in between; data crosses nodes only in messages",
+                            where,
+                        )
                         ok = False
         return ok
 

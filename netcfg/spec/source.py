@@ -80,9 +80,7 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
         return None, smap
 
 
-def _build(
-    node: yaml.Node, path: Path, file: str, smap: SourceMap, ctor: yaml.SafeLoader, diags: Collector
-) -> Any:
+def _build(node: yaml.Node, path: Path, file: str, smap: SourceMap, ctor: yaml.SafeLoader, diags: Collector) -> Any:
     if isinstance(node, yaml.MappingNode):
         own = sum(1 for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge")
         ctor.flatten_mapping(node)  # resolve YAML merge keys (<<): merged pairs first, then the mapping's own

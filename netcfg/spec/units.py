@@ -149,7 +149,10 @@ DurationField = Annotated[
 ]
 BitRateField = Annotated[int, PlainValidator(parse_bitrate), WithJsonSchema(_BITRATE_SCHEMA)]
 FrequencyField = Annotated[
-    Fraction, PlainValidator(parse_frequency), PlainSerializer(lambda f: f"{float(f):g} Hz"), WithJsonSchema(_FREQ_SCHEMA)
+    Fraction,
+    PlainValidator(parse_frequency),
+    PlainSerializer(lambda f: f"{float(f):g} Hz"),
+    WithJsonSchema(_FREQ_SCHEMA),
 ]
 
 

@@ -129,7 +129,7 @@ def tindell_1994(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, int | Non
     fs = sorted(frames, key=lambda f: f.priority_key)
     out: dict[str, int | None] = {}
     for i, f in enumerate(fs):
-        b = max((g.c_ns for g in fs[i + 1:]), default=0)
+        b = max((g.c_ns for g in fs[i + 1 :]), default=0)
         hp = fs[:i]
         if sum(g.c_ns / (g.t_ns or ONE_SHOT) for g in hp) >= 1:
             out[f.name] = None

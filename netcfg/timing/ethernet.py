@@ -14,6 +14,7 @@ port that can arrive together, w = sum_i ceil(w / T_i) * C_i, minus the frame's 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 import networkx as nx
 
@@ -71,7 +72,7 @@ def routes(graph: nx.Graph, msg: model.Message) -> dict[str, tuple[Link, ...]]:
     out = {}
     for consumer in msg.consumers:
         path = nx.shortest_path(graph, msg.producer, consumer)
-        out[consumer] = tuple(zip(path, path[1:]))
+        out[consumer] = tuple(pairwise(path))
     return out
 
 
@@ -112,11 +113,19 @@ def analyse(bus: model.Bus, nodes: dict[str, model.Node]) -> tuple[list[LinkLoad
             if all(w is not None for w in waits[1:]):  # every hop after the first leaves a switch's egress port
                 tswitch = sum(switches[hop[0]].latency_ns + (w or 0) for hop, w in zip(hops[1:], waits[1:]))
             tprop = sum(round(cables.get(h, 0.0) / PROPAGATION_M_PER_S * 1e9) for h in hops)
-            delays.append(PathDelay(
-                message=msg.name, consumer=consumer, hops=hops, tpre_ns=nodes[msg.producer].tx_delay_ns,
-                twait_ns=waits[0], tframe_ns=own * len(hops), tprop_ns=tprop, tswitch_ns=tswitch,
-                tpost_ns=nodes[consumer].rx_delay_ns,
-            ))
+            delays.append(
+                PathDelay(
+                    message=msg.name,
+                    consumer=consumer,
+                    hops=hops,
+                    tpre_ns=nodes[msg.producer].tx_delay_ns,
+                    twait_ns=waits[0],
+                    tframe_ns=own * len(hops),
+                    tprop_ns=tprop,
+                    tswitch_ns=tswitch,
+                    tpost_ns=nodes[consumer].rx_delay_ns,
+                )
+            )
     return [links[k] for k in sorted(links)], delays
 
 

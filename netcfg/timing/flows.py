@@ -16,6 +16,7 @@ A step may hold several items in parallel; the data of all of them is needed, so
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 from netcfg import model
 from netcfg.timing.ftt import Schedule
@@ -57,8 +58,9 @@ def task_period(m: model.Model, task: model.Task) -> int | None:
     return task.period_ns
 
 
-def unsynchronised(m: model.Model, flow: model.Flow, chained: dict[str, Delivery]) -> tuple[
-        tuple[int, int | None], tuple[int, int | None] | None]:
+def unsynchronised(
+    m: model.Model, flow: model.Flow, chained: dict[str, Delivery]
+) -> tuple[tuple[int, int | None], tuple[int, int | None] | None]:
     lo, hi = 0, 0  # type: int, int | None
     refresh: int | None = None  # how often the data reaching this step is renewed
     delivery: tuple[int, int | None] | None = None
@@ -111,8 +113,9 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
     return False
 
 
-def synchronised(m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery]) -> tuple[
-        tuple[int, int], tuple[int, int] | None] | None:
+def synchronised(
+    m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery]
+) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
     """Latency range over every start instance in the macro-cycle; None when some step is not time-triggered."""
     s = ftt.schedule
     ec = s.ec_ns
@@ -172,8 +175,12 @@ def synchronised(m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[
             for ref in step.refs:
                 if step.kind == "message" and sync_msg(ref):
                     k_lo, k_hi = next_send(ref, lo), next_send(ref, hi)
-                    outs.append((k_lo * ec + s.completion(ref, k_lo, ftt.frame_ns)[0],
-                                 k_hi * ec + s.completion(ref, k_hi, ftt.frame_ns)[1]))
+                    outs.append(
+                        (
+                            k_lo * ec + s.completion(ref, k_lo, ftt.frame_ns)[0],
+                            k_hi * ec + s.completion(ref, k_hi, ftt.frame_ns)[1],
+                        )
+                    )
                 elif step.kind == "message":
                     d = chained[ref]
                     if d.worst_ns is None:
@@ -195,7 +202,7 @@ def synchronised(m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[
     lat_hi = 0
     del_lo: int | None = None
     del_hi = 0
-    for (start, lo, hi, got), nxt in zip(runs, runs[1:]):
+    for (start, lo, hi, got), nxt in pairwise(runs):
         if start >= s.macro_cycle * ec:
             break
         if nxt[1] > lo:

@@ -99,18 +99,41 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
         if m.window != "sync" or m.ftt_id is None or m.period_ns is None:
             continue
         bits = can_frame_bits(m.size, m.extended)
-        out.append(SrtEntry(
-            ftt_id=m.ftt_id, name=m.name, kind="message", producer=m.producer, targets=m.consumers, size=m.size,
-            can_id=m.id, c_bits=bits, c_ns=bits_to_ns(bits, bus.bitrate), period_ec=m.period_ns // ec,
-            fastest_period_ec=(m.interval_ns or m.period_ns) // ec, init_ec=(m.offset_ns or 0) // ec,
-            deadline_ns=m.deadline_ns,
-        ))
+        out.append(
+            SrtEntry(
+                ftt_id=m.ftt_id,
+                name=m.name,
+                kind="message",
+                producer=m.producer,
+                targets=m.consumers,
+                size=m.size,
+                can_id=m.id,
+                c_bits=bits,
+                c_ns=bits_to_ns(bits, bus.bitrate),
+                period_ec=m.period_ns // ec,
+                fastest_period_ec=(m.interval_ns or m.period_ns) // ec,
+                init_ec=(m.offset_ns or 0) // ec,
+                deadline_ns=m.deadline_ns,
+            )
+        )
     for t in triggers:
-        out.append(SrtEntry(
-            ftt_id=t.ftt_id, name=t.name, kind="trigger", producer=None, targets=t.tasks, size=0, can_id=None,
-            c_bits=0, c_ns=0, period_ec=t.period_ns // ec, fastest_period_ec=t.interval_ns // ec,
-            init_ec=(t.offset_ns or 0) // ec, deadline_ns=None,
-        ))
+        out.append(
+            SrtEntry(
+                ftt_id=t.ftt_id,
+                name=t.name,
+                kind="trigger",
+                producer=None,
+                targets=t.tasks,
+                size=0,
+                can_id=None,
+                c_bits=0,
+                c_ns=0,
+                period_ec=t.period_ns // ec,
+                fastest_period_ec=t.interval_ns // ec,
+                init_ec=(t.offset_ns or 0) // ec,
+                deadline_ns=None,
+            )
+        )
     return sorted(out, key=lambda e: e.ftt_id)
 
 
@@ -128,8 +151,9 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
         trigs = [e for e in entries if e.kind == "trigger" and e.due(k, e.fastest_period_ec if fastest else None)]
         sync = sum(e.c_ns for e in msgs)
         due = sorted(e.ftt_id for e in (*msgs, *trigs))
-        slots.append(EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync,
-                            ec - tm - sync))
+        slots.append(
+            EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
+        )
     lsw = bus.ftt.lsw_ns if bus.ftt.lsw_ns is not None else ec - tm
     return Schedule(ec, tm, lsw, tuple(entries), tuple(slots))
 
@@ -164,7 +188,7 @@ def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str,
     out: dict[str, int | None] = {}
     for i, f in enumerate(ordered):
         hp = ordered[:i]
-        blocking = max((g.c_ns for g in ordered[i + 1:]), default=0)
+        blocking = max((g.c_ns for g in ordered[i + 1 :]), default=0)
         rate = sum(g.c_ns / g.t_ns for g in hp if g.t_ns) * sched.ec_ns * sched.macro_cycle
         if rate >= cycle_supply:
             out[f.name] = None
@@ -173,9 +197,7 @@ def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str,
         for start in range(sched.macro_cycle):
             t = 0
             while True:
-                demand = f.c_ns + blocking + sum(
-                    g.c_ns * (-(-(t + g.j_ns) // g.t_ns) if g.t_ns else 1) for g in hp
-                )
+                demand = f.c_ns + blocking + sum(g.c_ns * (-(-(t + g.j_ns) // g.t_ns) if g.t_ns else 1) for g in hp)
                 served = _time_to_serve(sched, supply, start, demand)
                 if served <= t:
                     break

@@ -31,8 +31,12 @@ def derive_offsets(m: model.Model, error: Report) -> None:
             return (current_ns or 0) // ec
         if name in derived and derived[name][0] != want:
             other_ec, other_flow = derived[name]
-            error("offset-conflict", f"flows '{other_flow}' and '{flow.name}' need different offsets for '{name}' "
-                  f"(EC {other_ec} and EC {want}); give it an explicit offset", flow.path)
+            error(
+                "offset-conflict",
+                f"flows '{other_flow}' and '{flow.name}' need different offsets for '{name}' "
+                f"(EC {other_ec} and EC {want}); give it an explicit offset",
+                flow.path,
+            )
             return other_ec
         derived[name] = (want, flow.name)
         return want
@@ -78,12 +82,19 @@ def derive_offsets(m: model.Model, error: Report) -> None:
                 m.nodes[node].tasks[task] = replace(m.nodes[node].tasks[task], offset_ns=offset_ec * ec)
     for msg in m.messages.values():
         if msg.offset_auto and msg.name not in derived:
-            error("offset-auto", f"'{msg.name}' has 'offset: auto' but no flow passes through it; add it to a flow "
-                  "or give a duration", (*msg.path, "offset"))
+            error(
+                "offset-auto",
+                f"'{msg.name}' has 'offset: auto' but no flow passes through it; add it to a flow or give a duration",
+                (*msg.path, "offset"),
+            )
     for trig in m.triggers.values():
         if trig.offset_auto and trig.name not in derived:
-            error("offset-auto", f"trigger '{trig.name}' has 'offset: auto' but no flow passes through its tasks; "
-                  "add one to a flow or give a duration", (*trig.path, "offset"))
+            error(
+                "offset-auto",
+                f"trigger '{trig.name}' has 'offset: auto' but no flow passes through its tasks; "
+                "add one to a flow or give a duration",
+                (*trig.path, "offset"),
+            )
 
 
 def _flow_ec(m: model.Model, flow: model.Flow) -> int | None:
