@@ -5,6 +5,7 @@ multiples, offsets. Like a linter, it reports every problem it finds, not just t
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from collections.abc import Iterable
@@ -346,7 +347,8 @@ class _Resolver:
             )
             return None
         try:
-            return _cached_eds(str(file), file.stat().st_mtime_ns, n.device.eds)
+            profile = _cached_eds(str(file), file.stat().st_mtime_ns, n.device.eds)
+            return dataclasses.replace(profile, source=n.device.eds)  # name the file as the spec wrote it
         except EdsError as exc:
             self.err("eds-invalid", f"{n.device.eds}: {exc}", (*dpath, "eds"))
             return None
@@ -768,7 +770,8 @@ class _Resolver:
             if number > count:
                 self.err(
                     "pdo-number",
-                    f"device {dev.name} of '{h}' has {count} {kind.upper()}s; {kind.upper()} {number} does not exist",
+                    f"device {dev.name} of '{h}' ({dev.source}) has {count} {kind.upper()}s; {kind.upper()} {number} "
+                    "does not exist",
                     (*ppath, kind),
                 )
             if kind == "tpdo" and p.event_timer is not None and not dev.tpdo_event_timer:
@@ -842,27 +845,28 @@ class _Resolver:
                     continue
                 found = dev.lookup(index, sub)
                 where = f"device {dev.name} of '{h}' ({dev.source})"
+                has_subs = sub == 0 and any(i == index and k > 0 for i, k in dev.objects)
+                hint = f" (it has sub-indices: give '0x{index:04X}:1')" if has_subs else ""
                 if found is None:
-                    hint = f" (it has sub-indices: give '0x{index:04X}:1')" if dev.has_index(index) and sub == 0 else ""
                     self.err("unknown-object", f"object 0x{index:04X}:{sub} does not exist in {where}{hint}", epath)
                     continue
                 if not found.pdo_mappable:
                     self.err(
                         "not-mappable",
-                        f"object 0x{index:04X}:{sub} '{found.name}' of {where} is not PDO-mappable",
+                        f"object 0x{index:04X}:{sub} '{found.name}' of {where} is not PDO-mappable{hint}",
                         epath,
                     )
                 elif kind == "rpdo" and not found.writable:
                     self.err(
                         "pdo-direction",
-                        f"object 0x{index:04X}:{sub} '{found.name}' is read-only "
+                        f"object 0x{index:04X}:{sub} '{found.name}' of {where} is read-only "
                         f"({found.access}) and cannot be written by an RPDO; map it in a TPDO",
                         epath,
                     )
                 elif kind == "tpdo" and not found.readable:
                     self.err(
                         "pdo-direction",
-                        f"object 0x{index:04X}:{sub} '{found.name}' is write-only "
+                        f"object 0x{index:04X}:{sub} '{found.name}' of {where} is write-only "
                         f"({found.access}) and cannot be sent in a TPDO",
                         epath,
                     )

@@ -1,0 +1,57 @@
+"""Shared helpers: the repository layout and a way to check a spec, from a file or from YAML text."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+SPECS = ROOT / "specs"
+SHARED = ROOT.parent / "shared"
+EPOS4_EDS = SHARED / "devices" / "maxon_epos4_50-5.eds"
+
+
+def check(path: Path) -> dict[str, Any]:
+    from netcfg.check import check as run
+
+    return run(path)
+
+
+def check_data(tmp_path: Path, data: dict[str, Any], name: str = "spec.yaml") -> dict[str, Any]:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return check(path)
+
+
+def load_spec(name: str) -> dict[str, Any]:
+    data: dict[str, Any] = yaml.safe_load((SPECS / name).read_text(encoding="utf-8"))
+    return data
+
+
+def cli(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "netcfg", *args], capture_output=True, text=True, cwd=cwd, timeout=120)
+
+
+def cli_json(*args: str) -> tuple[int, dict[str, Any]]:
+    proc = cli(*args, "--format", "json")
+    return proc.returncode, json.loads(proc.stdout)
+
+
+def bus(report: dict[str, Any], name: str) -> dict[str, Any]:
+    return next(b for b in report["buses"] if b["name"] == name)
+
+
+def message(bus_report: dict[str, Any], name: str) -> dict[str, Any]:
+    return next(m for m in bus_report["messages"] if m["name"] == name)
+
+
+@pytest.fixture
+def needs_shared() -> None:
+    if not EPOS4_EDS.is_file():
+        pytest.skip("the shared vendor device files are not next to this checkout")

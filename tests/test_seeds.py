@@ -1,0 +1,185 @@
+"""The three seed systems, checked against their papers' tables and hand calculations."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from conftest import SPECS, bus, check, check_data, cli_json, load_spec, message
+
+# ---------------------------------------------------------------------------------------------------------------
+# CAMBADA (seed 002), FTT-CAN at 250 kbit/s, EC = 5 ms
+
+
+def test_cambada_bus_load_is_the_papers_27_percent() -> None:
+    """Section 5.2: "the communication load according to Table 1 is close to 27% of the bus bandwidth at 250Kbps".
+
+    Hand calculation, worst-case frames of 55 + 10 s bits at 4 us per bit, M3.1-M3.3 at their fastest 5 ms:
+      M1 6 B / 30 ms: 460/30000 = 0.01533     M2 2 B / 1 s: 300/1e6 = 0.00030
+      M3 3 x 3 B / 5 ms: 3 x 340/5000 = 0.20400
+      M4 7+4 B / 50 ms: 880/50000 = 0.01760   M5 7+4 B / 500 ms: 880/500000 = 0.00176
+      M6 7+4 B / 30 ms: 880/30000 = 0.02933   M7 1 B / 1 s: 260/1e6 = 0.00026
+      M8-M12 5 x 2 B / 1 s: 1500/1e6 = 0.00150                                      total 0.27009
+    """
+    code, report = cli_json("check", str(SPECS / "cambada.yaml"))
+    assert code == 0 and report["ok"]
+    lowlevel = bus(report, "lowlevel")
+    assert lowlevel["utilization"] == pytest.approx(0.270, abs=0.005)
+    assert lowlevel["utilization"] == pytest.approx(0.27009, abs=1e-5)
+
+
+def test_cambada_trigger_message_overhead() -> None:
+    """Section 5.2: 'the communication overhead is lower than 8.4% (420us/5ms)'."""
+    ftt = bus(check(SPECS / "cambada.yaml"), "lowlevel")["ftt"]
+    assert ftt["tm_us"] == 420.0
+    assert ftt["tm_overhead"] == pytest.approx(0.084)
+    assert ftt["ec_us"] == 5000.0
+
+
+# Table 2: FTT id -> (period in ECs, init time in ECs); ids 0-7 messages, 8-13 triggers.
+TABLE_2 = {0: (6, 5), 1: (2, 2), 2: (2, 2), 3: (2, 2), 4: (10, 4), 5: (10, 4), 6: (6, 0), 7: (6, 0),
+           8: (1, 0), 9: (2, 1), 10: (2, 3), 11: (10, 3), 12: (6, 1), 13: (6, 6)}
+
+
+def test_cambada_srt_equals_table_2_with_automatic_offsets() -> None:
+    """Every init time in specs/cambada.yaml is 'offset: auto'; netcfg derives them from the Motion and
+    Odometry flows and must find Table 2's values (section 5.2 explains each of them)."""
+    assert "offset: auto" in (SPECS / "cambada.yaml").read_text()
+    srt = bus(check(SPECS / "cambada.yaml"), "lowlevel")["ftt"]["srt"]
+    assert {e["id"]: (e["period_ec"], e["init_ec"]) for e in srt} == TABLE_2
+    types = {e["id"]: e["type"] for e in srt}
+    assert [i for i, t in types.items() if t == "message"] == list(range(8))
+    assert [i for i, t in types.items() if t == "trigger"] == list(range(8, 14))
+
+
+def test_cambada_every_ec_fits_the_synchronous_window() -> None:
+    """The busiest EC carries messages 1-3 (3 x 340 us), 4-5 (500 + 380 us) and 6-7 (500 + 380 us):
+    2780 us, which must fit the 3 ms LSW; the report lists all 30 ECs of the macro-cycle (LCM of 6, 2, 10, 1)."""
+    ftt = bus(check(SPECS / "cambada.yaml"), "lowlevel")["ftt"]
+    assert ftt["macro_cycle_ec"] == 30 and len(ftt["ecs"]) == 30
+    assert ftt["worst_ec"]["sync_us"] == 2780.0 and ftt["worst_ec"]["fits"]
+    assert all(ec["sync_us"] <= ftt["lsw_us"] for ec in ftt["ecs"])
+    # EC 0 of the steady-state macro-cycle: messages 6, 7 (init 0), 1-3 (init 2, period 2), trigger 8 (every EC)
+    # and trigger 13 (init 6, period 6: the previous Motion cycle's instance falls on EC 0 of the next one)
+    ec0 = ftt["ecs"][0]
+    assert sorted(ec0["ids"]) == [1, 2, 3, 6, 7, 8, 13]
+    assert ec0["ec_schedule"] == sum(1 << i for i in (1, 2, 3, 6, 7, 8, 13))
+
+
+def test_cambada_flows_synchronised_versus_unsynchronised() -> None:
+    """Table 3: with FTT-CAN the Motion delay is 26.7-27.7 ms and Odometry 21.6-21.7 ms, jitter about 1 ms or less;
+    with unsynchronised CAN the ranges span tens of ms (Motion 38.8-64.4 ms)."""
+    flows = {f["name"]: f for f in check(SPECS / "cambada.yaml")["flows"]}
+    motion = flows["motion"]["synchronised"]
+    # the paper measures Motion until a motor receives the set-point: our delivery range
+    assert 26_000 <= motion["delivery_min_us"] <= motion["delivery_max_us"] <= 28_500
+    for name in ("motion", "odometry"):
+        sync, unsync = flows[name]["synchronised"], flows[name]["unsynchronised"]
+        assert sync["latency_max_us"] - sync["latency_min_us"] <= 1_300, name
+        assert unsync["latency_max_us"] - unsync["latency_min_us"] >= 10_000, name
+        assert flows[name]["mode"] == "synchronised"
+    assert 20_000 <= flows["odometry"]["synchronised"]["latency_min_us"] <= 25_000
+
+
+def test_cambada_odometry_at_the_fastest_rate_still_fits(tmp_path: Path) -> None:
+    """M3.1-M3.3 may run every EC (period_range 1-4 ECs); netcfg checks that schedule too."""
+    ftt = bus(check(SPECS / "cambada.yaml"), "lowlevel")["ftt"]
+    assert ftt["worst_ec_fastest"]["fits"]
+
+
+def test_cambada_lsw_too_short_is_reported(tmp_path: Path) -> None:
+    data = load_spec("cambada.yaml")
+    data["buses"][0]["ftt"]["lsw"] = "2500 us"
+    report = check_data(tmp_path, data)
+    assert not report["ok"]
+    err = next(e for e in report["errors"] if e["code"] == "lsw")
+    assert "EC 24" in err["message"] and "280 us more than the LSW" in err["message"]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# ALLEX-2 (seed 000), CANopen at 1 Mbit/s
+
+
+def test_allex2_load_per_sync_cycle() -> None:
+    """Hand calculation (issue 2): per 20 ms cycle, SYNC (0 B: 55 bits), six RxPDO1 of 8 B (135 bits) and twelve
+    TxPDOs of 8 B and 6 B (135 + 115 bits): 55 + 6 x 135 + 6 x (135 + 115) = 2365 bits in 20 ms at 1 Mbit/s =
+    0.118. RxPDO2 (interpolation time) goes out only at start and stop and is no part of the cycle."""
+    report = check(SPECS / "allex2.yaml")
+    assert report["ok"], report["errors"]
+    can0 = bus(report, "can0")
+    cyclic = [m for m in can0["messages"] if m["kind"] != "on-demand"]
+    assert len(cyclic) == 19  # 18 PDO frames + SYNC
+    assert sum(m["frame_bits_worst"] for m in cyclic) == 2365
+    assert can0["utilization"] == pytest.approx(2365 / 20_000)
+    assert message(can0, "hip_l_state")["id"] == 0x180 + 1  # CiA 301 default TPDO1 COB-ID
+    assert message(can0, "ankle_r_cmd")["id"] == 0x200 + 6  # CiA 301 default RPDO1 COB-ID
+
+
+def test_allex2_synchronous_tpdos_fit_the_read_window() -> None:
+    """The 12 TxPDOs must arrive within the master's 10 ms read window (section 4.4.2). Worst case, hand calculation:
+    a frame on the bus when SYNC is queued (135 bits), SYNC (55), 12 TxPDOs (6 x 135 + 6 x 115 = 1500), the six
+    RxPDO1 written in the cycle (810) and the six on-demand RxPDO2 (6 x 75 = 450): 2950 bits = 2950 us."""
+    sync = bus(check(SPECS / "allex2.yaml"), "can0")["sync"]
+    assert sync["max_tpdos_per_cycle"] == 12
+    assert sync["worst_completion_us"] == 2950.0
+    assert sync["read_window_us"] == 10_000.0
+
+
+def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_path: Path) -> None:
+    """With a 4 ms cycle and 2.5 ms windows, the 2950 us above (every frame counted once, as 2950 < 4000) no
+    longer fit: 450 us too late. The load, 2365 bits per 4 ms = 0.59, is still fine: only the cycle fails."""
+    data = load_spec("allex2.yaml")
+    data["buses"][0]["canopen"].update(sync_period="4 ms", sync_window="2500 us", read_window="2500 us")
+    for m in data["messages"]:
+        if "period" in m:
+            m["period"] = "4 ms"
+    path = tmp_path / "allex2_fast.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    code, report = cli_json("check", str(path))
+    assert code == 1
+    assert [e["code"] for e in report["errors"]] == ["sync-cycle"]
+    err = report["errors"][0]
+    assert "SYNC cycle 0" in err["message"] and "2950 us after SYNC, 450 us too late" in err["message"]
+    assert err["file"] == str(path) and err["line"] >= 1
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# NTUA (seed 001), switched 100 Mbit/s Ethernet
+
+
+def test_sahr_minimum_frame_and_pc_link_load() -> None:
+    """Section 6.2.2.12: a minimum frame takes (84 x 8) / 100e6 = 6.72 us, f_max = 148.81 kHz. Two MCUs at 15 kHz
+    share the switch -> PC link: 30,000 frames/s x 6.72 us = 0.2016 of it, and 15 kHz < f_max / 2 = 74.40 kHz."""
+    code, report = cli_json("check", str(SPECS / "ntua_sahr.yaml"))
+    assert code == 0
+    lan = bus(report, "lan")
+    assert lan["min_frame_us"] == 6.72
+    assert lan["f_max_hz"] == pytest.approx(148_809.52, abs=0.01)
+    pc_link = next(ll for ll in lan["links"] if ll["to"] == "pc")
+    assert pc_link["frames_per_s"] == 30_000
+    assert pc_link["utilization"] == pytest.approx(0.2016)
+    assert pc_link["senders"] == 2 and pc_link["f_max_per_sender_hz"] == pytest.approx(74_404.76, abs=0.01)
+    assert pc_link["ok"]
+
+
+def test_sahr_at_80_khz_fails_on_the_pc_link(tmp_path: Path) -> None:
+    """2 x 80 kHz x 6.72 us = 1.0752 of the switch -> PC link: 7.5 % too much; f_max / 2 = 74.40 kHz < 80 kHz."""
+    data = load_spec("ntua_sahr.yaml")
+    for m in data["messages"]:
+        if m["name"].endswith("_encoder"):
+            m["rate"] = "80 kHz"
+    report = check_data(tmp_path, data)
+    assert not report["ok"]
+    err = next(e for e in report["errors"] if e["code"] == "link-overload")
+    assert "sw1 -> pc" in err["message"]
+    assert "107.5%" in err["message"] and "7.5% too much" in err["message"] and "74.40 kHz" in err["message"]
+
+
+def test_treadmill_checks() -> None:
+    """Section 6.3.1.4: 10 kHz sampling to the PC, PID at 2 kHz back: 10,000 x 6.72 us = 0.0672 of the MCU link."""
+    report = check(SPECS / "ntua_treadmill.yaml")
+    assert report["ok"]
+    lan = bus(report, "lan")
+    assert lan["utilization"] == pytest.approx(0.0672)
