@@ -66,6 +66,10 @@ class _Resolver:
     def warn(self, code: str, message: str, path: Path) -> None:
         self.d.add(code, message, self.smap.at(path), "warning")
 
+    def key_or_item(self, path: Path, key: str) -> Path:
+        """The key's path when the spec wrote it, else the item's (for values netcfg derived)."""
+        return (*path, key) if self.smap.has((*path, key)) else path
+
     def ns(self, value: Duration | None, path: Path, ec_ns: int | None) -> int | None:
         """Duration -> ns; EC counts need an FTT-CAN bus to give them a length."""
         if value is None:
@@ -545,7 +549,7 @@ class _Resolver:
                     )
         if pdo is not None and ident is None:
             node = self.spec_nodes[pdo.device_node]
-            if node.node_id is not None:
+            if node.node_id is not None and 1 <= node.node_id <= 127:
                 ident = cia301.default_pdo_cob_id(pdo.kind, pdo.number, node.node_id)
             if ident is None:
                 self.err(
@@ -1083,7 +1087,7 @@ class _Resolver:
             for (bname, k), owner in sorted(used.items()):
                 if bname == bus.name and k >= capacity:
                     item = self.model.messages.get(owner) or self.model.triggers.get(owner)
-                    path = item.path if item else bus.path
+                    path = self.key_or_item(item.path, "ftt_id") if item else bus.path
                     self.err(
                         "ftt-id-range",
                         f"FTT id {k} of '{owner}' does not fit the {bus.ftt.tm_size}-byte "
@@ -1157,7 +1161,7 @@ class _Resolver:
                     self.err(
                         "duplicate-id",
                         f"identifier 0x{m.id:03X} of '{m.name}' collides with {taken[key]}; pick a free one",
-                        (*m.path, "id") if self.smap.has((*m.path, "id")) else m.path,
+                        self.key_or_item(m.path, "id"),
                     )
                     continue
                 taken[key] = f"'{m.name}'"
@@ -1166,37 +1170,58 @@ class _Resolver:
                         "restricted-id",
                         f"COB-ID 0x{m.id:03X} is restricted by CiA 301 (reserved for NMT, "
                         "SYNC/EMCY, TIME, SDO, heartbeat or LSS); PDOs must not use it",
-                        m.path,
+                        self.key_or_item(m.path, "id"),
                     )
 
     # -- Ethernet topology ---------------------------------------------------------------------------------
     def resolve_topologies(self) -> None:
+        """Every node of an Ethernet bus hangs on one switch port, and the cables form a tree (no spanning tree
+        protocol is assumed, so a loop, parallel cables included, would flood the network)."""
         for bus in self.model.buses.values():
             if bus.protocol != "ethernet-udp":
                 continue
             graph: nx.Graph = nx.Graph()
             switch_names = {s.name for s in bus.switches}
             attached: dict[str, str] = {}
-            for j, sw in enumerate(bus.switches):
+            sbus = self.spec_buses[bus.name]
+            assert sbus.ethernet is not None or not bus.switches
+            for j, sw in enumerate(sbus.ethernet.switches if sbus.ethernet else []):
                 spath = (*bus.path, "ethernet", "switches", j)
                 graph.add_node(sw.name)
-                for k, (port, to) in enumerate(sw.ports.items()):
-                    ppath = (*spath, "ports", k, "to")
-                    if to not in switch_names and to not in bus.nodes:
+                ports: set[int] = set()
+                for k, p in enumerate(sw.ports):
+                    ppath = (*spath, "ports", k)
+                    if p.port in ports:
+                        self.err("topology", f"switch '{sw.name}' lists port {p.port} twice", (*ppath, "port"))
+                        continue
+                    ports.add(p.port)
+                    where = f"{sw.name} port {p.port}"
+                    if p.to not in switch_names and p.to not in bus.nodes:
                         self.err(
                             "unknown-node",
-                            f"switch '{sw.name}' port {port} leads to '{to}', which is neither a "
-                            f"switch nor a node on bus '{bus.name}'",
-                            ppath,
+                            f"{where} leads to '{p.to}', which is neither a switch nor a node on bus '{bus.name}'",
+                            (*ppath, "to"),
                         )
                         continue
-                    if to in attached and to not in switch_names:
-                        self.err("topology", f"node '{to}' is cabled twice (also to {attached[to]})", ppath)
+                    if p.to == sw.name:
+                        self.err("topology", f"{where} is cabled to its own switch", (*ppath, "to"))
                         continue
-                    attached[to] = f"{sw.name} port {port}"
-                    graph.add_edge(sw.name, to)
-                if len(sw.ports) != len(self.spec_buses[bus.name].ethernet.switches[j].ports):  # type: ignore[union-attr]
-                    self.err("topology", f"switch '{sw.name}' lists a port number twice", (*spath, "ports"))
+                    if p.to not in switch_names and p.to in attached:
+                        self.err(
+                            "topology", f"node '{p.to}' is cabled twice ({attached[p.to]} and {where})", (*ppath, "to")
+                        )
+                        continue
+                    if p.to in graph and nx.has_path(graph, sw.name, p.to):
+                        loop = " - ".join(nx.shortest_path(graph, p.to, sw.name))
+                        self.err(
+                            "topology",
+                            f"the cable from {where} to '{p.to}' closes a loop ({loop} - {p.to}); "
+                            "switched Ethernet without a spanning tree needs a tree: remove one cable",
+                            (*ppath, "to"),
+                        )
+                        continue
+                    attached[p.to] = where
+                    graph.add_edge(sw.name, p.to)
             if not bus.switches:
                 if len(bus.nodes) == 2:
                     graph.add_edge(*bus.nodes)
@@ -1210,12 +1235,12 @@ class _Resolver:
                     continue
             for n in bus.nodes:
                 if bus.switches and n not in graph:
-                    self.err("topology", f"node '{n}' is on bus '{bus.name}' but on no switch port", bus.path)
-            if graph.number_of_nodes() and not nx.is_tree(graph):
-                why = "has a loop" if nx.cycle_basis(graph) else "is not connected"
+                    self.err("topology", f"node '{n}' is on bus '{bus.name}' but on no switch port; cable it", bus.path)
+            if graph.number_of_nodes() and not nx.is_connected(graph):
+                parts = " / ".join(", ".join(sorted(c)) for c in nx.connected_components(graph))
                 self.err(
                     "topology",
-                    f"the cabling of bus '{bus.name}' {why}; switched Ethernet without spanning tree needs a tree",
+                    f"the cabling of bus '{bus.name}' falls apart into {parts}; connect the switches",
                     (*bus.path, "ethernet"),
                 )
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, Strict, model_validator
 
 from netcfg.spec.units import BitRateField, DurationField, FrequencyField, OffsetField
 
@@ -86,10 +86,22 @@ def check_name(value: str) -> str:
 
 
 Name = Annotated[str, AfterValidator(check_name)]
+
+
+def _no_bool(value: object) -> object:
+    if isinstance(value, bool):
+        raise ValueError(f"expected a number, not {str(value).lower()}")
+    return value
+
+
+# YAML reads yes/no/true/false as booleans: never let them pass for numbers (or numbers for booleans).
+Int = Annotated[int, Strict()]
+Float = Annotated[float, BeforeValidator(_no_bool)]
+Bool = Annotated[bool, Strict()]
 # "node.task" references to tasks; flows and triggers use them.
 TaskRef = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$")]
 ObjectRef = Annotated[
-    int | str,
+    Int | str,
     Field(description="a device object: 0x6064 (sub-index 0) or '0x30D1:2' (index:sub-index)"),
 ]
 
@@ -102,10 +114,10 @@ class FttParams(Strict):
     """FTT-CAN: the master's elementary cycle and trigger message (Almeida, Pedreiras, Fonseca 2002)."""
 
     ec: DurationField = Field(description="elementary-cycle length")
-    tm_size: int = Field(ge=1, le=8, description="trigger-message payload in bytes; each byte announces 8 ids")
+    tm_size: Int = Field(ge=1, le=8, description="trigger-message payload in bytes; each byte announces 8 ids")
     lsw: DurationField | None = Field(None, description="maximum length of the synchronous window (LSW)")
-    tm_id: int = Field(0, ge=0, description="CAN identifier of the trigger message (the highest priority)")
-    sync_id_base: int = Field(
+    tm_id: Int = Field(0, ge=0, description="CAN identifier of the trigger message (the highest priority)")
+    sync_id_base: Int = Field(
         0x100, ge=0, description="CAN id of a synchronous message without an explicit id = this + its FTT id"
     )
     master: Name | None = Field(None, description="node that sends the trigger message (default: role master)")
@@ -118,14 +130,14 @@ class CanopenParams(Strict):
         None, description="how long the master waits for the synchronous TPDOs after SYNC"
     )
     sync_producer: Name | None = Field(None, description="node producing SYNC (default: the node with role master)")
-    sync_id: int = Field(0x80, ge=1, le=0x7FF, description="COB-ID of SYNC, object 0x1005")
-    sync_counter: bool = Field(False, description="SYNC carries a 1-byte counter (CiA 301 0x1019)")
+    sync_id: Int = Field(0x80, ge=1, le=0x7FF, description="COB-ID of SYNC, object 0x1005")
+    sync_counter: Bool = Field(False, description="SYNC carries a 1-byte counter (CiA 301 0x1019)")
 
 
 class SwitchPort(Strict):
-    port: int = Field(ge=1, le=1024)
+    port: Int = Field(ge=1, le=1024)
     to: Name = Field(description="the node or switch on the other end of the cable")
-    cable: float = Field(0.0, ge=0, le=100_000, description="cable length in metres (Tprop at 0.7 c)")
+    cable: Float = Field(0.0, ge=0, le=100_000, description="cable length in metres (Tprop at 0.7 c)")
 
 
 class Switch(Strict):
@@ -174,7 +186,7 @@ class EdsDevice(Strict):
 
 class Node(Strict):
     name: Name
-    node_id: int | None = Field(None, description="CANopen node id 1..127, or an FTT-CAN/CAN station number")
+    node_id: Int | None = Field(None, description="CANopen node id 1..127, or an FTT-CAN/CAN station number")
     buses: list[Name] = Field(min_length=1)
     role: Literal["master", "slave"] = "slave"
     device: Name | EdsDevice | None = Field(
@@ -190,12 +202,12 @@ class Node(Strict):
 
 class Signal(Strict):
     name: Name
-    bits: int = Field(ge=1, le=64)
-    signed: bool = False
-    scale: float = 1.0
-    offset: float = 0.0
-    min: float | None = None
-    max: float | None = None
+    bits: Int = Field(ge=1, le=64)
+    signed: Bool = False
+    scale: Float = 1.0
+    offset: Float = 0.0
+    min: Float | None = None
+    max: Float | None = None
     unit: str | None = None
 
 
@@ -205,12 +217,12 @@ class PdoEntry(Strict):
 
 
 class Pdo(Strict):
-    tpdo: int | None = Field(None, ge=1, le=512, description="this is TPDO n of the producer")
-    rpdo: int | None = Field(None, ge=1, le=512, description="this is RPDO n of the (single) consumer")
-    transmission: int = Field(255, ge=0, le=255, description="transmission type (0x1800/0x1400 sub 2)")
+    tpdo: Int | None = Field(None, ge=1, le=512, description="this is TPDO n of the producer")
+    rpdo: Int | None = Field(None, ge=1, le=512, description="this is RPDO n of the (single) consumer")
+    transmission: Int = Field(255, ge=0, le=255, description="transmission type (0x1800/0x1400 sub 2)")
     inhibit: DurationField | None = Field(None, description="inhibit time, stored in units of 100 us")
     event_timer: DurationField | None = Field(None, description="event timer, stored in ms")
-    sync_start: int | None = Field(None, ge=0, le=240, description="SYNC start value (0x1800 sub 6)")
+    sync_start: Int | None = Field(None, ge=0, le=240, description="SYNC start value (0x1800 sub 6)")
     map: list[ObjectRef | PdoEntry] = Field(min_length=0, description="mapped objects, first byte first")
 
     @model_validator(mode="after")
@@ -221,8 +233,8 @@ class Pdo(Strict):
 
 
 class Udp(Strict):
-    src_port: int = Field(ge=1, le=65535)
-    dst_port: int = Field(ge=1, le=65535)
+    src_port: Int = Field(ge=1, le=65535)
+    dst_port: Int = Field(ge=1, le=65535)
 
 
 class Message(Strict):
@@ -230,9 +242,9 @@ class Message(Strict):
     bus: Name | None = Field(None, description="default: the one bus producer and consumers share")
     producer: Name
     consumers: list[Name] = Field(min_length=1)
-    id: int | None = Field(None, ge=0, description="CAN identifier, or the application message id on UDP")
-    extended: bool | None = Field(None, description="29-bit identifier (default: the bus's id_bits)")
-    size: int | None = Field(None, ge=0, description="payload bytes (or give signals / a PDO map)")
+    id: Int | None = Field(None, ge=0, description="CAN identifier, or the application message id on UDP")
+    extended: Bool | None = Field(None, description="29-bit identifier (default: the bus's id_bits)")
+    size: Int | None = Field(None, ge=0, description="payload bytes (or give signals / a PDO map)")
     signals: list[Signal] | None = None
     pdo: Pdo | None = None
     type: Literal["periodic", "sporadic", "on-demand"] | None = Field(
@@ -250,7 +262,7 @@ class Message(Strict):
     deadline: DurationField | None = Field(None, description="default: the period (or min_interarrival)")
     jitter: DurationField | None = Field(None, description="queuing jitter of the release")
     window: Literal["sync", "async"] | None = Field(None, description="FTT-CAN window (default: sync if periodic)")
-    ftt_id: int | None = Field(None, ge=0, description="FTT-CAN synchronous id (bit in the EC-schedule)")
+    ftt_id: Int | None = Field(None, ge=0, description="FTT-CAN synchronous id (bit in the EC-schedule)")
     udp: Udp | None = None
     description: str | None = None
 
@@ -258,7 +270,7 @@ class Message(Strict):
 class Trigger(Strict):
     name: Name
     bus: Name
-    ftt_id: int = Field(ge=0)
+    ftt_id: Int = Field(ge=0)
     period: DurationField
     period_range: tuple[DurationField, DurationField] | None = None
     offset: OffsetField = Field(default_factory=lambda: _ns(0))

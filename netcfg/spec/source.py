@@ -15,6 +15,7 @@ import yaml
 from netcfg.diagnostics import Collector, Position
 
 Path = tuple[str | int, ...]
+MAX_ITEMS = 300_000  # values after alias expansion: refuses "billion laughs" documents
 
 
 class SourceMap:
@@ -57,30 +58,97 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
     try:
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        pos = Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
-        what = exc.problem or "invalid YAML"
-        ctx = f" ({exc.context})" if exc.context else ""
-        diags.add("yaml-syntax", f"YAML syntax error: {what}{ctx}; fix the indentation or quoting here", pos)
+        diags.add("yaml-syntax", _syntax_message(exc), _syntax_position(exc, file))
         return None, smap
     except yaml.YAMLError as exc:  # e.g. reader errors on binary input
         diags.add("yaml-syntax", f"cannot read YAML: {exc}", Position(file, 1, 1))
+        return None, smap
+    except RecursionError:
+        diags.add("yaml-syntax", "the YAML is nested too deep for a spec; flatten it", _too_deep(text, file))
         return None, smap
     if root is None:
         diags.add("empty-spec", "the spec is empty; start with 'system: <name>'", Position(file, 1, 1))
         return None, smap
     constructor = yaml.SafeLoader("")
     smap.record((), _pos(file, root))
+    budget = [MAX_ITEMS]
     try:
-        return _build(root, (), file, smap, constructor, diags), smap
+        return _build(root, (), file, smap, constructor, diags, budget), smap
     except yaml.constructor.ConstructorError as exc:
         mark = exc.problem_mark
         pos = Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
         diags.add("yaml-value", f"cannot read this value: {exc.problem}", pos)
-        return None, smap
+    except RecursionError:
+        diags.add("yaml-syntax", "the YAML is nested too deep for a spec; flatten it", _too_deep(text, file))
+    except _TooBig as exc:
+        diags.add("too-large", f"the spec expands to more than {MAX_ITEMS} items (through YAML aliases?)", exc.pos)
+    return None, smap
 
 
-def _build(node: yaml.Node, path: Path, file: str, smap: SourceMap, ctor: yaml.SafeLoader, diags: Collector) -> Any:
+def _too_deep(text: str, file: str, limit: int = 100) -> Position:
+    """Where nesting passes `limit` levels (the scanner is not recursive, so it can tell us)."""
+    depth = 0
+    try:
+        for token in yaml.scan(text, Loader=yaml.SafeLoader):
+            if isinstance(
+                token,
+                (
+                    yaml.FlowSequenceStartToken,
+                    yaml.FlowMappingStartToken,
+                    yaml.BlockSequenceStartToken,
+                    yaml.BlockMappingStartToken,
+                ),
+            ):
+                depth += 1
+                if depth > limit:
+                    return Position(file, token.start_mark.line + 1, token.start_mark.column + 1)
+            elif isinstance(token, (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)):
+                depth -= 1
+    except yaml.YAMLError:
+        pass
+    return Position(file, 1, 1)
+
+
+class _TooBig(Exception):
+    def __init__(self, pos: Position) -> None:
+        self.pos = pos
+
+
+def _syntax_position(exc: yaml.MarkedYAMLError, file: str) -> Position:
+    # An unclosed '[' or '{' is reported where the parser gave up; point at the bracket that was left open.
+    mark = exc.context_mark if exc.context and "flow" in exc.context and exc.context_mark else exc.problem_mark
+    mark = mark or exc.context_mark
+    return Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
+
+
+def _syntax_message(exc: yaml.MarkedYAMLError) -> str:
+    what = exc.problem or "invalid YAML"
+    if exc.context and "flow" in exc.context and exc.problem_mark:
+        where = exc.problem_mark
+        return (
+            f"YAML syntax error: a bracket opened here is not closed ({what}, line {where.line + 1}, column "
+            f"{where.column + 1}); close it or put the list on one line"
+        )
+    ctx = f" ({exc.context})" if exc.context else ""
+    return f"YAML syntax error: {what}{ctx}; fix the indentation or quoting here"
+
+
+_PLAIN_TAGS = {"tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:omap"}
+
+
+def _build(
+    node: yaml.Node, path: Path, file: str, smap: SourceMap, ctor: yaml.SafeLoader, diags: Collector, budget: list[int]
+) -> Any:
+    budget[0] -= 1
+    if budget[0] < 0:
+        raise _TooBig(_pos(file, node))
+    if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and node.tag not in _PLAIN_TAGS:
+        diags.add(
+            "yaml-value",
+            f"cannot read this value: YAML tags such as '{node.tag}' are not allowed in a spec",
+            _pos(file, node),
+        )
+        return None
     if isinstance(node, yaml.MappingNode):
         own = sum(1 for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge")
         ctor.flatten_mapping(node)  # resolve YAML merge keys (<<): merged pairs first, then the mapping's own
@@ -107,13 +175,13 @@ def _build(node: yaml.Node, path: Path, file: str, smap: SourceMap, ctor: yaml.S
                 continue
             child = (*path, key)
             smap.record(child, _pos(file, value_node), _pos(file, key_node))
-            out[key] = _build(value_node, child, file, smap, ctor, diags)
+            out[key] = _build(value_node, child, file, smap, ctor, diags, budget)
         return out
     if isinstance(node, yaml.SequenceNode):
         items = []
         for i, item in enumerate(node.value):
             child = (*path, i)
             smap.record(child, _pos(file, item))
-            items.append(_build(item, child, file, smap, ctor, diags))
+            items.append(_build(item, child, file, smap, ctor, diags, budget))
         return items
     return ctor.construct_object(node, deep=True)

@@ -37,6 +37,8 @@ RATE_UNITS: dict[str, int] = {
 }
 FREQ_UNITS: dict[str, int] = {"hz": 1, "khz": 1_000, "mhz": 1_000_000}
 EC_UNITS = ("ec", "ecs")
+MAX_DURATION_NS = 10**15  # about 11.6 days: longer periods are mistakes, and sums must stay in 64 bits
+MAX_EC_COUNT = 1_000_000
 
 
 def _split(value: Any, kind: str, example: str) -> tuple[Decimal, str]:
@@ -87,13 +89,15 @@ def parse_duration(value: Any) -> Duration:
     number, unit = _split(value, "duration", "5 ms")
     key = unit.lower()
     if key in EC_UNITS:
-        if number != number.to_integral_value() or number < 0:
-            raise ValueError(f"{value!r}: a count of elementary cycles must be a whole number >= 0")
+        if number != number.to_integral_value() or number < 0 or number > MAX_EC_COUNT:
+            raise ValueError(f"{value!r}: a count of elementary cycles must be a whole number, 0..{MAX_EC_COUNT:,}")
         return Duration(ec=int(number))
     scale = TIME_UNITS_NS.get(unit) or TIME_UNITS_NS.get(key)
     if scale is None:
         raise ValueError(f"unknown time unit '{unit}' in {value!r}; use ns, us, ms, s or EC")
     ns = number * scale
+    if ns > MAX_DURATION_NS:
+        raise ValueError(f"{value!r} is longer than netcfg handles ({MAX_DURATION_NS // 10**9:,} s)")
     if ns != ns.to_integral_value():
         raise ValueError(f"{value!r} is finer than 1 ns; netcfg keeps time in whole nanoseconds")
     if ns < 0:
@@ -107,7 +111,7 @@ def parse_bitrate(value: Any) -> int:
     if scale is None:
         raise ValueError(f"unknown bit-rate unit '{unit}' in {value!r}; use bit/s, kbit/s, Mbit/s or Gbit/s")
     rate = number * scale
-    if rate != rate.to_integral_value() or rate <= 0:
+    if rate != rate.to_integral_value() or rate <= 0 or rate > 10**12:
         raise ValueError(f"{value!r}: a bit rate must be a positive whole number of bit/s")
     return int(rate)
 
@@ -118,8 +122,8 @@ def parse_frequency(value: Any) -> Fraction:
     if scale is None:
         raise ValueError(f"unknown frequency unit '{unit}' in {value!r}; use Hz, kHz or MHz")
     f = Fraction(number) * scale
-    if f <= 0:
-        raise ValueError(f"{value!r}: a frequency must be positive")
+    if f <= 0 or f > 10**9:
+        raise ValueError(f"{value!r}: a frequency must be above 0 and at most 1 GHz")
     return f
 
 

@@ -1,0 +1,161 @@
+"""How long `netcfg check` takes, and how netcfg's CAN analysis compares with pyCPA's.
+
+Prints figures only (no assertions; the machine may be shared):
+  1. whole-process wall time of `python -m netcfg check --format json SPEC` (median, min, max of --runs runs)
+     on specs/large_plant.yaml and on random plain-CAN sets (benchmarks/random_can.py) of 100, 1,000 and
+     5,000 messages;
+  2. in-process times: reading + resolving the spec, netcfg's whole analysis stage (netcfg.analyze), and its
+     CAN response-time analysis alone (netcfg.timing.can_rta.analyse, Davis et al. 2007);
+  3. the peer, pyCPA (github.com/IDA-TUBS/pycpa, not on PyPI): its static-priority non-preemptive scheduler
+     (SPNPScheduler, the CAN bus model of its examples) on the same frames, with cycle_time = one bit time as
+     Davis' tau, side by side with the ratio, and the worst-case response times of a few messages from both.
+     Set NETCFG_PEER_PYCPA to a pyCPA checkout (the folder holding the `pycpa` package); runs are capped at
+     1,000 messages and 120 s.
+
+    NETCFG_PEER_PYCPA=/path/to/pycpa python benchmarks/bench_check.py [--runs 5] [--sizes 100 1000 5000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from random_can import write_random_can  # benchmarks/ is on sys.path when this script runs
+
+from netcfg.analyze import analyze, rta_frames
+from netcfg.check import load_model
+from netcfg.diagnostics import Collector
+from netcfg.model import Model
+from netcfg.timing import can_rta
+from netcfg.timing.frames import bits_to_ns
+
+ROOT = Path(__file__).resolve().parent.parent
+PEER_MAX_MESSAGES = 1000
+PEER_TIMEOUT_S = 120.0
+
+
+def timed(fn: Callable[[], Any], runs: int) -> tuple[list[float], Any]:
+    times, result = [], None
+    for _ in range(runs):
+        start = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - start)
+    return times, result
+
+
+def fmt(times: list[float] | None) -> str:
+    if not times:
+        return "-"
+    med = statistics.median(times)
+    return f"{med:.3f} [{min(times):.3f}-{max(times):.3f}]" if len(times) > 1 else f"{med:.3f}"
+
+
+def wall(spec: Path, runs: int) -> tuple[list[float], int]:
+    cmd = [sys.executable, "-m", "netcfg", "check", "--format", "json", str(spec)]
+    codes = []
+
+    def once() -> None:
+        codes.append(subprocess.run(cmd, stdout=subprocess.DEVNULL, cwd=ROOT, check=False).returncode)
+
+    return timed(once, runs)[0], max(codes)
+
+
+def can_frames(model: Model) -> tuple[list[can_rta.CanFrame], int]:
+    bus = next(b for b in model.buses.values() if b.protocol == "can")
+    return rta_frames(bus, bus.messages), bits_to_ns(1, bus.bitrate)
+
+
+def pycpa_analyse(frames: list[can_rta.CanFrame], tau_ns: int) -> Callable[[], dict[str, int]]:
+    """A pyCPA system with one SPNP resource (the CAN bus) holding every frame; returns the analysis call."""
+    from pycpa import analysis, model, options, schedulers
+
+    options.set_opt("timeout", PEER_TIMEOUT_S)
+    ordered = sorted(frames, key=lambda f: f.priority_key)
+
+    def run() -> dict[str, int]:
+        system = model.System()
+        bus = system.bind_resource(model.Resource("CAN", schedulers.SPNPScheduler(cycle_time=tau_ns)))
+        tasks = []
+        for rank, f in enumerate(ordered):
+            task = bus.bind_task(model.Task(f.name, wcet=f.c_ns, bcet=f.c_ns, scheduling_parameter=rank))
+            task.in_event_model = model.PJdEventModel(P=f.t_ns or can_rta.ONE_SHOT, J=f.j_ns)
+            tasks.append(task)
+        results = analysis.analyze_system(system)
+        return {t.name: results[t].wcrt for t in tasks}
+
+    return run
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=5, help="repetitions per figure (default 5)")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 5000], help="random set sizes")
+    args = parser.parse_args()
+    peer = os.environ.get("NETCFG_PEER_PYCPA")
+    if peer:
+        sys.path.insert(0, peer)
+    print(f"python {sys.version.split()[0]}, {os.cpu_count()} CPUs, {args.runs} runs per figure; times in s, "
+          "median [min-max]")  # fmt: skip
+    wall(ROOT / "specs" / "cambada.yaml", 1)  # warm the file cache and byte-code
+    rows, compare = [], []
+    with tempfile.TemporaryDirectory(prefix="netcfg-bench-") as tmp:
+        specs = [("large_plant", ROOT / "specs" / "large_plant.yaml")]
+        specs += [(f"random_can_{n}", write_random_can(n, Path(tmp))) for n in args.sizes]
+        for label, spec in specs:
+            check_times, code = wall(spec, args.runs)
+            load_times, model = timed(partial(load_model, spec, Collector()), args.runs)
+            assert model is not None, f"{spec} does not resolve"
+            n_msgs = sum(len(b.messages) for b in model.buses.values())
+            an_times, _ = timed(partial(analyze, model, Collector()), args.runs)
+            rta_times: list[float] | None = None
+            peer_times: list[float] | None = None
+            ratio = "-"
+            if label.startswith("random_can"):
+                frames, tau = can_frames(model)
+                rta_times, ours = timed(partial(can_rta.analyse, frames, tau), args.runs)
+                if peer and n_msgs <= PEER_MAX_MESSAGES:
+                    run = pycpa_analyse(frames, tau)
+                    try:
+                        peer_times, theirs = timed(run, 1)
+                        if peer_times[0] < 10:  # slow runs once only
+                            peer_times += timed(run, args.runs - 1)[0]
+                        ratio = f"{statistics.median(peer_times) / statistics.median(rta_times):,.0f}x"
+                        compare.append((label, frames, ours, theirs))
+                    except Exception as exc:  # pyCPA's TimeoutException, NotSchedulableException
+                        ratio = f"pyCPA failed: {type(exc).__name__}"
+                elif peer:
+                    ratio = f"skipped (> {PEER_MAX_MESSAGES} messages)"
+            rows.append((label, n_msgs, f"{fmt(check_times)} (exit {code})", fmt(load_times), fmt(an_times),
+                         fmt(rta_times), fmt(peer_times), ratio))  # fmt: skip
+    headers = ("spec", "msgs", "netcfg check, process", "load+resolve", "analyze()", "CAN RTA", "pyCPA SPNP",
+               "pyCPA/RTA")  # fmt: skip
+    widths = [max(len(str(r[i])) for r in [headers, *rows]) for i in range(len(headers))]
+    for r in [headers, tuple("-" * w for w in widths), *rows]:
+        print("  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
+    if not peer:
+        print("\npeer pyCPA skipped: set NETCFG_PEER_PYCPA to a checkout of github.com/IDA-TUBS/pycpa to enable it")
+    for label, frames, ours, theirs in compare:
+        same = sum(ours[f.name].wcrt_ns == theirs[f.name] for f in frames)
+        print(f"\n{label}: worst-case response times equal for {same} of {len(frames)} messages (us)")
+        ordered = sorted(frames, key=lambda f: f.priority_key)
+        picks = {0, len(ordered) // 2, len(ordered) - 1}
+        picks |= {max(range(len(ordered)), key=lambda i: ours[ordered[i].name].instances)}
+        picks |= {i for i, f in enumerate(ordered) if ours[f.name].wcrt_ns != theirs[f.name]}
+        print(f"  {'message':<8} {'id':>10} {'C':>6} {'T':>10} {'netcfg':>10} {'pyCPA':>10}  Q_m")
+        for i in sorted(picks)[:12]:
+            f, r = ordered[i], ours[ordered[i].name]
+            print(f"  {f.name:<8} {f.id:>#10x} {f.c_ns / 1e3:>6g} {(f.t_ns or 0) / 1e3:>10g} "
+                  f"{(r.wcrt_ns or 0) / 1e3:>10g} {theirs[f.name] / 1e3:>10g}  {r.instances}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
