@@ -16,7 +16,8 @@ demo: $(BIN)/.installed
 	$(BIN)/netcfg check specs/cambada.yaml specs/allex2.yaml specs/ntua_sahr.yaml
 
 test: $(BIN)/.installed
-	$(BIN)/ruff check netcfg tests benchmarks
+	$(BIN)/ruff check netcfg
+	$(BIN)/mypy
 	$(BIN)/python -m pytest
 
 lint: $(BIN)/.installed

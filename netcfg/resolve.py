@@ -10,6 +10,7 @@ import math
 import re
 from collections.abc import Iterable
 from pathlib import Path as FsPath
+from typing import Any, Literal
 
 import networkx as nx
 
@@ -100,7 +101,7 @@ class _Resolver:
         self.model.warnings = list(self.d.warnings)
 
     def check_unique_names(self) -> None:
-        kinds: list[tuple[str, list[tuple[str, Path]]]] = [
+        kinds: list[tuple[str, list[tuple[str, Any]]]] = [
             ("bus", [(b.name, ("buses", i, "name")) for i, b in enumerate(self.spec.buses)]),
             (
                 "node or switch",
@@ -747,7 +748,7 @@ class _Resolver:
         p = m.pdo
         assert p is not None
         ppath = (*path, "pdo")
-        kind = "tpdo" if p.tpdo is not None else "rpdo"
+        kind: Literal["tpdo", "rpdo"] = "tpdo" if p.tpdo is not None else "rpdo"
         number = p.tpdo if p.tpdo is not None else p.rpdo
         assert number is not None
         if kind == "tpdo":
@@ -930,7 +931,8 @@ class _Resolver:
             if bus.canopen is None:
                 continue
             co = bus.canopen
-            size = 1 if self.spec_buses[bus.name].canopen and self.spec_buses[bus.name].canopen.sync_counter else 0
+            params = self.spec_buses[bus.name].canopen
+            size = 1 if params is not None and params.sync_counter else 0
             others = tuple(n for n in bus.nodes if n != co.sync_producer)
             cpath: Path = (*bus.path, "canopen")
             sync = model.Message(
@@ -1156,15 +1158,15 @@ class _Resolver:
             for m in bus.messages:
                 if m.id < 0:
                     continue
-                key = (m.extended, m.id)
-                if key in taken:
+                id_key = (m.extended, m.id)
+                if id_key in taken:
                     self.err(
                         "duplicate-id",
-                        f"identifier 0x{m.id:03X} of '{m.name}' collides with {taken[key]}; pick a free one",
+                        f"identifier 0x{m.id:03X} of '{m.name}' collides with {taken[id_key]}; pick a free one",
                         self.key_or_item(m.path, "id"),
                     )
                     continue
-                taken[key] = f"'{m.name}'"
+                taken[id_key] = f"'{m.name}'"
                 if bus.canopen is not None and m.pdo is not None and not m.extended and cia301.restricted(m.id):
                     self.err(
                         "restricted-id",

@@ -177,6 +177,16 @@ def test_sahr_at_80_khz_fails_on_the_pc_link(tmp_path: Path) -> None:
     assert "107.5%" in err["message"] and "7.5% too much" in err["message"] and "74.40 kHz" in err["message"]
 
 
+def test_sahr_delay_budget() -> None:
+    """Eq. 6.3 with store-and-forward: the hip encoder frame (6.72 us) is serialised twice (MCU -> switch ->
+    PC: Tframe = 13.44 us) and may wait behind the spring encoder's frame on the shared egress port
+    (Tqueue = 6.72 us); Tpre, Tpost, Tmux and Tprop are not given in the paper (0): Tdelay = 20.16 us."""
+    lan = bus(check(SPECS / "ntua_sahr.yaml"), "lan")
+    hip = message(lan, "hip_encoder")
+    assert hip["delay_us"]["frame"] == 13.44 and hip["delay_us"]["switch"] == 6.72 and hip["delay_us"]["wait"] == 0
+    assert hip["wcrt_us"] == 20.16
+
+
 def test_treadmill_checks() -> None:
     """Section 6.3.1.4: 10 kHz sampling to the PC, PID at 2 kHz back: 10,000 x 6.72 us = 0.0672 of the MCU link."""
     report = check(SPECS / "ntua_treadmill.yaml")

@@ -109,7 +109,7 @@ def builtin_profile(name: str) -> DeviceProfile:
     """Load a built-in profile by name; raises KeyError for an unknown name."""
     if name not in builtin_profile_names():
         raise KeyError(name)
-    text = resources.files("netcfg.devices").joinpath("profiles", f"{name}.yaml").read_text("utf-8")
+    text = resources.files("netcfg.devices").joinpath("profiles").joinpath(f"{name}.yaml").read_text("utf-8")
     raw = yaml.safe_load(text)
     profile = DeviceProfile(
         name=name,

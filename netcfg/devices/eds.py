@@ -55,6 +55,7 @@ def import_eds(path: Path, name: str) -> DeviceProfile:
     if 0x1A00 in od:
         profile.max_mapped_objects = len(od[0x1A00]) - 1
     if 0x1800 in od:
-        profile.tpdo_event_timer = 5 in od[0x1800]
-        profile.tpdo_inhibit_time = 3 in od[0x1800]
+        subs = {var.subindex for var in _entries({0x1800: od[0x1800]})}  # type: ignore[attr-defined]
+        profile.tpdo_event_timer = 5 in subs
+        profile.tpdo_inhibit_time = 3 in subs
     return profile

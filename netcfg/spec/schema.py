@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, Strict, model_validator
 
-from netcfg.spec.units import BitRateField, DurationField, FrequencyField, OffsetField
+from netcfg.spec.units import BitRateField, Duration, DurationField, FrequencyField, OffsetField
 
 # Names end up as file names, C identifiers, Python keys and DBC names: one safe alphabet for all of them.
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
@@ -106,11 +106,11 @@ ObjectRef = Annotated[
 ]
 
 
-class Strict(BaseModel):
+class SpecModel(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-class FttParams(Strict):
+class FttParams(SpecModel):
     """FTT-CAN: the master's elementary cycle and trigger message (Almeida, Pedreiras, Fonseca 2002)."""
 
     ec: DurationField = Field(description="elementary-cycle length")
@@ -123,7 +123,7 @@ class FttParams(Strict):
     master: Name | None = Field(None, description="node that sends the trigger message (default: role master)")
 
 
-class CanopenParams(Strict):
+class CanopenParams(SpecModel):
     sync_period: DurationField = Field(description="communication cycle period, object 0x1006")
     sync_window: DurationField | None = Field(None, description="synchronous window length, object 0x1007")
     read_window: DurationField | None = Field(
@@ -134,13 +134,13 @@ class CanopenParams(Strict):
     sync_counter: Bool = Field(False, description="SYNC carries a 1-byte counter (CiA 301 0x1019)")
 
 
-class SwitchPort(Strict):
+class SwitchPort(SpecModel):
     port: Int = Field(ge=1, le=1024)
     to: Name = Field(description="the node or switch on the other end of the cable")
     cable: Float = Field(0.0, ge=0, le=100_000, description="cable length in metres (Tprop at 0.7 c)")
 
 
-class Switch(Strict):
+class Switch(SpecModel):
     name: Name
     ports: list[SwitchPort] = Field(min_length=1)
     latency: DurationField = Field(
@@ -149,17 +149,15 @@ class Switch(Strict):
     )
 
 
-def _ns(ns: int) -> object:
-    from netcfg.spec.units import Duration
-
+def _ns(ns: int) -> Duration:
     return Duration(ns=ns)
 
 
-class EthernetParams(Strict):
+class EthernetParams(SpecModel):
     switches: list[Switch] = Field(default_factory=list)
 
 
-class Bus(Strict):
+class Bus(SpecModel):
     name: Name
     protocol: Literal["can", "canopen", "ftt-can", "ethernet-udp"]
     bitrate: BitRateField = Field(description="bit rate, or link speed for Ethernet")
@@ -170,7 +168,7 @@ class Bus(Strict):
     description: str | None = None
 
 
-class Task(Strict):
+class Task(SpecModel):
     name: Name
     period: DurationField | None = Field(None, description="activation period (omit when a trigger activates it)")
     offset: DurationField = Field(default_factory=lambda: _ns(0))
@@ -180,11 +178,11 @@ class Task(Strict):
     description: str | None = None
 
 
-class EdsDevice(Strict):
+class EdsDevice(SpecModel):
     eds: str = Field(description="path of a vendor EDS file, relative to the spec")
 
 
-class Node(Strict):
+class Node(SpecModel):
     name: Name
     node_id: Int | None = Field(None, description="CANopen node id 1..127, or an FTT-CAN/CAN station number")
     buses: list[Name] = Field(min_length=1)
@@ -200,7 +198,7 @@ class Node(Strict):
     description: str | None = None
 
 
-class Signal(Strict):
+class Signal(SpecModel):
     name: Name
     bits: Int = Field(ge=1, le=64)
     signed: Bool = False
@@ -211,12 +209,12 @@ class Signal(Strict):
     unit: str | None = None
 
 
-class PdoEntry(Strict):
+class PdoEntry(SpecModel):
     object: ObjectRef
     name: Name | None = Field(None, description="signal name in generated code (default: from the object name)")
 
 
-class Pdo(Strict):
+class Pdo(SpecModel):
     tpdo: Int | None = Field(None, ge=1, le=512, description="this is TPDO n of the producer")
     rpdo: Int | None = Field(None, ge=1, le=512, description="this is RPDO n of the (single) consumer")
     transmission: Int = Field(255, ge=0, le=255, description="transmission type (0x1800/0x1400 sub 2)")
@@ -232,12 +230,12 @@ class Pdo(Strict):
         return self
 
 
-class Udp(Strict):
+class Udp(SpecModel):
     src_port: Int = Field(ge=1, le=65535)
     dst_port: Int = Field(ge=1, le=65535)
 
 
-class Message(Strict):
+class Message(SpecModel):
     name: Name
     bus: Name | None = Field(None, description="default: the one bus producer and consumers share")
     producer: Name
@@ -267,7 +265,7 @@ class Message(Strict):
     description: str | None = None
 
 
-class Trigger(Strict):
+class Trigger(SpecModel):
     name: Name
     bus: Name
     ftt_id: Int = Field(ge=0)
@@ -278,7 +276,7 @@ class Trigger(Strict):
     description: str | None = None
 
 
-class Flow(Strict):
+class Flow(SpecModel):
     name: Name
     chain: list[str | list[str]] = Field(
         min_length=2,
@@ -289,7 +287,7 @@ class Flow(Strict):
     description: str | None = None
 
 
-class Spec(Strict):
+class Spec(SpecModel):
     system: Name
     description: str | None = None
     buses: list[Bus] = Field(min_length=1)

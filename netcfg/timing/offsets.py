@@ -78,8 +78,9 @@ def derive_offsets(m: model.Model, error: Report) -> None:
             ec = m.buses[trig.bus].ftt.ec_ns  # type: ignore[union-attr]
             m.triggers[name] = replace(trig, offset_ns=offset_ec * ec)
             for ref in trig.tasks:
-                node, task = ref.split(".", 1)
-                m.nodes[node].tasks[task] = replace(m.nodes[node].tasks[task], offset_ns=offset_ec * ec)
+                node_name, task_name = ref.split(".", 1)
+                tasks = m.nodes[node_name].tasks
+                tasks[task_name] = replace(tasks[task_name], offset_ns=offset_ec * ec)
     for msg in m.messages.values():
         if msg.offset_auto and msg.name not in derived:
             error(
