@@ -5,12 +5,13 @@ Prints figures only (no assertions; the machine may be shared):
      on specs/large_plant.yaml and on random plain-CAN sets (benchmarks/random_can.py) of 100, 1,000 and
      5,000 messages;
   2. in-process times: reading + resolving the spec, netcfg's whole analysis stage (netcfg.analyze), and its
-     CAN response-time analysis alone (netcfg.timing.can_rta.analyse, Davis et al. 2007);
-  3. the peer, pyCPA (github.com/IDA-TUBS/pycpa, not on PyPI): its static-priority non-preemptive scheduler
-     (SPNPScheduler, the CAN bus model of its examples) on the same frames, with cycle_time = one bit time as
-     Davis' tau, side by side with the ratio, and the worst-case response times of a few messages from both.
-     Set NETCFG_PEER_PYCPA to a pyCPA checkout (the folder holding the `pycpa` package); runs are capped at
-     1,000 messages and 120 s.
+     CAN response-time analysis alone (netcfg.timing.can_rta.analyse, Davis et al. 2007) on the spec's plain
+     CAN bus (for large_plant: the 235-message bus `plant`);
+  3. the peer, pyCPA (github.com/IDA-TUBS/pycpa, not on PyPI; it has no CAN-specific module, so its
+     static-priority non-preemptive SPNPScheduler, the CAN bus of its examples, with cycle_time = one bit time
+     as Davis' tau) on the same frames in a fresh process (benchmarks/pycpa_can.py), the time ratio, and the
+     worst-case response times of a few messages from both tools. Set NETCFG_PEER_PYCPA to a pyCPA checkout
+     (the folder holding the `pycpa` package); its runs are capped at 1,000 messages and 120 s.
 
     NETCFG_PEER_PYCPA=/path/to/pycpa python benchmarks/bench_check.py [--runs 5] [--sizes 100 1000 5000]
 """
@@ -18,6 +19,8 @@ Prints figures only (no assertions; the machine may be shared):
 from __future__ import annotations
 
 import argparse
+import gc
+import json
 import os
 import statistics
 import subprocess
@@ -46,6 +49,7 @@ PEER_TIMEOUT_S = 120.0
 def timed(fn: Callable[[], Any], runs: int) -> tuple[list[float], Any]:
     times, result = [], None
     for _ in range(runs):
+        gc.collect()
         start = time.perf_counter()
         result = fn()
         times.append(time.perf_counter() - start)
@@ -70,29 +74,28 @@ def wall(spec: Path, runs: int) -> tuple[list[float], int]:
 
 
 def can_frames(model: Model) -> tuple[list[can_rta.CanFrame], int]:
+    """The frames of the first plain-CAN bus (large_plant: `plant`) and its bit time."""
     bus = next(b for b in model.buses.values() if b.protocol == "can")
     return rta_frames(bus, bus.messages), bits_to_ns(1, bus.bitrate)
 
 
-def pycpa_analyse(frames: list[can_rta.CanFrame], tau_ns: int) -> Callable[[], dict[str, int]]:
-    """A pyCPA system with one SPNP resource (the CAN bus) holding every frame; returns the analysis call."""
-    from pycpa import analysis, model, options, schedulers
-
-    options.set_opt("timeout", PEER_TIMEOUT_S)
+def pycpa_analyse(frames: list[can_rta.CanFrame], tau_ns: int, peer: str, runs: int) -> tuple[list[float], Any]:
+    """pyCPA on the same frames, in a fresh process (benchmarks/pycpa_can.py): (times, wcrt per message)."""
     ordered = sorted(frames, key=lambda f: f.priority_key)
-
-    def run() -> dict[str, int]:
-        system = model.System()
-        bus = system.bind_resource(model.Resource("CAN", schedulers.SPNPScheduler(cycle_time=tau_ns)))
-        tasks = []
-        for rank, f in enumerate(ordered):
-            task = bus.bind_task(model.Task(f.name, wcet=f.c_ns, bcet=f.c_ns, scheduling_parameter=rank))
-            task.in_event_model = model.PJdEventModel(P=f.t_ns or can_rta.ONE_SHOT, J=f.j_ns)
-            tasks.append(task)
-        results = analysis.analyze_system(system)
-        return {t.name: results[t].wcrt for t in tasks}
-
-    return run
+    job = {"tau": tau_ns, "frames": [(f.name, f.c_ns, f.t_ns or can_rta.ONE_SHOT, f.j_ns) for f in ordered]}
+    proc = subprocess.run(
+        [sys.executable, str(Path(__file__).with_name("pycpa_can.py")), str(runs)],
+        input=json.dumps(job),
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": peer},
+        timeout=PEER_TIMEOUT_S * runs + 60,
+        check=False,
+    )
+    if proc.returncode:
+        raise RuntimeError((proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"])[-1])
+    out = json.loads(proc.stdout)
+    return out["times"], out["wcrt"]
 
 
 def main() -> None:
@@ -101,8 +104,8 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 5000], help="random set sizes")
     args = parser.parse_args()
     peer = os.environ.get("NETCFG_PEER_PYCPA")
-    if peer:
-        sys.path.insert(0, peer)
+    if peer and not (Path(peer) / "pycpa" / "analysis.py").is_file():
+        sys.exit(f"NETCFG_PEER_PYCPA={peer} holds no pycpa package (expected {peer}/pycpa/analysis.py)")
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} CPUs, {args.runs} runs per figure; times in s, "
           "median [min-max]")  # fmt: skip
     wall(ROOT / "specs" / "cambada.yaml", 1)  # warm the file cache and byte-code
@@ -119,19 +122,16 @@ def main() -> None:
             rta_times: list[float] | None = None
             peer_times: list[float] | None = None
             ratio = "-"
-            if label.startswith("random_can"):
+            if any(b.protocol == "can" for b in model.buses.values()):
                 frames, tau = can_frames(model)
                 rta_times, ours = timed(partial(can_rta.analyse, frames, tau), args.runs)
                 if peer and n_msgs <= PEER_MAX_MESSAGES:
-                    run = pycpa_analyse(frames, tau)
                     try:
-                        peer_times, theirs = timed(run, 1)
-                        if peer_times[0] < 10:  # slow runs once only
-                            peer_times += timed(run, args.runs - 1)[0]
+                        peer_times, theirs = pycpa_analyse(frames, tau, peer, args.runs)
                         ratio = f"{statistics.median(peer_times) / statistics.median(rta_times):,.0f}x"
                         compare.append((label, frames, ours, theirs))
-                    except Exception as exc:  # pyCPA's TimeoutException, NotSchedulableException
-                        ratio = f"pyCPA failed: {type(exc).__name__}"
+                    except (RuntimeError, subprocess.TimeoutExpired) as exc:  # e.g. pyCPA's TimeoutException
+                        ratio = f"pyCPA failed: {str(exc)[:60]}"
                 elif peer:
                     ratio = f"skipped (> {PEER_MAX_MESSAGES} messages)"
             rows.append((label, n_msgs, f"{fmt(check_times)} (exit {code})", fmt(load_times), fmt(an_times),
@@ -142,7 +142,10 @@ def main() -> None:
     for r in [headers, tuple("-" * w for w in widths), *rows]:
         print("  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
     if not peer:
-        print("\npeer pyCPA skipped: set NETCFG_PEER_PYCPA to a checkout of github.com/IDA-TUBS/pycpa to enable it")
+        print(
+            "\npeer pyCPA skipped; to enable it: git clone https://github.com/IDA-TUBS/pycpa DIR, then "
+            "NETCFG_PEER_PYCPA=DIR python benchmarks/bench_check.py"
+        )
     for label, frames, ours, theirs in compare:
         same = sum(ours[f.name].wcrt_ns == theirs[f.name] for f in frames)
         print(f"\n{label}: worst-case response times equal for {same} of {len(frames)} messages (us)")
@@ -150,11 +153,13 @@ def main() -> None:
         picks = {0, len(ordered) // 2, len(ordered) - 1}
         picks |= {max(range(len(ordered)), key=lambda i: ours[ordered[i].name].instances)}
         picks |= {i for i, f in enumerate(ordered) if ours[f.name].wcrt_ns != theirs[f.name]}
-        print(f"  {'message':<8} {'id':>10} {'C':>6} {'T':>10} {'netcfg':>10} {'pyCPA':>10}  Q_m")
+        w = max(len(ordered[i].name) for i in picks)
+        print(f"  {'message':<{w}} {'id':>10} {'C':>6} {'T':>10} {'netcfg':>10} {'pyCPA':>10}  Q_m")
         for i in sorted(picks)[:12]:
             f, r = ordered[i], ours[ordered[i].name]
-            print(f"  {f.name:<8} {f.id:>#10x} {f.c_ns / 1e3:>6g} {(f.t_ns or 0) / 1e3:>10g} "
-                  f"{(r.wcrt_ns or 0) / 1e3:>10g} {theirs[f.name] / 1e3:>10g}  {r.instances}")  # fmt: skip
+            period = f"{f.t_ns / 1e3:,.0f}" if f.t_ns else "on-demand"
+            print(f"  {f.name:<{w}} {f.id:>#10x} {f.c_ns / 1e3:>6g} {period:>10} "
+                  f"{(r.wcrt_ns or 0) / 1e3:>10,g} {theirs[f.name] / 1e3:>10,g}  {r.instances}")  # fmt: skip
 
 
 if __name__ == "__main__":
