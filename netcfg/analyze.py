@@ -200,8 +200,27 @@ def analyze_ftt(
     assert bus.ftt is not None
     triggers = [t for t in m.triggers.values() if t.bus == bus.name]
     entries = ftt.srt(bus, triggers)
-    sched = ftt.build_schedule(bus, entries)
-    fastest = ftt.build_schedule(bus, entries, fastest=True)
+    try:
+        sched = ftt.build_schedule(bus, entries)
+        fastest = ftt.build_schedule(bus, entries, fastest=True)
+    except ftt.MacroCycleTooLong as exc:
+        periods = sorted({e.period_ec for e in entries} | {e.fastest_period_ec for e in entries})
+        diags.add(
+            "macro-cycle",
+            f"the periods of bus '{bus.name}' ({', '.join(map(str, periods))} ECs) make a macro-cycle of "
+            f"{exc.ecs:,} ECs; netcfg builds tables of up to {ftt.MAX_MACRO_CYCLE:,}: choose harmonic periods "
+            "(multiples of each other)",
+            m.source.at((*bus.path, "ftt")),
+        )
+        tm_ns = ftt.tm_time_ns(bus)
+        return {
+            "ec_us": us(bus.ftt.ec_ns),
+            "tm_us": us(tm_ns),
+            "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
+            "lsw_us": us(bus.ftt.lsw_ns),
+            "macro_cycle_ec": exc.ecs,
+            "srt": [srt_row(e) for e in entries],
+        }
     frame_ns = {
         msg.name: (bits_to_ns(timings[msg.name].bits_nominal, bus.bitrate), timings[msg.name].tx_ns)
         for msg in bus.messages

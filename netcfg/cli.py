@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -40,6 +41,16 @@ def cmd_check(paths: list[Path], fmt: str) -> int:
             reports.append(check(path))
         except OSError as exc:
             print(f"netcfg: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
+        except Exception as exc:  # a bug in netcfg, not in the spec: say so, without a wall of traceback
+            if os.environ.get("NETCFG_DEBUG"):
+                raise
+            print(
+                f"netcfg: internal error while checking {path}: {type(exc).__name__}: {exc}\n"
+                "This is a bug in netcfg, not in your spec; please report it with the spec "
+                "(NETCFG_DEBUG=1 shows the traceback).",
+                file=sys.stderr,
+            )
             return 2
     if fmt == "json":
         doc = reports[0] if len(reports) == 1 else {"ok": all(r["ok"] for r in reports), "results": reports}

@@ -5,14 +5,22 @@ from __future__ import annotations
 from typing import Any
 
 
-def _fmt(value: Any, digits: int = 1) -> str:
+def _fmt(value: Any) -> str:
+    """One way for every number: thousands separated, at most 3 decimals, no trailing zeros."""
     if value is None:
         return "-"
     if isinstance(value, bool):
         return "yes" if value else "NO"
-    if isinstance(value, float):
-        return f"{value:,.{digits}f}"
+    if isinstance(value, (int, float)):
+        return f"{value:,.3f}".rstrip("0").rstrip(".")
     return str(value)
+
+
+def _rate(bitrate: int) -> str:
+    for unit, scale in (("Gbit/s", 10**9), ("Mbit/s", 10**6), ("kbit/s", 10**3)):
+        if bitrate >= scale:
+            return f"{_fmt(bitrate / scale)} {unit}"
+    return f"{bitrate} bit/s"
 
 
 def table(headers: list[str], rows: list[list[str]], align: str, indent: str = "  ") -> list[str]:
@@ -35,7 +43,7 @@ def render(report: dict[str, Any]) -> str:
     for bus in report["buses"]:
         out.append("")
         out.append(
-            f"bus {bus['name']} ({bus['protocol']}, {bus['bitrate'] / 1000:g} kbit/s): "
+            f"bus {bus['name']} ({bus['protocol']}, {_rate(bus['bitrate'])}): "
             f"utilisation {bus['utilization']:.1%} worst case"
             + (f", {bus['utilization_with_tm']:.1%} with the trigger message" if "ftt" in bus else "")
         )
@@ -47,12 +55,12 @@ def render(report: dict[str, Any]) -> str:
                     m["name"],
                     ident,
                     str(m["size"]),
-                    _fmt(m["interval_us"], 0),
+                    _fmt(m["interval_us"]),
                     str(m["frame_bits_worst"]),
                     _fmt(m["tx_us"]),
                     f"{m['utilization']:.2%}",
                     _fmt(m["wcrt_us"]),
-                    _fmt(m["deadline_us"], 0),
+                    _fmt(m["deadline_us"]),
                     _fmt(m["schedulable"]),
                 ]
             )
@@ -63,12 +71,14 @@ def render(report: dict[str, Any]) -> str:
         if "sync" in bus:
             s = bus["sync"]
             out.append(
-                f"  SYNC every {s['period_us']:g} us from {s['producer']}: up to {s['max_tpdos_per_cycle']} "
+                f"  SYNC every {_fmt(s['period_us'])} us from {s['producer']}: up to {s['max_tpdos_per_cycle']} "
                 f"synchronous TPDOs, the last done {_fmt(s['worst_completion_us'])} us after SYNC "
-                f"(window {_fmt(s['window_us'], 0)} us, read window {_fmt(s['read_window_us'], 0)} us)"
+                f"(window {_fmt(s['window_us'])} us, read window {_fmt(s['read_window_us'])} us)"
             )
         if "links" in bus:
-            out.append(f"  minimum frame {bus['min_frame_us']:g} us, f_max {bus['f_max_hz'] / 1000:.2f} kHz per link")
+            out.append(
+                f"  minimum frame {_fmt(bus['min_frame_us'])} us, f_max {bus['f_max_hz'] / 1000:.2f} kHz per link"
+            )
             rows = [
                 [
                     f"{ll['from']} -> {ll['to']}",
@@ -94,7 +104,7 @@ def render(report: dict[str, Any]) -> str:
                     f["mode"],
                     f"{_fmt(sync['latency_min_us'])} .. {_fmt(sync['latency_max_us'])}" if sync else "-",
                     f"{_fmt(u['latency_min_us'])} .. {_fmt(u['latency_max_us'])}",
-                    _fmt(f["deadline_us"], 0),
+                    _fmt(f["deadline_us"]),
                 ]
             )
         out.extend(table(["flow", "mode", "synchronised", "unsynchronised", "deadline"], rows, "llrrr"))
@@ -105,10 +115,12 @@ def render(report: dict[str, Any]) -> str:
 
 def render_ftt(f: dict[str, Any]) -> list[str]:
     out = [
-        f"  FTT-CAN: EC {f['ec_us']:g} us, trigger message {f['tm_us']:g} us (overhead {f['tm_overhead']:.1%}), "
-        f"LSW {_fmt(f['lsw_us'], 0)} us, macro-cycle {f['macro_cycle_ec']} ECs; busiest EC {f['worst_ec']['index']} "
-        f"needs {f['worst_ec']['sync_us']:g} us of synchronous window"
+        f"  FTT-CAN: EC {_fmt(f['ec_us'])} us, trigger message {_fmt(f['tm_us'])} us (overhead "
+        f"{f['tm_overhead']:.1%}), LSW {_fmt(f['lsw_us'])} us, macro-cycle {_fmt(f['macro_cycle_ec'])} ECs"
     ]
+    if "worst_ec" in f:
+        w = f["worst_ec"]
+        out[0] += f"; busiest EC {w['index']} needs {_fmt(w['sync_us'])} us of synchronous window"
     rows = [
         [
             str(e["id"]),

@@ -12,8 +12,6 @@ from collections.abc import Iterable
 from pathlib import Path as FsPath
 from typing import Any, Literal
 
-import networkx as nx
-
 from netcfg import cia301, model
 from netcfg.devices import DATA_TYPES, DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.devices.eds import EdsError, import_eds
@@ -925,6 +923,16 @@ class _Resolver:
             start += s.bits
         return tuple(out)
 
+    def claim_implicit_name(self, name: str, what: str) -> None:
+        """Implicit messages appear under their own name in reports: no spec message may use it."""
+        for i, m in enumerate(self.spec.messages):
+            if m.name.lower() == name.lower():
+                self.err(
+                    "duplicate-name",
+                    f"message name '{m.name}' is taken by {what}; rename the message",
+                    ("messages", i, "name"),
+                )
+
     def add_implicit_messages(self) -> None:
         """CANopen buses carry SYNC and heartbeats that the spec does not list as messages."""
         for bus in self.model.buses.values():
@@ -953,11 +961,13 @@ class _Resolver:
                 path=cpath,
                 implicit="SYNC",
             )
+            self.claim_implicit_name(sync.name, "the SYNC of bus " + bus.name)
             bus.messages.insert(0, sync)
             for name in bus.nodes:
                 node = self.model.nodes.get(name)
                 if node is None or node.heartbeat_ns is None or node.node_id is None:
                     continue
+                self.claim_implicit_name(f"{name}_heartbeat", f"the heartbeat of node {name}")
                 bus.messages.append(
                     model.Message(
                         name=f"{name}_heartbeat",
@@ -1020,6 +1030,14 @@ class _Resolver:
             interval = period
             if t.period_range is not None:
                 interval = self.ns(t.period_range[0], (*path, "period_range", 0), ec) or period
+                slowest = self.ns(t.period_range[1], (*path, "period_range", 1), ec) or period
+                if not 0 < interval <= period <= slowest:
+                    self.err(
+                        "period-range",
+                        f"need 0 < fastest <= period <= slowest; got {format_ns(interval)}, {format_ns(period)}, "
+                        f"{format_ns(slowest)}",
+                        (*path, "period_range"),
+                    )
             for key_name, value in (("period", period), ("offset", offset), ("period_range", interval)):
                 if value is not None and value % ec:
                     self.err(
@@ -1182,6 +1200,8 @@ class _Resolver:
         for bus in self.model.buses.values():
             if bus.protocol != "ethernet-udp":
                 continue
+            import networkx as nx  # only Ethernet buses need it; keeps start-up fast for CAN specs
+
             graph: nx.Graph = nx.Graph()
             switch_names = {s.name for s in bus.switches}
             attached: dict[str, str] = {}

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from conftest import ROOT, SPECS, cli, cli_json
 
 SEED_SPECS = ["allex2.yaml", "cambada.yaml", "ntua_sahr.yaml", "ntua_treadmill.yaml"]
@@ -42,8 +41,11 @@ def test_check_is_deterministic_and_text_is_readable() -> None:
 
 def test_several_specs_in_one_run() -> None:
     code, doc = cli_json("check", *(str(SPECS / n) for n in SEED_SPECS))
-    assert code == 0 and doc["ok"] and [r["system"] for r in doc["results"]] == [
-        "allex2", "cambada", "ntua_sahr", "ntua_treadmill"]
+    assert (
+        code == 0
+        and doc["ok"]
+        and [r["system"] for r in doc["results"]] == ["allex2", "cambada", "ntua_sahr", "ntua_treadmill"]
+    )
 
 
 def test_one_bad_spec_among_good_ones_fails_the_run(tmp_path: Path) -> None:

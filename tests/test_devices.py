@@ -6,8 +6,8 @@ import shutil
 from pathlib import Path
 
 import pytest
-
 from conftest import EPOS4_EDS, SPECS, bus, check, check_data, load_spec
+
 from netcfg.devices import builtin_profile, builtin_profile_names
 from netcfg.devices.eds import import_eds
 
@@ -25,7 +25,11 @@ def test_builtin_epos4_agrees_with_the_vendor_eds() -> None:
     for (index, sub), obj in ours.objects.items():
         theirs = vendor.lookup(index, sub)
         assert theirs is not None, obj.ref
-        assert (obj.data_type, obj.access, obj.pdo_mappable) == (theirs.data_type, theirs.access, theirs.pdo_mappable), obj.ref
+        assert (obj.data_type, obj.access, obj.pdo_mappable) == (
+            theirs.data_type,
+            theirs.access,
+            theirs.pdo_mappable,
+        ), obj.ref
     assert (ours.rpdo_count, ours.tpdo_count) == (vendor.rpdo_count, vendor.tpdo_count) == (4, 4)
     assert ours.max_mapped_objects == vendor.max_mapped_objects == 12
     assert ours.tpdo_event_timer is vendor.tpdo_event_timer is False

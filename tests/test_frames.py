@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from netcfg.spec.units import Duration, parse_bitrate, parse_duration, parse_frequency
-from netcfg.timing.frames import bits_to_ns, can_frame_bits, udp_frame_bytes, udp_frame_ns
 from netcfg.timing.ethernet import max_min_frame_rate
+from netcfg.timing.frames import bits_to_ns, can_frame_bits, udp_frame_bytes, udp_frame_ns
 
 
 @pytest.mark.parametrize("size", range(9))
@@ -42,8 +42,15 @@ def test_ethernet_frame_sizes_match_seed_001() -> None:
 
 @pytest.mark.parametrize(
     ("text", "ns"),
-    [("5 ms", 5_000_000), ("250 us", 250_000), ("250 µs", 250_000), ("1.5 s", 1_500_000_000), ("66667 ns", 66_667),
-     ("0.1 ms", 100_000), (0, 0)],
+    [
+        ("5 ms", 5_000_000),
+        ("250 us", 250_000),
+        ("250 µs", 250_000),
+        ("1.5 s", 1_500_000_000),
+        ("66667 ns", 66_667),
+        ("0.1 ms", 100_000),
+        (0, 0),
+    ],
 )
 def test_durations(text: str | int, ns: int) -> None:
     assert parse_duration(text) == Duration(ns=ns)

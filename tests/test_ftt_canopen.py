@@ -10,10 +10,19 @@ from conftest import bus, check_data, message
 def ftt_spec() -> dict:
     return {
         "system": "ftt_small",
-        "buses": [{"name": "f", "protocol": "ftt-can", "bitrate": "1 Mbit/s",
-                   "ftt": {"ec": "1 ms", "tm_size": 1, "lsw": "500 us"}}],
-        "nodes": [{"name": "m", "role": "master", "buses": ["f"]}, {"name": "a", "buses": ["f"]},
-                  {"name": "b", "buses": ["f"]}],
+        "buses": [
+            {
+                "name": "f",
+                "protocol": "ftt-can",
+                "bitrate": "1 Mbit/s",
+                "ftt": {"ec": "1 ms", "tm_size": 1, "lsw": "500 us"},
+            }
+        ],
+        "nodes": [
+            {"name": "m", "role": "master", "buses": ["f"]},
+            {"name": "a", "buses": ["f"]},
+            {"name": "b", "buses": ["f"]},
+        ],
         "messages": [
             {"name": "s", "producer": "a", "consumers": ["b"], "size": 8, "period": "1 EC"},
             {"name": "x", "id": 0x200, "producer": "a", "consumers": ["b"], "size": 8, "min_interarrival": "100 ms"},
@@ -51,18 +60,38 @@ def test_trigger_message_capacity_and_lsw(tmp_path: Path) -> None:
 def canopen_spec() -> dict:
     return {
         "system": "co_small",
-        "buses": [{"name": "c", "protocol": "canopen", "bitrate": "500 kbit/s",
-                   "canopen": {"sync_period": "10 ms", "sync_window": "5 ms"}}],
-        "nodes": [{"name": "master", "role": "master", "node_id": 100, "buses": ["c"]},
-                  {"name": "d1", "node_id": 1, "device": "epos4", "buses": ["c"]},
-                  {"name": "d2", "node_id": 2, "device": "epos4", "buses": ["c"]}],
+        "buses": [
+            {
+                "name": "c",
+                "protocol": "canopen",
+                "bitrate": "500 kbit/s",
+                "canopen": {"sync_period": "10 ms", "sync_window": "5 ms"},
+            }
+        ],
+        "nodes": [
+            {"name": "master", "role": "master", "node_id": 100, "buses": ["c"]},
+            {"name": "d1", "node_id": 1, "device": "epos4", "buses": ["c"]},
+            {"name": "d2", "node_id": 2, "device": "epos4", "buses": ["c"]},
+        ],
         "messages": [
-            {"name": "d1_pos", "producer": "d1", "consumers": ["master"],
-             "pdo": {"tpdo": 1, "transmission": 1, "map": [0x6064, 0x606C]}},
-            {"name": "d2_pos", "producer": "d2", "consumers": ["master"],
-             "pdo": {"tpdo": 1, "transmission": 2, "map": [0x6064, 0x606C]}},
-            {"name": "d1_status", "producer": "d1", "consumers": ["master"],
-             "pdo": {"tpdo": 2, "transmission": 255, "inhibit": "10 ms", "map": [0x6041]}},
+            {
+                "name": "d1_pos",
+                "producer": "d1",
+                "consumers": ["master"],
+                "pdo": {"tpdo": 1, "transmission": 1, "map": [0x6064, 0x606C]},
+            },
+            {
+                "name": "d2_pos",
+                "producer": "d2",
+                "consumers": ["master"],
+                "pdo": {"tpdo": 1, "transmission": 2, "map": [0x6064, 0x606C]},
+            },
+            {
+                "name": "d1_status",
+                "producer": "d1",
+                "consumers": ["master"],
+                "pdo": {"tpdo": 2, "transmission": 255, "inhibit": "10 ms", "map": [0x6041]},
+            },
         ],
     }
 

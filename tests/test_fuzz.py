@@ -7,17 +7,40 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from conftest import SPECS, check
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from conftest import SPECS, check
 
 EXAMPLES = {p.name: yaml.safe_load(p.read_text()) for p in sorted(SPECS.glob("*.yaml")) if "large" not in p.name}
 
 VALUES = st.one_of(
-    st.none(), st.booleans(), st.integers(-5, 300), st.sampled_from([0x7FF, 0x800, 0x581, 2**31, -1]),
-    st.sampled_from(["", "auto", "5 ms", "0 ms", "1 EC", "7 EC", "3 kHz", "250 kbit/s", "x", "../../x", "a */ b",
-                     "0x6064", "0x30D1:9", "master", "hip_l", "lowlevel", "can0", "motor1.control", "int"]),
+    st.none(),
+    st.booleans(),
+    st.integers(-5, 300),
+    st.sampled_from([0x7FF, 0x800, 0x581, 2**31, -1]),
+    st.sampled_from(
+        [
+            "",
+            "auto",
+            "5 ms",
+            "0 ms",
+            "1 EC",
+            "7 EC",
+            "3 kHz",
+            "250 kbit/s",
+            "x",
+            "../../x",
+            "a */ b",
+            "0x6064",
+            "0x30D1:9",
+            "master",
+            "hip_l",
+            "lowlevel",
+            "can0",
+            "motor1.control",
+            "int",
+        ]
+    ),
     st.lists(st.sampled_from(["master", "gateway", "x", "motor1", "pc"]), max_size=3),
     st.dictionaries(st.sampled_from(["name", "x", "period"]), st.sampled_from(["5 ms", "y", 3]), max_size=2),
 )

@@ -7,10 +7,10 @@ import heapq
 from math import lcm
 from pathlib import Path
 
+from conftest import bus, check_data, message
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import bus, check_data, message
 from netcfg.timing.can_rta import CanFrame, analyse, tindell_1994
 
 MS = 1_000_000
@@ -28,8 +28,11 @@ def test_revised_analysis_catches_what_the_original_misses() -> None:
     below confirms it: C's second instance, queued at 3.5 ms, waits for B and A and ends at 7 ms.
     """
     c, tau = 1 * MS, 8_000
-    frames = [CanFrame("A", 1, False, c, 2_500_000), CanFrame("B", 2, False, c, 3_500_000),
-              CanFrame("C", 3, False, c, 3_500_000, d_ns=3_250_000)]
+    frames = [
+        CanFrame("A", 1, False, c, 2_500_000),
+        CanFrame("B", 2, False, c, 3_500_000),
+        CanFrame("C", 3, False, c, 3_500_000, d_ns=3_250_000),
+    ]
     original = tindell_1994(frames, tau)
     revised = analyse(frames, tau)
     assert original["C"] == 3 * MS
@@ -42,7 +45,11 @@ def test_revised_analysis_catches_what_the_original_misses() -> None:
 
 def test_unbounded_when_higher_priority_load_reaches_one() -> None:
     """A and B fill the bus (0.5 + 0.5): B's busy period never ends, C has no bound."""
-    frames = [CanFrame("A", 1, False, 500, 1000), CanFrame("B", 2, False, 500, 1000), CanFrame("C", 3, False, 100, 10_000)]
+    frames = [
+        CanFrame("A", 1, False, 500, 1000),
+        CanFrame("B", 2, False, 500, 1000),
+        CanFrame("C", 3, False, 100, 10_000),
+    ]
     r = analyse(frames, 1)
     assert r["A"].wcrt_ns == 500 + 500  # blocked by one frame, then sent
     assert r["B"].wcrt_ns is None and r["C"].wcrt_ns is None
@@ -123,7 +130,7 @@ def test_removing_a_message_never_makes_another_worse(spec: list[tuple[int, int,
     frames, _, _ = frames_of(spec)
     gone = data.draw(st.integers(0, len(frames) - 1))
     before = analyse(frames, 1)
-    after = analyse(frames[:gone] + frames[gone + 1:], 1)
+    after = analyse(frames[:gone] + frames[gone + 1 :], 1)
     for name, r in after.items():
         if before[name].wcrt_ns is not None:
             assert r.wcrt_ns is not None and r.wcrt_ns <= before[name].wcrt_ns
@@ -139,8 +146,15 @@ def test_spec_level_response_times_and_deadline_errors(tmp_path: Path) -> None:
         "messages": [
             {"name": "fast", "id": 1, "producer": "a", "consumers": ["b"], "size": 7, "period": "2.5 ms"},
             {"name": "mid", "id": 2, "producer": "a", "consumers": ["b"], "size": 7, "period": "3.5 ms"},
-            {"name": "slow", "id": 3, "producer": "b", "consumers": ["a"], "size": 7, "period": "3.5 ms",
-             "deadline": "3.25 ms"},
+            {
+                "name": "slow",
+                "id": 3,
+                "producer": "b",
+                "consumers": ["a"],
+                "size": 7,
+                "period": "3.5 ms",
+                "deadline": "3.25 ms",
+            },
         ],
     }
     report = check_data(tmp_path, spec)

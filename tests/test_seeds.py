@@ -6,7 +6,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from conftest import SPECS, bus, check, check_data, cli_json, load_spec, message
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -39,8 +38,22 @@ def test_cambada_trigger_message_overhead() -> None:
 
 
 # Table 2: FTT id -> (period in ECs, init time in ECs); ids 0-7 messages, 8-13 triggers.
-TABLE_2 = {0: (6, 5), 1: (2, 2), 2: (2, 2), 3: (2, 2), 4: (10, 4), 5: (10, 4), 6: (6, 0), 7: (6, 0),
-           8: (1, 0), 9: (2, 1), 10: (2, 3), 11: (10, 3), 12: (6, 1), 13: (6, 6)}
+TABLE_2 = {
+    0: (6, 5),
+    1: (2, 2),
+    2: (2, 2),
+    3: (2, 2),
+    4: (10, 4),
+    5: (10, 4),
+    6: (6, 0),
+    7: (6, 0),
+    8: (1, 0),
+    9: (2, 1),
+    10: (2, 3),
+    11: (10, 3),
+    12: (6, 1),
+    13: (6, 6),
+}
 
 
 def test_cambada_srt_equals_table_2_with_automatic_offsets() -> None:

@@ -15,6 +15,8 @@ import yaml
 from netcfg.diagnostics import Collector, Position
 
 Path = tuple[str | int, ...]
+# libyaml's parser when PyYAML was built with it (twice as fast), the pure-Python one otherwise; both give marks.
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 MAX_ITEMS = 300_000  # values after alias expansion: refuses "billion laughs" documents
 
 
@@ -56,9 +58,9 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
     """Parse YAML text. Syntax errors and duplicate keys go to diags; returns (data, source map)."""
     smap = SourceMap(file)
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = yaml.compose(text, Loader=_LOADER)
     except yaml.MarkedYAMLError as exc:
-        diags.add("yaml-syntax", _syntax_message(exc), _syntax_position(exc, file))
+        diags.add("yaml-syntax", _syntax_message(exc, text), _syntax_position(exc, file))
         return None, smap
     except yaml.YAMLError as exc:  # e.g. reader errors on binary input
         diags.add("yaml-syntax", f"cannot read YAML: {exc}", Position(file, 1, 1))
@@ -121,7 +123,11 @@ def _syntax_position(exc: yaml.MarkedYAMLError, file: str) -> Position:
     return Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
 
 
-def _syntax_message(exc: yaml.MarkedYAMLError) -> str:
+def _syntax_message(exc: yaml.MarkedYAMLError, text: str) -> str:
+    mark = exc.problem_mark
+    lines = text.splitlines()
+    if mark is not None and mark.line < len(lines) and "\t" in lines[mark.line][: mark.column + 1]:
+        return "YAML syntax error: a tab character here; YAML indents with spaces only, replace it"
     what = exc.problem or "invalid YAML"
     if exc.context and "flow" in exc.context and exc.problem_mark:
         where = exc.problem_mark

@@ -15,12 +15,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from itertools import pairwise
-
-import networkx as nx
+from typing import TYPE_CHECKING
 
 from netcfg import model
 from netcfg.timing import load
 from netcfg.timing.frames import ETH_MIN_DATA, IPV4_HEADER, UDP_HEADER, bits_to_ns, udp_frame_bytes
+
+if TYPE_CHECKING:
+    import networkx as nx
 
 PROPAGATION_M_PER_S = 0.7 * 299_792_458  # velocity factor 0.7 (seed 001: 0.4-0.7, 2.1e8 m/s)
 Link = tuple[str, str]
@@ -57,6 +59,8 @@ class PathDelay:
 
 
 def topology(bus: model.Bus) -> tuple[nx.Graph, dict[Link, float]]:
+    import networkx as nx
+
     graph: nx.Graph = nx.Graph()
     cables: dict[Link, float] = {}
     for sw in bus.switches:
@@ -69,6 +73,8 @@ def topology(bus: model.Bus) -> tuple[nx.Graph, dict[Link, float]]:
 
 
 def routes(graph: nx.Graph, msg: model.Message) -> dict[str, tuple[Link, ...]]:
+    import networkx as nx
+
     out = {}
     for consumer in msg.consumers:
         path = nx.shortest_path(graph, msg.producer, consumer)

@@ -85,6 +85,19 @@ class Schedule:
         raise KeyError(name)
 
 
+MAX_MACRO_CYCLE = 20_000  # ECs: beyond this the periods are not harmonic enough for a static table
+
+
+class MacroCycleTooLong(Exception):
+    def __init__(self, ecs: int) -> None:
+        self.ecs = ecs
+
+
+def macro_cycle(periods: list[int]) -> int:
+    """The macro-cycle in ECs: the least common multiple of the periods."""
+    return lcm(*periods) if periods else 1
+
+
 def tm_time_ns(bus: model.Bus) -> int:
     assert bus.ftt is not None
     return bits_to_ns(can_frame_bits(bus.ftt.tm_size, bus.id_bits == 29), bus.bitrate)
@@ -143,7 +156,9 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
     ec = bus.ftt.ec_ns
     tm = tm_time_ns(bus)
     periods = [e.fastest_period_ec if fastest else e.period_ec for e in entries]
-    macro = lcm(*periods) if periods else 1
+    macro = macro_cycle(periods)
+    if macro > MAX_MACRO_CYCLE:
+        raise MacroCycleTooLong(macro)
     by_can_id = sorted((e for e in entries if e.kind == "message"), key=lambda e: e.can_id or 0)
     slots = []
     for k in range(macro):
