@@ -18,6 +18,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from netcfg.timing.frames import can_frame_bits
+
 PERIODS_MS = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000)
 BITRATE = 500_000
 NODES = 20
@@ -34,12 +36,6 @@ class RandomMessage:
     consumers: tuple[str, ...]
 
 
-def frame_bits(size: int, extended: bool) -> int:
-    """Worst-case bits of a classical CAN frame with stuffing and inter-frame space (Davis et al. 2007)."""
-    g = 54 if extended else 34
-    return g + 8 * size + 13 + (g + 8 * size - 1) // 4
-
-
 def random_messages(n: int, utilisation: float = TARGET_UTILISATION) -> tuple[list[RandomMessage], bool]:
     """-> (messages, extended ids); deterministic for a given n."""
     rng = random.Random(20_240_000 + n)
@@ -47,7 +43,7 @@ def random_messages(n: int, utilisation: float = TARGET_UTILISATION) -> tuple[li
     nodes = [f"ecu{i:02d}" for i in range(1, NODES + 1)]
     sizes = [rng.randint(1, 8) for _ in range(n)]
     periods = [rng.choice(PERIODS_MS) * 1000 for _ in range(n)]  # us
-    load = sum(frame_bits(s, extended) * 1e6 / BITRATE / p for s, p in zip(sizes, periods))
+    load = sum(can_frame_bits(s, extended) * 1e6 / BITRATE / p for s, p in zip(sizes, periods))
     scale = load / utilisation
     periods = [max(1, round(p * scale)) for p in periods]
     ids = sorted(rng.sample(range(1 << 29 if extended else 1 << 11), n))

@@ -21,30 +21,37 @@ MAX_ITEMS = 300_000  # values after alias expansion: refuses "billion laughs" do
 
 
 class SourceMap:
-    """Maps a path inside the spec, e.g. ("messages", 3, "period"), to where it was written."""
+    """Maps a path inside the spec, e.g. ("messages", 3, "period"), to where it was written.
+
+    It keeps PyYAML's marks as they are and makes Positions only when asked: a large spec has ~10^5 values."""
 
     def __init__(self, file: str) -> None:
         self.file = file
-        self._values: dict[Path, Position] = {}
-        self._keys: dict[Path, Position] = {}
+        self._values: dict[Path, yaml.Mark] = {}
+        self._keys: dict[Path, yaml.Mark] = {}
 
-    def record(self, path: Path, value: Position, key: Position | None = None) -> None:
+    def record(self, path: Path, value: yaml.Mark, key: yaml.Mark | None = None) -> None:
         self._values[path] = value
         if key is not None:
             self._keys[path] = key
+
+    def _position(self, mark: yaml.Mark) -> Position:
+        return Position(self.file, mark.line + 1, mark.column + 1)
 
     def at(self, path: Path) -> Position:
         """Position of the value at path, or of its nearest recorded ancestor."""
         p = tuple(path)
         while p:
             if p in self._values:
-                return self._values[p]
+                return self._position(self._values[p])
             p = p[:-1]
-        return self._values.get((), Position(self.file, 1, 1))
+        root = self._values.get(())
+        return self._position(root) if root is not None else Position(self.file, 1, 1)
 
     def key_at(self, path: Path) -> Position:
         """Position of the key that introduces path (falls back to the value, then to ancestors)."""
-        return self._keys.get(tuple(path)) or self.at(path)
+        key = self._keys.get(tuple(path))
+        return self._position(key) if key is not None else self.at(path)
 
     def has(self, path: Path) -> bool:
         return tuple(path) in self._values
@@ -72,7 +79,7 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
         diags.add("empty-spec", "the spec is empty; start with 'system: <name>'", Position(file, 1, 1))
         return None, smap
     constructor = yaml.SafeLoader("")
-    smap.record((), _pos(file, root))
+    smap.record((), root.start_mark)
     budget = [MAX_ITEMS]
     try:
         return _build(root, (), file, smap, constructor, diags, budget), smap
@@ -139,6 +146,11 @@ def _syntax_message(exc: yaml.MarkedYAMLError, text: str) -> str:
     return f"YAML syntax error: {what}{ctx}; fix the indentation or quoting here"
 
 
+def _build_key(node: yaml.Node, ctor: yaml.SafeLoader) -> Any:
+    construct = ctor.yaml_constructors.get(node.tag) if isinstance(node, yaml.ScalarNode) else None
+    return construct(ctor, node) if construct is not None else ctor.construct_object(node, deep=True)
+
+
 _PLAIN_TAGS = {"tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:omap"}
 
 
@@ -162,7 +174,7 @@ def _build(
         out: dict[Any, Any] = {}
         merged_keys: set[str] = set()
         for pair_no, (key_node, value_node) in enumerate(node.value):
-            key = ctor.construct_object(key_node, deep=True)
+            key = _build_key(key_node, ctor)
             if not isinstance(key, (str, int)):
                 diags.add("yaml-key", f"keys must be plain words, not {type(key).__name__}", _pos(file, key_node))
                 continue
@@ -180,14 +192,17 @@ def _build(
                 )
                 continue
             child = (*path, key)
-            smap.record(child, _pos(file, value_node), _pos(file, key_node))
+            smap.record(child, value_node.start_mark, key_node.start_mark)
             out[key] = _build(value_node, child, file, smap, ctor, diags, budget)
         return out
     if isinstance(node, yaml.SequenceNode):
         items = []
         for i, item in enumerate(node.value):
             child = (*path, i)
-            smap.record(child, _pos(file, item))
+            smap.record(child, item.start_mark)
             items.append(_build(item, child, file, smap, ctor, diags, budget))
         return items
-    return ctor.construct_object(node, deep=True)
+    construct = ctor.yaml_constructors.get(node.tag)
+    if construct is not None:  # the fast path for plain scalars
+        return construct(ctor, node)
+    return ctor.construct_object(node, deep=True)  # raises ConstructorError for unknown tags
