@@ -10,13 +10,14 @@ $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m compileall -q netcfg
 	touch $@
 
 demo: $(BIN)/.installed
 	$(BIN)/netcfg check specs/cambada.yaml specs/allex2.yaml specs/ntua_sahr.yaml
 
 test: $(BIN)/.installed
-	$(BIN)/ruff check netcfg
+	$(BIN)/ruff check netcfg tests benchmarks
 	$(BIN)/mypy
 	$(BIN)/python -m pytest
 
