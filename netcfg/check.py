@@ -20,7 +20,8 @@ def load_model(path: Path, diags: Collector) -> Model | None:
     return resolve(spec, smap, diags, path.parent)
 
 
-def check(path: Path) -> dict[str, Any]:
+def analyse_spec(path: Path) -> tuple[Model | None, dict[str, Any]]:
+    """Load, resolve and analyse; -> (model or None, JSON-ready report). OSError propagates."""
     diags = Collector()
     model = load_model(path, diags)
     report: dict[str, Any] = {"system": None, "file": str(path), "ok": False, "buses": [], "flows": []}
@@ -31,4 +32,8 @@ def check(path: Path) -> dict[str, Any]:
     report["errors"] = [d.as_json() for d in items if d.severity == "error"]
     report["warnings"] = [d.as_json() for d in items if d.severity == "warning"]
     report["ok"] = model is not None and not report["errors"]
-    return report
+    return model, report
+
+
+def check(path: Path) -> dict[str, Any]:
+    return analyse_spec(path)[1]

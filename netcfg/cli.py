@@ -19,11 +19,16 @@ def main(argv: list[str] | None = None) -> int:
     p_check = sub.add_parser("check", help="validate specs and analyse their timing; writes nothing")
     p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC")
     p_check.add_argument("--format", choices=("text", "json"), default="text")
+    p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
+    p_build.add_argument("spec", type=Path, metavar="SPEC")
+    p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
             return cmd_check(args.specs, args.format)
+        if args.command == "build":
+            return cmd_build(args.spec, args.output)
         if args.command == "schema":
             return cmd_schema()
     except BrokenPipeError:  # e.g. `netcfg check x | head`
@@ -61,6 +66,33 @@ def cmd_check(paths: list[Path], fmt: str) -> int:
             for d in report["errors"]:
                 print(f"{d['file']}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
     return 0 if all(r["ok"] for r in reports) else 1
+
+
+def cmd_build(spec: Path, output: Path | None) -> int:
+    from netcfg.build import build
+
+    try:
+        report, target, files = build(spec, output)
+    except OSError as exc:
+        print(f"netcfg: cannot build {spec}: {exc.strerror or exc} ({exc.filename or ''})", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug in netcfg: nothing was swapped in
+        if os.environ.get("NETCFG_DEBUG"):
+            raise
+        print(
+            f"netcfg: internal error while building {spec}: {type(exc).__name__}: {exc}\n"
+            "Nothing was written. This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
+            file=sys.stderr,
+        )
+        return 2
+    for d in report["errors"] + report["warnings"]:
+        kind = "error" if d in report["errors"] else "warning"
+        print(f"{d['file']}:{d['line']}:{d['column']}: {kind}: {d['message']} [{d['code']}]", file=sys.stderr)
+    if target is None:
+        print(f"netcfg: {spec} has errors; nothing was written", file=sys.stderr)
+        return 1
+    print(f"wrote {len(files)} files to {target}")
+    return 0
 
 
 def cmd_schema() -> int:

@@ -72,10 +72,13 @@ class Pdo:
 
 @dataclass(frozen=True)
 class Signal:
+    """A field of a payload: little-endian (Intel) bit numbering, start_bit = its least significant bit."""
+
     name: str
     start_bit: int
     bits: int
     signed: bool
+    is_float: bool = False  # IEEE 754 binary32/binary64 (bits 32 or 64)
     scale: float = 1.0
     offset: float = 0.0
     minimum: float | None = None

@@ -907,7 +907,7 @@ class _Resolver:
         signals, start = [], 0
         for e in entries:
             kind_name = DATA_TYPES.get(e.data_type, ("", 0, "unsigned"))[2]
-            signals.append(model.Signal(e.name, start, e.bits, kind_name == "signed"))
+            signals.append(model.Signal(e.name, start, e.bits, kind_name == "signed", kind_name == "float"))
             start += e.bits
         return pdo, tuple(signals)
 
@@ -919,7 +919,9 @@ class _Resolver:
             seen.add(s.name)
             if s.min is not None and s.max is not None and s.min > s.max:
                 self.err("signal-range", f"signal '{s.name}': min {s.min} is above max {s.max}", (*path, k))
-            out.append(model.Signal(s.name, start, s.bits, s.signed, s.scale, s.offset, s.min, s.max, s.unit))
+            if s.float and s.bits not in (32, 64):
+                self.err("signal-float", f"signal '{s.name}': a float has 32 or 64 bits", (*path, k, "bits"))
+            out.append(model.Signal(s.name, start, s.bits, s.signed, s.float, s.scale, s.offset, s.min, s.max, s.unit))
             start += s.bits
         return tuple(out)
 

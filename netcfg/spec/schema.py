@@ -202,6 +202,7 @@ class Signal(SpecModel):
     name: Name
     bits: Int = Field(ge=1, le=64)
     signed: Bool = False
+    float: Bool = Field(False, description="IEEE 754 float (bits 32 or 64)")
     scale: Float = 1.0
     offset: Float = 0.0
     min: Float | None = None

@@ -1,0 +1,107 @@
+"""Emitters: one module per output format, each reading the one resolved Model (and the analysis report).
+
+An emitter is a function `emit(model, report) -> {relative path: bytes}`. Text formats render one jinja2
+template from templates/ each; the Python side only prepares a view of the model. Adding a format is one
+module, one template and one line in EMITTERS.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from collections.abc import Callable
+from functools import cache
+from importlib import resources
+from pathlib import PurePosixPath
+from typing import Any
+
+import jinja2
+
+from netcfg.model import Model, Signal
+from netcfg.runtime.codec import Field
+
+Files = dict[str, bytes]
+Emitter = Callable[[Model, dict[str, Any]], Files]
+
+# name -> "module:function"; imported only when a build runs
+EMITTERS: dict[str, str] = {
+    "canopen": "netcfg.emit.canopen_dcf:emit",  # canopen/<node>.eds, canopen/<node>.dcf
+    "c_headers": "netcfg.emit.c_header:emit",  # c/<node>.h
+    "srt": "netcfg.emit.srt:emit",  # ftt/<bus>_srt.{c,h,csv,md}
+    "runtime": "netcfg.emit.runtime_json:emit",  # runtime.json
+    "dbc": "netcfg.emit.dbc:emit",  # dbc/<bus>.dbc
+    "report": "netcfg.emit.report_md:emit",  # report.md, report/*.png
+}
+
+
+def emit_all(model: Model, report: dict[str, Any]) -> Files:
+    files: Files = {}
+    for name, target in EMITTERS.items():
+        module, _, func = target.partition(":")
+        emitter: Emitter = getattr(importlib.import_module(module), func)
+        for path, data in emitter(model, report).items():
+            check_relative(path)
+            if path in files:
+                raise ValueError(f"emitters '{name}' and another both write {path}")
+            files[path] = data
+    return dict(sorted(files.items()))
+
+
+def check_relative(path: str) -> None:
+    """Generated paths stay inside the output folder (names are checked in the spec already; this is the
+    second lock on the door)."""
+    p = PurePosixPath(path)
+    if p.is_absolute() or ".." in p.parts or not p.parts or any(not _SAFE_PART.match(part) for part in p.parts):
+        raise ValueError(f"refusing to write outside the output folder: {path!r}")
+
+
+_SAFE_PART = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+
+
+def c_comment(text: object) -> str:
+    """Text that cannot close or nest a C comment, nor break the line."""
+    return " ".join(str(text).replace("*/", "* /").replace("/*", "/ *").split())
+
+
+def c_string(text: object) -> str:
+    """Contents of a C string literal: printable ASCII as is, everything else as 3-digit octal escapes."""
+    out = []
+    for byte in str(text).encode("utf-8"):
+        ch = chr(byte)
+        if ch in '"\\?':
+            out.append("\\" + ch)
+        elif 32 <= byte < 127:
+            out.append(ch)
+        else:
+            out.append(f"\\{byte:03o}")
+    return "".join(out)
+
+
+def hex_id(value: int, width: int = 3) -> str:
+    return f"0x{value:0{width}X}"
+
+
+@cache
+def environment() -> jinja2.Environment:
+    folder = resources.files("netcfg.templates")
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(folder)),
+        undefined=jinja2.StrictUndefined,
+        keep_trailing_newline=True,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        autoescape=False,
+    )
+    env.filters.update(c_comment=c_comment, c_string=c_string, hex_id=hex_id, upper_ident=lambda s: str(s).upper())
+    return env
+
+
+def render(template: str, **context: Any) -> bytes:
+    return environment().get_template(template).render(**context).encode("utf-8")
+
+
+def field_of(sig: Signal) -> Field:
+    """The codec field of a model signal (the runtime and the C headers share this layout)."""
+    return Field(
+        sig.name, sig.start_bit, sig.bits, sig.signed, sig.is_float, sig.scale, sig.offset, sig.minimum, sig.maximum
+    )
