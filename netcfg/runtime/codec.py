@@ -43,7 +43,7 @@ class Field:
         return 0, (1 << self.bits) - 1
 
     def to_raw(self, value: Number) -> int:
-        if self.minimum is not None and value < self.minimum or self.maximum is not None and value > self.maximum:
+        if (self.minimum is not None and value < self.minimum) or (self.maximum is not None and value > self.maximum):
             raise CodecError(f"{self.name} = {value} is outside [{self.minimum}, {self.maximum}]")
         if self.is_float:
             fmt, ifmt = ("<f", "<I") if self.bits == 32 else ("<d", "<Q")
