@@ -53,7 +53,15 @@ class _Resolver:
         self.d = diags
         self.spec_dir = spec_dir
         self.model = model.Model(
-            system=spec.system, file=smap.file, source=smap, buses={}, nodes={}, messages={}, triggers={}, flows={}
+            system=spec.system,
+            description=spec.description,
+            file=smap.file,
+            source=smap,
+            buses={},
+            nodes={},
+            messages={},
+            triggers={},
+            flows={},
         )
         self.spec_nodes = {n.name: n for n in spec.nodes}
         self.spec_buses = {b.name: b for b in spec.buses}
@@ -150,6 +158,7 @@ class _Resolver:
                     (*path, "bitrate"),
                 )
             bus = model.Bus(
+                description=b.description,
                 name=b.name,
                 protocol=b.protocol,
                 bitrate=b.bitrate,
@@ -310,6 +319,7 @@ class _Resolver:
             for j, t in enumerate(n.tasks):
                 tasks[t.name] = self.resolve_task(n.name, t, (*path, "tasks", j), ec)
             self.model.nodes[n.name] = model.Node(
+                description=n.description,
                 name=n.name,
                 node_id=n.node_id,
                 buses=tuple(n.buses),
@@ -386,6 +396,7 @@ class _Resolver:
         if t.on_message is not None and t.period is not None:
             self.err("task-period", "an event-driven task ('on_message') has no period", (*path, "period"))
         return model.Task(
+            description=t.description,
             node=node,
             name=t.name,
             period_ns=period,
@@ -592,6 +603,7 @@ class _Resolver:
             signals=signals,
             rate_hz=rate,
             udp_ports=(m.udp.src_port, m.udp.dst_port) if m.udp else None,
+            description=m.description,
         )
 
     def resolve_timing(self, m: schema.Message, bus: model.Bus, pdo: model.Pdo | None, path: Path, ec: int | None):
@@ -1084,6 +1096,7 @@ class _Resolver:
                     )
                 node.tasks[task_name] = _replace_task(task, period_ns=period, trigger=t.name, offset_ns=offset or 0)
             self.model.triggers[t.name] = model.Trigger(
+                description=t.description,
                 name=t.name,
                 bus=t.bus,
                 ftt_id=t.ftt_id,
@@ -1314,6 +1327,7 @@ class _Resolver:
                     (*path, "chain", len(steps) - 1),
                 )
             self.model.flows[f.name] = model.Flow(
+                description=f.description,
                 name=f.name,
                 steps=tuple(steps),
                 deadline_ns=self.ns(f.deadline, (*path, "deadline"), None),

@@ -1,11 +1,169 @@
-"""Placeholder: being written."""
+"""dbc/<bus>.dbc for every CAN bus (can, canopen, ftt-can), written by cantools from its database model.
+
+What goes in: the bus's nodes; every frame on it (the spec's messages, the implicit SYNC and heartbeats, and on
+FTT-CAN the master's trigger message) with its identifier, length, sender and, for periodic ones, the cycle
+time (GenMsgCycleTime, integer ms, rounded); the signals with their little-endian layout, sign, IEEE float
+type, scale, offset, range, unit and receivers. A message given only as a size gets one unsigned signal
+spanning its payload, `<message>_raw` (netcfg.runtime reads and writes it under the same name), so a bus
+monitor still shows its bytes. Comments say what netcfg knows of each frame (PDO slot, FTT id, implicit role).
+
+cantools keeps lists in the order it is given them; messages are sorted by identifier and nodes keep the
+spec's order, so the output is byte-identical across builds.
+"""
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from typing import Any
 
-from netcfg.model import Model
+import cantools.database.can as cdb
+from cantools.database.can.formats.dbc import DbcSpecifics
+from cantools.database.can.formats.dbc.dbc_attribute import DbcAttribute
+from cantools.database.can.formats.dbc.dbc_attribute_definition import DbcAttributeDefinition
+from cantools.database.conversion import BaseConversion
+
+from netcfg import model
+from netcfg.emit import field_of
+from netcfg.runtime import raw_signal_name
+from netcfg.runtime.codec import Field
+
+ENCODING = "cp1252"  # what DBC tools (and cantools.database.load_file) read by default
 
 
-def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
-    return {}
+def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
+    files = {}
+    for bus in m.buses.values():
+        if bus.is_can:
+            # cantools' default re-sorts signals in the comment section; keep the start-bit order of the messages
+            text = database(m, bus).as_dbc_string(sort_signals=None, sort_attribute_signals=None)
+            files[f"dbc/{bus.name}.dbc"] = text.encode(ENCODING, errors="replace")
+    return files
+
+
+def database(m: model.Model, bus: model.Bus) -> cdb.Database:
+    messages = [_message(m, msg) for msg in bus.messages]
+    tm = _trigger_message(m, bus)
+    if tm is not None:
+        messages.append(tm)
+    messages.sort(key=lambda x: (x.is_extended_frame, x.frame_id, x.name))
+    nodes = [cdb.Node(name) for name in bus.nodes]
+    # DBName (Vector's database attribute) carries the bus name; cantools writes Baudrate itself from the Bus
+    db_name = DbcAttributeDefinition("DBName", default_value="", type_name="STRING")
+    specifics = DbcSpecifics(
+        attributes=OrderedDict(DBName=DbcAttribute(bus.name, db_name)),
+        attribute_definitions=OrderedDict(DBName=db_name),
+    )
+    return cdb.Database(
+        messages=messages,
+        nodes=nodes,
+        buses=[cdb.Bus(bus.name, baudrate=bus.bitrate)],
+        version="",
+        dbc_specifics=specifics,
+        sort_signals=None,  # our signals are already in start-bit order; keep it
+    )
+
+
+def sanitise(text: str) -> str:
+    """A DBC comment or unit: one line, no double quote or backslash (cantools escapes quotes with a backslash,
+    which many DBC readers do not understand), only characters the file's code page has."""
+    text = " ".join(text.replace('"', "'").replace("\\", "/").split())
+    return text.encode(ENCODING, errors="replace").decode(ENCODING)
+
+
+def _cycle_ms(period_ns: int | None) -> int | None:
+    if period_ns is None:
+        return None
+    return max(1, round(period_ns / 1_000_000))
+
+
+def _message(m: model.Model, msg: model.Message) -> cdb.Message:
+    receivers = sorted(msg.consumers)
+    if msg.signals:
+        signals = [_signal(field_of(s), s.unit, receivers, _entry_comment(msg, k)) for k, s in enumerate(msg.signals)]
+    elif msg.size:
+        raw = Field(raw_signal_name(msg.name), 0, 8 * msg.size)
+        signals = [_signal(raw, None, receivers, "the whole payload (the spec gives only a size)")]
+    else:
+        signals = []
+    return cdb.Message(
+        frame_id=msg.id,
+        name=msg.name,
+        length=msg.size,
+        signals=signals,
+        comment=_message_comment(m, msg),
+        senders=[msg.producer],
+        cycle_time=_cycle_ms(msg.period_ns) if msg.kind == "periodic" else None,
+        is_extended_frame=msg.extended,
+        bus_name=msg.bus,
+        sort_signals=None,
+    )
+
+
+def _signal(f: Field, unit: str | None, receivers: list[str], comment: str | None) -> cdb.Signal:
+    return cdb.Signal(
+        name=f.name,
+        start=f.start_bit,  # little-endian: DBC's start bit is the least significant bit, as ours
+        length=f.bits,
+        byte_order="little_endian",
+        is_signed=f.signed,
+        conversion=BaseConversion.factory(scale=f.scale, offset=f.offset, is_float=f.is_float),
+        minimum=f.minimum,
+        maximum=f.maximum,
+        unit=sanitise(unit) if unit else None,
+        receivers=receivers,
+        comment=sanitise(comment) if comment else None,
+    )
+
+
+def _entry_comment(msg: model.Message, k: int) -> str | None:
+    if msg.pdo is None:
+        return None
+    e = msg.pdo.entries[k]
+    return f"object 0x{e.index:04X}:{e.sub}"
+
+
+def _message_comment(m: model.Model, msg: model.Message) -> str | None:
+    parts = []
+    description = getattr(msg, "description", None)  # the model may carry the spec's description one day
+    if description:
+        parts.append(str(description))
+    if msg.implicit == "SYNC":
+        parts.append("CANopen SYNC")
+    elif msg.implicit == "heartbeat":
+        parts.append(f"CANopen heartbeat of {msg.producer}")
+    if msg.pdo is not None:
+        node = m.nodes[msg.pdo.device_node]
+        parts.append(
+            f"{msg.pdo.kind.upper()}{msg.pdo.number} of {node.name} (node {node.node_id}), "
+            f"transmission type {msg.pdo.transmission}"
+        )
+    if msg.window == "sync":
+        parts.append(f"FTT-CAN synchronous message, FTT id {msg.ftt_id}")
+    elif msg.window == "async":
+        parts.append("FTT-CAN asynchronous message")
+    if msg.kind != "periodic" and msg.interval_ns is not None:
+        parts.append(f"{msg.kind}, at least {msg.interval_ns / 1e6:g} ms apart")
+    return sanitise("; ".join(parts)) if parts else None
+
+
+def _trigger_message(m: model.Model, bus: model.Bus) -> cdb.Message | None:
+    """FTT-CAN's trigger message: the master sends it at every EC start; its payload is the EC-schedule, bit i
+    (little-endian over the tm_size bytes) announcing FTT id i."""
+    if bus.ftt is None:
+        return None
+    name = f"{bus.name}_TM"
+    if name in m.messages or any(x.name == name for x in bus.messages):
+        return None  # the name is taken by a spec message; leave the frame out rather than rename it
+    f = Field("ec_schedule", 0, 8 * bus.ftt.tm_size)
+    return cdb.Message(
+        frame_id=bus.ftt.tm_id,
+        name=name,
+        length=bus.ftt.tm_size,
+        signals=[_signal(f, None, sorted(n for n in bus.nodes if n != bus.ftt.master), None)],
+        comment="FTT-CAN trigger message: bit i of ec_schedule = FTT id i due in this elementary cycle",
+        senders=[bus.ftt.master],
+        cycle_time=_cycle_ms(bus.ftt.ec_ns),
+        is_extended_frame=bus.id_bits == 29,
+        bus_name=bus.name,
+        sort_signals=None,
+    )

@@ -1,11 +1,234 @@
-"""Placeholder: being written."""
+"""runtime.json: everything a live master or the simulator needs, read back by netcfg.runtime.
+
+Convention: every time is an integer number of nanoseconds in a key ending in "_ns" (exact, as inside the
+compiler); floats appear only for signal scale/offset/min/max and cable lengths. An exact Ethernet rate is a
+[numerator, denominator] pair, because 15 kHz has no exact period in ns. Lists keep the spec's order (buses,
+nodes, messages per bus with the implicit SYNC/heartbeats where the resolver put them), so the file is
+byte-identical across builds. The FTT-CAN schedule comes from netcfg.timing.ftt, never recomputed here.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
+from pathlib import Path
 from typing import Any
 
-from netcfg.model import Model
+from netcfg import model
+from netcfg.timing import ftt
+
+FORMAT = "netcfg-runtime"
+VERSION = 1  # bump when a key changes meaning or disappears; netcfg.runtime.SUPPORTED_VERSIONS must follow
 
 
-def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
-    return {}
+def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
+    doc = runtime_document(m, report)
+    text = json.dumps(doc, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
+    return {"runtime.json": text.encode("utf-8")}
+
+
+def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
+    wcrt = _report_wcrt(report)
+    flow_rows = {f["name"]: f for f in report.get("flows", [])}
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "system": m.system,
+        # lets a master refuse a runtime.json built from another revision of the spec
+        "spec_sha256": hashlib.sha256(Path(m.file).read_bytes()).hexdigest(),
+        "buses": [_bus(m, b) for b in m.buses.values()],
+        "nodes": [_node(n) for n in m.nodes.values()],
+        "messages": [_message(msg, wcrt.get(msg.name)) for b in m.buses.values() for msg in b.messages],
+        "triggers": [_trigger(t) for t in m.triggers.values()],
+        "flows": [_flow(f, flow_rows.get(f.name)) for f in m.flows.values()],
+    }
+
+
+def _ns(us: float | None) -> int | None:
+    """The report's microseconds (rounded to 3 decimals, i.e. to the ns) back to integer ns."""
+    return None if us is None else round(us * 1000)
+
+
+def _report_wcrt(report: dict[str, Any]) -> dict[str, int | None]:
+    return {row["name"]: _ns(row.get("wcrt_us")) for b in report.get("buses", []) for row in b.get("messages", [])}
+
+
+def _bus(m: model.Model, b: model.Bus) -> dict[str, Any]:
+    return {
+        "name": b.name,
+        "protocol": b.protocol,
+        "bitrate": b.bitrate,
+        "id_bits": b.id_bits,
+        "nodes": list(b.nodes),
+        "canopen": _canopen(b.canopen),
+        "ftt": _ftt(m, b),
+        "ethernet": {"switches": [_switch(s) for s in b.switches]} if b.protocol == "ethernet-udp" else None,
+    }
+
+
+def _canopen(co: model.CanopenBus | None) -> dict[str, Any] | None:
+    if co is None:
+        return None
+    return {
+        "sync_period_ns": co.sync_period_ns,
+        "sync_window_ns": co.sync_window_ns,
+        "read_window_ns": co.read_window_ns,
+        "sync_producer": co.sync_producer,
+        "sync_id": co.sync_id,
+    }
+
+
+def _ftt(m: model.Model, b: model.Bus) -> dict[str, Any] | None:
+    if b.ftt is None:
+        return None
+    entries = ftt.srt(b, [t for t in m.triggers.values() if t.bus == b.name])
+    sched = ftt.build_schedule(b, entries)  # a spec whose macro-cycle is too long never reaches the emitters
+    return {
+        "ec_ns": b.ftt.ec_ns,
+        "tm_size": b.ftt.tm_size,
+        "tm_id": b.ftt.tm_id,
+        "tm_ns": sched.tm_ns,
+        "lsw_ns": sched.lsw_ns,  # the default (EC - TM) filled in, as the analysis used it
+        "master": b.ftt.master,
+        "macro_cycle_ec": sched.macro_cycle,
+        "srt": [
+            {
+                "ftt_id": e.ftt_id,
+                "name": e.name,
+                "kind": e.kind,
+                "targets": list(e.targets),
+                "period_ec": e.period_ec,
+                "fastest_period_ec": e.fastest_period_ec,
+                "init_ec": e.init_ec,
+            }
+            for e in sched.entries
+        ],
+        "schedule": [
+            {
+                "ec": s.index,
+                "ids": list(s.ids),
+                "messages": list(s.messages),
+                "triggers": list(s.triggers),
+                "mask": ftt.ec_schedule_mask(s),
+                "sync_ns": s.sync_ns,
+                "async_ns": s.async_ns,
+            }
+            for s in sched.slots
+        ],
+    }
+
+
+def _switch(s: model.Switch) -> dict[str, Any]:
+    return {
+        "name": s.name,
+        "latency_ns": s.latency_ns,
+        "ports": [{"port": p, "to": s.ports[p], "cable_m": s.cables_m.get(p, 0.0)} for p in sorted(s.ports)],
+    }
+
+
+def _node(n: model.Node) -> dict[str, Any]:
+    return {
+        "name": n.name,
+        "node_id": n.node_id,
+        "role": n.role,
+        "buses": list(n.buses),
+        "ip": n.ip,
+        "device": n.device.name if n.device is not None else None,
+        "heartbeat_ns": n.heartbeat_ns,
+        "tx_delay_ns": n.tx_delay_ns,
+        "rx_delay_ns": n.rx_delay_ns,
+        "tasks": [
+            {
+                "name": t.name,
+                "period_ns": t.period_ns,
+                "offset_ns": t.offset_ns,
+                "wcet_ns": t.wcet_ns,
+                "bcet_ns": t.bcet_ns,
+                "trigger": t.trigger,
+                "on_message": t.on_message,
+            }
+            for t in n.tasks.values()
+        ],
+    }
+
+
+def _message(msg: model.Message, wcrt_ns: int | None) -> dict[str, Any]:
+    return {
+        "name": msg.name,
+        "bus": msg.bus,
+        "producer": msg.producer,
+        "consumers": list(msg.consumers),
+        "id": msg.id,
+        "extended": msg.extended,
+        "size": msg.size,
+        "kind": msg.kind,
+        "period_ns": msg.period_ns,
+        "interval_ns": msg.interval_ns,
+        "offset_ns": msg.offset_ns,
+        "deadline_ns": msg.deadline_ns,
+        "jitter_ns": msg.jitter_ns,
+        "rate_hz": None if msg.rate_hz is None else [msg.rate_hz.numerator, msg.rate_hz.denominator],
+        "window": msg.window,
+        "ftt_id": msg.ftt_id,
+        "udp": None if msg.udp_ports is None else {"src_port": msg.udp_ports[0], "dst_port": msg.udp_ports[1]},
+        "pdo": _pdo(msg.pdo),
+        "signals": [_signal(s) for s in msg.signals],
+        "implicit": msg.implicit,
+        "wcrt_ns": wcrt_ns,  # the analysis' bound, for a simulator or master to compare against
+    }
+
+
+def _pdo(p: model.Pdo | None) -> dict[str, Any] | None:
+    if p is None:
+        return None
+    return {
+        "kind": p.kind,
+        "number": p.number,
+        "node": p.device_node,
+        "transmission": p.transmission,
+        "inhibit_100us": p.inhibit_100us,
+        "event_timer_ms": p.event_timer_ms,
+        "sync_start": p.sync_start,
+        "entries": [
+            {"index": e.index, "sub": e.sub, "bits": e.bits, "name": e.name, "data_type": e.data_type}
+            for e in p.entries
+        ],
+    }
+
+
+def _signal(s: model.Signal) -> dict[str, Any]:
+    return {
+        "name": s.name,
+        "start_bit": s.start_bit,
+        "bits": s.bits,
+        "signed": s.signed,
+        "float": s.is_float,
+        "scale": float(s.scale),
+        "offset": float(s.offset),
+        "min": None if s.minimum is None else float(s.minimum),
+        "max": None if s.maximum is None else float(s.maximum),
+        "unit": s.unit,
+    }
+
+
+def _trigger(t: model.Trigger) -> dict[str, Any]:
+    return {
+        "name": t.name,
+        "bus": t.bus,
+        "ftt_id": t.ftt_id,
+        "period_ns": t.period_ns,
+        "interval_ns": t.interval_ns,
+        "offset_ns": t.offset_ns,
+        "tasks": list(t.tasks),
+    }
+
+
+def _flow(f: model.Flow, row: dict[str, Any] | None) -> dict[str, Any]:
+    return {
+        "name": f.name,
+        "steps": [{"kind": s.kind, "refs": list(s.refs)} for s in f.steps],
+        "deadline_ns": f.deadline_ns,
+        # the analysis' bounds, for comparison with measured latencies
+        "latency_min_ns": _ns(row.get("latency_min_us")) if row else None,
+        "latency_max_ns": _ns(row.get("latency_max_us")) if row else None,
+    }
