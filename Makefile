@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench generated clean
 
 $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,8 +25,12 @@ lint: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks
 	$(BIN)/mypy
 
+generated: $(BIN)/.installed
+	for spec in specs/*.yaml; do $(BIN)/netcfg build $$spec || exit 1; done
+
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_check.py
+	$(BIN)/python benchmarks/bench_build.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,123 @@
+"""`netcfg build`: refuses bad specs, writes atomically and deterministically, and generated/ is up to date."""
+
+from __future__ import annotations
+
+import filecmp
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from conftest import ROOT, SPECS, cli, load_spec
+
+GENERATED = ROOT / "generated"
+
+
+def tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_build_writes_every_artifact_and_is_deterministic(tmp_path: Path) -> None:
+    first, second = tmp_path / "a", tmp_path / "b"
+    assert cli("build", str(SPECS / "cambada.yaml"), "-o", str(first)).returncode == 0
+    assert cli("build", str(SPECS / "cambada.yaml"), "-o", str(second)).returncode == 0
+    assert tree(first) == tree(second)
+    assert (first / "runtime.json").is_file() and (first / "report.md").is_file()
+
+
+def test_default_output_folder_is_generated_system(tmp_path: Path) -> None:
+    spec = tmp_path / "spec.yaml"
+    spec.write_text((SPECS / "ntua_treadmill.yaml").read_text())
+    proc = cli("build", str(spec), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "generated" / "ntua_treadmill" / "runtime.json").is_file()
+
+
+def test_a_spec_with_errors_writes_nothing(tmp_path: Path) -> None:
+    data = load_spec("allex2.yaml")
+    data["messages"][0]["pdo"]["map"] = [0x6064]  # read-only object in an RPDO
+    spec = tmp_path / "bad.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    out = tmp_path / "out"
+    proc = cli("build", str(spec), "-o", str(out))
+    assert proc.returncode == 1 and "pdo-direction" in proc.stderr and "nothing was written" in proc.stderr
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.yaml"]
+
+
+@pytest.mark.parametrize("name", ["../../evil", "x*/ #include", "a/b", "..", "con"])
+def test_hostile_node_names_are_refused_before_anything_is_written(tmp_path: Path, name: str) -> None:
+    data = load_spec("ntua_treadmill.yaml")
+    data["nodes"][0]["name"] = name
+    spec = tmp_path / "hostile.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False))
+    proc = cli("build", str(spec), "-o", str(tmp_path / "out"))
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hostile.yaml"]
+
+
+def test_a_failing_build_keeps_the_previous_output(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    assert cli("build", str(SPECS / "cambada.yaml"), "-o", str(out)).returncode == 0
+    before = tree(out)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("system: cambada\nbuses: [")
+    assert cli("build", str(bad), "-o", str(out)).returncode == 1
+    assert tree(out) == before
+
+
+def test_a_build_killed_midway_leaves_old_or_new_output_never_a_mix(tmp_path: Path) -> None:
+    """Kill `netcfg build` at many moments; afterwards the folder holds either the previous build of one spec
+    or the complete build of the other, and the next build cleans up what the killed one left."""
+    out = tmp_path / "out"
+    assert cli("build", str(SPECS / "ntua_sahr.yaml"), "-o", str(out)).returncode == 0
+    old = tree(out)
+    reference = tmp_path / "reference"
+    assert cli("build", str(SPECS / "cambada.yaml"), "-o", str(reference)).returncode == 0
+    new = tree(reference)
+    outcomes = set()
+    for delay in [0.05 * k for k in range(2, 26, 2)]:
+        proc = subprocess.Popen([sys.executable, "-m", "netcfg", "build", str(SPECS / "cambada.yaml"), "-o", str(out)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        now = tree(out) if out.exists() else None
+        if now is None:  # killed between the two renames: the next build restores, then replaces
+            assert (tmp_path / ".out.old").exists()
+            outcomes.add("between")
+        else:
+            assert now in (old, new)
+            outcomes.add("old" if now == old else "new")
+        # back to the old state for the next round
+        assert cli("build", str(SPECS / "ntua_sahr.yaml"), "-o", str(out)).returncode == 0
+        assert tree(out) == old
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]
+    assert "old" in outcomes  # at least one kill landed before the swap
+
+
+@pytest.mark.parametrize("spec", sorted(SPECS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_generated_folder_is_up_to_date(tmp_path: Path, spec: Path) -> None:
+    """generated/<system>/ is the committed output of `netcfg build` for specs/ (rebuild with `make generated`)."""
+    system = yaml.safe_load(spec.read_text())["system"]
+    out = tmp_path / system
+    proc = cli("build", str(spec), "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    committed = GENERATED / system
+    assert committed.is_dir(), f"generated/{system} is missing: run `make generated`"
+    cmp = filecmp.dircmp(out, committed)
+    stale = tree(out) != tree(committed)
+    assert not stale, f"generated/{system} differs from a fresh build ({cmp.diff_files or cmp.left_only or cmp.right_only}); run `make generated`"
+
+
+def test_build_output_paths_never_leave_the_folder() -> None:
+    from netcfg.emit import check_relative
+
+    for bad in ["../x", "/etc/passwd", "a/../../b", "", "a/.hidden/../..", "x\\..\\y"]:
+        with pytest.raises(ValueError):
+            check_relative(bad)
+    check_relative("canopen/hip_l.eds")
