@@ -1,11 +1,326 @@
-"""Placeholder: being written."""
+"""c/<node>.h: one C header per node that sends or receives anything (every node of an FTT-CAN bus receives
+the trigger message, so each gets one).
+
+The header (templates/node.h.j2) holds the node's constants, its buses' timing, the FTT-CAN triggers that
+activate its tasks, and for every message it sends or receives: identifier, size, timing, and a struct of the
+signals with `static inline` pack/unpack functions. The layout is netcfg.runtime.codec's, byte for byte:
+the payload is one little-endian word, a signal's start_bit is its least significant bit, integers are
+unsigned or two's complement, floats IEEE 754, physical = raw * scale + offset, min/max bound the physical
+value. A message given only as a size is one unsigned field `<message>_raw` spanning the payload, as in the
+runtime and the DBC files (payloads over 8 bytes stay raw bytes).
+
+Python only prepares the view below: which bytes each signal touches and with which shift, the bounds a
+value must meet; the C text is all in the template. Identifiers are the spec's names (already checked to be
+C identifiers and not keywords) behind a prefix per kind of name, because nodes, buses and messages each
+have their own namespace in the spec: NODE_<node>_*, BUS_<bus>_*, MSG_<message>_* / msg_<message>_*,
+TRIG_<trigger>_*.
+"""
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
 from typing import Any
 
-from netcfg.model import Model
+from netcfg import model
+from netcfg.emit import render
+from netcfg.runtime import raw_signal_name
+from netcfg.timing import ftt
+
+# integer widths a C99 <stdint.h> always has on our targets
+_WIDTHS = (8, 16, 32, 64)
 
 
-def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
-    return {}
+@dataclass(frozen=True)
+class ByteOp:
+    """One payload byte a signal touches: byte `index` holds the signal's bits from `shift` up (right shift
+    of the raw value), or, for the first byte of a signal that does not start on a byte boundary, the raw
+    value shifted left by `-shift`."""
+
+    index: int
+    shift: int
+
+
+@dataclass(frozen=True)
+class SignalView:
+    name: str
+    start_bit: int
+    bits: int
+    kind: str  # "int" (exact integer), "scaled" (double, raw * scale + offset), "float" (IEEE)
+    signed: bool
+    ctype: str
+    word: str  # unsigned type of the float's bits (memcpy target)
+    mask: int | None  # raw mask, None for 64-bit fields
+    sign_bit: int
+    ops: tuple[ByteOp, ...]
+    lo: int | None  # "int": bound on the value; "scaled": on the rounded raw; None = the C type's own limit
+    hi: int | None
+    minimum: str | None  # physical bounds as C double literals ("scaled", "float")
+    maximum: str | None
+    scale: str
+    offset: str
+    q_lo: str  # "scaled": before rounding, q = (value - offset) / scale lies in (q_lo, q_hi), [q_lo, q_hi) unsigned
+    q_hi: str
+    unit: str | None
+    raw_only: bool  # the `<message>_raw` field of a message given only as a size
+
+
+def _double(x: float) -> str:
+    """A C double literal that reads back as exactly x (repr is the shortest round-trip form)."""
+    text = repr(float(x))
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+def _bound(x: float | None) -> float | None:
+    # an infinite or NaN bound never rejects anything (the codec's comparisons are false for it too)
+    return x if x is not None and math.isfinite(x) else None
+
+
+def _ops(start: int, bits: int) -> tuple[ByteOp, ...]:
+    return tuple(ByteOp(k, 8 * k - start) for k in range(start // 8, (start + bits - 1) // 8 + 1))
+
+
+def signal_view(sig: model.Signal, raw_only: bool = False) -> SignalView:
+    is_integer = not sig.is_float and sig.scale == 1 and sig.offset == 0  # codec.Field.is_integer
+    width = next(w for w in _WIDTHS if w >= sig.bits)
+    if sig.signed:
+        raw_lo, raw_hi = -(1 << (sig.bits - 1)), (1 << (sig.bits - 1)) - 1
+    else:
+        raw_lo, raw_hi = 0, (1 << sig.bits) - 1
+    minimum, maximum = _bound(sig.minimum), _bound(sig.maximum)
+    lo: int | None = raw_lo
+    hi: int | None = raw_hi
+    if sig.is_float:
+        kind, ctype, lo, hi = "float", "float" if sig.bits == 32 else "double", None, None
+    elif is_integer:
+        kind = "int"
+        ctype = f"{'' if sig.signed else 'u'}int{width}_t"
+        # an integer v meets v >= min exactly when v >= ceil(min) (the codec compares int and float exactly)
+        if minimum is not None:
+            lo = max(raw_lo, math.ceil(minimum))
+        if maximum is not None:
+            hi = min(raw_hi, math.floor(maximum))
+        type_lo = -(1 << (width - 1)) if sig.signed else 0
+        type_hi = (1 << (width - 1)) - 1 if sig.signed else (1 << width) - 1
+        # comparisons the C type already guarantees would trip -Wtype-limits
+        lo = None if lo is not None and lo <= type_lo else lo
+        hi = None if hi is not None and hi >= type_hi else hi
+        minimum = maximum = None
+    else:
+        kind, ctype = "scaled", "double"
+        # the rounded raw is held in an int64_t / uint64_t: only bounds inside that type need a test (unsigned:
+        # the pre-test q >= -0.5 already keeps it >= 0)
+        lo = raw_lo if sig.signed and sig.bits < 64 else None
+        hi = raw_hi if sig.bits < 64 else None
+    return SignalView(
+        name=sig.name,
+        start_bit=sig.start_bit,
+        bits=sig.bits,
+        kind=kind,
+        signed=sig.signed,
+        ctype=ctype,
+        word="uint32_t" if sig.bits == 32 else "uint64_t",
+        mask=None if sig.bits == 64 else (1 << sig.bits) - 1,
+        sign_bit=1 << (sig.bits - 1),
+        ops=_ops(sig.start_bit, sig.bits),
+        lo=lo,
+        hi=hi,
+        minimum=None if minimum is None else _double(minimum),
+        maximum=None if maximum is None else _double(maximum),
+        scale=_double(sig.scale),
+        offset=_double(sig.offset),
+        # one raw step of slack each side, so the conversion to a 64-bit integer is defined; the exact test
+        # follows on the rounded integer. Unsigned: round() gives 0 down to -0.5 inclusive (half to even).
+        q_lo=_double(raw_lo - 1) if sig.signed else "-0.5",
+        q_hi=_double(raw_hi + 1),
+        unit=sig.unit,
+        raw_only=raw_only,
+    )
+
+
+@dataclass(frozen=True)
+class FttView:
+    ftt_id: int
+    period_ec: int
+    fastest_period_ec: int
+    init_ec: int
+
+
+@dataclass(frozen=True)
+class MessageView:
+    name: str
+    bus: str
+    protocol: str
+    sends: bool
+    receives: bool
+    producer: str
+    consumers: tuple[str, ...]
+    id: int
+    extended: bool
+    size: int
+    kind: str
+    period_ns: int | None
+    interval_ns: int | None
+    offset_ns: int | None
+    deadline_ns: int | None
+    window: str | None
+    ftt: FttView | None
+    udp: tuple[int, int] | None
+    pdo: str | None
+    implicit: str | None
+    signals: tuple[SignalView, ...]
+    end_bit: int  # one past the last bit a signal uses
+    description: str | None
+
+
+@dataclass(frozen=True)
+class TriggerView:
+    name: str
+    bus: str
+    ftt: FttView
+    tasks: tuple[str, ...]  # this node's tasks it activates
+    others: tuple[str, ...]  # the other nodes' tasks
+    description: str | None
+
+
+@dataclass(frozen=True)
+class BusView:
+    name: str
+    protocol: str
+    bitrate: int
+    id_bits: int
+    ftt: model.FttBus | None
+    canopen: model.CanopenBus | None
+    description: str | None
+
+
+@dataclass(frozen=True)
+class PeerView:
+    name: str
+    ip: str
+    ip_u32: int
+
+
+@dataclass(frozen=True)
+class NodeView:
+    system: str
+    name: str
+    node_id: int | None
+    role: str
+    ip: str | None
+    ip_u32: int | None
+    description: str | None
+    tasks: tuple[tuple[str, str | None], ...]
+    buses: tuple[BusView, ...]
+    triggers: tuple[TriggerView, ...]
+    messages: tuple[MessageView, ...]
+    peers: tuple[PeerView, ...]  # other nodes this one exchanges UDP datagrams with
+
+
+def _description(obj: object) -> str | None:
+    # free text from the spec, when the Model carries it; the template passes it through c_comment
+    value = getattr(obj, "description", None)
+    return str(value) if value else None
+
+
+def _ip_u32(ip: str | None) -> int | None:
+    if ip is None:
+        return None
+    a, b, c, d = (int(p) for p in ip.split("."))
+    return a << 24 | b << 16 | c << 8 | d
+
+
+def _ftt_entries(m: model.Model, bus: model.Bus) -> dict[str, FttView]:
+    """Period and init time in ECs, as the SRT has them (netcfg.timing.ftt computes them, not us)."""
+    if bus.ftt is None:
+        return {}
+    entries = ftt.srt(bus, [t for t in m.triggers.values() if t.bus == bus.name])
+    return {e.name: FttView(e.ftt_id, e.period_ec, e.fastest_period_ec, e.init_ec) for e in entries}
+
+
+def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[str, FttView]) -> MessageView:
+    if msg.signals:
+        sigs = tuple(signal_view(s) for s in msg.signals)
+    elif 0 < msg.size <= 8:
+        sigs = (signal_view(model.Signal(raw_signal_name(msg.name), 0, 8 * msg.size, False), raw_only=True),)
+    else:
+        sigs = ()
+    pdo = None
+    if msg.pdo is not None:
+        pdo = f"{msg.pdo.kind.upper()} {msg.pdo.number} of {msg.pdo.device_node}"
+    return MessageView(
+        name=msg.name,
+        bus=bus.name,
+        protocol=bus.protocol,
+        sends=msg.producer == node,
+        receives=node in msg.consumers,
+        producer=msg.producer,
+        consumers=msg.consumers,
+        id=msg.id,
+        extended=msg.extended,
+        size=msg.size,
+        kind=msg.kind,
+        period_ns=msg.period_ns,
+        interval_ns=msg.interval_ns,
+        offset_ns=msg.offset_ns,
+        deadline_ns=msg.deadline_ns,
+        window=msg.window,
+        ftt=ftt_views.get(msg.name) if bus.ftt is not None and msg.window == "sync" else None,
+        udp=msg.udp_ports,
+        pdo=pdo,
+        implicit=msg.implicit,
+        signals=sigs,
+        end_bit=max((s.start_bit + s.bits for s in sigs), default=0),
+        description=_description(msg),
+    )
+
+
+def node_view(m: model.Model, node: model.Node) -> NodeView | None:
+    buses = [m.buses[b] for b in node.buses]
+    messages: list[MessageView] = []
+    triggers: list[TriggerView] = []
+    peers: dict[str, PeerView] = {}
+    for bus in buses:
+        ftt_views = _ftt_entries(m, bus)
+        for msg in bus.messages:
+            if msg.producer != node.name and node.name not in msg.consumers:
+                continue
+            messages.append(message_view(msg, node.name, bus, ftt_views))
+            if bus.protocol == "ethernet-udp":
+                for other in (msg.producer, *msg.consumers):
+                    ip = m.nodes[other].ip
+                    if other != node.name and ip is not None and other not in peers:
+                        peers[other] = PeerView(other, ip, _ip_u32(ip) or 0)
+        for t in m.triggers.values():
+            mine = tuple(r for r in t.tasks if r.split(".", 1)[0] == node.name)
+            if t.bus == bus.name and mine:
+                others = tuple(r for r in t.tasks if r not in mine)
+                triggers.append(TriggerView(t.name, t.bus, ftt_views[t.name], mine, others, _description(t)))
+    on_ftt = any(b.ftt is not None for b in buses)
+    if not messages and not on_ftt:
+        return None
+    return NodeView(
+        system=m.system,
+        name=node.name,
+        node_id=node.node_id,
+        role=node.role,
+        ip=node.ip,
+        ip_u32=_ip_u32(node.ip),
+        description=_description(node),
+        tasks=tuple((t.name, _description(t)) for t in node.tasks.values()),
+        buses=tuple(
+            BusView(b.name, b.protocol, b.bitrate, b.id_bits, b.ftt, b.canopen, _description(b)) for b in buses
+        ),
+        triggers=tuple(triggers),
+        messages=tuple(messages),
+        peers=tuple(sorted(peers.values(), key=lambda p: p.name)),
+    )
+
+
+def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
+    files = {}
+    for node in m.nodes.values():
+        view = node_view(m, node)
+        if view is not None:
+            files[f"c/{node.name}.h"] = render("node.h.j2", node=view)
+    return files
