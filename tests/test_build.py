@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from conftest import ROOT, SPECS, cli, load_spec
 
 GENERATED = ROOT / "generated"
@@ -81,8 +80,11 @@ def test_a_build_killed_midway_leaves_old_or_new_output_never_a_mix(tmp_path: Pa
     new = tree(reference)
     outcomes = set()
     for delay in [0.05 * k for k in range(2, 26, 2)]:
-        proc = subprocess.Popen([sys.executable, "-m", "netcfg", "build", str(SPECS / "cambada.yaml"), "-o", str(out)],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "netcfg", "build", str(SPECS / "cambada.yaml"), "-o", str(out)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
@@ -110,8 +112,8 @@ def test_generated_folder_is_up_to_date(tmp_path: Path, spec: Path) -> None:
     committed = GENERATED / system
     assert committed.is_dir(), f"generated/{system} is missing: run `make generated`"
     cmp = filecmp.dircmp(out, committed)
-    stale = tree(out) != tree(committed)
-    assert not stale, f"generated/{system} differs from a fresh build ({cmp.diff_files or cmp.left_only or cmp.right_only}); run `make generated`"
+    what = cmp.diff_files or cmp.left_only or cmp.right_only
+    assert tree(out) == tree(committed), f"generated/{system} differs from a fresh build ({what}): make generated"
 
 
 def test_build_output_paths_never_leave_the_folder() -> None:
