@@ -96,6 +96,7 @@ class _Resolver:
         self.resolve_buses()
         self.resolve_nodes()
         self.resolve_messages()
+        self.check_sync_ids()
         self.add_implicit_messages()
         self.resolve_triggers()
         self.check_tasks_activated()
@@ -816,6 +817,12 @@ class _Resolver:
             )
         elif kind == "rpdo" and tt in (252, 253):
             self.err("transmission", "transmission types 252/253 (RTR) exist only for TPDOs", (*ppath, "transmission"))
+        if p.sync_start is not None and (kind != "tpdo" or not 1 <= tt <= 240):
+            self.err(
+                "sync-start",
+                "a SYNC start value (0x18xx sub-index 6) applies to synchronous TPDOs (transmission type 1-240) only",
+                (*ppath, "sync_start"),
+            )
         inhibit = self.ns(p.inhibit, (*ppath, "inhibit"), None)
         inhibit_100us = None
         if inhibit is not None:
@@ -946,6 +953,23 @@ class _Resolver:
                     f"message name '{m.name}' is taken by {what}; rename the message",
                     ("messages", i, "name"),
                 )
+
+    def check_sync_ids(self) -> None:
+        """A device whose COB-ID SYNC (0x1005) is constant cannot follow another SYNC identifier."""
+        for bus in self.model.buses.values():
+            if bus.canopen is None:
+                continue
+            for name in bus.nodes:
+                node = self.model.nodes.get(name)
+                entry = node.device.lookup(0x1005, 0) if node and node.device else None
+                fixed = entry is not None and entry.access == "const" and entry.default is not None
+                if fixed and entry.default & 0x7FF != bus.canopen.sync_id:  # type: ignore[union-attr,operator]
+                    self.err(
+                        "sync-id",
+                        f"device {node.device.name} of '{name}' has a fixed COB-ID SYNC (0x1005) of "  # type: ignore[union-attr]
+                        f"0x{entry.default & 0x7FF:03X}; bus '{bus.name}' uses 0x{bus.canopen.sync_id:03X}",  # type: ignore[union-attr,operator]
+                        (*bus.path, "canopen", "sync_id"),
+                    )
 
     def add_implicit_messages(self) -> None:
         """CANopen buses carry SYNC and heartbeats that the spec does not list as messages."""

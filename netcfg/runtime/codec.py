@@ -9,6 +9,7 @@ raw * scale + offset; min/max, when given, bound the physical value.
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -43,6 +44,8 @@ class Field:
         return 0, (1 << self.bits) - 1
 
     def to_raw(self, value: Number) -> int:
+        if isinstance(value, float) and not math.isfinite(value) and not self.is_float:
+            raise CodecError(f"{self.name} = {value} is not a finite number")
         if (self.minimum is not None and value < self.minimum) or (self.maximum is not None and value > self.maximum):
             raise CodecError(f"{self.name} = {value} is outside [{self.minimum}, {self.maximum}]")
         if self.is_float:

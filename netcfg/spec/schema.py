@@ -6,6 +6,7 @@ objects and timing rules are checked when the spec is resolved into the Model (n
 
 from __future__ import annotations
 
+import math
 import re
 from typing import Annotated, Literal
 
@@ -67,6 +68,20 @@ C_KEYWORDS = frozenset(
         "NULL",
     ]
 )
+CPP_KEYWORDS = frozenset(
+    (
+        "alignas alignof and and_eq asm bitand bitor catch char8_t char16_t char32_t class compl concept consteval "
+        "constexpr constinit const_cast co_await co_return co_yield decltype delete dynamic_cast explicit export "
+        "friend mutable namespace new noexcept not not_eq nullptr operator or or_eq private protected public "
+        "reinterpret_cast requires static_assert static_cast template this thread_local throw try typeid typename "
+        "using virtual wchar_t xor xor_eq"
+    ).split()
+)
+# Macros of the headers generated C includes (<stdint.h>, <stdbool.h>, <string.h>) would rewrite a field name.
+_STD_MACRO = re.compile(
+    r"^(U?INT(8|16|32|64|_LEAST\d+|_FAST\d+|PTR|MAX)_(MAX|MIN|C)|U?INTMAX_C|SIZE_MAX|PTRDIFF_(MAX|MIN)"
+    r"|SIG_ATOMIC_(MAX|MIN)|WCHAR_(MAX|MIN)|WINT_(MAX|MIN)|__bool_true_false_are_defined|assert|errno)$"
+)
 RESERVED_FILE_NAMES = frozenset(
     ["con", "prn", "aux", "nul"] + [f"com{i}" for i in range(1, 10)] + [f"lpt{i}" for i in range(1, 10)]
 )
@@ -78,8 +93,10 @@ def check_name(value: str) -> str:
             f"{value!r} is not a safe name: names become file names and C identifiers, so use a letter "
             "followed by letters, digits or '_' (at most 63 characters), e.g. 'hip_right'"
         )
-    if value in C_KEYWORDS:
-        raise ValueError(f"{value!r} is a C keyword; pick another name, e.g. '{value}_node'")
+    if value in C_KEYWORDS or value in CPP_KEYWORDS:
+        raise ValueError(f"{value!r} is a C or C++ keyword; pick another name, e.g. '{value}_node'")
+    if _STD_MACRO.match(value) or value.startswith("_"):
+        raise ValueError(f"{value!r} is a name the C standard headers use; pick another name")
     if value.lower() in RESERVED_FILE_NAMES:
         raise ValueError(f"{value!r} is a reserved file name on Windows; pick another name")
     return value
@@ -94,9 +111,21 @@ def _no_bool(value: object) -> object:
     return value
 
 
+def _finite(value: float) -> float:
+    if not math.isfinite(value):
+        raise ValueError(f"expected a finite number, not {value}")
+    return value
+
+
+def _non_zero(value: float) -> float:
+    if value == 0:
+        raise ValueError("a scale of 0 would map every raw value to the offset; use a non-zero scale")
+    return value
+
+
 # YAML reads yes/no/true/false as booleans: never let them pass for numbers (or numbers for booleans).
 Int = Annotated[int, Strict()]
-Float = Annotated[float, BeforeValidator(_no_bool)]
+Float = Annotated[float, BeforeValidator(_no_bool), AfterValidator(_finite)]
 Bool = Annotated[bool, Strict()]
 # "node.task" references to tasks; flows and triggers use them.
 TaskRef = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$")]
@@ -203,7 +232,7 @@ class Signal(SpecModel):
     bits: Int = Field(ge=1, le=64)
     signed: Bool = False
     float: Bool = Field(False, description="IEEE 754 float (bits 32 or 64)")
-    scale: Float = 1.0
+    scale: Annotated[Float, AfterValidator(_non_zero)] = 1.0
     offset: Float = 0.0
     min: Float | None = None
     max: Float | None = None
