@@ -15,6 +15,7 @@ $(BIN)/.installed: pyproject.toml
 
 demo: $(BIN)/.installed
 	$(BIN)/netcfg check specs/cambada.yaml specs/allex2.yaml specs/ntua_sahr.yaml
+	$(BIN)/netcfg build specs/allex2.yaml -o build/allex2
 
 test: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks
