@@ -5,25 +5,48 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from pydantic import ValidationError
+
 from netcfg.analyze import analyze
 from netcfg.diagnostics import Collector, sort_diagnostics
+from netcfg.importers import ImportOptions
 from netcfg.model import Model
 from netcfg.resolve import resolve
-from netcfg.spec.load import read_spec
+from netcfg.spec.load import read_spec, report_validation_errors
+from netcfg.spec.schema import Spec
+from netcfg.spec.source import SourceMap
 
 
-def load_model(path: Path, diags: Collector) -> Model | None:
-    """Read and resolve a spec; None (with errors in diags) when it is not usable. OSError propagates."""
+def load_model(path: Path, diags: Collector, options: ImportOptions | None = None) -> Model | None:
+    """Read and resolve a spec (or a DBC file, analysed as the spec netcfg would import from it); None (with
+    errors in diags) when it is not usable. OSError propagates."""
+    if path.suffix.lower() == ".dbc":
+        return load_dbc(path, diags, options or ImportOptions())
     spec, smap = read_spec(path, diags)
     if spec is None:
         return None
     return resolve(spec, smap, diags, path.parent)
 
 
-def analyse_spec(path: Path) -> tuple[Model | None, dict[str, Any]]:
+def load_dbc(path: Path, diags: Collector, options: ImportOptions) -> Model | None:
+    from netcfg.importers.dbc import import_dbc
+
+    imported = import_dbc(path, options, diags)
+    if imported is None or diags.errors:
+        return None
+    smap = SourceMap(str(path))  # errors found later name the item; the DBC has no positions to give
+    try:
+        spec = Spec.model_validate(imported[0])
+    except ValidationError as exc:
+        report_validation_errors(exc, smap, diags)
+        return None
+    return resolve(spec, smap, diags, path.parent)
+
+
+def analyse_spec(path: Path, options: ImportOptions | None = None) -> tuple[Model | None, dict[str, Any]]:
     """Load, resolve and analyse; -> (model or None, JSON-ready report). OSError propagates."""
     diags = Collector()
-    model = load_model(path, diags)
+    model = load_model(path, diags, options)
     report: dict[str, Any] = {"system": None, "file": str(path), "ok": False, "buses": [], "flows": []}
     if model is not None:
         report.update(analyze(model, diags))
@@ -35,5 +58,5 @@ def analyse_spec(path: Path) -> tuple[Model | None, dict[str, Any]]:
     return model, report
 
 
-def check(path: Path) -> dict[str, Any]:
-    return analyse_spec(path)[1]
+def check(path: Path, options: ImportOptions | None = None) -> dict[str, Any]:
+    return analyse_spec(path, options)[1]

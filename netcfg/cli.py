@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import __version__
+from netcfg.importers import ImportOptions
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -19,14 +20,24 @@ def main(argv: list[str] | None = None) -> int:
     p_check = sub.add_parser("check", help="validate specs and analyse their timing; writes nothing")
     p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC")
     p_check.add_argument("--format", choices=("text", "json"), default="text")
+    p_check.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k or '500 kbit/s'")
+    p_check.add_argument("--lenient", action="store_true", help="DBC input: unmappable items are warnings")
     p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
     p_build.add_argument("spec", type=Path, metavar="SPEC")
     p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
+    p_import = sub.add_parser("import", help="write a netcfg spec from a DBC file or a ros2_canopen/Lely bus.yml")
+    p_import.add_argument("kind", choices=("dbc", "bus-yml"))
+    p_import.add_argument("source", type=Path, metavar="FILE")
+    p_import.add_argument("-o", "--output", type=Path, required=True, metavar="SPEC", help="the spec to write")
+    p_import.add_argument("--bitrate", type=_bitrate, help="the bus bit rate (wins over the file's)")
+    p_import.add_argument("--lenient", action="store_true", help="what cannot be mapped is a warning, not an error")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
-            return cmd_check(args.specs, args.format)
+            return cmd_check(args.specs, args.format, ImportOptions(args.bitrate, args.lenient))
+        if args.command == "import":
+            return cmd_import(args.kind, args.source, args.output, ImportOptions(args.bitrate, args.lenient))
         if args.command == "build":
             return cmd_build(args.spec, args.output)
         if args.command == "schema":
@@ -36,14 +47,67 @@ def main(argv: list[str] | None = None) -> int:
     return 2  # pragma: no cover - argparse rejects unknown commands
 
 
-def cmd_check(paths: list[Path], fmt: str) -> int:
+def _bitrate(text: str) -> int:
+    """'500k', '1M', '250000' or '500 kbit/s' -> bit/s."""
+    from netcfg.spec.units import parse_bitrate
+
+    short = text.strip().lower()
+    scale = {"k": 1_000, "m": 1_000_000}.get(short[-1:], 0)
+    try:
+        if scale and short[:-1].replace(".", "", 1).isdigit():
+            return int(float(short[:-1]) * scale)
+        if short.isdigit():
+            return int(short)
+        return parse_bitrate(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a bit rate; write 500k, 1M or '500 kbit/s'") from exc
+
+
+def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) -> int:
+    from netcfg.diagnostics import Collector, sort_diagnostics
+    from netcfg.importers import write_spec
+
+    diags = Collector()
+    try:
+        if kind == "dbc":
+            from netcfg.importers.dbc import import_dbc
+
+            imported = import_dbc(source, options, diags)
+        else:
+            from netcfg.importers.bus_yml import import_bus_yml
+
+            imported = import_bus_yml(source, options, diags)
+    except OSError as exc:
+        print(f"netcfg: cannot read {source}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    for d in sort_diagnostics(diags.items):
+        print(d, file=sys.stderr)
+    if imported is None or diags.errors:
+        print(f"netcfg: {source} could not be imported; nothing was written", file=sys.stderr)
+        return 1
+    data, comments = imported
+    header = f"netcfg spec imported from {source.name} ({kind}) by `netcfg import`; edit freely."
+    text = write_spec(data, comments, header)
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+        tmp = output.with_name(f".{output.name}.tmp")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, output)  # the spec appears whole or not at all
+    except OSError as exc:
+        print(f"netcfg: cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {output}; check it with: netcfg check {output}")
+    return 0
+
+
+def cmd_check(paths: list[Path], fmt: str, options: ImportOptions | None = None) -> int:
     from netcfg.check import check
     from netcfg.report_text import render
 
     reports: list[dict[str, Any]] = []
     for path in paths:
         try:
-            reports.append(check(path))
+            reports.append(check(path, options))
         except OSError as exc:
             print(f"netcfg: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
             return 2
