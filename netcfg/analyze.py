@@ -90,12 +90,13 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
 
 
 def rta_frames(bus: model.Bus, msgs: list[model.Message]) -> list[can_rta.CanFrame]:
+    """The bus's messages as the response-time analysis sees them (worst-case frame times from the load)."""
     return [
         can_rta.CanFrame(
             msg.name,
             msg.id,
             msg.extended,
-            bits_to_ns(can_frame_bits(msg.size, msg.extended), bus.bitrate),
+            load.frame_timing(msg, bus.bitrate).tx_ns,
             msg.interval_ns,
             msg.jitter_ns,
             msg.deadline_ns,
