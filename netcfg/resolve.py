@@ -496,7 +496,7 @@ class _Resolver:
             if pdo is not None:
                 self.err("wrong-section", "give either a PDO map or signals, not both", (*path, "signals"))
             signals = self.layout_signals(m.signals, (*path, "signals"))
-            sig_size = math.ceil(sum(s.bits for s in m.signals) / 8)
+            sig_size = math.ceil(max((s.start_bit + s.bits for s in signals), default=0) / 8)
             if size is not None and size < sig_size:
                 self.err("size", f"size {size} is too small for the signals ({sig_size} bytes)", (*path, "size"))
             size = max(size or 0, sig_size)
@@ -940,6 +940,15 @@ class _Resolver:
                 self.err("signal-range", f"signal '{s.name}': min {s.min} is above max {s.max}", (*path, k))
             if s.float and s.bits not in (32, 64):
                 self.err("signal-float", f"signal '{s.name}': a float has 32 or 64 bits", (*path, k, "bits"))
+            if s.start_bit is not None:
+                if s.start_bit < start:
+                    self.err(
+                        "signal-overlap",
+                        f"signal '{s.name}' starts at bit {s.start_bit}, inside the previous "
+                        f"signal (which ends before bit {start}); signals go in bit order",
+                        (*path, k, "start_bit"),
+                    )
+                start = max(start, s.start_bit)
             out.append(model.Signal(s.name, start, s.bits, s.signed, s.float, s.scale, s.offset, s.min, s.max, s.unit))
             start += s.bits
         return tuple(out)

@@ -1,12 +1,619 @@
-"""Placeholder: being written. Reads a DBC file (cantools)."""
+"""DBC (Vector CANdb++) -> netcfg spec data, read through cantools.
+
+One DBC describes one classical CAN bus. The mapping, item by item (every DBC item not mapped is an error,
+or with --lenient a warning naming it; nothing is dropped silently):
+
+- system: the file stem made a safe name. Bus: `protocol: can`, named from the DBName attribute (else 'can0').
+- bit rate: --bitrate wins; else the database attribute `Baudrate`, else `BusSpeed` (a BA_ value, else the
+  BA_DEF_DEF_ default when it is not 0). Every DBC we found in public repositories (cantools' writer, CANdb++
+  style files, generator scripts; BusSpeed too) gives bit/s (`BA_ "Baudrate" 500000;`); a value of at most
+  1000 cannot be a CAN bit rate in bit/s, so it is read as kbit/s (with a warning).
+  No bit rate at all is an error that says how to give one.
+- nodes: BU_ in file order, then every sender or receiver not declared there (a warning each).
+- messages, in file order: name, id, `extended: true` for 29-bit frames (and `id_bits: 29` on the bus when all
+  frames are), size = the BO_ length, producer = first sender, consumers = the receivers of its signals.
+  A message without sender (Vector__XXX) or without receivers is an error; with --lenient the sender becomes
+  the placeholder node 'unassigned' and the consumers all other nodes (a warning each). CAN FD frames (VFrameFormat
+  *_FD or more than 8 bytes) are an error even with --lenient: the analysis models classical CAN only.
+- timing, from GenMsgSendType (cantools reads its enum, or the definition's default) and, in ms, GenMsgCycleTime,
+  GenMsgCycleTimeFast and GenMsgDelayTime (Vector's interaction layer: DelayTime is the least time between two
+  transmissions, CycleTimeFast the repetition period while active):
+    cyclic kinds (Cyclic, cyclicX, cyclicIfActive)          -> periodic, period GenMsgCycleTime (the fast
+                                                               cycle for *Fast types)
+    event kinds (Event, Spontaneous, triggered, IfActive,   -> sporadic, min_interarrival the smallest of
+      OnChange, OnWrite, ...)                                  GenMsgDelayTime / GenMsgCycleTimeFast; none -> on-demand
+    cyclic and event (CE, CA, cyclicAndSpontaneous, ...)     -> sporadic at the smallest of those and the cycle
+                                                               time; no gap given -> periodic (warning: events
+                                                               between cycles are not analysed)
+    none (NoMsgSendType, none, NotUsed) or absent/unknown   -> periodic if GenMsgCycleTime is given (a warning for
+                                                               none/unknown: when in doubt we count the load),
+                                                               else on-demand
+  Every on-demand message gets a warning "not analysed: ..." naming it.
+- signals: little-endian (Intel) signals map to `signals:` in start-bit order (netcfg packs signals back to back
+  from bit 0, LSB first: netcfg.runtime.codec); a signal after bits the DBC leaves unused keeps its DBC start bit
+  (`start_bit`). Big-endian (Motorola) or multiplexed signals cannot be
+  expressed: an error, or with --lenient a warning and the message keeps only its size.
+- names (system, bus, nodes, messages, signals) are made safe (letters, digits, '_', starting with a letter, no C
+  keyword) and collisions (also differing only in case) get a suffix _2, _3 ... in file order, with a warning.
+- comments: where each item came from (BO_/SG_/BU_ line, attribute values), written above it by write_spec;
+  what the spec has no key for (signal comments, VAL_ value names, further BO_TX_BU_ senders) goes there too.
+"""
 
 from __future__ import annotations
 
+import re
+from dataclasses import dataclass
+from decimal import Decimal
 from pathlib import Path
+from typing import Any
 
-from netcfg.diagnostics import Collector
+import cantools.database
+from cantools.database.can import Database, Message, Signal
+
+from netcfg.diagnostics import Collector, Position, Severity
 from netcfg.importers import Imported, ImportOptions
+from netcfg.importers import Path as DataPath
+from netcfg.spec.schema import check_name
+
+ENCODING = "cp1252"  # what cantools.database.load_file and DBC tools read by default
+PLACEHOLDER_NODE = "unassigned"  # stands for DBC's Vector__XXX (no node) under --lenient
+CAN_MAX_PAYLOAD = 8
+KBIT_LIMIT = 1000  # Baudrate/BusSpeed values up to this are kbit/s: no CAN bus runs at 1000 bit/s or less
+
+_BO = re.compile(r"^[ \t]*BO_[ \t]+(\d+)[ \t]+([A-Za-z0-9_]+)")
+_SG = re.compile(r"^[ \t]*SG_[ \t]+([A-Za-z0-9_]+)")
+_BU = re.compile(r"^[ \t]*BU_[ \t]*:(.*)$")
+_BA_DB = re.compile(r'^[ \t]*BA_[ \t]+"(\w+)"[ \t]+[^A-Z \t]')  # database attribute: the value follows the name
+_WORD = re.compile(r"[A-Za-z0-9_]+")
+_IN_MESSAGE = re.compile(r"in message '?([A-Za-z0-9_]+)'?")
+
+# GenMsgSendType values seen in DBCs in the wild, lower-cased without punctuation (see send_kind)
+_NONE_KINDS = ("none", "nomsgsendtype", "nosendtype", "notused", "reserved", "")
+_EVENT_WORDS = ("event", "spontan", "trigger", "ifactive", "onchange", "onwrite", "request")
+
+
+class _Lines:
+    """Where things are in the DBC text: a cheap scan for the lines of BO_, SG_, BU_ and BA_ entries."""
+
+    def __init__(self, text: str) -> None:
+        self.messages: dict[int, tuple[int, int]] = {}  # DBC frame id (bit 31 = extended) -> (line, column)
+        self.message_names: dict[str, tuple[int, int]] = {}
+        self.signals: dict[tuple[int, str], tuple[int, int]] = {}
+        self.nodes: dict[str, tuple[int, int]] = {}
+        self.attributes: dict[str, int] = {}
+        current: int | None = None
+        for number, line in enumerate(text.splitlines(), start=1):
+            if m := _BO.match(line):
+                current = int(m.group(1))
+                self.messages.setdefault(current, (number, m.start(2) + 1))
+                self.message_names.setdefault(m.group(2), (number, m.start(2) + 1))
+            elif (m := _SG.match(line)) and current is not None:
+                self.signals.setdefault((current, m.group(1)), (number, m.start(1) + 1))
+            elif m := _BU.match(line):
+                for w in _WORD.finditer(m.group(1)):
+                    self.nodes.setdefault(w.group(0), (number, m.start(1) + w.start() + 1))
+            elif m := _BA_DB.match(line):
+                self.attributes.setdefault(m.group(1), number)
+            elif line.strip() and not line[:1].isspace():
+                current = None  # a new top-level section ends the signal list
+
+
+@dataclass
+class _Timing:
+    data: dict[str, Any]  # period / min_interarrival / type keys of the spec message
+    note: str  # for the provenance comment
+
+
+class _Names:
+    """Safe, unique names for one kind of item; the first in file order keeps its name."""
+
+    def __init__(self, kind: str, prefix: str, suffix: str) -> None:
+        self.kind, self.prefix, self.suffix = kind, prefix, suffix
+        self.taken: set[str] = set()
+
+    def claim(self, raw: str) -> tuple[str, str | None]:
+        """-> (name, why it differs from raw, or None)."""
+        name = safe_name(raw, self.prefix, self.suffix)
+        why = (
+            None if name == raw else f"'{raw}' is not a safe name (letters, digits, '_', a letter first, no C keyword)"
+        )
+        base, n = name, 2
+        while name.lower() in self.taken:  # names become file names: they must differ in more than case
+            tail = f"_{n}"
+            name = base[: 63 - len(tail)] + tail
+            n += 1
+        if name != base:
+            why = f"{self.kind} name '{base}' is already used (names may not differ only in case)"
+        self.taken.add(name.lower())
+        return name, why
+
+    def reserve(self, name: str) -> None:
+        self.taken.add(name.lower())
+
+
+def safe_name(raw: str, prefix: str, suffix: str) -> str:
+    """Letters, digits and '_', a letter first, at most 63 characters, not a C/C++ keyword or C header macro."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", raw)
+    if not re.match(r"[A-Za-z]", name):
+        name = prefix.rstrip("_") + ("" if name.startswith("_") else "_") + name
+    name = name[:63]
+    try:
+        return check_name(name)
+    except ValueError:
+        return name[: 63 - len(suffix)] + suffix
+
+
+def send_kind(send_type: str | None) -> str:
+    """GenMsgSendType -> 'cyclic', 'event', 'mixed', 'none', 'absent' or 'unknown' (see the module docstring)."""
+    if send_type is None:
+        return "absent"
+    key = re.sub(r"[^a-z]", "", send_type.lower())
+    if key in _NONE_KINDS or key.startswith("notused"):
+        return "none"
+    if key in ("ce", "ca"):  # Vector's short forms: Cyclic+Event, Cyclic+IfActive
+        return "mixed"
+    if key.startswith("cyclic"):
+        rest = key[len("cyclic") :].removeprefix("ifactive")  # cyclicIfActive: cyclic while active, no events
+        return "mixed" if "and" in rest or any(w in rest for w in _EVENT_WORDS) else "cyclic"
+    if any(w in key for w in _EVENT_WORDS):
+        return "event"
+    return "unknown"
+
+
+def ms_text(ms: float) -> str:
+    """A DBC time attribute (ms) as a spec duration, exact: 10 -> '10 ms', 2.5 -> '2.5 ms'."""
+    value = Decimal(str(ms))
+    text = format(value.normalize(), "f") if value != value.to_integral_value() else str(int(value))
+    return f"{text} ms"
+
+
+def bitrate_text(bps: int) -> str:
+    for unit, scale in (("Mbit/s", 1_000_000), ("kbit/s", 1_000)):
+        if bps % scale == 0:
+            return f"{bps // scale} {unit}"
+    return f"{bps} bit/s"
+
+
+def _number(value: float) -> float | int:
+    """Integral floats as ints: the spec reads the same, and the YAML says '1' rather than '1.0'."""
+    return int(value) if isinstance(value, float) and value.is_integer() and abs(value) < 2**53 else value
+
+
+class _Importer:
+    def __init__(self, path: Path, text: str, options: ImportOptions, diags: Collector) -> None:
+        self.path, self.text, self.options, self.diags = path, text, options, diags
+        self.file = str(path)
+        self.lines = _Lines(text)
+        self.comments: dict[DataPath, str] = {}
+        self.message_names = _Names("message", "msg", "_msg")
+        self.index = 0  # of the next message in the spec's list (messages that fail are not in it)
+
+    # -- diagnostics ------------------------------------------------------------------------------------
+    def pos(self, at: tuple[int, int] | int | None = None) -> Position:
+        if isinstance(at, tuple):
+            return Position(self.file, at[0], at[1])
+        return Position(self.file, at or 1, 1)
+
+    def add(self, code: str, text: str, at: tuple[int, int] | int | None, severity: Severity = "error") -> None:
+        self.diags.add(code, text, self.pos(at), severity)  # the position names the file
+
+    def unmappable(self, code: str, text: str, at: tuple[int, int] | int | None, lenient_outcome: str) -> None:
+        """An error, or with --lenient a warning saying what was done instead."""
+        if self.options.lenient:
+            self.add(code, f"{text}; {lenient_outcome} (--lenient)", at, "warning")
+        else:
+            self.add(code, f"{text}; fix the DBC, or import with --lenient ({lenient_outcome})", at)
+
+    def message_at(self, msg: Message) -> tuple[int, int] | None:
+        dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
+        return self.lines.messages.get(dbc_id) or self.lines.message_names.get(msg.name)
+
+    # -- the database -----------------------------------------------------------------------------------
+    def load(self) -> Database | None:
+        try:
+            db = cantools.database.load_string(self.text, database_format="dbc", strict=True)
+        except Exception as exc:  # cantools raises assorted errors for bad input; all mean "bad DBC"
+            self.parse_error(exc)
+            return None
+        if not isinstance(db, Database):  # pragma: no cover - database_format='dbc' gives a CAN database
+            self.add("dbc-parse", "cantools did not read it as a CAN database", None)
+            return None
+        return db
+
+    def parse_error(self, exc: Exception) -> None:
+        cause = getattr(exc, "e_dbc", None) or exc.__cause__ or exc  # cantools wraps the DBC parser's error
+        line, column = getattr(cause, "line", None), getattr(cause, "column", None)
+        text = str(cause).strip().strip('"')
+        at: tuple[int, int] | None = None
+        if isinstance(line, int) and isinstance(column, int):
+            at = (line, column)
+            lines = self.text.splitlines()
+            source = lines[line - 1].strip() if 0 < line <= len(lines) else ""
+            what = f"invalid DBC syntax in '{source}'" if source else "invalid DBC syntax"
+            hint = (
+                "; a message needs 'BO_ <id> <name>: <length> <sender>'"
+                if source.startswith("BO_")
+                else "; a signal needs 'SG_ <name> : <start>|<length>@<1|0><+|-> (<scale>,<offset>) [<min>|<max>] "
+                '"<unit>" <receivers>\''
+                if source.startswith("SG_")
+                else "; is this a DBC file?"
+                if line == 1
+                else ""
+            )
+            self.add("dbc-parse", f"{what} at column {column}{hint}", at)
+            return
+        if m := _IN_MESSAGE.search(text):
+            at = self.lines.message_names.get(m.group(1))
+        self.add("dbc-parse", f"cantools cannot read this DBC: {text}; fix the DBC", at)
+
+    def db_attribute(self, db: Database, name: str) -> tuple[Any, str] | None:
+        """A database-level attribute: (value, where from) from its BA_, else its BA_DEF_DEF_ default if set."""
+        if db.dbc is None:
+            return None
+        attr = db.dbc.attributes.get(name)
+        if attr is not None:
+            line = self.lines.attributes.get(name)
+            return attr.value, f'BA_ "{name}" {attr.value}' + (f", line {line}" if line else "")
+        definition = db.dbc.attribute_definitions.get(name)
+        if definition is not None and definition.kind is None and definition.default_value not in (None, "", 0, "0"):
+            return definition.default_value, f'BA_DEF_DEF_ "{name}" {definition.default_value}, the default'
+        return None
+
+    def message_attribute(self, db: Database, msg: Message, name: str) -> float | None:
+        """A numeric message attribute (GenMsgDelayTime ...): its BA_ value, else the definition's default."""
+        value: Any = None
+        if msg.dbc is not None and name in msg.dbc.attributes:
+            value = msg.dbc.attributes[name].value
+        elif db.dbc is not None and name in db.dbc.attribute_definitions:
+            value = db.dbc.attribute_definitions[name].default_value
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            return None
+        return number if number > 0 else None
+
+    def bitrate(self, db: Database) -> tuple[int, str] | None:
+        if self.options.bitrate is not None:
+            return self.options.bitrate, "from the command line (--bitrate), which wins over the DBC"
+        for name in ("Baudrate", "BusSpeed"):
+            got = self.db_attribute(db, name)
+            if got is None:
+                continue
+            value, where = got
+            at = self.lines.attributes.get(name)
+            try:
+                number = float(str(value).strip())
+            except ValueError:
+                self.add("dbc-bitrate", f"cannot read {where} as a bit rate; give one with --bitrate 500k", at)
+                return None
+            if number <= 0:
+                continue
+            if number <= KBIT_LIMIT:
+                bps = round(number * 1000)
+                self.add(
+                    "dbc-bitrate",
+                    f"{where}: read as {number:g} kbit/s (values up to {KBIT_LIMIT} cannot be bit/s); "
+                    "give --bitrate to override",
+                    at,
+                    "warning",
+                )
+                return bps, f"{where}, read as kbit/s"
+            return round(number), f"{where}, in bit/s"
+        self.add(
+            "dbc-bitrate",
+            "no bit rate: the DBC has no Baudrate or BusSpeed attribute; give one on the command line, e.g. "
+            "`--bitrate 500k` (netcfg check FILE.dbc --bitrate 500k, netcfg import dbc FILE.dbc --bitrate 500k -o "
+            'SPEC), or add `BA_ "Baudrate" 500000;` to the DBC',
+            None,
+        )
+        return None
+
+    # -- the spec -------------------------------------------------------------------------------------------
+    def run(self) -> Imported | None:
+        db = self.load()
+        if db is None:
+            return None
+        system, why = _Names("system", "dbc", "_net").claim(self.path.stem)
+        self.comments[("system",)] = f"from the file name {self.path.name}"
+        if why:
+            self.add("dbc-name", f"system name: {why}; imported as '{system}'", None, "warning")
+
+        bus: dict[str, Any] = {"name": "can0", "protocol": "can"}
+        db_name = self.db_attribute(db, "DBName")
+        raw_bus = str(db_name[0]) if db_name and str(db_name[0]).strip() else None
+        if raw_bus is not None and db_name is not None:
+            bus["name"], why = _Names("bus", "can", "_bus").claim(raw_bus)
+            self.comments[("buses", 0)] = f"one classical CAN bus: the DBC's {db_name[1]}"
+            if why:
+                self.add(
+                    "dbc-name",
+                    f"bus name: {why}; imported as '{bus['name']}'",
+                    self.lines.attributes.get("DBName"),
+                    "warning",
+                )
+        else:
+            self.comments[("buses", 0)] = "one classical CAN bus; the DBC has no DBName attribute, so it is 'can0'"
+        rate = self.bitrate(db)
+        if rate is not None:
+            bus["bitrate"] = bitrate_text(rate[0])
+            self.comments[("buses", 0, "bitrate")] = rate[1]
+        if db.buses and db.buses[0].comment:
+            bus["description"] = db.buses[0].comment.strip()
+
+        nodes = self.nodes(db)
+        messages = [m for m in (self.message(db, msg, nodes) for msg in db.messages) if m is not None]
+        if messages and all(m.get("extended") for m in messages):
+            bus["id_bits"] = 29
+        node_list = [
+            {"name": n.name, "buses": [bus["name"]], **({"description": n.description} if n.description else {})}
+            for n in nodes.values()
+        ]
+        for i, n in enumerate(nodes.values()):
+            self.comments[("nodes", i)] = n.origin
+        if not node_list:
+            self.add(
+                "dbc-node", "no nodes: the DBC declares no BU_ and no message names a sender; add a BU_ line", None
+            )
+        if rate is None or self.diags.errors:
+            return None
+        data: dict[str, Any] = {"system": system, "buses": [bus], "nodes": node_list, "messages": messages}
+        return data, self.comments
+
+    def nodes(self, db: Database) -> dict[str, _Node]:
+        """Declared nodes (BU_) first, then the senders and receivers nobody declared, in file order."""
+        names = _Names("node", "node", "_node")
+        names.reserve(PLACEHOLDER_NODE)
+        out: dict[str, _Node] = {}
+        for node in db.nodes:
+            at = self.lines.nodes.get(node.name)
+            name, why = names.claim(node.name)
+            line = f", line {at[0]}" if at else ""
+            out[node.name] = _Node(name, f"BU_ {node.name}{line}", (node.comment or "").strip() or None)
+            if why:
+                self.add("dbc-name", f"node '{node.name}': {why}; imported as '{name}'", at, "warning")
+        for msg in db.messages:
+            for role, raw in [("sender", s) for s in msg.senders[:1]] + [
+                ("receiver", r) for s in msg.signals for r in s.receivers
+            ]:
+                if raw in out or raw == "Vector__XXX":
+                    continue
+                at = self.message_at(msg)
+                name, why = names.claim(raw)
+                line = f" (line {at[0]})" if at else ""
+                out[raw] = _Node(name, f"not declared in BU_: {role} of BO_ {msg.name}{line}", None)
+                self.add(
+                    "dbc-node",
+                    f"node '{raw}', {role} of message '{msg.name}', is not declared in BU_; imported as node "
+                    f"'{name}' (add it to BU_ to silence this)",
+                    at,
+                    "warning",
+                )
+        return out
+
+    def placeholder(self, nodes: dict[str, _Node]) -> str:
+        if "Vector__XXX" not in nodes:
+            nodes["Vector__XXX"] = _Node(
+                PLACEHOLDER_NODE, "placeholder for DBC's Vector__XXX (no node), --lenient", None
+            )
+        return PLACEHOLDER_NODE
+
+    def message(self, db: Database, msg: Message, nodes: dict[str, _Node]) -> dict[str, Any] | None:
+        at = self.message_at(msg)
+        line = f", line {at[0]}" if at else ""
+        dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
+        name, why = self.message_names.claim(msg.name)
+        if why:
+            self.add("dbc-name", f"message '{msg.name}': {why}; imported as '{name}'", at, "warning")
+        if msg.is_fd or msg.length > CAN_MAX_PAYLOAD:
+            what = f"{msg.length} bytes" if msg.length > CAN_MAX_PAYLOAD else "a CAN FD frame (VFrameFormat)"
+            self.add(
+                "dbc-can-fd",
+                f"message '{msg.name}' is {what}: netcfg analyses classical CAN (at most 8 bytes); split it into "
+                "classical frames or leave it out of the DBC",
+                at,
+            )
+            return None
+        out: dict[str, Any] = {"name": name}
+        # --- who sends and who receives
+        if msg.senders:
+            producer = nodes[msg.senders[0]].name
+            others = msg.senders[1:]
+        else:
+            self.unmappable(
+                "dbc-sender",
+                f"message '{msg.name}' has no sender (Vector__XXX); name the sending node in its BO_ line",
+                at,
+                f"imported as sent by the placeholder node '{PLACEHOLDER_NODE}'",
+            )
+            producer, others = self.placeholder(nodes), []
+        # Vector__XXX among receivers means "no node"; it never stands for the --lenient placeholder
+        receivers = {nodes[r].name for s in msg.signals for r in s.receivers if r in nodes and r != "Vector__XXX"}
+        # node order, not signal order: the same set always gives the same list
+        consumers = [n.name for n in nodes.values() if n.name in receivers and n.name != producer]
+        receivers_note = ""  # the usual case (the receivers of its signals) needs no note
+        if not consumers:
+            rest = [n.name for n in nodes.values() if n.name not in (producer, PLACEHOLDER_NODE)]
+            self.unmappable(
+                "dbc-receivers",
+                f"message '{msg.name}' has no receiver (no signal names a receiving node); list the receivers "
+                "at the end of its SG_ lines",
+                at,
+                "imported as received by all other nodes" if rest else "but there is no other node to receive it",
+            )
+            if not rest:
+                if self.options.lenient:
+                    self.add("dbc-receivers", f"message '{msg.name}' has no node to receive it", at)
+                return None
+            consumers, receivers_note = rest, "no receivers in the DBC: consumers are all other nodes (--lenient)"
+        out["producer"] = producer
+        out["consumers"] = consumers
+        out["id"] = msg.frame_id
+        if msg.is_extended_frame:
+            out["extended"] = True
+        out["size"] = msg.length
+        # --- when it is sent
+        timing = self.timing(db, msg, at)
+        out.update(timing.data)
+        # --- what it carries
+        signals = self.signals(msg, dbc_id)
+        if signals is not None:
+            out["signals"] = signals
+        if msg.comment and msg.comment.strip():
+            out["description"] = msg.comment.strip()
+        frame = f"0x{msg.frame_id:X}" + (", extended" if msg.is_extended_frame else "")
+        senders = f"sender {msg.senders[0]}" if msg.senders else "no sender"
+        if others:
+            senders += " (also sent by " + ", ".join(others) + "; netcfg keeps the first)"
+        note = f"BO_ {dbc_id} {msg.name} ({frame}){line}, {senders}\n{timing.note}"
+        self.comments[("messages", self.index)] = note + (f"\n{receivers_note}" if receivers_note else "")
+        self.index += 1
+        return out
+
+    def timing(self, db: Database, msg: Message, at: tuple[int, int] | None) -> _Timing:
+        send_type = msg.send_type
+        kind = send_kind(send_type)
+        cycle = float(msg.cycle_time) if msg.cycle_time else None
+        fast = self.message_attribute(db, msg, "GenMsgCycleTimeFast")
+        delay = self.message_attribute(db, msg, "GenMsgDelayTime")
+        said = f"GenMsgSendType {send_type}" if send_type is not None else "no GenMsgSendType"
+        cyc = f"GenMsgCycleTime {ms_text(cycle)}" if cycle else "no GenMsgCycleTime"
+
+        def on_demand(why: str) -> _Timing:
+            self.add(
+                "dbc-not-analysed",
+                f"message '{msg.name}' not analysed: {why}; imported as 'type: on-demand' (give it a period or "
+                "min_interarrival in the spec if it is sent regularly)",
+                at,
+                "warning",
+            )
+            return _Timing({"type": "on-demand"}, f"{said}, {cyc}: on-demand, not analysed")
+
+        gaps = [(v, n) for v, n in ((delay, "GenMsgDelayTime"), (fast, "GenMsgCycleTimeFast")) if v]
+        if kind == "cyclic":
+            period = fast if "fast" in (send_type or "").lower() and fast else cycle
+            if period is None:
+                return on_demand(f"{said} but no GenMsgCycleTime")
+            src = "GenMsgCycleTimeFast" if period is not cycle else "GenMsgCycleTime"
+            return _Timing({"period": ms_text(period)}, f"{said}, {src} {ms_text(period)}")
+        if kind == "event" or (kind == "mixed" and cycle is None):
+            if not gaps:
+                return on_demand(f"{said} with no GenMsgDelayTime or GenMsgCycleTimeFast to bound its rate")
+            gap, src = min(gaps)
+            return _Timing({"min_interarrival": ms_text(gap)}, f"{said}: sporadic, {src} {ms_text(gap)} apart")
+        if kind == "mixed":
+            assert cycle is not None
+            if not gaps:
+                self.add(
+                    "dbc-event-timing",
+                    f"message '{msg.name}': {said} also sends on events, but no GenMsgDelayTime or "
+                    f"GenMsgCycleTimeFast bounds them; analysed as periodic at {cyc} only",
+                    at,
+                    "warning",
+                )
+                return _Timing({"period": ms_text(cycle)}, f"{said}, {cyc}: events between cycles not analysed")
+            gap, src = min([*gaps, (cycle, "GenMsgCycleTime")])
+            return _Timing(
+                {"min_interarrival": ms_text(gap)}, f"{said}, {cyc}: sporadic, at least {src} {ms_text(gap)} apart"
+            )
+        # none, unknown or absent send type: the cycle time decides
+        if cycle is None:
+            return on_demand("no GenMsgCycleTime" + (f" ({said})" if send_type is not None else ""))
+        if kind != "absent":
+            self.add(
+                "dbc-send-type",
+                f"message '{msg.name}': {said} is not a cyclic send type, but {cyc} is given; analysed as periodic",
+                at,
+                "warning",
+            )
+        return _Timing({"period": ms_text(cycle)}, f"{said}, {cyc}")
+
+    def signals(self, msg: Message, dbc_id: int) -> list[dict[str, Any]] | None:
+        index = self.index
+        big = [s for s in msg.signals if s.byte_order != "little_endian"]
+        for s in big:
+            self.unmappable(
+                "dbc-signal",
+                f"signal '{s.name}' of message '{msg.name}' is big-endian (Motorola, @0), which netcfg's "
+                "little-endian signal layout cannot express",
+                self.lines.signals.get((dbc_id, s.name)) or self.message_at(msg),
+                "the message keeps only its size, without signals",
+            )
+        muxed = [s for s in msg.signals if s.is_multiplexer or s.multiplexer_ids]
+        if muxed:  # one diagnostic per message: every signal of it depends on the multiplexer
+            switch = next((s for s in muxed if s.is_multiplexer), muxed[0])
+            self.unmappable(
+                "dbc-signal",
+                f"message '{msg.name}' is multiplexed (multiplexer signal '{switch.name}'): which signals it carries "
+                "depends on a value, and netcfg's signal layout is fixed",
+                self.lines.signals.get((dbc_id, switch.name)) or self.message_at(msg),
+                "the message keeps only its size, without signals",
+            )
+        bad = big or muxed
+        if bad or not msg.signals:
+            return None
+        names = _Names(f"signal of {msg.name}", "sig", "_sig")
+        ordered = sorted(msg.signals, key=lambda s: s.start)
+        safe: list[str] = []
+        for s in ordered:  # the DBC's own names first: a filler never takes one of them
+            name, why = names.claim(s.name)
+            safe.append(name)
+            if why:
+                at = self.lines.signals.get((dbc_id, s.name))
+                self.add(
+                    "dbc-name", f"signal '{s.name}' of message '{msg.name}': {why}; imported as '{name}'", at, "warning"
+                )
+        out: list[dict[str, Any]] = []
+        bit = 0
+        for s, name in zip(ordered, safe):
+            self.comments[("messages", index, "signals", len(out))] = self.signal_note(s, dbc_id)
+            sig = self.signal(name, s)
+            if s.start != bit:  # bits the DBC leaves unused: the signal keeps its DBC start bit
+                sig = {"name": sig.pop("name"), "start_bit": s.start, **sig}
+            out.append(sig)
+            bit = s.start + s.length
+        return out
+
+    def signal_note(self, s: Signal, dbc_id: int) -> str:
+        """Where the signal is, and what the spec has no place for: its DBC comment and value names (VAL_)."""
+        at = self.lines.signals.get((dbc_id, s.name))
+        note = f"SG_ {s.name}" + (f", line {at[0]}" if at else "")
+        if s.comment and s.comment.strip():
+            note += ": " + " ".join(s.comment.split())
+        if s.choices:
+            names = [f"{int(k)} = {v}" for k, v in sorted(s.choices.items(), key=lambda kv: int(kv[0]))]
+            more = f", ... ({len(names)} in all)" if len(names) > 8 else ""
+            note += "\nvalue names (VAL_): " + ", ".join(names[:8]) + more
+        return note
+
+    def signal(self, name: str, s: Signal) -> dict[str, Any]:
+        out: dict[str, Any] = {"name": name, "bits": s.length}
+        if s.is_float:
+            out["float"] = True
+        elif s.is_signed:
+            out["signed"] = True
+        scale, offset = s.conversion.scale, s.conversion.offset
+        if scale != 1:
+            out["scale"] = _number(float(scale))
+        if offset != 0:
+            out["offset"] = _number(float(offset))
+        if s.minimum is not None:
+            out["min"] = _number(float(s.minimum))
+        if s.maximum is not None:
+            out["max"] = _number(float(s.maximum))
+        if s.unit:
+            out["unit"] = s.unit
+        return out
+
+
+@dataclass
+class _Node:
+    name: str
+    origin: str
+    description: str | None
 
 
 def import_dbc(path: Path, options: ImportOptions, diags: Collector) -> Imported | None:
-    raise NotImplementedError
+    """The spec a user would write for this DBC, with comments saying where each item came from; None (with
+    errors in diags) when it cannot be mapped. OSError propagates (the CLI reports it as an I/O problem)."""
+    text = path.read_bytes().decode(ENCODING, errors="replace")
+    return _Importer(path, text, options, diags).run()

@@ -230,6 +230,12 @@ class Node(SpecModel):
 class Signal(SpecModel):
     name: Name
     bits: Int = Field(ge=1, le=64)
+    start_bit: Int | None = Field(
+        None,
+        ge=0,
+        le=511,
+        description="position of its least significant bit (little-endian); default: right after the previous signal",
+    )
     signed: Bool = False
     float: Bool = Field(False, description="IEEE 754 float (bits 32 or 64)")
     scale: Annotated[Float, AfterValidator(_non_zero)] = 1.0
