@@ -37,7 +37,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "check":
             return cmd_check(args.specs, args.format, ImportOptions(args.bitrate, args.lenient))
         if args.command == "import":
-            return cmd_import(args.kind, args.source, args.output, ImportOptions(args.bitrate, args.lenient))
+            options = ImportOptions(args.bitrate, args.lenient, args.output)
+            return cmd_import(args.kind, args.source, args.output, options)
         if args.command == "build":
             return cmd_build(args.spec, args.output)
         if args.command == "schema":

@@ -31,6 +31,7 @@ EMITTERS: dict[str, str] = {
     "runtime": "netcfg.emit.runtime_json:emit",  # runtime.json
     "dbc": "netcfg.emit.dbc:emit",  # dbc/<bus>.dbc
     "report": "netcfg.emit.report_md:emit",  # report.md, report/*.png
+    "bus_yml": "netcfg.emit.bus_yml:emit",  # canopen/bus.yml
 }
 
 

@@ -11,6 +11,7 @@ import json
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path as PathLike
 from typing import Any
 
 Path = tuple[str | int, ...]
@@ -20,6 +21,7 @@ Path = tuple[str | int, ...]
 class ImportOptions:
     bitrate: int | None = None  # from the command line: wins over what the file says
     lenient: bool = False  # what cannot be mapped becomes a warning per item instead of an error
+    output: PathLike | None = None  # where the spec will be written: file paths in it are made relative to it
 
 
 # spec data + comments per path (where each item came from)
