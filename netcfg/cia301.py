@@ -27,6 +27,12 @@ RESTRICTED = (
 )
 
 
+def pdo_comm_index(kind: str, number: int) -> int:
+    """Object index of PDO n's communication parameter: RPDO 0x1400 + n - 1, TPDO 0x1800 + n - 1. Its mapping
+    parameter is 0x200 above it (0x1600 / 0x1A00)."""
+    return (0x1400 if kind == "rpdo" else 0x1800) + number - 1
+
+
 def default_pdo_cob_id(kind: str, number: int, node_id: int) -> int | None:
     """Default COB-ID of TPDO/RPDO 1-4; PDOs 5-512 have no default and need an explicit id."""
     base = (TPDO_BASE if kind == "tpdo" else RPDO_BASE).get(number)

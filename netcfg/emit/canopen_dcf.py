@@ -282,7 +282,7 @@ def _mandatory(od: Dictionary, dev: DeviceProfile) -> None:
 
 def _device_pdo(od: Dictionary, dev: DeviceProfile, nid: int, kind: PdoKind, n: int, m: Message | None) -> None:
     """Communication and mapping parameter of one PDO slot of a device (CiA 301 7.5.2.35-38)."""
-    comm_index = (0x1400 if kind == "rpdo" else 0x1800) + n - 1
+    comm_index = cia301.pdo_comm_index(kind, n)
     p = m.pdo if m is not None else None
     tpdo = kind == "tpdo"
     comm = od.get(comm_index)
@@ -352,7 +352,7 @@ def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
     for kind, msgs in zip(KINDS, (rx, tx)):
         for n, m in enumerate(msgs, 1):
             assert m.pdo is not None
-            comm_index = (0x1400 if kind == "rpdo" else 0x1800) + n - 1
+            comm_index = cia301.pdo_comm_index(kind, n)
             # a master TPDO is sent by the master's application (its runtime configuration times it): inhibit time
             # and event timer exist, set to 0 (off)
             comm = od[comm_index] = _comm_record(kind, kind == "tpdo", kind == "tpdo", False)

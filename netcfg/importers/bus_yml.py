@@ -215,7 +215,7 @@ class DeviceFile:
         return _raw_int(raw, node_id) if isinstance(raw, str) else None
 
     def slot(self, kind: str, number: int, node_id: int) -> Slot | None:
-        comm = (0x1400 if kind == "rpdo" else 0x1800) + number - 1
+        comm = cia301.pdo_comm_index(kind, number)
         if comm not in self.od:
             return None
         count = self._value(comm + 0x200, 0, node_id) or 0
@@ -234,8 +234,7 @@ class DeviceFile:
         )
 
     def slots(self, kind: str) -> list[int]:
-        base = 0x1400 if kind == "rpdo" else 0x1800
-        return [n for n in range(1, 513) if base + n - 1 in self.od]
+        return [n for n in range(1, 513) if cia301.pdo_comm_index(kind, n) in self.od]
 
 
 _RAW = re.compile(r"^(?:\$NODEID\+)?(-?0X[0-9A-F]+|-?[0-9]+)(?:\+\$NODEID)?$")
@@ -794,7 +793,7 @@ class BusYmlImporter:
         if not enabled.value:
             return
         if slot is None:
-            comm = (0x1400 if p.kind == "rpdo" else 0x1800) + p.number - 1
+            comm = cia301.pdo_comm_index(p.kind, p.number)
             self.err(
                 "bus-yml-pdo",
                 f"{label}: its dcf has no {p.kind.upper()}{p.number} (no object 0x{comm:04X})",
