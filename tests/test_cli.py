@@ -96,3 +96,15 @@ def test_readme_quick_start_names_real_commands() -> None:
     readme = (ROOT / "README.md").read_text()
     assert "make demo" in readme and "make test" in readme
     assert "make test" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_readme_spec_example_checks(tmp_path: Path) -> None:
+    """The spec shown in the README is a valid spec."""
+    import re
+
+    block = re.search(r"```yaml\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    assert block is not None
+    spec = tmp_path / "readme.yaml"
+    spec.write_text(block.group(1))
+    code, report = cli_json("check", str(spec))
+    assert code == 0 and report["ok"], report["errors"]
