@@ -25,6 +25,7 @@ class _Analysis:
         self.chained: dict[str, flows.Delivery] = {}  # as analysed on its own bus (FTT windows, RTA, links)
         self.plain: dict[str, flows.Delivery] = {}  # the same bus as plain, unsynchronised CAN
         self.ftt: dict[str, flows.FttTimes] = {}
+        self.canopen: dict[str, flows.SyncTimes] = {}
 
 
 def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
@@ -133,7 +134,7 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             row["instances"] = r.instances
             acc.chained[msg.name] = acc.plain[msg.name]
     if bus.canopen is not None:
-        out["sync"] = analyze_sync(m, bus, timings, diags)
+        out["sync"] = analyze_sync(m, bus, timings, diags, acc)
     if worst > 1:
         diags.add(
             "overload",
@@ -146,11 +147,19 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
 
 
 def analyze_sync(
-    m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming], diags: Collector
+    m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming], diags: Collector, acc: _Analysis
 ) -> dict[str, Any]:
     co = bus.canopen
     assert co is not None
     cycles = canopen_sync.analyse(bus, {k: t.tx_ns for k, t in timings.items()})
+    sync_msg = next(msg for msg in bus.messages if msg.implicit == "SYNC")
+    acc.canopen[bus.name] = flows.SyncTimes(
+        period_ns=co.sync_period_ns,
+        sync=acc.chained[sync_msg.name],
+        every=canopen_sync.sync_transmissions(bus),
+        frame_ns={name: bits_to_ns(t.bits_nominal, bus.bitrate) for name, t in timings.items()},
+        completion_ns=[c.completion_ns for c in cycles],
+    )
     rows = []
     for c in cycles:
         rows.append(
@@ -401,6 +410,29 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
     )
     if ftt_bus is not None:
         sync = flows.synchronised(m, flow, acc.ftt[ftt_bus], acc.chained)
+    else:
+        co_bus = next(
+            (
+                t.sync_bus
+                for s in flow.steps
+                if s.kind == "task"
+                for r in s.refs
+                if (t := m.task(r)).sync_bus in acc.canopen
+            ),
+            None,
+        )
+        co_bus = co_bus or next(
+            (
+                m.messages[r].bus
+                for s in flow.steps
+                if s.kind == "message"
+                for r in s.refs
+                if m.messages[r].bus in acc.canopen
+            ),
+            None,
+        )
+        if co_bus is not None:
+            sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained)
     lo, hi = sync[0] if sync else unsync
     out: dict[str, Any] = {
         "name": flow.name,

@@ -29,6 +29,7 @@ class Task:
     on_message: str | None  # event-driven: runs when this message arrives
     path: Path
     description: str | None = None
+    sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
 
     @property
     def ref(self) -> str:

@@ -396,6 +396,15 @@ class _Resolver:
                     )
         if t.on_message is not None and t.period is not None:
             self.err("task-period", "an event-driven task ('on_message') has no period", (*path, "period"))
+        sync_bus = None
+        if t.sync:
+            sync_bus, period = self.sync_task(node, t, path, period)
+            if period is not None and offset >= period:
+                self.err(
+                    "offset",
+                    f"offset {format_ns(offset)} must be smaller than the SYNC period {format_ns(period)}",
+                    (*path, "offset"),
+                )
         return model.Task(
             description=t.description,
             node=node,
@@ -407,7 +416,30 @@ class _Resolver:
             trigger=None,
             on_message=t.on_message,
             path=path,
+            sync_bus=sync_bus,
         )
+
+    def sync_task(self, node: str, t: schema.Task, path: Path, period: int | None) -> tuple[str | None, int | None]:
+        """A SYNC-driven task takes its period from its node's CANopen bus."""
+        buses = [b for b in self.spec_nodes[node].buses if b in self.model.buses and self.model.buses[b].canopen]
+        if len(buses) != 1:
+            self.err(
+                "task-sync",
+                f"task '{node}.{t.name}' runs on SYNC, so its node must be on exactly one CANopen "
+                f"bus (it is on {len(buses)})",
+                (*path, "sync"),
+            )
+            return None, period
+        if t.on_message is not None:
+            self.err("task-sync", "a task runs either on SYNC or on a message, not both", (*path, "sync"))
+        sync_period = self.model.buses[buses[0]].canopen.sync_period_ns  # type: ignore[union-attr]
+        if period is not None and period != sync_period:
+            self.err(
+                "task-period",
+                f"a SYNC task runs every SYNC ({format_ns(sync_period)}); drop its period",
+                (*path, "period"),
+            )
+        return buses[0], sync_period
 
     # -- messages ------------------------------------------------------------------------------------------
     def message_bus(self, m: schema.Message, path: Path) -> schema.Bus | None:

@@ -36,6 +36,7 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "signal_scale_zero.yaml": (15, "value-error", "scale of 0"),
     "name_cpp_keyword.yaml": (15, "value-error", "C or C++ keyword"),
     "signal_overlap.yaml": (16, "signal-overlap", "inside the previous signal"),
+    "sync_task_not_on_canopen.yaml": (10, "task-sync", "exactly one CANopen bus"),
     "name_taken_by_sync.yaml": (12, "duplicate-name", "taken by the SYNC of bus can0"),
     "ftt_macro_cycle_too_long.yaml": (7, "macro-cycle", "323,323 ECs"),
     "type_bool_for_int.yaml": (16, "int-type", "valid integer"),

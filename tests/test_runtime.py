@@ -91,9 +91,10 @@ def test_canopen_parameters_are_typed(allex2: rt.RuntimeConfig) -> None:
     assert (sync.implicit, sync.id, sync.size, sync.encode()) == ("SYNC", 0x80, 0, b"")
     hip = allex2.node("hip_l")
     assert (hip.node_id, hip.device) == (1, "epos4")
-    # Table 5 of seed 000: the write process takes 225.8 us to 8557.3 us
-    write = allex2.task("master.write")
-    assert (write.period_ns, write.bcet_ns, write.wcet_ns) == (20_000_000, 225_800, 8_557_300)
+    # Table 5 of seed 000: the write process takes 225.8 us to 8557.3 us; it runs 10 ms after each SYNC
+    control = allex2.task("master.control")
+    assert (control.period_ns, control.bcet_ns, control.wcet_ns) == (20_000_000, 225_800, 8_557_300)
+    assert (control.sync_bus, control.offset_ns) == ("can0", 10_000_000)
     pdo = allex2.message("hip_l_effort").pdo
     assert pdo is not None and [(e.index, e.sub) for e in pdo.entries] == [(0x6077, 0), (0x30D1, 2)]
 

@@ -145,6 +145,7 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     longer fit: 450 us too late. The load, 2365 bits per 4 ms = 0.59, is still fine: only the cycle fails."""
     data = load_spec("allex2.yaml")
     data["buses"][0]["canopen"].update(sync_period="4 ms", sync_window="2500 us", read_window="2500 us")
+    data["nodes"][0]["tasks"][0]["offset"] = "2500 us"  # the master's control step follows the read window
     for m in data["messages"]:
         if "period" in m:
             m["period"] = "4 ms"
@@ -156,6 +157,27 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     err = report["errors"][0]
     assert "SYNC cycle 0" in err["message"] and "2950 us after SYNC, 450 us too late" in err["message"]
     assert err["file"] == str(path) and err["line"] >= 1
+
+
+def test_allex2_sync_driven_flows_are_deterministic() -> None:
+    """SYNC-driven CANopen makes the exoskeleton's loops deterministic (issue 3, item 5). At 1 Mbit/s SYNC is
+    47 bits nominal (47 us) and 190 us at worst (its response time: blocked by one 135-bit frame, then 55 bits).
+
+    joint_feedback: hip_l's TxPDO1 samples at SYNC; the master's control step runs 10 ms after SYNC (after the
+    read window). Best: SYNC arrives at 47 us, control at 10,047 us: 10,000 us. Worst: SYNC arrives at 47 us in one
+    cycle's best case but control starts at 10,000 + 190 us: 10,143 us. Unsynchronised, the master could sample
+    up to a whole 20 ms period late: 111 us (nominal 8-byte frame) .. 20,000 + 325 us (TxPDO1's response time).
+    joint_command: control (10,047 .. 10,190 us after SYNC) runs 225.8 .. 8,557.3 us (Table 5, writing), RxPDO1
+    takes 111 .. 1,135 us, the drive applies it at the next SYNC (20,047 .. 20,190 us): 10,000 .. 10,143 us."""
+    flows = {f["name"]: f for f in check(SPECS / "allex2.yaml")["flows"]}
+    for name in ("joint_feedback", "joint_command"):
+        sync = flows[name]["synchronised"]
+        assert (sync["latency_min_us"], sync["latency_max_us"]) == (10_000.0, 10_143.0), name
+        assert flows[name]["mode"] == "synchronised"
+    unsync = flows["joint_feedback"]["unsynchronised"]
+    assert (unsync["latency_min_us"], unsync["latency_max_us"]) == (111.0, 20_325.0)
+    unsync = flows["joint_command"]["unsynchronised"]
+    assert (unsync["latency_min_us"], unsync["latency_max_us"]) == (336.8, 29_692.3)
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -146,6 +146,7 @@ def _node(n: model.Node) -> dict[str, Any]:
                 "bcet_ns": t.bcet_ns,
                 "trigger": t.trigger,
                 "on_message": t.on_message,
+                "sync_bus": t.sync_bus,
             }
             for t in n.tasks.values()
         ],

@@ -221,6 +221,7 @@ class Task:
     bcet_ns: int
     trigger: str | None  # FTT-CAN trigger that activates it
     on_message: str | None  # event-driven: runs when this message arrives
+    sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
 
     @property
     def ref(self) -> str:
@@ -626,6 +627,7 @@ def _node(d: dict[str, Any]) -> Node:
                 t["bcet_ns"],
                 t["trigger"],
                 t["on_message"],
+                t.get("sync_bus"),
             )
             for t in d["tasks"]
         ),

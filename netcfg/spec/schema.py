@@ -202,6 +202,7 @@ class Task(SpecModel):
     period: DurationField | None = Field(None, description="activation period (omit when a trigger activates it)")
     offset: DurationField = Field(default_factory=lambda: _ns(0))
     on_message: Name | None = Field(None, description="event-driven: the task runs when this message arrives")
+    sync: Bool = Field(False, description="CANopen: the task runs on every SYNC of its bus, `offset` after it")
     wcet: DurationField = Field(description="worst-case execution time")
     bcet: DurationField | None = Field(None, description="best-case execution time (default: the WCET)")
     description: str | None = None

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import pairwise
+from math import lcm
 
 from netcfg import model
 from netcfg.timing.ftt import Schedule
@@ -197,13 +198,21 @@ def synchronised(
             if step.kind == "message":
                 got = (lo, hi)
         runs.append((start, lo, hi, got))
-    # Data age: a use takes the freshest data, so of several starts that reach the same use only the last counts.
+    return _freshest(runs, s.macro_cycle * ec)
+
+
+Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (worst), last message's delivery
+
+
+def _freshest(runs: list[Run], cycle_end: int) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
+    """Data age: a use takes the freshest data, so of several starts that reach the same use only the last counts.
+    `runs` cover two cycles; only the starts of the first are measured (the second shows which start is last)."""
     lat_lo: int | None = None
     lat_hi = 0
     del_lo: int | None = None
     del_hi = 0
     for (start, lo, hi, got), nxt in pairwise(runs):
-        if start >= s.macro_cycle * ec:
+        if start >= cycle_end:
             break
         if nxt[1] > lo:
             lat_lo = lo - start if lat_lo is None else min(lat_lo, lo - start)
@@ -216,3 +225,93 @@ def synchronised(
     if lat_lo is None:
         return None
     return (lat_lo, lat_hi), (None if del_lo is None else (del_lo, del_hi))
+
+
+@dataclass(frozen=True)
+class SyncTimes:
+    """A CANopen bus's SYNC cycle as flows need it (from the SYNC-cycle analysis and the response times)."""
+
+    period_ns: int
+    sync: Delivery  # SYNC queued -> received (nominal frame, worst-case response)
+    every: dict[str, int]  # synchronous TPDO -> every how many SYNCs
+    frame_ns: dict[str, int]  # message -> nominal frame time
+    completion_ns: list[int | None]  # per cycle of the SYNC-cycle analysis: the last synchronous TPDO's end
+
+
+def synchronised_canopen(
+    m: model.Model, flow: model.Flow, bus: str, st: SyncTimes, chained: dict[str, Delivery]
+) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
+    """SYNC-driven CANopen (seed 000): SYNC tasks run a fixed offset after each SYNC, synchronous TPDOs sample at
+    SYNC and are done by the cycle's completion; other messages go out when their producer has the data.
+    Cycle k's SYNC is queued at k * period; None when some step is neither SYNC-driven nor chained."""
+    period = st.period_ns
+    s_best = st.sync.best_ns
+    s_worst = st.sync.worst_ns
+    if s_worst is None:
+        return None
+    cycles = len(st.completion_ns)
+
+    def on_sync(due: int, offset: int, r: int, worst_path: bool) -> tuple[int, int]:
+        """First SYNC instant (plus offset) that can take data ready at r: (cycle, its time on this path)."""
+        k = max(0, r // period - 1)
+        while True:
+            if k % due == 0:
+                earliest, latest = k * period + s_best + offset, k * period + s_worst + offset
+                # the worst path counts data as taken only if ready before the earliest possible instant
+                if (earliest if worst_path else latest) >= r:
+                    return k, (latest if worst_path else max(r, earliest))
+            k += 1
+
+    def tpdo_end(name: str, r: int, worst_path: bool) -> int:
+        k, t = on_sync(st.every[name], 0, r, worst_path)
+        if not worst_path:
+            return t + st.frame_ns[name]
+        done = st.completion_ns[k % cycles]
+        return k * period + (done if done is not None else period)
+
+    for step in flow.steps:
+        for ref in step.refs:
+            if step.kind == "task":
+                task = m.task(ref)
+                if task.sync_bus != bus and task.on_message is None:
+                    return None
+            elif ref not in st.every and (chained.get(ref) is None or chained[ref].worst_ns is None):
+                return None
+    first = flow.steps[0]
+    head = first.refs[0]
+    hyper = lcm(*st.every.values()) if st.every else 1
+    starts = []
+    for k in range(2 * hyper):
+        if first.kind == "task" and m.task(head).sync_bus == bus:
+            starts.append(k * period + s_best + m.task(head).offset_ns)
+        elif first.kind == "message" and head in st.every and k % st.every[head] == 0:
+            starts.append(k * period + s_best)
+    if not starts:
+        return None
+    runs: list[Run] = []
+    for start in starts:
+        lo = hi = start
+        got: tuple[int, int] | None = None
+        for i, step in enumerate(flow.steps):
+            last = i == len(flow.steps) - 1
+            outs = []
+            for ref in step.refs:
+                if step.kind == "message":
+                    if ref in st.every:
+                        outs.append((tpdo_end(ref, lo, False), tpdo_end(ref, hi, True)))
+                    else:
+                        d = chained[ref]
+                        outs.append((lo + d.best_ns, hi + (d.worst_ns or 0)))
+                else:
+                    task = m.task(ref)
+                    if task.sync_bus == bus:
+                        a_lo = on_sync(1, task.offset_ns, lo, False)[1]
+                        a_hi = on_sync(1, task.offset_ns, hi, True)[1]
+                    else:  # started by a message
+                        a_lo, a_hi = lo, hi
+                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + task.wcet_ns))
+            lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
+            if step.kind == "message":
+                got = (lo, hi)
+        runs.append((start, lo, hi, got))
+    return _freshest(runs, hyper * period)

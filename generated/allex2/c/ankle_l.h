@@ -23,6 +23,7 @@
 
 /* ==== node ankle_l (slave) */
 #define NODE_ANKLE_L_ID 3
+/* task apply */
 
 /* ==== bus can0: canopen, 1000000 bit/s */
 #ifndef NETCFG_ALLEX2_BUS_CAN0

@@ -23,6 +23,7 @@
 
 /* ==== node ankle_r (slave) */
 #define NODE_ANKLE_R_ID 6
+/* task apply */
 
 /* ==== bus can0: canopen, 1000000 bit/s */
 #ifndef NETCFG_ALLEX2_BUS_CAN0

@@ -23,6 +23,7 @@
 
 /* ==== node hip_l (slave) */
 #define NODE_HIP_L_ID 1
+/* task apply */
 
 /* ==== bus can0: canopen, 1000000 bit/s */
 #ifndef NETCFG_ALLEX2_BUS_CAN0

@@ -23,6 +23,7 @@
 
 /* ==== node hip_r (slave) */
 #define NODE_HIP_R_ID 4
+/* task apply */
 
 /* ==== bus can0: canopen, 1000000 bit/s */
 #ifndef NETCFG_ALLEX2_BUS_CAN0

@@ -23,6 +23,7 @@
 
 /* ==== node knee_l (slave) */
 #define NODE_KNEE_L_ID 2
+/* task apply */
 
 /* ==== bus can0: canopen, 1000000 bit/s */
 #ifndef NETCFG_ALLEX2_BUS_CAN0

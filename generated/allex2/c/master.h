@@ -23,8 +23,7 @@
 
 /* ==== node master (master): Raspberry Pi 4B + PiCAN2 */
 #define NODE_MASTER_ID 127
-/* task write */
-/* task read */
+/* task control */
 
 /* ==== bus can0: canopen, 1000000 bit/s */
 #ifndef NETCFG_ALLEX2_BUS_CAN0
