@@ -465,7 +465,7 @@ class _Resolver:
                 return None
             bus = self.spec_buses[m.bus]
         else:
-            common = set(self.spec_nodes[m.producer].buses)
+            common = set(self.spec_nodes[m.producer].buses) & set(self.spec_buses)  # undefined ones are reported
             for c in m.consumers:
                 common &= set(self.spec_nodes[c].buses)
             if len(common) != 1:
