@@ -81,6 +81,15 @@ def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) ->
     except OSError as exc:
         print(f"netcfg: cannot read {source}: {exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Exception as exc:  # a bug in netcfg, not in the file: nothing is written
+        if os.environ.get("NETCFG_DEBUG"):
+            raise
+        print(
+            f"netcfg: internal error while importing {source}: {type(exc).__name__}: {exc}\nNothing was written. "
+            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
+            file=sys.stderr,
+        )
+        return 2
     for d in sort_diagnostics(diags.items):
         print(d, file=sys.stderr)
     if imported is None or diags.errors:

@@ -41,6 +41,7 @@ or with --lenient a warning naming it; nothing is dropped silently):
 
 from __future__ import annotations
 
+import logging
 import re
 from dataclasses import dataclass
 from decimal import Decimal
@@ -211,6 +212,8 @@ class _Importer:
     # -- the database -----------------------------------------------------------------------------------
     def load(self) -> Database | None:
         try:
+            # cantools logs duplicate frames as it overwrites them; netcfg reports them itself (duplicate-id)
+            logging.getLogger("cantools").setLevel(logging.ERROR)
             db = cantools.database.load_string(self.text, database_format="dbc", strict=True)
         except Exception as exc:  # cantools raises assorted errors for bad input; all mean "bad DBC"
             self.parse_error(exc)
