@@ -169,6 +169,9 @@ def analyze_sync(
                 "completion_us": us(c.completion_ns),
                 "limit_us": us(c.limit_ns),
                 "slack_us": None if c.completion_ns is None else us(c.limit_ns - c.completion_ns),
+                "blocking_us": us(c.blocking_ns),
+                "sync_us": us(c.sync_ns),
+                "tpdos_us": us(c.tpdos_ns),
             }
         )
     for c in cycles:

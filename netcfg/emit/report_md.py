@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Any
 
 from netcfg.emit import render
 from netcfg.model import Bus, Model
-from netcfg.timing import canopen_sync
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -637,8 +636,6 @@ def _sync_cycle_figure(bus: Bus, b: dict[str, Any]) -> Figure:
 
     s = b["sync"]
     period = s["period_us"]
-    tx = {m["name"]: m["tx_us"] for m in b["messages"]}
-    sync_name = next(m.name for m in bus.messages if m.implicit == "SYNC")
     finished = [c for c in s["cycles"] if c["completion_us"] is not None]
     worst = max(finished, key=lambda c: (c["completion_us"], -c["cycle"])) if finished else None
 
@@ -669,16 +666,13 @@ def _sync_cycle_figure(bus: Bus, b: dict[str, Any]) -> Figure:
     handles = []
     if worst is not None:
         # W = blocking + SYNC + the cycle's synchronous TPDOs + other frames released meanwhile (canopen_sync)
-        every = canopen_sync.sync_transmissions(bus)
-        due = [n for n, k in every.items() if worst["cycle"] % k == 0]
-        blocking = max(tx.values())
-        tpdos = sum(tx[n] for n in due)
         done = worst["completion_us"]
+        blocking, sync_tx, tpdos = worst["blocking_us"], worst["sync_us"], worst["tpdos_us"]
         parts = [
             ("a frame already on the bus", blocking, "#bfbfbf"),
-            ("SYNC", tx[sync_name], TM_COLOUR),
-            (f"the {len(due)} synchronous TPDOs", tpdos, PALETTE[0]),
-            ("other frames released meanwhile", done - blocking - tx[sync_name] - tpdos, PALETTE[1]),
+            ("SYNC", sync_tx, TM_COLOUR),
+            (f"the {worst['tpdos']} synchronous TPDOs", tpdos, PALETTE[0]),
+            ("other frames released meanwhile", round(done - blocking - sync_tx - tpdos, 3), PALETTE[1]),
         ]
         start = 0.0
         for name, length, col in parts:

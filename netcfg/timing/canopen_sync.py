@@ -26,6 +26,9 @@ class SyncCycle:
     completion_ns: int | None  # from SYNC being queued to the last synchronous TPDO's end; None: never
     limit_ns: int
     limit_name: str
+    blocking_ns: int = 0  # the terms of W_k: a frame already on the bus,
+    sync_ns: int = 0  # SYNC itself,
+    tpdos_ns: int = 0  # the cycle's synchronous TPDOs; the rest of W_k is other frames released meanwhile
 
 
 def sync_transmissions(bus: model.Bus) -> dict[str, int]:
@@ -54,10 +57,12 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
     for k in range(cycles):
         due = tuple(name for name, n in every.items() if k % n == 0)
         others = [m for m in bus.messages if m is not sync_msg and m.name not in every]
-        fixed = frame_ns[sync_msg.name] + sum(frame_ns[n] for n in due) + blocking
+        tpdos = sum(frame_ns[n] for n in due)
+        fixed = frame_ns[sync_msg.name] + tpdos + blocking
+        terms = {"blocking_ns": blocking, "sync_ns": frame_ns[sync_msg.name], "tpdos_ns": tpdos}
         rate = sum(frame_ns[m.name] / m.interval_ns for m in others if m.interval_ns)
         if rate >= 1:
-            out.append(SyncCycle(k, due, None, limit_ns, limit_name))
+            out.append(SyncCycle(k, due, None, limit_ns, limit_name, **terms))
             continue
         w = fixed + sum(frame_ns[m.name] for m in others)
         while True:
@@ -65,5 +70,5 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
             if nxt == w:
                 break
             w = nxt
-        out.append(SyncCycle(k, due, w, limit_ns, limit_name))
+        out.append(SyncCycle(k, due, w, limit_ns, limit_name, **terms))
     return out
