@@ -8,13 +8,30 @@ which is 55 + 10s bits (standard) and 80 + 10s bits (extended). Without stuffing
 
 Switched Ethernet (seed 001, eq. 6.4): Tframe = (Ndata + Novhd + Npad) * 8 * Tbit, with the 84-byte minimum
 on the wire (preamble 7, SFD 1, addresses 12, EtherType 2, data >= 46, FCS 4, inter-packet gap 12).
+
+Exact classical CAN frames (ISO 11898-1; Bosch, "CAN Specification 2.0", 1991, part A 3.1.1 and part B 3.1.1): the
+stuffed region runs from SOF through the CRC sequence, laid out as SOF, 11-bit identifier, RTR, IDE, r0, DLC, data,
+CRC (base format) or SOF, base identifier 11, SRR, IDE, identifier extension 18, RTR, r1, r0, DLC, data, CRC
+(extended format); that is g + 8s bits. The CRC-15 (generator 0x4599, register cleared at SOF) covers SOF through
+the end of the data field. After five equal bits the transmitter inserts a complementary stuff bit, which itself
+starts the next run. The rest of the frame is fixed form: CRC delimiter, ACK slot, ACK delimiter, 7 EOF bits, and
+(as above) the 3-bit intermission, 13 bits. The exact count of stuff bits never exceeds floor((g + 8s - 1) / 4),
+so can_frame_bits(s, x, "nominal") <= can_frame_bits_exact(...) <= can_frame_bits(s, x, "worst").
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from functools import lru_cache
 from typing import Literal
 
+import numpy as np
+from numpy.typing import NDArray
+
 Stuffing = Literal["worst", "nominal"]
+# can_frame_bits sees only a size, so "exact" (which needs the identifier and the data) has its own type and entry
+# point, can_frame_bits_of; Stuffing stays as it was so that can_frame_bits cannot be asked for what it cannot do.
+FrameStuffing = Literal["worst", "nominal", "exact"]
 
 CAN_MAX_PAYLOAD = 8
 
@@ -26,6 +43,196 @@ def can_frame_bits(size: int, extended: bool = False, stuffing: Stuffing = "wors
     if stuffing == "worst":
         bits += (g + 8 * size - 1) // 4
     return bits
+
+
+CAN_CRC15_POLY = 0x4599  # x^15 + x^14 + x^10 + x^8 + x^7 + x^4 + x^3 + 1, the x^15 term implicit
+CAN_FIXED_TAIL_BITS = 13  # CRC delimiter, ACK slot, ACK delimiter, EOF 7, intermission 3: never stuffed
+CAN_STUFF_RUN = 5
+
+
+def can_crc15(bits: Sequence[int]) -> int:
+    """CAN CRC-15 over a bit sequence (SOF through the last data bit), register cleared at the start."""
+    crc = 0
+    for bit in bits:
+        feedback = (bit & 1) ^ (crc >> 14)
+        crc = (crc << 1) & 0x7FFF
+        if feedback:
+            crc ^= CAN_CRC15_POLY
+    return crc
+
+
+def _check_frame(can_id: int, extended: bool, size: int) -> None:
+    limit = 1 << (29 if extended else 11)
+    if not 0 <= can_id < limit:
+        raise ValueError(f"CAN identifier {can_id:#x} does not fit {29 if extended else 11} bits")
+    if not 0 <= size <= CAN_MAX_PAYLOAD:
+        raise ValueError(f"a classical CAN frame carries 0..{CAN_MAX_PAYLOAD} data bytes, not {size}")
+
+
+def _msb_first(value: int, width: int) -> list[int]:
+    return [(value >> i) & 1 for i in range(width - 1, -1, -1)]
+
+
+def _header_bits(can_id: int, extended: bool, dlc: int, rtr: bool) -> list[int]:
+    """SOF through DLC: the part of the stuffed region that depends on neither data nor CRC."""
+    if extended:
+        return [
+            0,  # SOF
+            *_msb_first(can_id >> 18, 11),  # base identifier
+            1,  # SRR, recessive
+            1,  # IDE, recessive: extended format
+            *_msb_first(can_id & 0x3FFFF, 18),  # identifier extension
+            int(rtr),
+            0,  # r1
+            0,  # r0
+            *_msb_first(dlc, 4),
+        ]
+    return [0, *_msb_first(can_id, 11), int(rtr), 0, 0, *_msb_first(dlc, 4)]  # SOF, id, RTR, IDE, r0, DLC
+
+
+def can_frame_fields(can_id: int, extended: bool, data: bytes, rtr: bool = False) -> list[int]:
+    """The unstuffed bits of a classical CAN frame from SOF through the CRC sequence (the stuffed region).
+
+    With rtr=True the frame is a remote frame: RTR recessive, DLC = len(data) (the length asked for) and no data
+    field on the bus.
+    """
+    _check_frame(can_id, extended, len(data))
+    bits = _header_bits(can_id, extended, len(data), rtr)
+    if not rtr:
+        for byte in data:
+            bits += _msb_first(byte, 8)
+    return bits + _msb_first(can_crc15(bits), 15)
+
+
+def stuff_bits(bits: Sequence[int]) -> list[int]:
+    """The bits as transmitted: a complementary bit after every five equal ones, counting toward the next run."""
+    out: list[int] = []
+    last, run = -1, 0
+    for bit in bits:
+        out.append(bit)
+        if bit == last:
+            run += 1
+        else:
+            last, run = bit, 1
+        if run == CAN_STUFF_RUN:
+            last, run = 1 - bit, 1
+            out.append(last)
+    return out
+
+
+def count_stuff_bits(bits: Sequence[int]) -> int:
+    """How many stuff bits stuff_bits() would insert."""
+    count = 0
+    last, run = -1, 0
+    for bit in bits:
+        if bit == last:
+            run += 1
+        else:
+            last, run = bit, 1
+        if run == CAN_STUFF_RUN:
+            count += 1
+            last, run = 1 - bit, 1
+    return count
+
+
+@lru_cache(maxsize=1 << 16)
+def can_frame_bits_exact(can_id: int, extended: bool, data: bytes) -> int:
+    """Bits on the bus for one classical CAN data frame with its actual stuff bits, inter-frame space included.
+
+    Memoised: periodic messages often repeat their payload. `data` must be hashable (bytes, not bytearray).
+    """
+    fields = can_frame_fields(can_id, extended, data)
+    return len(fields) + count_stuff_bits(fields) + CAN_FIXED_TAIL_BITS
+
+
+def can_frame_bits_of(can_id: int, extended: bool, data: bytes, stuffing: FrameStuffing = "exact") -> int:
+    """Bits on the bus for one frame under any stuffing assumption; the simulator's single entry point."""
+    if stuffing == "exact":
+        return can_frame_bits_exact(can_id, extended, bytes(data))
+    _check_frame(can_id, extended, len(data))
+    return can_frame_bits(len(data), extended, stuffing)
+
+
+# Stuffing as a finite-state machine for the vectorised path: state = 4 * last bit + (run length - 1), runs 1..4
+# (a fifth equal bit is followed by a stuff bit, which leaves a run of 1 of the other value).
+def _stuff_tables() -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    nxt = np.zeros(16, dtype=np.uint8)
+    stuffed = np.zeros(16, dtype=np.uint8)
+    for state in range(8):
+        last, run = state >> 2, (state & 3) + 1
+        for bit in (0, 1):
+            if bit != last:
+                new_last, new_run, stuff = bit, 1, 0
+            elif run + 1 == CAN_STUFF_RUN:
+                new_last, new_run, stuff = 1 - bit, 1, 1
+            else:
+                new_last, new_run, stuff = bit, run + 1, 0
+            nxt[2 * state + bit] = 4 * new_last + new_run - 1
+            stuffed[2 * state + bit] = stuff
+    return nxt, stuffed
+
+
+_STUFF_NEXT, _STUFF_COUNT = _stuff_tables()
+
+
+def _stuff_state(bits: Sequence[int]) -> tuple[int, int]:
+    """(state, stuff bits so far) after a prefix; the prefix starts with SOF, so there is always a last bit."""
+    state, count = 0, 0
+    for i, bit in enumerate(bits):
+        if i == 0:
+            state = 4 * bit
+            continue
+        k = 2 * state + bit
+        count += int(_STUFF_COUNT[k])
+        state = int(_STUFF_NEXT[k])
+    return state, count
+
+
+@lru_cache(maxsize=CAN_MAX_PAYLOAD + 1)
+def _crc_matrix(size: int) -> NDArray[np.float32]:
+    """Row j: the CRC-15 bits (MSB first) of a data field whose only 1 is bit j.
+
+    The CRC is linear over GF(2) and starts from 0, so leading zeros change nothing and
+    crc(header + data) = crc(header + zeros) ^ crc(data): one matrix product gives every row's data term.
+    float32 keeps the product on BLAS and is exact here (sums of at most 64 ones).
+    """
+    nbits = 8 * size
+    rows = np.zeros((nbits, 15), dtype=np.float32)
+    for j in range(nbits):
+        unit = [0] * nbits
+        unit[j] = 1
+        rows[j] = _msb_first(can_crc15(unit), 15)
+    return rows
+
+
+def can_frame_bits_exact_batch(can_id: int, extended: bool, payloads: NDArray[np.uint8]) -> NDArray[np.int64]:
+    """can_frame_bits_exact for n payloads of one identifier at once: payloads (n, size) uint8 -> (n,) int64.
+
+    The header's bits and stuffing state are the same for every row and are computed once; data, CRC and the
+    stuffing scan run column by column over all rows (bit arrays of shape (n, nbits)).
+    """
+    payloads = np.asarray(payloads)
+    if payloads.ndim != 2 or payloads.dtype != np.uint8:
+        raise ValueError(f"payloads must be a 2-D uint8 array (n, size), got {payloads.dtype} {payloads.shape}")
+    n, size = payloads.shape
+    _check_frame(can_id, extended, size)
+    header = _header_bits(can_id, extended, size, False)
+    fixed = len(header) + 8 * size + 15 + CAN_FIXED_TAIL_BITS
+    state0, count0 = _stuff_state(header)
+    header_crc = np.array(_msb_first(can_crc15(header + [0] * (8 * size)), 15), dtype=np.uint8)
+
+    data_bits = np.unpackbits(payloads, axis=1)  # MSB first, as on the bus
+    crc_bits = (data_bits.astype(np.float32) @ _crc_matrix(size)).astype(np.uint8) & 1
+    crc_bits ^= header_crc
+    tail = np.ascontiguousarray(np.concatenate([data_bits, crc_bits], axis=1).T)  # one contiguous row per bit
+
+    state = np.full(n, state0, dtype=np.uint8)
+    count = np.full(n, count0 + fixed, dtype=np.int64)
+    for bits in tail:
+        k = 2 * state + bits
+        count += _STUFF_COUNT[k]
+        state = _STUFF_NEXT[k]
+    return count
 
 
 def bit_time_ns(bitrate: int) -> float:
