@@ -1,4 +1,8 @@
-"""Command line: netcfg check | schema. Exit codes: 0 ok, 1 spec errors or not schedulable, 2 usage or I/O."""
+"""Command line: netcfg check | build | import | simulate | schema.
+
+Exit codes: 0 ok, 1 spec errors or not schedulable (simulate: a miss, a loss or a result beyond the analysis),
+2 usage or I/O problems.
+"""
 
 from __future__ import annotations
 
@@ -32,6 +36,25 @@ def main(argv: list[str] | None = None) -> int:
     p_import.add_argument("--bitrate", type=_bitrate, help="the bus bit rate (wins over the file's)")
     p_import.add_argument("--lenient", action="store_true", help="what cannot be mapped is a warning, not an error")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
+    p_sim = sub.add_parser("simulate", help="run the runtime configuration in the discrete-event simulator")
+    p_sim.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
+    p_sim.add_argument("--duration", default="10s", help="simulated time per run, e.g. 8s, 500ms (default 10s)")
+    p_sim.add_argument("--seed", type=int, default=0, help="random seed of the (first) run")
+    p_sim.add_argument("--runs", type=int, default=1, help="Monte Carlo: this many runs, seeds seed..seed+runs-1")
+    p_sim.add_argument("--jobs", type=int, help="worker processes for --runs (default: every core)")
+    p_sim.add_argument("--format", choices=("text", "json"), default="text")
+    p_sim.add_argument("--log", type=Path, metavar="FILE", help="CAN trace of the first run: .log (candump -L) or .asc")
+    p_sim.add_argument("--plots", type=Path, metavar="DIR", help="histogram PNGs of response times and flow latencies")
+    p_sim.add_argument("--mode", choices=("auto", "unsync"), default="auto",
+                       help="unsync: run FTT-CAN and CANopen buses as free-running CAN (the alternative)")
+    p_sim.add_argument("--canopen", choices=("pdo", "sdo"), default="pdo",
+                       help="CANopen master: the SYNC/PDO cycle, or the older SDO polling loops")
+    p_sim.add_argument("--stuffing", choices=("exact", "worst", "none"), default="worst",
+                       help="frame lengths: bits actually stuffed, the worst case, or no stuff bits")
+    p_sim.add_argument("--drift", type=float, default=50.0, metavar="PPM", help="clock drift bound per node")
+    p_sim.add_argument("--fault", action="append", default=[], metavar="FAULT",
+                       help="inject a fault (repeatable): ber=1e-6, bit-error@12ms, crash:NODE@2s, "
+                       "babble:NODE@1s..2s, lose:MESSAGE@100ms, master-fail@2s")
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
@@ -43,6 +66,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_build(args.spec, args.output)
         if args.command == "schema":
             return cmd_schema()
+        if args.command == "simulate":
+            return cmd_simulate(args)
     except BrokenPipeError:  # e.g. `netcfg check x | head`
         return 0
     return 2  # pragma: no cover - argparse rejects unknown commands
@@ -167,6 +192,25 @@ def cmd_build(spec: Path, output: Path | None) -> int:
         return 1
     print(f"wrote {len(files)} files to {target}")
     return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from netcfg.sim.cli import simulate_command
+
+    try:
+        return simulate_command(args)
+    except OSError as exc:
+        print(f"netcfg: cannot simulate {args.source}: {exc.strerror or exc} ({exc.filename or ''})", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug in netcfg
+        if os.environ.get("NETCFG_DEBUG"):
+            raise
+        print(
+            f"netcfg: internal error while simulating {args.source}: {type(exc).__name__}: {exc}\n"
+            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
+            file=sys.stderr,
+        )
+        return 2
 
 
 def cmd_schema() -> int:

@@ -1,0 +1,333 @@
+"""One CAN bus: arbitration at every bus-idle instant, non-preemptive frames, bit errors and retransmission.
+
+Speed comes from two things. Frames whose release instants do not depend on the simulation (free-running
+periodic and sporadic traffic) arrive as precomputed, sorted release streams that the bus merges itself, in
+chunks, without one event per frame. And the bus runs its arbitration loop for as long as nothing else in the
+simulation can happen before the next decision, handing control back only when a delivered frame has a listener
+or another event is due.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from netcfg.sim.engine import LATE, Simulator
+from netcfg.timing.frames import bits_to_ns, can_frame_bits, can_frame_bits_exact
+
+# An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
+# intermission (3): ISO 11898-1's active error frame at its longest.
+ERROR_FRAME_BITS = 6 + 6 + 8 + 3
+CHUNK_NS = 200_000_000  # release streams are expanded this much simulated time at a time
+
+Listener = Callable[[int, int, int, bytes | None], None]  # (end_ns, message index, release_ns, data)
+Gate = Callable[[int, int], int]  # (t, duration) -> earliest start >= t at which the frame may go
+Pending = tuple[int, int, int, int, bytes | None, int]  # key, release, seq (FIFO order), msg, data, attempts
+
+
+def arbitration_key(can_id: int, extended: bool) -> int:
+    """Lower wins, bit by bit as on the wire: the 11 base bits, then SRR/IDE (a standard frame beats an
+    extended one with the same base identifier), then the 18 extension bits."""
+    if extended:
+        return (can_id >> 18) << 19 | 1 << 18 | (can_id & 0x3FFFF)
+    return can_id << 19
+
+
+@dataclass
+class CanSource:
+    """A message as the bus sees it."""
+
+    index: int
+    name: str
+    can_id: int
+    extended: bool
+    size: int
+    producer: str
+    key: int = 0
+    dur_ns: int = 0  # frame time in the bus's stuffing mode (exact mode: computed per frame)
+    gated: bool = False  # FTT-CAN asynchronous traffic: only inside the asynchronous window
+
+
+# Free-running sources, expanded a chunk at a time: (t0, t1) -> (release instants, source indices) of every
+# release whose nominal instant falls in [t0, t1); release jitter may put an instant a little after t1.
+Stream = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class Record:
+    """Every transmitted frame, in bus order; numpy arrays at the end of the run."""
+
+    msg: list[int] = field(default_factory=list)
+    release: list[int] = field(default_factory=list)
+    start: list[int] = field(default_factory=list)
+    end: list[int] = field(default_factory=list)
+    attempts: list[int] = field(default_factory=list)
+    data: list[bytes | None] = field(default_factory=list)
+
+
+class CanBus:
+    def __init__(
+        self, sim: Simulator, name: str, bitrate: int, stuffing: str = "worst", trace: bool = False
+    ) -> None:
+        if stuffing not in ("worst", "exact", "none"):
+            raise ValueError(f"stuffing must be exact, worst or none, not {stuffing!r}")
+        self.sim = sim
+        self.name = name
+        self.bitrate = bitrate
+        self.stuffing = stuffing
+        self.trace = trace
+        self.sources: list[CanSource] = []
+        self.by_name: dict[str, CanSource] = {}
+        self.streams: list[Stream] = []
+        self.listeners: dict[int, list[Listener]] = {}
+        self.monitors: list[Listener] = []  # see every frame (python-can endpoints)
+        self.gate: Gate | None = None
+        self.record = Record()
+        self.error_times: list[int] = []
+        self.error_frames = 0
+        self.error_log: list[int] = []  # instants of bit errors that hit a frame (traces only)
+        self.dropped: dict[int, int] = {}  # message index -> frames lost before reaching the bus
+        self.babble: tuple[int, int, int] | None = None  # (source index, from, until)
+        self.lose: dict[int, list[int]] = {}  # message index -> instants: the next frame queued after is lost
+        self.retries: dict[int, int] = {}  # message index -> retransmissions after bit errors
+        self._pending: list[Pending] = []  # key, release, seq, msg, data, attempts
+        self._seq = 0
+        self._rel_t: list[int] = []
+        self._rel_src: list[int] = []
+        self._rel_i = 0
+        self._chunk_end = 0
+        self._free_at = 0  # the bus is busy until then
+        self._step_at: int | None = None  # when the arbitration loop is due to run next
+        self._err_i = 0
+        self.error_ns = bits_to_ns(ERROR_FRAME_BITS, bitrate)
+
+    # -- set-up -----------------------------------------------------------------------------------------
+    def add_source(self, name: str, can_id: int, extended: bool, size: int, producer: str, gated: bool = False) -> int:
+        src = CanSource(len(self.sources), name, can_id, extended, size, producer, gated=gated)
+        src.key = arbitration_key(can_id, extended)
+        bits = can_frame_bits(size, extended, "nominal" if self.stuffing == "none" else "worst")
+        src.dur_ns = bits_to_ns(bits, self.bitrate)
+        self.sources.append(src)
+        self.by_name[name] = src
+        return src.index
+
+    def add_stream(self, stream: Stream) -> None:
+        self.streams.append(stream)
+
+    def listen(self, source: int, fn: Listener) -> None:
+        self.listeners.setdefault(source, []).append(fn)
+
+    def start(self) -> None:
+        self._refill(0)
+        self._wake(0)
+
+    # -- traffic ----------------------------------------------------------------------------------------
+    def submit(self, source: int, data: bytes | None = None) -> None:
+        """Queue a frame now (a reactive sender: a task, the CANopen master, the FTT-CAN master)."""
+        now = self.sim.now
+        self._seq += 1
+        heapq.heappush(self._pending, (self.sources[source].key, now, self._seq, source, data, 1))
+        self._wake(now)
+
+    def drop(self, source: int) -> None:
+        """A frame that never reached the bus (its sender crashed, a scripted loss): counted, not sent."""
+        self.dropped[source] = self.dropped.get(source, 0) + 1
+
+    def remove_pending(self, keep: Callable[[int], bool]) -> None:
+        """Forget queued frames of sources for which keep() is false (a node that crashed), counting them."""
+        kept = []
+        for item in self._pending:
+            if keep(item[3]):
+                kept.append(item)
+            else:
+                self.drop(item[3])
+        heapq.heapify(kept)
+        self._pending = kept
+
+    def pending_count(self) -> dict[int, int]:
+        out: dict[int, int] = {}
+        for item in self._pending:
+            out[item[3]] = out.get(item[3], 0) + 1
+        for i in range(self._rel_i, len(self._rel_t)):
+            if self._rel_t[i] < self.sim.now:
+                out[self._rel_src[i]] = out.get(self._rel_src[i], 0) + 1
+        return out
+
+    # -- the loop ---------------------------------------------------------------------------------------
+    def _wake(self, t: int) -> None:
+        t = max(t, self._free_at)
+        if self._step_at is None or t < self._step_at:
+            self._step_at = t
+            self.sim.at(t, self._step, t, LATE)
+
+    def _refill(self, t0: int) -> None:
+        """Expand the release streams for [t0, t0 + CHUNK_NS) and merge them with what is left."""
+        t1 = t0 + CHUNK_NS
+        times = [np.asarray(self._rel_t[self._rel_i :], dtype=np.int64)]
+        srcs = [np.asarray(self._rel_src[self._rel_i :], dtype=np.int64)]
+        for stream in self.streams:
+            ts, ss = stream(t0, t1)
+            times.append(ts)
+            srcs.append(ss)
+        all_t = np.concatenate(times)
+        all_s = np.concatenate(srcs)
+        order = np.argsort(all_t, kind="stable")
+        self._rel_t = all_t[order].tolist()
+        self._rel_src = all_s[order].tolist()
+        self._rel_i = 0
+        self._chunk_end = t1
+
+    def _duration(self, src: CanSource, data: bytes | None) -> int:
+        if self.stuffing != "exact":
+            return src.dur_ns
+        payload = data if data is not None else bytes(src.size)
+        return bits_to_ns(can_frame_bits_exact(src.can_id, src.extended, payload), self.bitrate)
+
+    def _step(self, token: int) -> None:
+        if token != self._step_at:
+            return  # superseded by an earlier wake-up
+        self._step_at = None
+        sim = self.sim
+        queue = sim._queue
+        pending = self._pending
+        push, pop = heapq.heappush, heapq.heappop
+        sources = self.sources
+        rec = self.record
+        rel_t, rel_src = self._rel_t, self._rel_src
+        ri, rn = self._rel_i, len(self._rel_t)
+        listeners = self.listeners
+        monitors = self.monitors
+        errors = self.error_times
+        ei, en = self._err_i, len(errors)
+        gate = self.gate
+        exact = self.stuffing == "exact"
+        keep_data = self.trace
+        busy = self._free_at
+        t = max(sim.now, busy)  # the next arbitration instant
+        while True:
+            # whatever else is due before this decision (or at it, and must happen first) runs first
+            if queue:
+                ht = queue[0][0]
+                if ht < t or (ht == t and queue[0][1] < LATE):
+                    break
+                horizon = ht
+            else:
+                horizon = 1 << 62
+            if t >= self._chunk_end and self.streams:
+                self._rel_i = ri
+                self._refill(self._chunk_end)
+                rel_t, rel_src = self._rel_t, self._rel_src
+                ri, rn = 0, len(rel_t)
+            while ri < rn and rel_t[ri] <= t:
+                s = rel_src[ri]
+                self._seq += 1
+                push(pending, (sources[s].key, rel_t[ri], self._seq, s, None, 1))
+                ri += 1
+            babble = self.babble
+            if babble is not None and babble[1] <= t < babble[2] and (
+                not pending or sources[babble[0]].key < pending[0][0]
+            ):
+                item: Pending | None = (
+                    sources[babble[0]].key, t, -1, babble[0], None, 1
+                )
+            elif pending:
+                item = pop(pending)
+                if gate is not None and sources[item[3]].gated:
+                    item = self._gated_pick(item, t)
+            else:
+                item = None
+            if item is None:  # nothing may start now: jump to the next release or window
+                nxt = rel_t[ri] if ri < rn else 1 << 62
+                if self.streams:
+                    nxt = min(nxt, self._chunk_end)
+                if pending:
+                    nxt = min(nxt, self._next_gate_time(t))
+                if babble is not None and t < babble[1]:
+                    nxt = min(nxt, babble[1])
+                if nxt >= horizon or nxt >= 1 << 62:
+                    t = max(t, min(nxt, horizon))
+                    break
+                t = nxt
+                continue
+            _, release, seq, m, data, attempts = item
+            if m in self.lose and self._lost(m, release):
+                continue
+            src = sources[m]
+            dur = self._duration(src, data) if exact else src.dur_ns
+            end = t + dur
+            while ei < en and errors[ei] < t:
+                ei += 1
+            if ei < en and errors[ei] < end:
+                # a bit error: error frame, then the frame competes again (automatic retransmission)
+                if keep_data:
+                    self.error_log.append(errors[ei])
+                t = busy = errors[ei] + self.error_ns
+                ei += 1
+                self.error_frames += 1
+                self.retries[m] = self.retries.get(m, 0) + 1
+                if seq >= 0:  # a babbler's frame is not queued: it simply comes back
+                    push(pending, (item[0], release, seq, m, data, attempts + 1))
+                continue
+            rec.msg.append(m)
+            rec.release.append(release)
+            rec.start.append(t)
+            rec.end.append(end)
+            rec.attempts.append(attempts)
+            if keep_data:
+                rec.data.append(data)
+            t = busy = end
+            if m in listeners or monitors:
+                for fn in listeners.get(m, ()):
+                    sim.at(end, _deliver, (fn, end, m, release, data))
+                for fn in monitors:
+                    sim.at(end, _deliver, (fn, end, m, release, data))
+                break
+        self._rel_i = ri
+        self._err_i = ei
+        self._free_at = busy
+        if pending or ri < rn or self.streams or self.babble is not None:
+            self._wake(t)
+
+    def _lost(self, m: int, release: int) -> bool:
+        due = [t for t in self.lose[m] if t <= release]
+        if not due:
+            return False
+        self.lose[m].remove(min(due))
+        self.drop(m)
+        return True
+
+    def _gated_pick(self, item: Pending, t: int) -> Pending | None:
+        """FTT-CAN: an asynchronous frame may start only if it ends inside the asynchronous window.
+        The highest-priority frame that fits wins; the others wait (put back)."""
+        assert self.gate is not None
+        tried = [item]
+        chosen = None
+        while True:
+            m, data = tried[-1][3], tried[-1][4]
+            src = self.sources[m]
+            if not src.gated or self.gate(t, self._duration(src, data)) == t:
+                chosen = tried.pop()
+                break
+            if not self._pending:
+                break
+            tried.append(heapq.heappop(self._pending))
+        for other in tried:
+            heapq.heappush(self._pending, other)
+        return chosen
+
+    def _next_gate_time(self, t: int) -> int:
+        """The next instant at which some queued gated frame could start."""
+        assert self.gate is not None
+        best = 1 << 62
+        for item in self._pending:
+            src = self.sources[item[3]]
+            best = min(best, self.gate(t, self._duration(src, item[4])) if src.gated else t)
+        return best
+
+
+def _deliver(arg: tuple[Listener, int, int, int, bytes | None]) -> None:
+    fn, end, m, release, data = arg
+    fn(end, m, release, data)

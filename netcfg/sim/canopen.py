@@ -1,0 +1,278 @@
+"""A CANopen master and its drives (seed 000, sections 4.4 and 5).
+
+PDO mode, the paper's Figure 7, one loop per period T:
+  write the RxPDOs (each costs a write processing time), send SYNC, collect the synchronous TxPDOs until all
+  arrived or the read window ends, process them (a read processing time), then wait dynamically
+  (waiting = T - Pt - K, with a residual error) so the next cycle starts T after this one.
+Drives answer each SYNC with their synchronous TxPDOs (transmission type n: every n-th SYNC) after their
+processing delay, and tasks that run on SYNC start their offset after its reception.
+
+SDO mode, the earlier approach the paper compares with (section 4.2, [8]): one concurrent loop per joint reads
+three objects by confirmed SDO uploads (request 0x600 + node id, response 0x580 + node id) and a movement loop
+writes commands by SDO; all of them share the master's processor, so samples come at a variable period.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from netcfg.runtime import Bus, Message
+from netcfg.sim.can_bus import CanBus
+
+if TYPE_CHECKING:
+    from netcfg.sim.scenario import Scenario
+
+SDO_REQUEST = 0x600  # CiA 301 default COB-IDs of the first SDO server
+SDO_RESPONSE = 0x580
+SDO_OBJECTS_PER_READ = 3  # position, velocity, current (seed 000, section 4.2)
+
+
+@dataclass
+class Cycle:
+    start: int
+    sync_queued: int = 0
+    done: int = 0  # collection finished (all arrived, or the read window ended)
+    received: set[str] = field(default_factory=set)
+    expected: tuple[str, ...] = ()
+
+
+class CanopenMaster:
+    def __init__(self, sc: Scenario, bus: Bus, can: CanBus) -> None:
+        assert bus.canopen is not None
+        self.sc = sc
+        self.bus = bus
+        self.can = can
+        self.co = co = bus.canopen
+        self.mode = sc.opts.canopen
+        msgs = sc.cfg.messages_on(bus.name)
+        self.master = co.sync_producer
+        self.sync = next(m for m in msgs if m.implicit == "SYNC")
+        self.rpdos = [m for m in msgs if m.pdo is not None and m.pdo.kind == "rpdo" and m.producer == self.master]
+        self.tpdos = [m for m in msgs if m.pdo is not None and m.pdo.kind == "tpdo" and m.pdo.transmission <= 240]
+        self.every = {m.name: max(1, m.pdo.transmission) for m in self.tpdos if m.pdo is not None}
+        self.drives = sorted({m.producer for m in self.tpdos} | {c for m in self.rpdos for c in m.consumers})
+        self.owned = {self.sync.name} | {m.name for m in self.rpdos} | {m.name for m in self.tpdos}
+        self.cycles: list[Cycle] = []
+        self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # drive -> instants of complete samples
+        self.missing: dict[str, int] = {d: 0 for d in self.drives}
+        self._sync_count = 0
+        self._cpu_free = 0  # the master's one processor, shared by the SDO loops
+        if self.mode in ("pdo", "external"):
+            sc.listen(self.sync.name, self._on_sync)
+            for m in self.tpdos:
+                sc.listen(m.name, self._on_tpdo)
+        elif self.mode == "sdo":
+            self._sdo_sources()
+        else:
+            raise ValueError(f"CANopen master mode must be pdo, sdo or external, not {self.mode!r}")
+
+    # -- timing draws -----------------------------------------------------------------------------------
+    def _draw(self, spec: tuple[int, int, int, int]) -> int:
+        mean, std, lo, hi = spec
+        return int(np.clip(self.sc.rng.normal(mean, std), lo, hi))
+
+    def _drive_delay(self, drive: str) -> int:
+        d = self.sc.opts.drive_delay_ns
+        return d if d is not None else self.sc.cfg.node(drive).tx_delay_ns
+
+    def start(self) -> None:
+        first = self.sc.clock[self.master].phase_ns
+        if self.mode == "pdo":
+            self.sc.sim.at(first, self._cycle)
+        elif self.mode == "sdo":
+            self._start_sdo(first)
+
+    # -- PDO mode: Figure 7 -----------------------------------------------------------------------------
+    def _cycle(self, _: object = None) -> None:
+        sc = self.sc
+        if not sc.alive(self.master):
+            return
+        cyc = Cycle(start=sc.sim.now)
+        self.cycles.append(cyc)
+        t = sc.sim.now
+        for m in self.rpdos:
+            t += self._draw(sc.opts.master.write)
+            sc.sim.at(t, self._write, m)
+        sc.sim.at(t, self._send_sync, cyc)
+
+    def _write(self, m: Message) -> None:
+        self.sc.submit(m.name)
+
+    def _send_sync(self, cyc: Cycle) -> None:
+        sc = self.sc
+        cyc.sync_queued = sc.sim.now
+        n = len(self.cycles)  # this cycle's SYNC is the n-th: TPDOs of type k answer SYNCs 1, 1 + k, ...
+        cyc.expected = tuple(m.name for m in self.tpdos if (n - 1) % self.every[m.name] == 0)
+        sc.submit(self.sync.name)
+        window = self.co.read_window_ns or self.co.sync_period_ns
+        sc.sim.at(sc.sim.now + window, self._read_window_over, cyc)
+
+    def _on_sync(self, end: int, _src: int, _release: int, _data: bytes | None) -> None:
+        sc = self.sc
+        self._sync_count += 1
+        n = self._sync_count
+        for m in self.tpdos:
+            if (n - 1) % self.every[m.name] == 0 and sc.alive(m.producer):
+                sc.sim.at(end + self._drive_delay(m.producer), self._tpdo, m)
+        for task in sc.tasks_on_sync(self.bus.name):
+            node = sc.cfg.node(task.node)
+            sc.run_task(task, end + node.rx_delay_ns + task.offset_ns)
+
+    def _tpdo(self, m: Message) -> None:
+        self.sc.submit(m.name)
+
+    def _on_tpdo(self, end: int, src: int, _release: int, _data: bytes | None) -> None:
+        if not self.cycles:
+            return
+        cyc = self.cycles[-1]
+        if cyc.done:
+            return  # too late for this cycle's read window: not a sample
+        cyc.received.add(self.can.sources[src].name)
+        if cyc.expected and all(n in cyc.received for n in cyc.expected):
+            self._collected(cyc)
+
+    def _read_window_over(self, cyc: Cycle) -> None:
+        if not cyc.done:
+            self._collected(cyc)
+
+    def _collected(self, cyc: Cycle) -> None:
+        sc = self.sc
+        cyc.done = sc.sim.now
+        for drive in self.drives:
+            exp = [n for n in cyc.expected if sc.cfg.message(n).producer == drive]
+            got = [n for n in exp if n in cyc.received]
+            if exp and len(got) == len(exp):
+                self.samples[drive].append(cyc.start)
+            self.missing[drive] += len(exp) - len(got)
+        t = sc.sim.now + self._draw(sc.opts.master.read)
+        pt = t - cyc.start
+        waiting = max(0, self.co.sync_period_ns - pt - sc.opts.master.k_ns)
+        mean, std = sc.opts.master.wait_error
+        err = int(sc.rng.normal(mean, std))
+        sc.sim.at(max(t, t + waiting + err), self._cycle)
+
+    # -- SDO mode ---------------------------------------------------------------------------------------
+    def _sdo_sources(self) -> None:
+        sc, can = self.sc, self.can
+        for drive in self.drives:
+            nid = sc.cfg.node(drive).node_id or 0
+            req = can.add_source(f"{drive}_sdo_request", SDO_REQUEST + nid, False, 8, self.master)
+            rsp = can.add_source(f"{drive}_sdo_response", SDO_RESPONSE + nid, False, 8, drive)
+            sc.msg_source[f"{drive}_sdo_request"] = (can, req)
+            sc.msg_source[f"{drive}_sdo_response"] = (can, rsp)
+            can.listen(req, self._sdo_served)
+            can.listen(rsp, self._sdo_answered)
+        # per drive, the confirmed transfers waiting for its SDO server (one at a time); the first is in flight
+        self._transfers: dict[str, list[tuple[int, Callable[[int], None]]]] = {d: [] for d in self.drives}
+        self._read_start: dict[str, int] = {}
+
+    def _cpu(self, work: int) -> int:
+        """Run `work` ns on the master's processor (first come, first served); returns when it is done."""
+        start = max(self.sc.sim.now, self._cpu_free)
+        self._cpu_free = start + work
+        return self._cpu_free
+
+    def _transfer(self, drive: str, work: int, then: Callable[[int], None]) -> None:
+        queue = self._transfers[drive]
+        queue.append((work, then))
+        if len(queue) == 1:
+            self._issue(drive)
+
+    def _issue(self, drive: str) -> None:
+        work = self._transfers[drive][0][0]
+        self.sc.sim.at(self._cpu(work), self._request, drive)
+
+    def _request(self, drive: str) -> None:
+        self.sc.submit(f"{drive}_sdo_request")
+
+    def _sdo_served(self, end: int, src: int, _release: int, _data: bytes | None) -> None:
+        drive = self.can.sources[src].name.removesuffix("_sdo_request")
+        if self.sc.alive(drive):
+            self.sc.sim.at(end + self._drive_delay(drive), self._respond, drive)
+
+    def _respond(self, drive: str) -> None:
+        self.sc.submit(f"{drive}_sdo_response")
+
+    def _sdo_answered(self, end: int, src: int, _release: int, _data: bytes | None) -> None:
+        drive = self.can.sources[src].producer
+        queue = self._transfers[drive]
+        _, then = queue.pop(0)
+        if queue:
+            self._issue(drive)
+        then(end)
+
+    def _start_sdo(self, first: int) -> None:
+        for drive in self.drives:
+            self.sc.sim.at(first, self._read_joint, drive)
+        self.sc.sim.at(first, self._move)
+
+    def _read_joint(self, drive: str) -> None:
+        """Read one sample: three confirmed uploads in a row, then the next read one period after this one."""
+        start = self.sc.sim.now
+        work = self.sc.opts.master.sdo_read_ns
+
+        def step(left: int) -> Callable[[int], None]:
+            def done(end: int) -> None:
+                if left > 1:
+                    self._transfer(drive, work, step(left - 1))
+                    return
+                self.samples[drive].append(start)
+                self.sc.sim.at(max(end, start + self.co.sync_period_ns), self._read_joint, drive)
+
+            return done
+
+        self._transfer(drive, work, step(SDO_OBJECTS_PER_READ))
+
+    def _move(self, _: object = None) -> None:
+        """The movement loop: compute and write every joint's command by SDO (Table 3's processing time for the
+        whole write), once per period at most, on the same processor as the reading loops."""
+        start = self.sc.sim.now
+        left = len(self.drives)
+
+        def done(_end: int) -> None:
+            nonlocal left
+            left -= 1
+            if left == 0:
+                self.sc.sim.at(max(self.sc.sim.now, start + self.co.sync_period_ns), self._move)
+
+        for i, drive in enumerate(self.drives):
+            self._transfer(drive, self.sc.opts.master.sdo_write_ns if i == 0 else 0, done)
+
+    # -- report -----------------------------------------------------------------------------------------
+    def report(self) -> dict[str, object]:
+        period = self.co.sync_period_ns
+        out: dict[str, object] = {"mode": self.mode, "period_us": period / 1000}
+        per_drive = {}
+        for drive, times in self.samples.items():
+            gaps = np.diff(np.asarray(times, dtype=np.int64)) if len(times) > 1 else np.empty(0, np.int64)
+            err = (gaps - period) / 1000 if len(gaps) else gaps
+            per_drive[drive] = {
+                "samples": len(times),
+                "missing_frames": self.missing[drive],
+                "period_us": _summary(gaps / 1000) if len(gaps) else None,
+                "period_error_us": _summary(err) if len(gaps) else None,
+            }
+        out["drives"] = per_drive
+        if self.mode == "pdo":
+            starts = np.asarray([c.start for c in self.cycles], dtype=np.int64)
+            out["cycles"] = len(self.cycles)
+            out["incomplete_cycles"] = sum(1 for c in self.cycles if c.done and set(c.expected) - c.received)
+            if len(starts) > 1:
+                out["cycle_period_us"] = _summary(np.diff(starts) / 1000)
+            done = [c.done - c.sync_queued for c in self.cycles if c.done]
+            if done:
+                out["collection_us"] = _summary(np.asarray(done) / 1000)
+        return out
+
+
+def _summary(x: np.ndarray) -> dict[str, float]:
+    return {
+        "min": round(float(x.min()), 3),
+        "mean": round(float(x.mean()), 3),
+        "std": round(float(x.std()), 3),
+        "max": round(float(x.max()), 3),
+    }

@@ -1,0 +1,71 @@
+"""The event core: integer-nanosecond virtual time, a heap of callbacks, and drifting node clocks.
+
+Events at the same instant run in (priority, insertion) order. Priority 0 is for things that happen "at" an
+instant (releases, deliveries, task starts); priority 1 is for decisions taken once everything at that instant
+has happened, such as CAN arbitration when the bus goes idle, so a frame queued at exactly that instant joins it.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Callable
+from dataclasses import dataclass
+from itertools import count
+from typing import Any
+
+import numpy as np
+
+EARLY = 0
+LATE = 1
+
+PPB = 1_000_000_000
+
+
+class Simulator:
+    def __init__(self, seed: int = 0) -> None:
+        self.now = 0
+        self.rng = np.random.default_rng(seed)
+        self._queue: list[tuple[int, int, int, Callable[..., Any], Any]] = []
+        self._seq = count()
+        self.stopped = False
+
+    def at(self, t: int, fn: Callable[..., Any], arg: Any = None, priority: int = EARLY) -> None:
+        """Call fn(arg) at virtual time t (never before now)."""
+        heapq.heappush(self._queue, (max(t, self.now), priority, next(self._seq), fn, arg))
+
+    def next_time(self) -> tuple[int, int] | None:
+        """(time, priority) of the next event, or None when nothing is left."""
+        if not self._queue:
+            return None
+        head = self._queue[0]
+        return head[0], head[1]
+
+    def run_until(self, t_end: int, stop: Callable[[], bool] | None = None) -> None:
+        """Run every event before t_end (or until stop() turns true after an event); then now = t_end."""
+        queue = self._queue
+        pop = heapq.heappop
+        while queue and queue[0][0] < t_end:
+            t, _, _, fn, arg = pop(queue)
+            self.now = t
+            fn(arg)
+            if stop is not None and stop():
+                return
+        self.now = max(self.now, t_end)
+
+
+@dataclass(frozen=True)
+class NodeClock:
+    """A node's local clock: global = phase + local * (1 + drift), drift in parts per billion.
+
+    Free-running periodic activities are defined in local time, so two nodes with different drifts slide
+    against each other as they do on real robots (seed 002, section 5: "drifts in the local clocks")."""
+
+    phase_ns: int = 0
+    drift_ppb: int = 0
+
+    def to_global(self, local_ns: int) -> int:
+        return self.phase_ns + local_ns + local_ns * self.drift_ppb // PPB
+
+    def span(self, local_ns: int) -> int:
+        """A local duration in global nanoseconds."""
+        return local_ns + local_ns * self.drift_ppb // PPB

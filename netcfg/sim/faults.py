@@ -1,0 +1,126 @@
+"""Faults a simulation can inject, written on the command line as `--fault TEXT`:
+
+    ber=1e-6[:BUS]              random bit errors, this probability per bit while a frame is on the wire
+    bit-error@12.5ms[:BUS]      one bit error at that instant (repeat the option for a scripted list)
+    crash:NODE@2s               the node stops: it sends nothing more and its queued frames are lost
+    babble:NODE@1s[..2s][=ID]   the node floods its buses with back-to-back frames of identifier ID (default 0)
+    lose:MESSAGE@100ms          the first instance of MESSAGE queued at or after that instant is lost
+    master-fail@2s[:BACKUP]     the FTT-CAN master stops; the backup master (a node named *backup*, or BACKUP)
+                                notices the missing trigger message and takes over
+
+Without :BUS a bit-error fault applies to every CAN bus.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from netcfg.sim.streams import NEVER
+
+if TYPE_CHECKING:
+    from netcfg.sim.scenario import Scenario
+
+_UNITS = {"ns": 1, "us": 1_000, "ms": 1_000_000, "s": 1_000_000_000}
+_TIME = r"(\d+(?:\.\d+)?)\s*(ns|us|ms|s)"
+
+
+class FaultError(ValueError):
+    pass
+
+
+def parse_time(text: str) -> int:
+    m = re.fullmatch(_TIME, text.strip())
+    if not m:
+        raise FaultError(f"'{text}' is not a time: write a number and a unit, e.g. 250us, 12.5ms, 2s")
+    return round(float(m.group(1)) * _UNITS[m.group(2)])
+
+
+@dataclass(frozen=True)
+class Fault:
+    kind: str  # "ber" | "bit-error" | "crash" | "babble" | "lose" | "master-fail"
+    target: str | None = None  # node, message, bus or backup master
+    at_ns: int = 0
+    until_ns: int = NEVER
+    value: float = 0.0  # bit error rate, or the babbler's identifier
+
+    @staticmethod
+    def parse(text: str) -> Fault:
+        t = text.strip()
+        if t.startswith("ber="):
+            rate, _, bus = t[4:].partition(":")
+            try:
+                value = float(rate)
+            except ValueError:
+                raise FaultError(f"'{rate}' is not a bit error rate: write e.g. ber=1e-6") from None
+            if not 0 <= value < 1:
+                raise FaultError(f"bit error rate {value} must be in [0, 1)")
+            return Fault("ber", bus or None, value=value)
+        m = re.fullmatch(r"bit-error@([^:]+)(?::(\S+))?", t)
+        if m:
+            return Fault("bit-error", m.group(2), parse_time(m.group(1)))
+        m = re.fullmatch(r"(crash|lose):([^@]+)@(\S+)", t)
+        if m:
+            return Fault(m.group(1), m.group(2), parse_time(m.group(3)))
+        m = re.fullmatch(r"babble:([^@]+)@([^.=]+(?:\.\d+)?[a-z]+)(?:\.\.([^=]+))?(?:=(\S+))?", t)
+        if m:
+            until = parse_time(m.group(3)) if m.group(3) else NEVER
+            ident = int(m.group(4), 0) if m.group(4) else 0
+            return Fault("babble", m.group(1), parse_time(m.group(2)), until, float(ident))
+        m = re.fullmatch(r"master-fail@([^:]+)(?::(\S+))?", t)
+        if m:
+            return Fault("master-fail", m.group(2), parse_time(m.group(1)))
+        raise FaultError(
+            f"cannot read fault '{text}': write one of ber=1e-6, bit-error@12ms, crash:NODE@2s, "
+            "babble:NODE@1s..2s=0x0, lose:MESSAGE@100ms, master-fail@2s"
+        )
+
+    def install(self, sc: Scenario) -> None:
+        """Set the fault up in a scenario whose buses exist but have not started."""
+        errors = self.kind in ("ber", "bit-error")
+        buses = [b for b in sc.can.values() if self.target in (None, b.name)] if errors else []
+        if errors and not buses:
+            raise FaultError(f"fault '{self.kind}': no CAN bus named '{self.target}'")
+        if self.kind == "ber":
+            for bus in buses:
+                # errors as a Poisson process in bus time; one that falls on an idle bus does nothing
+                rate_per_ns = self.value * bus.bitrate / 1e9
+                if rate_per_ns > 0:
+                    n = int(sc.opts.duration_ns * rate_per_ns * 1.5) + 10
+                    gaps = sc.rng.exponential(1 / rate_per_ns, n)
+                    times = np.cumsum(gaps).astype(np.int64)
+                    bus.error_times = sorted(bus.error_times + times[times < sc.opts.duration_ns].tolist())
+        elif self.kind == "bit-error":
+            for bus in buses:
+                bus.error_times = sorted([*bus.error_times, self.at_ns])
+        elif self.kind == "crash":
+            node = _node(sc, self.target)
+            for bus in sc.can.values():
+                sc.sim.at(self.at_ns, lambda _, b=bus: b.remove_pending(lambda s, b=b: b.sources[s].producer != node))
+        elif self.kind == "babble":
+            node = _node(sc, self.target)
+            for bus in sc.can.values():
+                if node in sc.cfg.bus(bus.name).nodes:
+                    src = bus.add_source(f"{node}_babble", int(self.value), False, 8, node)
+                    bus.babble = (src, self.at_ns, self.until_ns)
+        elif self.kind == "lose":
+            if self.target not in sc.msg_source:
+                raise FaultError(f"fault 'lose': no CAN message named '{self.target}'")
+            bus, src = sc.msg_source[self.target]
+            bus.lose.setdefault(src, []).append(self.at_ns)
+        elif self.kind == "master-fail":
+            masters = [d for d in sc.protocols.values() if hasattr(d, "fail")]
+            if not masters:
+                raise FaultError("fault 'master-fail' needs an FTT-CAN bus simulated in synchronised mode")
+            for d in masters:
+                d.fail(self.at_ns, self.target)  # type: ignore[attr-defined]
+
+
+def _node(sc: Scenario, name: str | None) -> str:
+    names = [n.name for n in sc.cfg.nodes]
+    if name not in names:
+        raise FaultError(f"no node named '{name}'; the nodes are: {', '.join(names)}")
+    return name

@@ -1,0 +1,125 @@
+"""End-to-end flows measured as data age, the way the analysis defines them (netcfg.timing.flows).
+
+Every piece of data carries a stamp: the instant its flow began (the first task's activation, or the first
+message's release). A task reads, at its start, the freshest data its node has for the previous step; a message
+carries, at its release, the freshest output of the previous step on its producer. A step with several items in
+parallel needs all of them, so it takes the oldest of their stamps. The flow's latency is measured once per
+stamp, when every item of the last step has used it (a task at its activation, a message at its reception); a
+stamp overwritten before it is used is not a sample, as in the analysis.
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from netcfg.runtime import Flow, RuntimeConfig
+
+HISTORY = 64  # availability records kept per item: enough to look back one message's worth of releases
+
+
+@dataclass
+class _Item:
+    times: list[int] = field(default_factory=list)  # when each stamp became available
+    stamps: list[int] = field(default_factory=list)
+
+    def add(self, t: int, stamp: int) -> None:
+        self.times.append(t)
+        self.stamps.append(stamp)
+        if len(self.times) > 2 * HISTORY:
+            del self.times[:HISTORY], self.stamps[:HISTORY]
+
+    def at(self, t: int) -> int | None:
+        i = bisect_right(self.times, t)
+        return self.stamps[i - 1] if i else None
+
+
+@dataclass
+class _End:
+    """Stamps waiting for every item of a final step."""
+
+    refs: frozenset[str]
+    waiting: dict[int, dict[str, int]] = field(default_factory=dict)
+    done: int = -1  # stamps at or below this are finished (stamps of one item only grow)
+    samples: list[int] = field(default_factory=list)
+
+    def reach(self, ref: str, stamp: int, t: int) -> None:
+        if stamp <= self.done:
+            return
+        seen = self.waiting.setdefault(stamp, {})
+        seen.setdefault(ref, t)
+        if len(seen) == len(self.refs):
+            self.samples.append(max(seen.values()) - stamp)
+            self.done = stamp
+            for s in [s for s in self.waiting if s <= stamp]:
+                del self.waiting[s]
+
+
+class FlowTracker:
+    def __init__(self, cfg: RuntimeConfig, flow: Flow) -> None:
+        self.flow = flow
+        self.name = flow.name
+        self.steps = flow.steps
+        self.items: dict[tuple[int, str], _Item] = {}
+        self.where: dict[str, list[int]] = {}  # ref -> steps it appears in
+        for i, step in enumerate(flow.steps):
+            for ref in step.refs:
+                self.where.setdefault(ref, []).append(i)
+                self.items[(i, ref)] = _Item()
+        self.local: dict[tuple[int, str], tuple[str, ...]] = {}  # (step, reader) -> refs of step-1 it reads
+        for i in range(1, len(flow.steps)):
+            prev = flow.steps[i - 1]
+            for ref in flow.steps[i].refs:
+                if flow.steps[i].kind == "task":
+                    node = ref.split(".", 1)[0]
+                    mine = tuple(
+                        r for r in prev.refs
+                        if (prev.kind == "message" and node in cfg.message(r).consumers)
+                        or (prev.kind == "task" and r.split(".", 1)[0] == node)
+                    )
+                else:
+                    producer = cfg.message(ref).producer
+                    mine = tuple(r for r in prev.refs if prev.kind == "task" and r.split(".", 1)[0] == producer)
+                self.local[(i, ref)] = mine or prev.refs
+        last = len(flow.steps) - 1
+        self.latency = _End(frozenset(flow.steps[last].refs))
+        msg_steps = [i for i, s in enumerate(flow.steps) if s.kind == "message"]
+        self.delivery_step = msg_steps[-1] if msg_steps and msg_steps[-1] != last else None
+        self.delivery = (
+            _End(frozenset(flow.steps[self.delivery_step].refs)) if self.delivery_step is not None else None
+        )
+
+    def refs(self) -> Iterable[str]:
+        return self.where.keys()
+
+    def _stamp(self, i: int, ref: str, t: int, origin: int) -> int | None:
+        if i == 0:
+            return origin
+        stamps = [self.items[(i - 1, r)].at(t) for r in self.local[(i, ref)]]
+        if any(s is None for s in stamps):
+            return None
+        return min(s for s in stamps if s is not None)
+
+    def task_started(self, ref: str, start: int, end: int) -> None:
+        last = len(self.steps) - 1
+        for i in self.where.get(ref, ()):
+            stamp = self._stamp(i, ref, start, start)
+            if stamp is None:
+                continue
+            if i == last:
+                self.latency.reach(ref, stamp, start)
+            else:
+                self.items[(i, ref)].add(end, stamp)
+
+    def message_delivered(self, name: str, release: int, end: int) -> None:
+        last = len(self.steps) - 1
+        for i in self.where.get(name, ()):
+            stamp = self._stamp(i, name, release, release)
+            if stamp is None:
+                continue
+            self.items[(i, name)].add(end, stamp)
+            if i == last:
+                self.latency.reach(name, stamp, end)
+            if i == self.delivery_step and self.delivery is not None:
+                self.delivery.reach(name, stamp, end)

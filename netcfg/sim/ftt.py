@@ -1,0 +1,148 @@
+"""The FTT-CAN master and its elementary cycles (seed 002, section 3; Almeida, Pedreiras, Fonseca 2002).
+
+Every EC starts with the trigger message (TM), which carries that EC's schedule. Its reception starts the
+triggered tasks of the EC; the EC's synchronous messages are queued at the start of the synchronous window at
+the end of the EC (the layout the analysis uses) and go out in identifier order; asynchronous messages
+arbitrate normally but may start only if they end before that window (netcfg.sim.can_bus's gate).
+
+The master may fail (a `master-fail` fault). A backup master that misses the TM for longer than a timeout sends
+it itself, late, and keeps the EC grid from then on (the CAMBADA robots replicate the master). An EC whose TM is
+lost has no synchronous traffic and starts no triggered task; what should have been sent is counted as lost.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from netcfg.runtime import Bus
+from netcfg.sim.can_bus import CanBus
+from netcfg.sim.engine import PPB
+from netcfg.sim.streams import NEVER
+
+if TYPE_CHECKING:
+    from netcfg.sim.scenario import Scenario
+
+
+class FttMaster:
+    def __init__(self, sc: Scenario, bus: Bus, can: CanBus) -> None:
+        assert bus.ftt is not None
+        self.sc = sc
+        self.can = can
+        self.ftt = ftt = bus.ftt
+        self.master = ftt.master
+        self.clock = sc.clock[ftt.master]
+        self.tm_name = f"{bus.name}_TM"
+        self.tm = can.add_source(self.tm_name, ftt.tm_id, False, ftt.tm_size, ftt.master)
+        sc.msg_source[self.tm_name] = (can, self.tm)
+        self.owned = {m for slot in ftt.schedule for m in slot.messages}
+        self.fail_at = NEVER
+        self.backup: str | None = None
+        self.takeover_ns: int | None = None  # when the backup sent its first TM
+        self.tm_timeout_ns = 2 * ftt.tm_ns  # the backup waits this long past an EC start for the TM
+        self.ecs = 0
+        self.lost_ecs = 0
+        self._got_tm = -1  # the last EC whose TM arrived
+        can.listen(self.tm, self._on_tm)
+        can.gate = self._gate
+
+    def fail(self, at_ns: int, backup: str | None) -> None:
+        self.fail_at = at_ns
+        names = [n.name for n in self.sc.cfg.nodes if n.name != self.master]
+        if backup is None:
+            backup = next((n for n in names if "backup" in n), None)
+        elif backup not in names:
+            raise ValueError(f"no node named '{backup}' to take over as FTT-CAN master")
+        self.backup = backup
+
+    # -- EC grid ----------------------------------------------------------------------------------------
+    def ec_start(self, k: int) -> int:
+        return self.clock.to_global(k * self.ftt.ec_ns)
+
+    def ec_of(self, t: int) -> int:
+        local = (t - self.clock.phase_ns) * PPB // (PPB + self.clock.drift_ppb)
+        k = max(0, local // self.ftt.ec_ns)
+        while k > 0 and self.ec_start(k) > t:
+            k -= 1
+        while self.ec_start(k + 1) <= t:
+            k += 1
+        return k
+
+    def _gate(self, t: int, dur: int) -> int:
+        """Earliest start >= t at which an asynchronous frame of this duration ends before a synchronous window."""
+        k = self.ec_of(t)
+        for _ in range(2 * self.ftt.macro_cycle_ec + 2):
+            start = self.ec_start(k)
+            window = start + self.ftt.ec_ns - self.ftt.slot(k).sync_ns
+            s = max(t, start)
+            if s + dur <= window:
+                return s
+            k += 1
+        return NEVER  # never fits: longer than every asynchronous window
+
+    # -- the cycle --------------------------------------------------------------------------------------
+    def start(self) -> None:
+        self.sc.sim.at(self.ec_start(0), self._ec, 0)
+
+    def _ec(self, k: int) -> None:
+        sim = self.sc.sim
+        if k > 0 and self._got_tm < k - 1:
+            self._count_lost(k - 1)
+        self.ecs += 1
+        sender = self._tm_sender()
+        if sender == self.master:
+            self._send_tm(k)
+        elif sender is not None:
+            sim.at(sim.now + self.tm_timeout_ns, self._backup_tm, k)
+        sim.at(self.ec_start(k + 1), self._ec, k + 1)
+
+    def _tm_sender(self) -> str | None:
+        now = self.sc.sim.now
+        if now < self.fail_at and self.sc.alive(self.master):
+            return self.master
+        if self.backup is not None and self.sc.alive(self.backup):
+            return self.backup
+        return None
+
+    def _backup_tm(self, k: int) -> None:
+        if self.takeover_ns is None:
+            self.takeover_ns = self.sc.sim.now
+            self.can.sources[self.tm].producer = self.backup or self.master
+        self._send_tm(k)
+
+    def _send_tm(self, k: int) -> None:
+        slot = self.ftt.slot(k)
+        self._tm_ec = k
+        self.can.submit(self.tm, (slot.mask & ((1 << 8 * self.ftt.tm_size) - 1)).to_bytes(self.ftt.tm_size, "little"))
+
+    def _on_tm(self, end: int, _src: int, _release: int, data: bytes | None) -> None:
+        k = self.ec_of(end)
+        if self.ec_start(k) + self.ftt.ec_ns - self.ftt.slot(k).sync_ns < end:
+            k -= 1  # cannot happen with a schedulable table; keep the EC the TM was sent for
+        self._got_tm = k
+        slot = self.ftt.slot(k)
+        for trig in slot.triggers:
+            for task in self.sc.tasks_on_trigger(trig):
+                node = self.sc.cfg.node(task.node)
+                self.sc.run_task(task, end + node.rx_delay_ns)
+        if slot.messages:
+            window = self.ec_start(k) + self.ftt.ec_ns - slot.sync_ns
+            self.sc.sim.at(window, self._sync_window, slot.messages)
+
+    def _sync_window(self, messages: tuple[str, ...]) -> None:
+        for name in messages:
+            self.sc.submit(name)
+
+    def _count_lost(self, k: int) -> None:
+        self.lost_ecs += 1
+        for name in self.ftt.slot(k).messages:
+            bus, src = self.sc.msg_source[name]
+            bus.drop(src)
+
+    def report(self) -> dict[str, object]:
+        return {
+            "ecs": self.ecs,
+            "ecs_without_tm": self.lost_ecs,
+            "master_failed_at_us": None if self.fail_at == NEVER else self.fail_at / 1000,
+            "backup": self.backup,
+            "takeover_at_us": None if self.takeover_ns is None else self.takeover_ns / 1000,
+        }

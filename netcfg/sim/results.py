@@ -1,0 +1,268 @@
+"""What a simulation measured, pooled over Monte Carlo runs, compared with the analysis, and printed.
+
+A run's raw records become a RunResult (numpy arrays per message and per flow, plain counters), small enough to
+send back from a worker process; several merge into one; `summary()` gives the JSON contract of DESIGN.md
+(`netcfg simulate --format json`) with more keys beside it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from netcfg.runtime import RuntimeConfig
+from netcfg.sim.scenario import Scenario
+
+HIST_BINS = 40
+
+
+@dataclass
+class RunResult:
+    system: str
+    duration_ns: int
+    runs: int = 1
+    frames: int = 0
+    response: dict[str, np.ndarray] = field(default_factory=dict)  # message -> response times, ns
+    deadline: dict[str, int | None] = field(default_factory=dict)
+    wcrt: dict[str, int | None] = field(default_factory=dict)
+    sent: dict[str, int] = field(default_factory=dict)
+    lost: dict[str, int] = field(default_factory=dict)
+    retransmissions: dict[str, int] = field(default_factory=dict)
+    error_frames: int = 0
+    unsent_at_end: int = 0  # queued when the run ended: neither sent nor lost
+    flow_latency: dict[str, np.ndarray] = field(default_factory=dict)
+    flow_delivery: dict[str, np.ndarray] = field(default_factory=dict)
+    flow_bounds: dict[str, tuple[int | None, int | None]] = field(default_factory=dict)
+    protocols: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # bus -> one report per run
+    error_model: bool = False  # bit errors were injected: the analysis has no error model
+    wall_s: float = 0.0
+
+    def merge(self, other: RunResult) -> RunResult:
+        out = RunResult(self.system, self.duration_ns + other.duration_ns, self.runs + other.runs)
+        out.frames = self.frames + other.frames
+        for name in sorted(set(self.response) | set(other.response)):
+            out.response[name] = np.concatenate([self.response.get(name, _EMPTY), other.response.get(name, _EMPTY)])
+        for table in ("sent", "lost", "retransmissions"):
+            a, b = getattr(self, table), getattr(other, table)
+            getattr(out, table).update({k: a.get(k, 0) + b.get(k, 0) for k in sorted(set(a) | set(b))})
+        out.deadline = {**self.deadline, **other.deadline}
+        out.wcrt = {**self.wcrt, **other.wcrt}
+        out.error_frames = self.error_frames + other.error_frames
+        out.unsent_at_end = self.unsent_at_end + other.unsent_at_end
+        for attr in ("flow_latency", "flow_delivery"):
+            a, b = getattr(self, attr), getattr(other, attr)
+            getattr(out, attr).update({k: np.concatenate([a.get(k, _EMPTY), b.get(k, _EMPTY)]) for k in {**a, **b}})
+        out.flow_bounds = {**self.flow_bounds, **other.flow_bounds}
+        buses = {**self.protocols, **other.protocols}
+        out.protocols = {k: self.protocols.get(k, []) + other.protocols.get(k, []) for k in buses}
+        out.error_model = self.error_model or other.error_model
+        out.wall_s = self.wall_s + other.wall_s
+        return out
+
+
+_EMPTY = np.empty(0, dtype=np.int64)
+
+
+def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
+    cfg: RuntimeConfig = sc.cfg
+    res = RunResult(cfg.system, sc.opts.duration_ns, wall_s=wall_s)
+    res.error_model = any(f.kind in ("ber", "bit-error") for f in sc.opts.faults)
+    known = {m.name: m for m in cfg.messages}
+    for can in sc.can.values():
+        rec = can.record
+        msg = np.asarray(rec.msg, dtype=np.int64)
+        resp = np.asarray(rec.end, dtype=np.int64) - np.asarray(rec.release, dtype=np.int64)
+        res.frames += len(msg)
+        order = np.argsort(msg, kind="stable")
+        bounds = np.searchsorted(msg[order], np.arange(len(can.sources) + 1))
+        pending = can.pending_count()
+        for src in can.sources:
+            r = resp[order[bounds[src.index] : bounds[src.index + 1]]]
+            res.response[src.name] = r
+            res.sent[src.name] = len(r)
+            res.lost[src.name] = can.dropped.get(src.index, 0)
+            res.retransmissions[src.name] = can.retries.get(src.index, 0)
+            res.unsent_at_end += pending.get(src.index, 0)
+            m = known.get(src.name)
+            res.deadline[src.name] = m.deadline_ns if m else None
+            res.wcrt[src.name] = m.wcrt_ns if m else None
+        res.error_frames += can.error_frames
+    for bus, driver in sc.protocols.items():
+        records = getattr(driver, "records", None)
+        if records is not None:
+            for name, release, end in records():
+                res.response[name] = np.asarray(end, dtype=np.int64) - np.asarray(release, dtype=np.int64)
+                res.sent[name] = len(res.response[name])
+                m = known.get(name)
+                res.deadline[name] = m.deadline_ns if m else None
+                res.wcrt[name] = m.wcrt_ns if m else None
+                res.frames += len(res.response[name])
+            for name, n in getattr(driver, "lost_by_message", dict)().items():
+                res.lost[name] = res.lost.get(name, 0) + n
+        report = getattr(driver, "report", None)
+        if report is not None:
+            res.protocols[bus] = [report()]
+    for tr in sc.flows:
+        res.flow_latency[tr.name] = np.asarray(tr.latency.samples, dtype=np.int64)
+        if tr.delivery is not None:
+            res.flow_delivery[tr.name] = np.asarray(tr.delivery.samples, dtype=np.int64)
+        res.flow_bounds[tr.name] = (tr.flow.latency_min_ns, tr.flow.latency_max_ns)
+    return res
+
+
+def _stats_us(x: np.ndarray) -> dict[str, float] | None:
+    if len(x) == 0:
+        return None
+    return {
+        "min": round(float(x.min()) / 1000, 3),
+        "mean": round(float(x.mean()) / 1000, 3),
+        "p99": round(float(np.percentile(x, 99, method="higher")) / 1000, 3),
+        "max": round(float(x.max()) / 1000, 3),
+    }
+
+
+def summary(res: RunResult) -> dict[str, Any]:
+    """The JSON document of `netcfg simulate --format json`."""
+    messages = []
+    misses = 0
+    exceeded = []
+    for name in res.response:
+        r = res.response[name]
+        d = res.deadline.get(name)
+        w = res.wcrt.get(name)
+        late = int((r > d).sum()) if d is not None and len(r) else 0
+        misses += late
+        over = bool(len(r) and w is not None and int(r.max()) > w)
+        if over:
+            exceeded.append(name)
+        messages.append(
+            {
+                "name": name,
+                "count": len(r),
+                "response_us": _stats_us(r),
+                "wcrt_us": None if w is None else w / 1000,
+                "within_analysis": None if w is None or not len(r) else not over,
+                "deadline_us": None if d is None else d / 1000,
+                "deadline_misses": late,
+                "lost": res.lost.get(name, 0),
+                "retransmissions": res.retransmissions.get(name, 0),
+            }
+        )
+    flows = []
+    for name, lat in res.flow_latency.items():
+        lo, hi = res.flow_bounds.get(name, (None, None))
+        within = None
+        if len(lat) and lo is not None and hi is not None:
+            within = bool(lo <= int(lat.min()) and int(lat.max()) <= hi)
+        flows.append(
+            {
+                "name": name,
+                "latency_us": _stats_us(lat),
+                "samples": len(lat),
+                "delivery_us": _stats_us(res.flow_delivery[name]) if name in res.flow_delivery else None,
+                "analysis_us": None if lo is None or hi is None else {"min": lo / 1000, "max": hi / 1000},
+                "within_analysis": within,
+            }
+        )
+    duration = res.duration_ns / 1e9
+    out: dict[str, Any] = {
+        "system": res.system,
+        "duration_us": res.duration_ns / 1000,
+        "runs": res.runs,
+        "frames": res.frames,
+        "messages": messages,
+        "flows": flows,
+        "lost": sum(res.lost.values()),
+        "deadline_misses": misses,
+        "retransmissions": sum(res.retransmissions.values()),
+        "error_frames": res.error_frames,
+        "unsent_at_end": res.unsent_at_end,
+        "exceeds_analysis": exceeded,
+        "analysis_has_error_model": False,
+        "protocols": res.protocols if res.runs == 1 else {k: v[:1] for k, v in res.protocols.items()},
+    }
+    if res.wall_s > 0:
+        out["speed"] = {
+            "wall_s": round(res.wall_s, 3),
+            "frames_per_s": round(res.frames / res.wall_s),
+            "x_real_time": round(duration / res.wall_s, 1),
+        }
+    if res.error_model and exceeded:
+        out["note"] = "bit errors were injected and the analysis has no error model: exceeding it is expected"
+    return out
+
+
+def text(doc: dict[str, Any]) -> str:
+    lines = [
+        f"system {doc['system']}: {doc['runs']} run(s), {doc['duration_us'] / 1e6:.3f} s simulated, "
+        f"{doc['frames']} frames, {doc['lost']} lost, {doc['deadline_misses']} deadline misses, "
+        f"{doc['retransmissions']} retransmissions"
+    ]
+    if "speed" in doc:
+        s = doc["speed"]
+        lines.append(f"  {s['wall_s']} s wall, {s['frames_per_s']} frames/s, {s['x_real_time']}x real time")
+    lines.append("")
+    head = f"{'count':>8}{'min us':>10}{'mean us':>10}{'p99 us':>10}{'max us':>10}"
+    lines.append(f"  {'message':<28}{head}{'wcrt us':>10}")
+    for m in doc["messages"]:
+        r = m["response_us"] or {}
+        flag = "" if m["within_analysis"] in (None, True) else "  EXCEEDS ANALYSIS"
+        extra = f"  lost {m['lost']}" if m["lost"] else ""
+        lines.append(
+            f"  {m['name']:<28}{m['count']:>8}{_f(r.get('min')):>10}{_f(r.get('mean')):>10}{_f(r.get('p99')):>10}"
+            f"{_f(r.get('max')):>10}{_f(m['wcrt_us']):>10}{flag}{extra}"
+        )
+    if doc["flows"]:
+        lines.append("")
+        lines.append(f"  {'flow':<28}{'samples':>8}{'min us':>10}{'mean us':>10}{'p99 us':>10}{'max us':>10}  analysis")
+        for f in doc["flows"]:
+            r = f["latency_us"] or {}
+            a = f["analysis_us"]
+            span = f"{a['min']:.0f}-{a['max']:.0f}" if a else "-"
+            lines.append(
+                f"  {f['name']:<28}{f['samples']:>8}{_f(r.get('min')):>10}{_f(r.get('mean')):>10}"
+                f"{_f(r.get('p99')):>10}{_f(r.get('max')):>10}  {span}"
+            )
+    if doc.get("note"):
+        lines.append("")
+        lines.append("  " + doc["note"])
+    return "\n".join(lines)
+
+
+def _f(x: float | None) -> str:
+    return "-" if x is None else f"{x:.1f}"
+
+
+def histograms(res: RunResult, folder: str) -> list[str]:
+    """One PNG per flow and per message with a deadline or an analysed bound: the response distribution."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    series = [(f"flow_{k}", v, res.flow_bounds.get(k, (None, None))[1]) for k, v in res.flow_latency.items()]
+    series += [(f"msg_{k}", v, res.wcrt.get(k)) for k, v in res.response.items() if res.wcrt.get(k) is not None]
+    for name, values, bound in series:
+        if not len(values):
+            continue
+        fig, ax = plt.subplots(figsize=(6, 3.2))
+        ax.hist(values / 1000, bins=HIST_BINS, color="#4878a8")
+        if bound is not None:
+            ax.axvline(bound / 1000, color="#c03030", linestyle="--", label="analysis bound")
+            ax.legend()
+        ax.set_xlabel("us")
+        ax.set_ylabel("count")
+        ax.set_title(name)
+        fig.tight_layout()
+        path = out / f"{name}.png"
+        fig.savefig(path, metadata={"Software": None})
+        plt.close(fig)
+        written.append(str(path))
+    return written
