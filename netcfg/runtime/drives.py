@@ -1,0 +1,530 @@
+"""Simulated CANopen drives: real CANopen peers for tests and for the bench before the hardware arrives.
+
+A SimulatedDrive is a `canopen.LocalNode` built from a node's generated EDS. The canopen package gives it an SDO
+server and an NMT slave; this module adds what a LocalNode does not do on its own:
+
+- it answers each SYNC with its synchronous TPDOs (transmission type n: every n-th SYNC since it entered
+  OPERATIONAL; type 0: on a SYNC after the mapped data changed), built from the PDO configuration in its own object
+  dictionary as the master wrote it over SDO, so a wrong configuration shows up on the wire;
+- it applies received RPDOs to its object dictionary (types 0-240 at the next SYNC, 254/255 at once);
+- it checks PDO writes the way CiA 301 devices do (mapping changed only while the PDO is disabled and sub-index 0 is 0,
+  only mappable objects, at most 64 bits), so a master that skips a step fails here as it would on a drive;
+- optional faults for tests: wrong identity in 0x1018, never answering, aborting SDO writes to given objects;
+- an optional processing delay before the TPDOs go out, and a model hook run at each SYNC.
+
+Its factory state (clear_pdos=True) has every PDO disabled and nothing mapped, so only a master that configures it
+gets data. It imports only the standard library, python-can, canopen and netcfg.runtime.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+import canopen
+from canopen.objectdictionary import ODArray, ODRecord, ODVariable
+from canopen.objectdictionary.datatypes import NUMBER_TYPES, SIGNED_TYPES
+from canopen.sdo import SdoAbortedError
+
+from netcfg.runtime import RuntimeConfig
+from netcfg.runtime.clock import Clock, SystemClock
+
+__all__ = ["DriveBench", "DriveModel", "SimulatedDrive", "follow_velocity"]
+
+log = logging.getLogger(__name__)
+
+PDO_INVALID = 1 << 31  # COB-ID bit 31: the PDO does not exist / is disabled (CiA 301)
+COB_EXTENDED = 1 << 29  # COB-ID bit 29: 29-bit identifier
+COB_ID_MASK = 0x1FFFFFFF
+RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP = 0x1400, 0x1600, 0x1800, 0x1A00
+PDO_SLOTS = 512  # CiA 301: up to 512 PDOs per direction
+MAX_PDO_BITS = 64  # a classic CAN frame
+
+# SDO abort codes (CiA 301, table 22) the drive answers with
+ABORT_NOT_MAPPABLE = 0x06040041
+ABORT_PDO_LENGTH = 0x06040042
+ABORT_VALUE_RANGE = 0x06090030
+ABORT_DEVICE_STATE = 0x08000022
+
+DriveModel = Callable[["SimulatedDrive"], None]
+
+
+@dataclass(frozen=True)
+class _PdoSlot:
+    """One PDO as the drive's object dictionary holds it now."""
+
+    number: int  # 1-based
+    can_id: int
+    extended: bool
+    valid: bool
+    transmission: int
+    sync_start: int
+    entries: tuple[tuple[int, int, int], ...]  # (index, sub, bits)
+
+    @property
+    def bits(self) -> int:
+        return sum(b for _, _, b in self.entries)
+
+
+def follow_velocity(drive: SimulatedDrive) -> None:
+    """A stand-in for a drive in cyclic synchronous velocity mode (CiA 402), not a motor model.
+
+    At each SYNC the velocity actual value (0x606C) becomes target velocity (0x60FF) + velocity offset (0x60B1), and
+    the position actual value (0x6064) advances by that velocity times the interpolation period (0x60C2), as if the
+    velocity were in position units per second. Drives without these objects are left alone.
+    """
+    if not (drive.has(0x60FF) and drive.has(0x606C)):
+        return
+    velocity = int(drive.value(0x60FF)) + (int(drive.value(0x60B1)) if drive.has(0x60B1) else 0)
+    drive.set_value(0x606C, 0, velocity)
+    if drive.has(0x6064) and drive.has(0x60C2, 1) and drive.has(0x60C2, 2):
+        period_s = int(drive.value(0x60C2, 1)) * 10.0 ** int(drive.value(0x60C2, 2))
+        drive.set_value(0x6064, 0, int(drive.value(0x6064)) + round(velocity * period_s))
+
+
+class SimulatedDrive:
+    """A CANopen slave on a python-can bus, built on canopen.LocalNode from an EDS/DCF.
+
+    Faults (for tests): `identity=(vendor_id, product_code)` puts other values in 0x1018; `silent=True` answers
+    nothing at all (a drive that is off, or has another node id or bit rate); `abort_writes={index: abort_code}`
+    aborts every SDO write to those objects with that code.
+    """
+
+    def __init__(
+        self,
+        node_id: int,
+        object_dictionary: str | Path | canopen.ObjectDictionary,
+        *,
+        name: str | None = None,
+        clear_pdos: bool = True,
+        strict_pdo_writes: bool = True,
+        response_delay_s: float = 0.0,
+        clock: Clock | None = None,
+        model: DriveModel | None = follow_velocity,
+        identity: tuple[int, int] | None = None,
+        silent: bool = False,
+        abort_writes: Mapping[int, int] | None = None,
+    ) -> None:
+        od = object_dictionary if isinstance(object_dictionary, canopen.ObjectDictionary) else str(object_dictionary)
+        self.node = canopen.LocalNode(node_id, od)
+        self.name = name or f"node{node_id}"
+        self.strict_pdo_writes = strict_pdo_writes
+        self.response_delay_s = response_delay_s
+        self.clock: Clock = clock or SystemClock()
+        self.model = model
+        self.silent = silent
+        self.abort_writes = dict(abort_writes or {})
+        self.network: canopen.Network | None = None
+        self.bus: can.BusABC | None = None
+        self._notifier: can.Notifier | None = None
+        # what happened, for tests and the bench
+        self.sdo_writes: list[tuple[int, int]] = []  # accepted SDO writes, in order
+        self.syncs = 0  # SYNCs received while OPERATIONAL
+        self.tpdos_sent = 0
+        self.rpdos_applied = 0
+        self.rpdo_length_errors = 0  # CiA 301 would send EMCY 0x8210
+        self.errors: list[str] = []
+        # the PDO configuration, re-read from the object dictionary after any write to it
+        self._dirty = True
+        self._sync_id = 0x80
+        self._tpdos: tuple[_PdoSlot, ...] = ()
+        self._rpdos: dict[tuple[int, bool], _PdoSlot] = {}
+        self._sync_counts: dict[int, int] = {}
+        self._sync_started: set[int] = set()
+        self._last_acyclic: dict[int, bytes] = {}
+        self._pending: dict[int, tuple[_PdoSlot, bytes]] = {}
+
+        # the PDO slots the object dictionary has (0-based), looked up once
+        self._rx_slots = tuple(n for n in range(PDO_SLOTS) if self.has(RPDO_COMM + n, 1))
+        self._tx_slots = tuple(n for n in range(PDO_SLOTS) if self.has(TPDO_COMM + n, 1))
+        self._fill_values(identity)
+        if clear_pdos:
+            self._clear_pdos()
+        self.node.add_write_callback(self._on_sdo_write)
+
+    # --- object dictionary access ----------------------------------------------------------------------------
+
+    def has(self, index: int, sub: int = 0) -> bool:
+        return self._variable(index, sub) is not None
+
+    def value(self, index: int, sub: int = 0) -> Any:
+        """The object's current value, decoded by its data type."""
+        var = self._require(index, sub)
+        return var.decode_raw(self.node.get_data(index, sub))
+
+    def set_value(self, index: int, sub: int, value: Any) -> None:
+        """Set an object as the application would (no SDO checks); integers are clamped to the type's range."""
+        var = self._require(index, sub)
+        if var.data_type in NUMBER_TYPES and isinstance(value, int):
+            bits = len(var)
+            signed = var.data_type in SIGNED_TYPES
+            lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
+            value = min(max(value, lo), hi)
+        self._store(index, sub, var.encode_raw(value))
+
+    def _variable(self, index: int, sub: int = 0) -> ODVariable | None:
+        od = self.node.object_dictionary
+        if index not in od:
+            return None
+        obj = od[index]
+        if isinstance(obj, ODVariable):
+            return obj if sub == 0 else None
+        var: ODVariable | None = obj.subindices.get(sub)  # only the sub-indices the EDS lists
+        return var
+
+    def _require(self, index: int, sub: int) -> ODVariable:
+        var = self._variable(index, sub)
+        if var is None:
+            raise KeyError(f"{self.name}: no object 0x{index:04X}:{sub:02X} in its object dictionary")
+        return var
+
+    def _store(self, index: int, sub: int, data: bytes) -> None:
+        self.node.data_store.setdefault(index, {})[sub] = bytes(data)
+        if index == 0x1005 or RPDO_COMM <= index < TPDO_MAP + PDO_SLOTS:
+            self._dirty = True
+
+    def _int(self, index: int, sub: int, default: int = 0) -> int:
+        if not self.has(index, sub):
+            return default
+        try:
+            return int(self.value(index, sub))
+        except SdoAbortedError:
+            return default
+
+    def _fill_values(self, identity: tuple[int, int] | None) -> None:
+        """Give every number object without a value a zero, and 0x1018 an identity (the EDS may have no
+        product code), as a powered-up device has."""
+        od = self.node.object_dictionary
+        for index in od:
+            obj = od[index]
+            variables = [obj] if isinstance(obj, ODVariable) else [obj[s] for s in obj]
+            for var in variables:
+                if var.value is None and var.default is None and var.data_type in NUMBER_TYPES:
+                    self._store(var.index, var.subindex, var.encode_raw(0))
+        info = od.device_information
+        if self.has(0x1018, 2) and info.product_number is not None and self._int(0x1018, 2) == 0:
+            self.set_value(0x1018, 2, int(info.product_number))
+        if self.has(0x1018, 4) and self._int(0x1018, 4) == 0:
+            self.set_value(0x1018, 4, self.node.id)  # a serial number that tells drives apart
+        if identity is not None:
+            self.set_value(0x1018, 1, identity[0])
+            self.set_value(0x1018, 2, identity[1])
+
+    def _clear_pdos(self) -> None:
+        for comm, mapping, slots in ((RPDO_COMM, RPDO_MAP, self._rx_slots), (TPDO_COMM, TPDO_MAP, self._tx_slots)):
+            for n in slots:
+                self._store(comm + n, 1, (self._int(comm + n, 1) | PDO_INVALID).to_bytes(4, "little"))
+                if self.has(comm + n, 2):
+                    self._store(comm + n, 2, bytes([255]))
+                if self.has(mapping + n, 0):
+                    self._store(mapping + n, 0, bytes([0]))
+                    for sub in range(1, self._map_capacity(mapping + n) + 1):
+                        self._store(mapping + n, sub, bytes(4))
+
+    def _map_capacity(self, map_index: int) -> int:
+        obj = self.node.object_dictionary[map_index]
+        return max((s for s in obj if isinstance(s, int)), default=0) if isinstance(obj, (ODRecord, ODArray)) else 0
+
+    # --- the PDO configuration ---------------------------------------------------------------------------------
+
+    def _slot(self, comm: int, mapping: int, n: int) -> _PdoSlot:
+        cob = self._int(comm + n, 1, PDO_INVALID)
+        count = self._int(mapping + n, 0)
+        entries = []
+        for sub in range(1, count + 1):
+            value = self._int(mapping + n, sub)
+            entries.append((value >> 16, (value >> 8) & 0xFF, value & 0xFF))
+        return _PdoSlot(
+            number=n + 1,
+            can_id=cob & (COB_ID_MASK if cob & COB_EXTENDED else 0x7FF),
+            extended=bool(cob & COB_EXTENDED),
+            valid=not cob & PDO_INVALID,
+            transmission=self._int(comm + n, 2, 255),
+            sync_start=self._int(comm + n, 6),
+            entries=tuple(entries),
+        )
+
+    def _rebuild(self) -> None:
+        self._dirty = False
+        self._sync_id = self._int(0x1005, 0, 0x80) & 0x7FF
+        self._tpdos = tuple(self._slot(TPDO_COMM, TPDO_MAP, n) for n in self._tx_slots)
+        rpdos = (self._slot(RPDO_COMM, RPDO_MAP, n) for n in self._rx_slots)
+        self._rpdos = {(slot.can_id, slot.extended): slot for slot in rpdos if slot.valid}
+
+    def pdo_slots(self) -> tuple[tuple[str, int, int, bool, int, tuple[tuple[int, int, int], ...]], ...]:
+        """(kind, number, CAN id, valid, transmission type, entries) of every PDO, as the drive holds them now."""
+        rx = [self._slot(RPDO_COMM, RPDO_MAP, n) for n in self._rx_slots]
+        tx = [self._slot(TPDO_COMM, TPDO_MAP, n) for n in self._tx_slots]
+        return tuple(
+            (kind, s.number, s.can_id, s.valid, s.transmission, s.entries)
+            for kind, slots in (("rpdo", rx), ("tpdo", tx))
+            for s in slots
+        )
+
+    # --- SDO writes: faults and CiA 301 checks --------------------------------------------------------------------
+
+    def _on_sdo_write(self, index: int, subindex: int, od: ODVariable, data: bytes, **_: Any) -> None:
+        if index in self.abort_writes:
+            raise SdoAbortedError(self.abort_writes[index])
+        if self.strict_pdo_writes:
+            self._check_pdo_write(index, subindex, od, data)
+        self.sdo_writes.append((index, subindex))
+        if index == 0x1005 or RPDO_COMM <= index < TPDO_MAP + PDO_SLOTS:
+            self._dirty = True  # LocalNode stores the value after this callback; re-read it at the next frame
+
+    def _check_pdo_write(self, index: int, sub: int, od: ODVariable, data: bytes) -> None:
+        is_map = RPDO_MAP <= index < RPDO_MAP + PDO_SLOTS or TPDO_MAP <= index < TPDO_MAP + PDO_SLOTS
+        is_comm = RPDO_COMM <= index < RPDO_COMM + PDO_SLOTS or TPDO_COMM <= index < TPDO_COMM + PDO_SLOTS
+        if not (is_map or is_comm) or od.data_type not in NUMBER_TYPES:
+            return
+        value = int(od.decode_raw(data))
+        if is_comm:
+            if sub == 1:
+                old = self._int(index, 1, PDO_INVALID)
+                # CiA 301: the identifier of a valid PDO cannot change; disable it first
+                if not old & PDO_INVALID and not value & PDO_INVALID and (old ^ value) & COB_ID_MASK:
+                    raise SdoAbortedError(ABORT_VALUE_RANGE)
+            return
+        comm = index - 0x200
+        if not self._int(comm, 1, PDO_INVALID) & PDO_INVALID:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)  # mapping of a valid PDO
+        if sub == 0:
+            if value > self._map_capacity(index):
+                raise SdoAbortedError(ABORT_PDO_LENGTH)
+            if sum(self._int(index, s) & 0xFF for s in range(1, value + 1)) > MAX_PDO_BITS:
+                raise SdoAbortedError(ABORT_PDO_LENGTH)
+            return
+        if self._int(index, 0) != 0:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)  # entries change only while sub-index 0 is 0
+        if value == 0:
+            return
+        target, target_sub, bits = value >> 16, (value >> 8) & 0xFF, value & 0xFF
+        if 0x0001 <= target <= 0x0007:  # dummy entries (CiA 301 data types) just reserve bits
+            return
+        var = self._variable(target, target_sub)
+        if var is None or not var.pdo_mappable or bits == 0 or bits > len(var):
+            raise SdoAbortedError(ABORT_NOT_MAPPABLE)
+
+    # --- the bus ------------------------------------------------------------------------------------------------------
+
+    def attach(self, bus: can.BusABC, *, listen: bool = True) -> None:
+        """Join a python-can bus: boot up (boot-up message, PRE-OPERATIONAL) and, with listen, serve it from a
+        python-can Notifier thread. Without listen the caller feeds every frame to on_frame()."""
+        if self.network is not None:
+            raise RuntimeError(f"{self.name} is already attached to a bus")
+        self.bus = bus
+        self.network = canopen.Network(bus)
+        self.network.add_node(self.node)
+        if not self.silent:
+            self.node.nmt.send_command(0x81)  # reset node: the boot-up message (0x700 + id, 0x00)
+            self.node.nmt.send_command(0x80)  # then PRE-OPERATIONAL, as CiA 301 devices boot
+        if listen:
+            self._notifier = can.Notifier(bus, [self.on_frame], timeout=0.05)
+
+    def detach(self) -> None:
+        """Stop serving the bus (the bus itself stays open: its owner shuts it down)."""
+        if self._notifier is not None:
+            self._notifier.stop(timeout=2.0)
+            self._notifier = None
+        self.node.nmt.stop_heartbeat()
+        if self.network is not None:
+            del self.network[self.node.id]  # type: ignore[arg-type]  # a LocalNode's id is always set
+            self.network = None
+        self.bus = None
+
+    def on_frame(self, msg: can.Message) -> None:
+        """Handle one received frame."""
+        if self.silent or msg.is_error_frame or msg.is_remote_frame or self.network is None:
+            return
+        try:
+            self._handle(msg)
+        except Exception as exc:  # a bad frame must not stop the drive; keep it for the test to see
+            log.exception("%s: error handling frame 0x%X", self.name, msg.arbitration_id)
+            self.errors.append(f"frame 0x{msg.arbitration_id:X}: {exc!r}")
+
+    def _handle(self, msg: can.Message) -> None:
+        assert self.network is not None
+        if self._dirty:
+            self._rebuild()
+        can_id, extended, data = msg.arbitration_id, bool(msg.is_extended_id), bytes(msg.data)
+        operational = self.node.nmt.state == "OPERATIONAL"
+        if can_id == self._sync_id and not extended:
+            if operational:
+                self._on_sync(data)
+            return
+        rpdo = self._rpdos.get((can_id, extended))
+        if rpdo is not None:
+            if operational:
+                self._on_rpdo(rpdo, data)
+            return
+        self.network.notify(can_id, bytearray(data), msg.timestamp)  # SDO server, NMT slave
+        if not operational and self.node.nmt.state == "OPERATIONAL":
+            self._sync_counts.clear()  # "every n-th SYNC" counts from the start
+            self._sync_started.clear()
+            self._last_acyclic.clear()
+            self._pending.clear()
+            self._rebuild()
+
+    def _on_sync(self, data: bytes) -> None:
+        assert self.network is not None
+        self.syncs += 1
+        counter = data[0] if data else None
+        for slot, payload in self._pending.values():
+            self._apply(slot, payload)
+        self._pending.clear()
+        if self.model is not None:
+            self.model(self)
+        if self.response_delay_s > 0:
+            self.clock.sleep_until(self.clock.now() + self.response_delay_s)
+        for slot in self._tpdos:
+            if not slot.valid or not slot.entries:
+                continue
+            tt = slot.transmission
+            if 1 <= tt <= 240:
+                if slot.sync_start and counter is not None and slot.number not in self._sync_started:
+                    if counter != slot.sync_start:
+                        continue  # CiA 301: the first SYNC counted is the one carrying the start value
+                    self._sync_started.add(slot.number)
+                count = self._sync_counts.get(slot.number, 0) + 1
+                self._sync_counts[slot.number] = count
+                if count % tt == 0:
+                    self._send(slot, self._pack(slot))
+            elif tt == 0:
+                payload = self._pack(slot)  # acyclic synchronous: sent at a SYNC after its data changed
+                if self._last_acyclic.get(slot.number) != payload:
+                    self._last_acyclic[slot.number] = payload
+                    self._send(slot, payload)
+
+    def _send(self, slot: _PdoSlot, payload: bytes) -> None:
+        assert self.network is not None and self.bus is not None
+        with self.network.send_lock:
+            self.bus.send(can.Message(arbitration_id=slot.can_id, is_extended_id=slot.extended, data=payload))
+        self.tpdos_sent += 1
+
+    def _pack(self, slot: _PdoSlot) -> bytes:
+        """The mapped objects' current values, least significant bit first (CiA 301 PDO layout)."""
+        acc, offset = 0, 0
+        for index, sub, bits in slot.entries:
+            raw = 0
+            if not 0x0001 <= index <= 0x0007:
+                raw = int.from_bytes(self.node.get_data(index, sub), "little") & ((1 << bits) - 1)
+            acc |= raw << offset
+            offset += bits
+        return acc.to_bytes((offset + 7) // 8, "little")
+
+    def _on_rpdo(self, slot: _PdoSlot, data: bytes) -> None:
+        if 8 * len(data) < slot.bits:
+            self.rpdo_length_errors += 1
+            return
+        if slot.transmission <= 240:
+            self._pending[slot.number] = (slot, data)  # synchronous RPDO: takes effect at the next SYNC
+        else:
+            self._apply(slot, data)
+
+    def _apply(self, slot: _PdoSlot, data: bytes) -> None:
+        acc, offset = int.from_bytes(data, "little"), 0
+        for index, sub, bits in slot.entries:
+            raw = (acc >> offset) & ((1 << bits) - 1)
+            offset += bits
+            var = self._variable(index, sub)
+            if var is None:
+                continue  # dummy entry
+            size = len(var)
+            if var.data_type in SIGNED_TYPES and bits < size and raw >> (bits - 1):
+                raw |= ((1 << size) - 1) ^ ((1 << bits) - 1)  # sign-extend a shortened signed value
+            self._store(index, sub, raw.to_bytes(max(size // 8, (bits + 7) // 8), "little"))
+        self.rpdos_applied += 1
+
+
+class DriveBench:
+    """The configured CANopen slaves of a runtime config as SimulatedDrives on python-can `channel`, built from
+    `<canopen_dir>/<node>.eds`.
+
+        with DriveBench(cfg, "generated/allex2/canopen", channel="bench") as bench:
+            ...  # a master on can.Bus(interface="virtual", channel="bench")
+
+    By default the drives share one bus connection served by one thread, which hands every frame to each drive: on
+    a virtual bus every connection receives every frame, so six connections would mean six threads waking for each
+    of the others' frames and competing for the interpreter lock within the master's read window.
+    `separate_connections=True` gives each drive its own connection and thread instead (closer to separate
+    devices; needs more CPU). `options` gives per-node SimulatedDrive arguments (faults, delays) over the common
+    `drive_options`.
+    """
+
+    def __init__(
+        self,
+        cfg: RuntimeConfig,
+        canopen_dir: str | Path,
+        *,
+        channel: str,
+        interface: str = "virtual",
+        bus_name: str | None = None,
+        nodes: Iterable[str] | None = None,
+        options: Mapping[str, Mapping[str, Any]] | None = None,
+        separate_connections: bool = False,
+        **drive_options: Any,
+    ) -> None:
+        bus = _canopen_bus(cfg, bus_name)
+        wanted = set(nodes) if nodes is not None else None
+        self.channel, self.interface = channel, interface
+        self.separate_connections = separate_connections
+        self._notifier: can.Notifier | None = None
+        self.drives: dict[str, SimulatedDrive] = {}
+        self._buses: list[can.BusABC] = []
+        for name in bus.nodes:
+            node = cfg.node(name)
+            if node.role == "master" or node.node_id is None or (wanted is not None and name not in wanted):
+                continue
+            kwargs = {**drive_options, **(options or {}).get(name, {})}
+            self.drives[name] = SimulatedDrive(node.node_id, Path(canopen_dir) / f"{name}.eds", name=name, **kwargs)
+
+    def start(self) -> DriveBench:
+        if self.separate_connections:
+            for drive in self.drives.values():
+                bus = can.Bus(interface=self.interface, channel=self.channel)
+                self._buses.append(bus)
+                drive.attach(bus)
+            return self
+        bus = can.Bus(interface=self.interface, channel=self.channel)
+        self._buses.append(bus)
+        for drive in self.drives.values():
+            drive.attach(bus, listen=False)
+        self._notifier = can.Notifier(bus, [self._dispatch], timeout=0.05)
+        return self
+
+    def _dispatch(self, msg: can.Message) -> None:
+        for drive in self.drives.values():
+            drive.on_frame(msg)
+
+    def stop(self) -> None:
+        if self._notifier is not None:
+            self._notifier.stop(timeout=2.0)
+            self._notifier = None
+        for drive in self.drives.values():
+            drive.detach()
+        for bus in self._buses:
+            bus.shutdown()
+        self._buses.clear()
+
+    def __enter__(self) -> DriveBench:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def __getitem__(self, name: str) -> SimulatedDrive:
+        return self.drives[name]
+
+
+def _canopen_bus(cfg: RuntimeConfig, bus_name: str | None) -> Any:
+    if bus_name is not None:
+        return cfg.bus(bus_name)
+    buses = [b for b in cfg.buses if b.canopen is not None]
+    if len(buses) != 1:
+        names = ", ".join(b.name for b in buses) or "none"
+        raise ValueError(f"{cfg.system}: say which CANopen bus (bus_name); it has {names}")
+    return buses[0]

@@ -1,0 +1,423 @@
+"""The live CANopen master (netcfg.runtime.canopen_master) against simulated drives (netcfg.runtime.drives) that are
+real CANopen peers: canopen.LocalNode objects built from the generated EDS files, on python-can's `virtual` bus.
+
+Everything about the network comes from generated/allex2/runtime.json and the EDS/DCF files beside it. Numbers:
+- 6 drives, node ids 1-6, 2 synchronous TxPDOs each (12 frames per cycle), SYNC every T = 20 ms, 10 ms read window:
+  specs/allex2.yaml, after seed 000 section 4.4.2 ("collecting all the 12 frames or until the time slot for reading
+  (10 ms) runs out").
+- 400 cycles = 8 s gait cycle / 20 ms (seed 000 section 4.4.2: "the gait cycle lasts 8 s; thus, there are 400
+  samples").
+- PDO configuration values: runtime.json itself (the read-back must equal it); COB-ID flag bits and transmission type
+  meaning: CiA 301 (bit 31 = PDO not valid, bit 30 = no RTR; type n = every n-th SYNC; 255 = on receipt).
+- Interpolation time period 0x60C2 = (20, -3): CiA 402, value * 10^index s = the 20 ms SYNC period.
+- SDO abort codes: CiA 301 table 22 (0x06040041 object cannot be mapped, 0x08000022 refused in present state).
+"""
+
+from __future__ import annotations
+
+import csv
+import heapq
+import itertools
+import json
+import threading
+import uuid
+from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import can
+import canopen
+import pytest
+from canopen.sdo import SdoAbortedError
+from conftest import ROOT
+
+import netcfg.runtime as rt
+from netcfg.runtime.canopen_master import (
+    MasterCycle,
+    configure_network,
+    identities_from_dir,
+    identity_from_eds,
+    interpolation_period,
+)
+from netcfg.runtime.clock import SystemClock
+from netcfg.runtime.drives import DriveBench, SimulatedDrive
+
+GENERATED = ROOT / "generated" / "allex2"
+CANOPEN_DIR = GENERATED / "canopen"
+JOINTS = ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r")  # specs/allex2.yaml, node ids 1..6
+CYCLES = 400  # seed 000 section 4.4.2: 8 s gait cycle / 20 ms
+FRAMES_PER_CYCLE = 12  # seed 000 section 4.4.2: 6 drives x 2 TxPDOs
+
+
+@pytest.fixture(scope="module")
+def cfg() -> rt.RuntimeConfig:
+    return rt.load(GENERATED / "runtime.json")
+
+
+@pytest.fixture(autouse=True)
+def no_leaked_threads() -> Iterator[None]:
+    """Every Notifier thread the drives, the set-up and canopen start is stopped by the end of the test."""
+    before = set(threading.enumerate())
+    yield
+    left = [t for t in threading.enumerate() if t not in before and t.is_alive()]
+    assert left == [], left
+
+
+@pytest.fixture
+def channel(request: pytest.FixtureRequest) -> str:
+    """A virtual CAN channel no other test shares."""
+    return f"netcfg-{request.node.name}-{uuid.uuid4().hex[:8]}"
+
+
+@pytest.fixture
+def master_bus(channel: str) -> Iterator[can.BusABC]:
+    bus = can.Bus(interface="virtual", channel=channel)
+    yield bus
+    bus.shutdown()
+
+
+def pdo_config(
+    cfg: rt.RuntimeConfig, node: str
+) -> dict[tuple[str, int], tuple[int, int, tuple[tuple[int, int, int], ...]]]:
+    """{(kind, number): (CAN id, transmission type, mapping)} of a node's PDOs as runtime.json gives them."""
+    return {
+        (m.pdo.kind, m.pdo.number): (m.id, m.pdo.transmission, tuple((e.index, e.sub, e.bits) for e in m.pdo.entries))
+        for m in cfg.messages
+        if m.pdo is not None and m.pdo.node == node
+    }
+
+
+def read_back_with_canopen(channel: str, node_id: int, eds: Path) -> dict[tuple[str, int], Any]:
+    """Read a node's PDO configuration with canopen's own PDO reader (RemoteNode.tpdo/rpdo.read(), over SDO),
+    an implementation independent of the master's read-back."""
+    network = canopen.Network()
+    network.NOTIFIER_CYCLE = 0.05  # so disconnect() does not wait a second for the Notifier
+    network.connect(interface="virtual", channel=channel)
+    try:
+        node = network.add_node(node_id, str(eds))
+        node.rpdo.read()
+        node.tpdo.read()
+        return {
+            (kind, number): (p.cob_id, p.enabled, p.trans_type, tuple((v.index, v.subindex, v.length) for v in p.map))
+            for kind, maps in (("rpdo", node.rpdo), ("tpdo", node.tpdo))
+            for number, p in maps.map.items()
+        }
+    finally:
+        network.disconnect()
+
+
+def gait_commands(i: int, samples: Mapping[str, Mapping[str, float]]) -> dict[str, dict[str, int]]:
+    """Cycle i, joint j: target velocity 100 j + i, velocity offset -j (values that differ per joint and cycle, so a
+    frame sent to the wrong drive or answered in the wrong cycle shows)."""
+    return {f"{joint}_cmd": {"target_velocity": 100 * j + i, "velocity_offset": -j} for j, joint in enumerate(JOINTS)}
+
+
+def test_master_configures_six_drives_and_runs_400_cycles(
+    cfg: rt.RuntimeConfig, channel: str, master_bus: can.BusABC, tmp_path: Path
+) -> None:
+    with DriveBench(cfg, CANOPEN_DIR, channel=channel) as bench:
+        assert sorted(bench.drives) == sorted(JOINTS)
+        # factory state: nothing configured, so every value below comes from the master's SDO writes
+        assert all(not valid for _, _, _, valid, _, _ in bench["hip_l"].pdo_slots())
+
+        report = configure_network(cfg, master_bus, identities=identities_from_dir(cfg, CANOPEN_DIR))
+        print(report)
+        assert report.ok, str(report)
+        for joint in JOINTS:
+            setup = report.node(joint)
+            assert setup.started
+            assert setup.interpolation == (20, -3)  # CiA 402 0x60C2 for the 20 ms SYNC period
+            assert bench[joint].value(0x60C2, 1) == 20 and bench[joint].value(0x60C2, 2) == -3
+            want = pdo_config(cfg, joint)
+            # the master's own read-back
+            got = {(p.kind, p.number): (p.can_id, p.transmission, p.entries) for p in setup.pdos}
+            assert got == want
+            assert all(p.valid for p in setup.pdos)
+            # canopen's independent read-back over SDO: the configured PDOs enabled as runtime.json says, the
+            # predefined ones the spec does not use (RPDO3/4, TPDO3/4) disabled
+            node_id = cfg.node(joint).node_id
+            assert node_id is not None
+            seen = read_back_with_canopen(channel, node_id, CANOPEN_DIR / f"{joint}.eds")
+            for key, (can_id, transmission, entries) in want.items():
+                assert seen[key] == (can_id, True, transmission, entries), (joint, key)
+            assert {key for key, (_, enabled, _, _) in seen.items() if enabled} == set(want)
+
+        run = MasterCycle(cfg, master_bus, SystemClock(), commands=gait_commands).run(CYCLES)
+
+    print()
+    print(run.summary())
+    stats = run.period_stats()
+    print(
+        "seed 000 section 5.2 (220 gait cycles of 8 s on a Raspberry Pi 4B): gait-cycle error mean 1.266 ms, "
+        "std 1.3345 ms; worst case 20.013 ms per 20 ms sample (95 % bound 5.2386 ms / 400)"
+    )
+    print(
+        f"here (python-can virtual bus, SystemClock, one run of {run.cycles} cycles): per-period error mean "
+        f"{1e3 * stats.errors.mean_s:.4f} ms, std {1e3 * stats.errors.std_s:.4f} ms, max {1e3 * stats.errors.max_s:.4f}"
+        f" ms; run error {1e3 * stats.run_error_s:+.4f} ms (mean period {1e3 * stats.run_s / run.cycles:.4f} ms)"
+    )
+    print(
+        "seed 000 Table 5: reading mean 1.1711 ms (max 2.68297), writing mean 0.3275 ms (max 8.5573); here: "
+        f"reading {run.read_stats().ms()}; writing {run.write_stats().ms()}"
+    )
+
+    assert run.cycles == CYCLES
+    assert len(run.expected) == FRAMES_PER_CYCLE
+    assert run.missing == 0, run.missing_by_message()
+    assert run.missing_by_node() == dict.fromkeys(JOINTS, 0)
+    assert {joint: run.complete_samples(joint) for joint in JOINTS} == dict.fromkeys(JOINTS, CYCLES)
+    assert run.late == 0
+    # end to end: RxPDO1 (type 255, applied on receipt) goes out before the SYNC in Figure 7's order, so the TxPDO1
+    # answering cycle i's SYNC carries cycle i's command: velocity actual = target + offset (drives.follow_velocity)
+    for rec in run.records:
+        for j, joint in enumerate(JOINTS):
+            assert rec.values[f"{joint}_state"]["velocity_actual_value"] == 100 * j + rec.index - j
+
+    path = run.write_csv(tmp_path / "gait.csv")
+    with path.open(newline="", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == CYCLES
+    assert list(rows[0]) == run.columns()
+    value_columns = [f"{m}.{f}" for m in run.expected for f in run.fields[m]]
+    assert value_columns[:2] == ["hip_l_state.position_actual_value", "hip_l_state.velocity_actual_value"]
+    for rec, row in zip(run.records, rows):
+        assert int(row["cycle"]) == rec.index
+        assert row["missing"] == ""
+        for m in run.expected:
+            for f in run.fields[m]:
+                assert int(row[f"{m}.{f}"]) == rec.values[m][f]
+
+
+def test_setup_errors_are_per_node_and_leave_the_others_alone(
+    cfg: rt.RuntimeConfig, channel: str, master_bus: can.BusABC
+) -> None:
+    """hip_l has the wrong identity, knee_l never answers, ankle_l aborts SDO writes to 0x1A01 (TPDO2 mapping)."""
+    faults = {
+        "hip_l": {"identity": (0x12345678, 0x00000042)},
+        "knee_l": {"silent": True},
+        "ankle_l": {"abort_writes": {0x1A01: 0x06040041}},
+    }
+    with DriveBench(cfg, CANOPEN_DIR, channel=channel, options=faults) as bench:
+        report = configure_network(cfg, master_bus, identities=identities_from_dir(cfg, CANOPEN_DIR), sdo_timeout_s=0.2)
+        print(report)
+        assert [n.node for n in report.failed] == ["hip_l", "knee_l", "ankle_l"]
+
+        wrong = report.node("hip_l")
+        assert wrong.step == "identity" and wrong.identity == (0x12345678, 0x42)
+        assert wrong.error is not None
+        assert "wrong device" in wrong.error and "0x12345678" in wrong.error and "0x000000FB" in wrong.error
+        assert "node id" in wrong.error  # what to do
+        assert bench["hip_l"].sdo_writes == []  # nothing written to the wrong device
+
+        silent = report.node("knee_l")
+        assert silent.step == "identity" and silent.error is not None
+        assert "no answer" in silent.error and "node id 2" in silent.error and "1000 kbit/s" in silent.error
+        assert bench["knee_l"].sdo_writes == []
+
+        aborted = report.node("ankle_l")
+        assert aborted.abort_code == 0x06040041 and aborted.error is not None
+        assert "0x1A01" in aborted.error and "TPDO2" in aborted.error and "PRE-OPERATIONAL" in aborted.error
+        slots = {(kind, number): valid for kind, number, _, valid, _, _ in bench["ankle_l"].pdo_slots()}
+        assert slots[("rpdo", 1)] and slots[("rpdo", 2)] and slots[("tpdo", 1)]  # written before the abort
+        assert not slots[("tpdo", 2)]  # disabled by the master, then the mapping write aborted
+        assert bench["ankle_l"].node.nmt.state == "PRE-OPERATIONAL"
+
+        for joint in ("hip_r", "knee_r", "ankle_r"):
+            assert report.node(joint).ok and report.node(joint).started
+            assert bench[joint].node.nmt.state == "OPERATIONAL"
+
+        # the failed nodes were never started: their TxPDOs are counted missing, every cycle, and not filled in
+        run = MasterCycle(cfg, master_bus, SystemClock()).run(5)
+    print(run.summary())
+    assert run.missing_by_node() == {"hip_l": 10, "knee_l": 10, "ankle_l": 10, "hip_r": 0, "knee_r": 0, "ankle_r": 0}
+    assert all("hip_l_state" not in rec.values for rec in run.records)
+    assert all(row[run.columns().index("hip_l_state.velocity_actual_value")] == "" for row in run.rows())
+    assert [run.complete_samples(j) for j in ("hip_r", "knee_r", "ankle_r")] == [5, 5, 5]
+
+
+def test_read_back_catches_a_drive_that_keeps_other_values(
+    cfg: rt.RuntimeConfig, channel: str, master_bus: can.BusABC
+) -> None:
+    """A drive that acknowledges the write of TPDO1's transmission type (1 in runtime.json) but keeps 255: the
+    master's read-back reports the difference, and the node is not started."""
+    with DriveBench(cfg, CANOPEN_DIR, channel=channel, nodes=["hip_l"]) as bench:
+        node = bench["hip_l"].node
+        store = node.set_data
+
+        def stubborn(index: int, subindex: int, data: bytes, check_writable: bool = False) -> None:
+            store(index, subindex, bytes([255]) if (index, subindex) == (0x1800, 2) else data, check_writable)
+
+        node.set_data = stubborn  # type: ignore[method-assign]
+        report = configure_network(cfg, master_bus, nodes=["hip_l"])
+        assert node.nmt.state == "PRE-OPERATIONAL"
+    setup = report.node("hip_l")
+    assert not setup.ok and not setup.started and setup.step == "read-back"
+    assert setup.error is not None and "TPDO1 (hip_l_state) transmission type reads 255, 1 written" in setup.error
+
+
+def test_transmission_type_n_answers_every_nth_sync(
+    cfg: rt.RuntimeConfig, channel: str, master_bus: can.BusABC
+) -> None:
+    """A config whose hip_l_effort has transmission type 2: CiA 301 sends it at every 2nd SYNC, so over 6 cycles
+    the master expects it at SYNCs 2, 4, 6 only, and the drive sends 6 state + 3 effort frames."""
+    data = json.loads((GENERATED / "runtime.json").read_text(encoding="utf-8"))
+    for msg in data["messages"]:
+        if msg["name"] == "hip_l_effort":
+            msg["pdo"]["transmission"] = 2
+    cfg2 = rt.parse(data)
+    with DriveBench(cfg2, CANOPEN_DIR, channel=channel, nodes=["hip_l"]) as bench:
+        report = configure_network(cfg2, master_bus, nodes=["hip_l"])
+        assert report.ok, str(report)
+        run = MasterCycle(cfg2, master_bus, SystemClock(), nodes=["hip_l"]).run(6)
+        sent = bench["hip_l"].tpdos_sent
+    assert [rec.due for rec in run.records] == [
+        ("hip_l_state",),
+        ("hip_l_state", "hip_l_effort"),
+        ("hip_l_state",),
+        ("hip_l_state", "hip_l_effort"),
+        ("hip_l_state",),
+        ("hip_l_state", "hip_l_effort"),
+    ]
+    assert run.missing == 0 and run.late == 0
+    assert sent == 6 + 3
+
+
+def test_drive_slower_than_the_read_window_is_counted_missing(
+    cfg: rt.RuntimeConfig, channel: str, master_bus: can.BusABC
+) -> None:
+    """A drive that answers 15 ms after the SYNC misses the 10 ms read window (specs/allex2.yaml) every cycle: its
+    2 TxPDOs are missing in each of 3 cycles, and found queued - late - before the next SYNC."""
+    with DriveBench(cfg, CANOPEN_DIR, channel=channel, nodes=["hip_l"], response_delay_s=0.015):
+        assert configure_network(cfg, master_bus, nodes=["hip_l"]).ok
+        run = MasterCycle(cfg, master_bus, SystemClock(), nodes=["hip_l"]).run(3)
+    assert [rec.missing for rec in run.records] == [("hip_l_state", "hip_l_effort")] * 3
+    assert [rec.late for rec in run.records] == [0, 2, 2]
+    assert run.complete_samples("hip_l") == 0
+
+
+def test_drive_refuses_mapping_a_valid_pdo(cfg: rt.RuntimeConfig, channel: str) -> None:
+    """CiA 301: a PDO's mapping may change only while the PDO is disabled (bit 31 of its COB-ID) and sub-index 0 is
+    0; otherwise the device aborts (0x08000022). An object that is not PDO-mappable (0x1018:1, PDOMapping=0 in the
+    EDS) aborts with 0x06040041."""
+    drive = SimulatedDrive(1, CANOPEN_DIR / "hip_l.eds", name="hip_l", clear_pdos=False)
+    drive_bus = can.Bus(interface="virtual", channel=channel)
+    drive.attach(drive_bus)
+    network = canopen.Network()
+    network.NOTIFIER_CYCLE = 0.05
+    network.connect(interface="virtual", channel=channel)
+    try:
+        node = network.add_node(1, canopen.ObjectDictionary())
+        # hip_l.eds: TPDO1 enabled (0x40000181) with two entries
+        with pytest.raises(SdoAbortedError) as exc:
+            node.sdo.download(0x1A00, 1, (0x60640020).to_bytes(4, "little"))
+        assert exc.value.code == 0x08000022
+        node.sdo.download(0x1800, 1, (0xC0000181).to_bytes(4, "little"))  # disable
+        node.sdo.download(0x1A00, 0, b"\x00")
+        with pytest.raises(SdoAbortedError) as exc:
+            node.sdo.download(0x1A00, 1, (0x10180120).to_bytes(4, "little"))
+        assert exc.value.code == 0x06040041
+        node.sdo.download(0x1A00, 1, (0x60640020).to_bytes(4, "little"))  # position actual value: mappable
+    finally:
+        network.disconnect()
+        drive.detach()
+        drive_bus.shutdown()
+    assert drive.errors == []
+
+
+def test_expected_identity_and_interpolation_period() -> None:
+    """hip_l.dcf [DeviceInfo]: VendorNumber 0x000000FB (maxon, netcfg/devices/profiles/epos4.yaml) and
+    ProductNumber 0 (the profile leaves the variant's code open), so only the vendor is checked."""
+    ident = identity_from_eds(CANOPEN_DIR / "hip_l.dcf")
+    assert (ident.vendor_id, ident.product_code) == (0x000000FB, None)
+    # CiA 402 0x60C2: value * 10^index s
+    assert interpolation_period(20_000_000) == (20, -3)
+    assert interpolation_period(2_500_000) == (25, -4)
+    assert interpolation_period(500_000_000) == (50, -2)
+    assert interpolation_period(20_000_001) is None
+
+
+def test_system_clock_never_returns_early() -> None:
+    clock = SystemClock()
+    for delay in (0.0, 0.0002, 0.002):
+        target = clock.now() + delay
+        clock.sleep_until(target)
+        assert clock.now() >= target
+
+
+class VirtualClock:
+    """Virtual time for the master cycle: it moves only when the bus or a wait moves it."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def now(self) -> float:
+        return self.t
+
+    def sleep_until(self, t: float) -> None:
+        self.t = max(self.t, t)
+
+
+class ScriptedBus(can.BusABC):
+    """A python-can bus in virtual time: each frame sent takes 0.1 ms, each SYNC is answered with the frames
+    `answers(sync_number)` gives as (delay after the SYNC, frame), and recv(timeout) advances the clock. It overrides
+    recv() itself: BusABC.recv() re-checks its timeout against the wall clock."""
+
+    def __init__(self, clock: VirtualClock, answers: Callable[[int], list[tuple[float, can.Message]]]) -> None:
+        super().__init__(channel="scripted")
+        self.clock, self.answers = clock, answers
+        self.queue: list[tuple[float, int, can.Message]] = []
+        self.order = itertools.count()
+        self.syncs = 0
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.clock.t += 0.0001
+        if msg.arbitration_id == 0x80:
+            self.syncs += 1
+            for delay, frame in self.answers(self.syncs):
+                heapq.heappush(self.queue, (self.clock.t + delay, next(self.order), frame))
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        wait = timeout or 0.0
+        if self.queue and self.queue[0][0] <= self.clock.t + wait:
+            t, _, frame = heapq.heappop(self.queue)
+            self.clock.t = max(self.clock.t, t)
+            return frame
+        self.clock.t += wait
+        return None
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        return None, False
+
+
+def test_cycle_in_virtual_time_keeps_eq1_and_counts_missing_frames(cfg: rt.RuntimeConfig) -> None:
+    """The same MasterCycle on a bus and clock in virtual time (the simulator's contract). Every TxPDO answers
+    0.5 ms + 0.1 ms x its rank after the SYNC, except: SYNC 3 gets no knee_r_effort (missing in cycle 2), and
+    SYNC 5's hip_r_state comes after the 10 ms read window (missing in cycle 4, found queued - late - in cycle 5).
+    With K = 1 ms, eq. (1) ends each iteration at start + T - K, so every period is exactly 19 ms."""
+    tpdos = [m for m in cfg.messages if m.pdo is not None and m.pdo.kind == "tpdo"]
+
+    def answers(sync: int) -> list[tuple[float, can.Message]]:
+        out = []
+        for rank, m in enumerate(tpdos):
+            if sync == 3 and m.name == "knee_r_effort":
+                continue
+            delay = 0.012 if sync == 5 and m.name == "hip_r_state" else 0.0005 + 0.0001 * rank
+            out.append((delay, m.to_can(**{f.name: rank for f in m.fields})))
+        return out
+
+    clock = VirtualClock()
+    bus = ScriptedBus(clock, answers)
+    run = MasterCycle(cfg, bus, clock, k_s=0.001).run(CYCLES)
+    bus.shutdown()
+    print(run.summary())
+    assert [rec.missing for rec in run.records if rec.missing] == [("knee_r_effort",), ("hip_r_state",)]
+    assert [rec.index for rec in run.records if rec.missing] == [2, 4]
+    assert [rec.index for rec in run.records if rec.late] == [5]
+    assert run.missing_by_node() == {**dict.fromkeys(JOINTS, 0), "knee_r": 1, "hip_r": 1}
+    assert run.complete_samples("knee_r") == CYCLES - 1 and run.complete_samples("hip_l") == CYCLES
+    for rec in run.records:
+        assert rec.period_s == pytest.approx(0.019, abs=1e-9)
+        assert rec.waiting_s == pytest.approx(0.020 - rec.processing_s - 0.001, abs=1e-9)
+    assert run.period_stats().run_s == pytest.approx(CYCLES * 0.019, abs=1e-6)
+    knee_r = [row[run.columns().index("knee_r_effort.torque_actual_value")] for row in run.rows()]
+    assert knee_r[2] == "" and knee_r.count("") == 1
