@@ -1,0 +1,583 @@
+"""Switched full-duplex Ethernet/UDP, frame by frame, with the model netcfg.timing.ethernet analyses.
+
+Every cable is two links, one per direction, each with its own FIFO transmitter at the bus bitrate. A frame of a
+message with `size` data bytes carries the 1-byte application message id too (seed 001, Table 6.1), so it takes
+udp_frame_ns(size + 1) on every link, padded to the 84-byte minimum (seed 001, eq. 6.4). Along its tree path the
+frame is: released on its producer's drifting clock, handed to the NIC after the node's tx_delay (Tpre), queued
+FIFO on the node's link, received completely by the switch (store and forward) after the cable's propagation time,
+queued after the switch's latency (Tmux) on each egress port it leaves by (a multicast once per port), and
+delivered to a consumer rx_delay (Tpost) after it has been received completely there. A receiving node may also
+consume frames one after another (a FIFO server whose service time lies between a BCET and a WCET), which gives a
+separate "processed" latency; flows and message-activated tasks see the delivery, as the analysis does.
+
+Egress queues are finite (`queue_frames`, counting the frame being sent): a frame that finds its port full is
+dropped (tail drop) and counted per port and per message. Seed 001 (section 6.2.2.5) warns of exactly this: "the
+port's buffer may overflow and lead to unexpected delays or data loss".
+
+Speed: free-running traffic does not depend on the rest of the simulation, so the network is computed a chunk of
+simulated time at a time with numpy: releases are generated per chunk, and each link, in path order, serves every
+frame that reaches it before the chunk's end (Lindley's recursion, vectorised when nothing is dropped). A frame
+released later cannot reach any port earlier than that, so each chunk's results are final. Only deliveries that
+someone listens to (a flow, a message-activated task) become events. The cabling is taken to be a tree, as a
+switched Ethernet without spanning tree must be; paths are its tree paths, as in the analysis.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from fractions import Fraction
+from itertools import pairwise
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from netcfg.runtime import Bus, Message
+from netcfg.sim.engine import PPB
+from netcfg.sim.streams import NEVER
+from netcfg.timing.ethernet import PROPAGATION_M_PER_S
+from netcfg.timing.frames import udp_frame_ns
+
+if TYPE_CHECKING:
+    from netcfg.runtime import Task
+    from netcfg.sim.flows import FlowTracker
+    from netcfg.sim.scenario import Scenario
+
+# Egress buffer per port, in frames: an assumption, not a datasheet figure. Small unmanaged switches share a packet
+# memory of a few tens of kilobytes among their ports; 64 frames per port is of that order for minimum-size frames.
+# Override with queue_frames= (or an `eth_queue_frames` field on the simulation options).
+QUEUE_FRAMES = 64
+CHUNK_NS = 5_000_000  # simulated time computed at once; frames fare the same for any value (random draws for
+# jitter and processing times may come in another order)
+
+_I64 = np.int64
+_EMPTY = np.empty(0, dtype=_I64)
+Batch = tuple[np.ndarray, np.ndarray, np.ndarray]  # (arrival at the stage, message index, release), aligned
+
+
+@dataclass
+class _Link:
+    """One direction of one cable with its transmitter and egress queue."""
+
+    index: int
+    src: str
+    dst: str
+    prop_ns: int
+    crash_ns: int  # the sending node crashed: nothing starts from then on (NEVER for a switch)
+    pending: list[Batch] = field(default_factory=list)
+    busy_until: int = 0
+    tail: np.ndarray = field(default_factory=lambda: _EMPTY)  # ends of the frames that may still be at the port
+    frames: int = 0
+    busy_ns: int = 0
+    max_queue: int = 0
+    lost: int = 0
+    offered: float = 0.0  # sum of rate x frame time over the messages crossing it: the analysis' utilisation
+
+
+@dataclass
+class _Source:
+    """A free-running sender: release k at local offset + k * period, period = num / den ns exactly."""
+
+    msg: int
+    num: int
+    den: int
+    offset: int
+    phase: int
+    drift: int
+    jitter: int
+    until: int
+    next_k: int = 0
+
+
+@dataclass
+class _Server:
+    """A receiving node consuming frames one after another (FIFO, service drawn between BCET and WCET)."""
+
+    node: str
+    bcet: np.ndarray  # per message index
+    wcet: np.ndarray
+    pending: list[Batch] = field(default_factory=list)
+    busy_until: int = 0
+    busy_ns: int = 0
+
+
+class EthernetNetwork:
+    def __init__(
+        self,
+        sc: Scenario,
+        bus: Bus,
+        *,
+        queue_frames: int | None = None,
+        processing_ns: Mapping[str, tuple[int, int]] | None = None,
+    ) -> None:
+        """processing_ns: node -> (BCET, WCET) of consuming one frame; by default a node's on_message task for
+        that message, else 0 (no server)."""
+        self.sc = sc
+        self.bus = bus
+        self.sim = sc.sim
+        self.duration = sc.opts.duration_ns
+        opts: Any = sc.opts
+        self.queue_frames = int(
+            queue_frames if queue_frames is not None else getattr(opts, "eth_queue_frames", None) or QUEUE_FRAMES
+        )
+        if self.queue_frames < 1:
+            raise ValueError(f"bus '{bus.name}': an egress queue must hold at least one frame")
+        processing = processing_ns if processing_ns is not None else getattr(opts, "eth_processing_ns", None) or {}
+        self.messages: list[Message] = list(sc.cfg.messages_on(bus.name))
+        self.owned = {m.name for m in self.messages}
+        self.frame_ns = np.array([udp_frame_ns(m.size + 1, bus.bitrate) for m in self.messages], dtype=_I64)
+        nodes = {n.name: n for n in sc.cfg.nodes}
+        self.rx_delay = {n: nodes[n].rx_delay_ns for n in bus.nodes if n in nodes}
+        self._build_topology(bus)
+        self._build_routes()
+        self._build_sources(nodes)
+        self._build_servers(nodes, processing)
+        self._build_listeners()
+        n = len(self.messages)
+        self.sent = np.zeros(n, dtype=_I64)
+        self.lost = np.zeros(n, dtype=_I64)  # deliveries that will never happen (a copy per consumer)
+        self._rel: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self._end: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self._proc_rel: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self._proc_end: list[list[np.ndarray]] = [[] for _ in range(n)]
+
+    # -- set-up -----------------------------------------------------------------------------------------------
+    def _build_topology(self, bus: Bus) -> None:
+        self.switch_latency: dict[str, int] = {}
+        cables: dict[tuple[str, str], float] = {}
+        adj: dict[str, list[str]] = {}
+
+        def edge(a: str, b: str, metres: float) -> None:
+            for x, y in ((a, b), (b, a)):
+                if y not in adj.setdefault(x, []):
+                    adj[x].append(y)
+                cables[(x, y)] = metres
+
+        switches = bus.ethernet.switches if bus.ethernet else ()
+        for sw in switches:
+            self.switch_latency[sw.name] = sw.latency_ns
+            for port in sw.ports:
+                edge(sw.name, port.to, port.cable_m)
+        if not switches and len(bus.nodes) == 2:
+            edge(bus.nodes[0], bus.nodes[1], 0.0)
+        self.adj = adj
+        self.cables = cables
+        self.links: dict[tuple[str, str], _Link] = {}
+
+    def _link(self, a: str, b: str) -> _Link:
+        link = self.links.get((a, b))
+        if link is None:
+            # the same rounding per hop as the analysis' Tprop
+            prop = round(self.cables.get((a, b), 0.0) / PROPAGATION_M_PER_S * 1e9)
+            crash = NEVER if a in self.switch_latency else self.sc.crash_at.get(a, NEVER)
+            link = self.links[(a, b)] = _Link(len(self.links), a, b, prop, crash)
+        return link
+
+    def _path(self, src: str, dst: str) -> list[str]:
+        prev: dict[str, str | None] = {src: None}
+        todo = deque([src])
+        while todo:
+            x = todo.popleft()
+            if x == dst:
+                break
+            for y in self.adj.get(x, ()):
+                if y not in prev:
+                    prev[y] = x
+                    todo.append(y)
+        if dst not in prev:
+            raise ValueError(f"bus '{self.bus.name}': no cable path from '{src}' to '{dst}'")
+        path = [dst]
+        while (p := prev[path[-1]]) is not None:
+            path.append(p)
+        return path[::-1]
+
+    def _build_routes(self) -> None:
+        """Per message, the tree of links its frames cross: first link, children of each link, consumers reached."""
+        self.first: dict[int, _Link] = {}
+        self.children: dict[tuple[int, int], list[_Link]] = {}  # (message, link) -> next links
+        self.deliver_to: dict[tuple[int, int], str] = {}  # (message, link) -> consumer at the link's end
+        self.downstream: dict[tuple[int, int], int] = {}  # (message, link) -> consumers reached through it
+        for i, m in enumerate(self.messages):
+            for consumer in m.consumers:
+                if consumer == m.producer:
+                    continue
+                hops = self._path(m.producer, consumer)
+                links = [self._link(a, b) for a, b in pairwise(hops)]
+                self.first[i] = links[0]
+                for a, b in pairwise(links):
+                    kids = self.children.setdefault((i, a.index), [])
+                    if b not in kids:
+                        kids.append(b)
+                for lk in links:
+                    self.downstream[(i, lk.index)] = self.downstream.get((i, lk.index), 0) + 1
+                self.deliver_to[(i, links[-1].index)] = consumer
+            rate = _rate(m)
+            for lk in self.links.values():
+                if (i, lk.index) in self.downstream:
+                    lk.offered += float(rate) * int(self.frame_ns[i]) / 1e9
+        self.order = self._topological()
+
+    def _topological(self) -> list[_Link]:
+        """Links in an order where every link comes after those that feed it (a tree has no cycle of them)."""
+        feeds: dict[int, set[int]] = {lk.index: set() for lk in self.links.values()}
+        for (_, a), kids in self.children.items():
+            for b in kids:
+                feeds[b.index].add(a)
+        by_index = {lk.index: lk for lk in self.links.values()}
+        done: list[_Link] = []
+        seen: set[int] = set()
+        while len(done) < len(by_index):
+            ready = [i for i in sorted(feeds) if i not in seen and feeds[i] <= seen]
+            if not ready:
+                raise ValueError(f"bus '{self.bus.name}': the cabling has a loop; switched Ethernet needs a tree")
+            for i in ready:
+                seen.add(i)
+                done.append(by_index[i])
+        return done
+
+    def _build_sources(self, nodes: Mapping[str, Any]) -> None:
+        self.sources: list[_Source] = []
+        for i, m in enumerate(self.messages):
+            if m.kind not in ("periodic", "sporadic") or not m.interval_ns or i not in self.first:
+                continue  # on-demand traffic is not part of the steady state (as in the analysis)
+            period = Fraction(10**9) / m.rate_hz if _exact(m) and m.rate_hz else Fraction(m.interval_ns)
+            clock = self.sc.clock[m.producer]
+            self.sources.append(
+                _Source(
+                    msg=i,
+                    num=period.numerator,
+                    den=period.denominator,
+                    offset=m.offset_ns or 0,
+                    phase=clock.phase_ns,
+                    drift=clock.drift_ppb,
+                    jitter=m.jitter_ns,
+                    until=self.sc.crash_at.get(m.producer, NEVER),
+                )
+            )
+        self.tx_delay = {n: nodes[n].tx_delay_ns for n in self.bus.nodes if n in nodes}
+
+    def _build_servers(self, nodes: Mapping[str, Any], processing: Mapping[str, tuple[int, int]]) -> None:
+        n = len(self.messages)
+        self.servers: dict[str, _Server] = {}
+        for node in self.bus.nodes:
+            if node not in nodes:
+                continue
+            bcet, wcet = np.zeros(n, dtype=_I64), np.zeros(n, dtype=_I64)
+            for i, m in enumerate(self.messages):
+                if node not in m.consumers:
+                    continue
+                if node in processing:
+                    bcet[i], wcet[i] = processing[node]
+                else:
+                    tasks = [t for t in nodes[node].tasks if t.on_message == m.name]
+                    if tasks:
+                        bcet[i], wcet[i] = min(t.bcet_ns for t in tasks), max(t.wcet_ns for t in tasks)
+            if (wcet < bcet).any() or (bcet < 0).any():
+                raise ValueError(f"node '{node}': processing times must satisfy 0 <= BCET <= WCET")
+            if wcet.any():
+                self.servers[node] = _Server(node, bcet, wcet)
+
+    def _build_listeners(self) -> None:
+        sc = self.sc
+        self.listeners: dict[tuple[int, str], tuple[list[FlowTracker], list[Task]]] = {}
+        for i, m in enumerate(self.messages):
+            trackers = sc._flow_refs.get(m.name, [])
+            for consumer in m.consumers:
+                tasks = [t for t in sc._message_tasks.get(m.name, []) if t.node == consumer]
+                if trackers or tasks:
+                    self.listeners[(i, consumer)] = (trackers, tasks)
+
+    # -- running ----------------------------------------------------------------------------------------------
+    def start(self) -> None:
+        if self.duration > 0:
+            self.sim.at(0, self._chunk, 0)
+
+    def _chunk(self, t0: int) -> None:
+        t1 = min(t0 + CHUNK_NS, self.duration)
+        for src in self.sources:
+            self._release(src, t0, t1)
+        for link in self.order:
+            batch = _take(link.pending, t1)
+            if batch is not None:
+                self._transmit(link, *batch)
+        for server in self.servers.values():
+            batch = _take(server.pending, t1)
+            if batch is not None:
+                self._process(server, *batch)
+        if t1 < self.duration:
+            self.sim.at(t1, self._chunk, t1)
+
+    def _release(self, src: _Source, t0: int, t1: int) -> None:
+        """Releases whose nominal instant falls in [t0, t1), on the producer's clock (NodeClock.to_global)."""
+        scale = 1.0 + src.drift / PPB
+        guess = int((t1 - t0) / scale * src.den / src.num) + 2
+        while True:
+            k = src.next_k + np.arange(guess, dtype=_I64)
+            local = src.offset + k * src.num // src.den
+            glob = src.phase + local + local * src.drift // PPB
+            if glob[-1] >= t1:
+                break
+            guess *= 2
+        n = int(np.searchsorted(glob, t1, side="left"))
+        src.next_k += n
+        rel = glob[:n]
+        rel = rel[rel < src.until]
+        if not len(rel):
+            return
+        if src.jitter:
+            rel = rel + (self.sc.rng.random(len(rel)) * (src.jitter + 1)).astype(_I64)
+        m = self.messages[src.msg]
+        self.sent[src.msg] += int((rel < self.duration).sum())
+        arrive = rel + self.tx_delay.get(m.producer, 0)
+        self.first[src.msg].pending.append((arrive, np.full(len(rel), src.msg, dtype=_I64), rel))
+
+    def _transmit(self, link: _Link, t: np.ndarray, msg: np.ndarray, rel: np.ndarray) -> None:
+        """Serve the frames reaching the link's FIFO (sorted by arrival), then pass them on."""
+        c = self.frame_ns[msg]
+        cum = np.cumsum(c)
+        end = cum + np.maximum(np.maximum.accumulate(t - (cum - c)), link.busy_until)
+        keep = len(t)
+        if link.crash_ns < NEVER:  # a suffix: start times only grow
+            keep = int(np.searchsorted(end - c, link.crash_ns, side="left"))
+        # frames at the port when frame i arrives: earlier ones of this batch and of earlier ones not yet sent
+        held = len(link.tail) - np.searchsorted(link.tail, t[:keep], side="right")
+        queue = np.arange(keep) - np.searchsorted(end[:keep], t[:keep], side="right") + held
+        if keep and int(queue.max()) >= self.queue_frames:
+            ok, end = self._transmit_lossy(link, t, c)
+            gone = np.ones(len(t), dtype=bool)
+            gone[ok] = False
+            self._count_lost(link, msg[gone])
+            msg, rel, c = msg[ok], rel[ok], c[ok]
+        else:
+            if keep < len(t):
+                self._count_lost(link, msg[keep:])
+            msg, rel, end, c = msg[:keep], rel[:keep], end[:keep], c[:keep]
+            if keep:
+                link.max_queue = max(link.max_queue, int(queue.max()) + 1)
+        if not len(end):
+            return
+        link.busy_until = int(end[-1])
+        link.tail = np.concatenate([link.tail, end])[-self.queue_frames :]
+        start = end - c
+        d = self.duration
+        link.frames += int((start < d).sum())
+        link.busy_ns += int((np.minimum(end, d) - np.minimum(start, d)).sum())
+        self._forward(link, end + link.prop_ns, msg, rel)
+
+    def _transmit_lossy(self, link: _Link, t: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lindley's recursion frame by frame with tail drop at a full port: -> (accepted indices, their ends).
+
+        Only the last queue_frames ends can still be at the port later (a frame is accepted only when fewer are),
+        so link.tail keeps just those."""
+        ends = deque(link.tail.tolist())
+        busy, cap, crash = link.busy_until, self.queue_frames, link.crash_ns
+        accepted: list[int] = []
+        out: list[int] = []
+        qmax = link.max_queue
+        for i, (a, ci) in enumerate(zip(t.tolist(), c.tolist())):
+            while ends and ends[0] <= a:
+                ends.popleft()
+            if len(ends) >= cap:
+                continue
+            s = a if a > busy else busy
+            if s >= crash:
+                continue
+            busy = s + ci
+            ends.append(busy)
+            qmax = max(qmax, len(ends))
+            accepted.append(i)
+            out.append(busy)
+        link.max_queue = qmax
+        return np.asarray(accepted, dtype=_I64), np.asarray(out, dtype=_I64)
+
+    def _count_lost(self, link: _Link, msg: np.ndarray) -> None:
+        link.lost += len(msg)
+        for i, n in zip(*np.unique(msg, return_counts=True)):
+            self.lost[i] += int(n) * self.downstream[(int(i), link.index)]
+
+    def _forward(self, link: _Link, recv: np.ndarray, msg: np.ndarray, rel: np.ndarray) -> None:
+        """Frames completely received at the link's far end: on to the next links, or delivered."""
+        latency = self.switch_latency.get(link.dst, 0)
+        for i in np.unique(msg).tolist():
+            sel = msg == i
+            r, e, mm = rel[sel], recv[sel], msg[sel]
+            for child in self.children.get((i, link.index), ()):
+                child.pending.append((e + latency, mm, r))
+            consumer = self.deliver_to.get((i, link.index))
+            if consumer is not None:
+                self._deliver(i, consumer, r, e + self.rx_delay.get(consumer, 0))
+
+    def _deliver(self, i: int, consumer: str, rel: np.ndarray, end: np.ndarray) -> None:
+        crash = self.sc.crash_at.get(consumer, NEVER)
+        if crash < self.duration:  # a crashed consumer receives nothing more
+            dead = end >= crash
+            self.lost[i] += int(dead.sum())
+            rel, end = rel[~dead], end[~dead]
+        self._rel[i].append(rel)
+        self._end[i].append(end)
+        server = self.servers.get(consumer)
+        if server is not None:
+            server.pending.append((end, np.full(len(end), i, dtype=_I64), rel))
+        else:  # nothing to wait for: consumed as it arrives
+            self._proc_rel[i].append(rel)
+            self._proc_end[i].append(end)
+        listen = self.listeners.get((i, consumer))
+        if listen is not None:
+            name = self.messages[i].name
+            at = self.sim.at
+            for r, e in zip(rel.tolist(), end.tolist()):
+                if e < self.duration:
+                    at(e, self._delivered, (name, r, e, listen))
+
+    def _delivered(self, arg: tuple[str, int, int, tuple[list[FlowTracker], list[Task]]]) -> None:
+        name, release, end, (trackers, tasks) = arg
+        for tr in trackers:
+            tr.message_delivered(name, release, end)
+        for task in tasks:
+            self.sc.run_task(task, end)
+
+    def _process(self, server: _Server, t: np.ndarray, msg: np.ndarray, rel: np.ndarray) -> None:
+        """The receiving node's FIFO: Lindley's recursion with service times drawn in [BCET, WCET]."""
+        lo, hi = server.bcet[msg], server.wcet[msg]
+        s = lo + (self.sc.rng.random(len(t)) * (hi - lo + 1)).astype(_I64)
+        cum = np.cumsum(s)
+        end = cum + np.maximum(np.maximum.accumulate(t - (cum - s)), server.busy_until)
+        server.busy_until = int(end[-1])
+        d = self.duration
+        server.busy_ns += int((np.minimum(end, d) - np.minimum(end - s, d)).sum())
+        for i in np.unique(msg).tolist():
+            sel = msg == i
+            self._proc_rel[i].append(rel[sel])
+            self._proc_end[i].append(end[sel])
+
+    # -- results ----------------------------------------------------------------------------------------------
+    def _pairs(self, rel: list[np.ndarray], end: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """(release, end) of what completed within the run."""
+        r = np.concatenate(rel) if rel else _EMPTY
+        e = np.concatenate(end) if end else _EMPTY
+        done = e < self.duration
+        return r[done], e[done]
+
+    def records(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Per message: (name, release_ns, end_ns) of every delivery within the run, one per consumer reached;
+        end is when the consumer has the data (after rx_delay), the instant the analysis' wcrt_ns bounds."""
+        return [(m.name, *self._pairs(self._rel[i], self._end[i])) for i, m in enumerate(self.messages)]
+
+    def processed_records(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Like records(), with end = when the receiving node has finished consuming the frame."""
+        return [(m.name, *self._pairs(self._proc_rel[i], self._proc_end[i])) for i, m in enumerate(self.messages)]
+
+    def lost_by_message(self) -> dict[str, int]:
+        """Deliveries that will never happen: dropped at a full port (one per consumer behind it) or crashed."""
+        return {m.name: int(self.lost[i]) for i, m in enumerate(self.messages)}
+
+    def in_flight(self) -> dict[str, int]:
+        """Deliveries of frames released within the run that had not happened when it ended."""
+        n = np.zeros(len(self.messages), dtype=_I64)
+        for link in self.links.values():
+            for _, msg, rel in link.pending:
+                for i, k in zip(*np.unique(msg[rel < self.duration], return_counts=True)):
+                    n[i] += int(k) * self.downstream[(int(i), link.index)]
+        for i in range(len(self.messages)):
+            for e in self._end[i]:
+                n[i] += int((e >= self.duration).sum())
+        return {m.name: int(n[i]) for i, m in enumerate(self.messages)}
+
+    def report(self) -> dict[str, Any]:
+        """JSON-ready: per link direction and per message, measured beside the analysis' figures."""
+        d = self.duration
+        links = []
+        for link in sorted(self.links.values(), key=lambda lk: (lk.src, lk.dst)):
+            links.append(
+                {
+                    "from": link.src,
+                    "to": link.dst,
+                    "frames": link.frames,
+                    "utilization": round(link.busy_ns / d, 6) if d else 0.0,
+                    "utilization_offered": round(link.offered, 6),
+                    "max_queue": link.max_queue,
+                    "queue_frames": self.queue_frames,
+                    "queued_at_end": int((link.tail > d).sum()),
+                    "lost": link.lost,
+                }
+            )
+        flying = self.in_flight()
+        processed = {name: (r, e) for name, r, e in self.processed_records()}
+        messages = []
+        for i, (name, rel, end) in enumerate(self.records()):
+            m = self.messages[i]
+            latency = _summary_us(end - rel)
+            worst = int((end - rel).max()) if len(end) else None
+            pr, pe = processed[name]
+            messages.append(
+                {
+                    "name": name,
+                    "producer": m.producer,
+                    "consumers": list(m.consumers),
+                    "sent": int(self.sent[i]),
+                    "delivered": len(end),
+                    "lost": int(self.lost[i]),
+                    "in_flight": flying[name],
+                    "latency_us": latency,
+                    "processed_us": _summary_us(pe - pr),
+                    "wcrt_us": None if m.wcrt_ns is None else m.wcrt_ns / 1000,
+                    "within_analysis": None if m.wcrt_ns is None or worst is None else worst <= m.wcrt_ns,
+                }
+            )
+        servers = {s.node: {"utilization": round(s.busy_ns / d, 6) if d else 0.0} for s in self.servers.values()}
+        return {
+            "bus": self.bus.name,
+            "bitrate": self.bus.bitrate,
+            "duration_us": d / 1000,
+            "links": links,
+            "messages": messages,
+            "receivers": servers,
+        }
+
+
+def _rate(m: Message) -> Fraction:
+    """Transmissions per second at the fastest admissible rate, as netcfg.timing.load.rate_hz counts them."""
+    if m.kind == "on-demand" or not m.interval_ns:
+        return Fraction(0)
+    if _exact(m) and m.rate_hz is not None:
+        return m.rate_hz
+    return Fraction(10**9, m.interval_ns)
+
+
+def _exact(m: Message) -> bool:
+    """The spec gave a rate and the message is sent at it (not a sporadic minimum inter-arrival time)."""
+    return m.rate_hz is not None and m.period_ns == m.interval_ns
+
+
+def _take(pending: list[Batch], horizon: int) -> Batch | None:
+    """The waiting frames that arrive before the horizon, sorted by arrival (FIFO, earlier batches first on ties);
+    the others stay."""
+    if not pending:
+        return None
+    if len(pending) == 1:
+        t, msg, rel = pending[0]
+    else:
+        t = np.concatenate([b[0] for b in pending])
+        msg = np.concatenate([b[1] for b in pending])
+        rel = np.concatenate([b[2] for b in pending])
+    order = np.argsort(t, kind="stable")
+    t, msg, rel = t[order], msg[order], rel[order]
+    k = int(np.searchsorted(t, horizon, side="left"))
+    pending.clear()
+    if k < len(t):
+        pending.append((t[k:], msg[k:], rel[k:]))
+    if k == 0:
+        return None
+    return t[:k], msg[:k], rel[:k]
+
+
+def _summary_us(x: np.ndarray) -> dict[str, float] | None:
+    if not len(x):
+        return None
+    return {
+        "min": round(float(x.min()) / 1000, 3),
+        "mean": round(float(x.mean()) / 1000, 3),
+        "p99": round(float(np.percentile(x, 99, method="higher")) / 1000, 3),
+        "max": round(float(x.max()) / 1000, 3),
+    }

@@ -1,0 +1,275 @@
+"""The switched Ethernet/UDP simulator (netcfg.sim.ethernet) against seed 001 and netcfg's own analysis.
+
+Sources of the numbers:
+* seed 001, section 6.2.2.12 and eq. 6.4: full-duplex 100 Mbit/s, a minimum frame of 84 bytes on the wire takes
+  (84 x 8) / 100e6 = 6.72 us, so one link carries at most f_max = 148.81 kHz of such frames; section 6.3.2: each
+  SAHR MCU sends its encoder (message 0x42, 4 bytes + the id byte: still a minimum frame) at 15 kHz;
+* specs/ntua_sahr.yaml as built into generated/ntua_sahr/runtime.json (rates, topology, the analysis' wcrt_ns);
+* `netcfg check` (netcfg.check.check) for the analysed link utilisations.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from conftest import ROOT, SPECS, check
+
+import netcfg.runtime as rt
+from netcfg.sim.ethernet import QUEUE_FRAMES, EthernetNetwork
+from netcfg.sim.faults import Fault
+from netcfg.sim.scenario import Scenario, SimOptions, simulate
+
+SAHR_RUNTIME = ROOT / "generated" / "ntua_sahr" / "runtime.json"
+SECOND = 1_000_000_000
+MIN_FRAME_NS = 6_720  # seed 001: (84 x 8) / 100 Mbit/s
+ENCODER_HZ = 15_000  # seed 001 section 6.3.2 and specs/ntua_sahr.yaml
+
+
+@dataclass(frozen=True)
+class EthOptions(SimOptions):
+    """SimOptions with the network's two knobs (EthernetNetwork reads them from the options when present)."""
+
+    eth_queue_frames: int | None = None
+    eth_processing_ns: dict[str, tuple[int, int]] = field(default_factory=dict)
+
+
+def network(sc: Scenario, bus: str = "lan") -> EthernetNetwork:
+    net = sc.protocols[bus]
+    assert isinstance(net, EthernetNetwork)
+    return net
+
+
+def by_name(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    return {r["name"]: r for r in rows}
+
+
+def link_rows(rows: list[dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
+    return {(r["from"], r["to"]): r for r in rows}
+
+
+@pytest.fixture(scope="module")
+def sahr() -> Scenario:
+    return simulate(rt.load(SAHR_RUNTIME), SimOptions(duration_ns=SECOND, seed=1))
+
+
+@pytest.fixture(scope="module")
+def sahr_analysis() -> dict[str, Any]:
+    report = check(SPECS / "ntua_sahr.yaml")
+    assert report["ok"], report["errors"]
+    return report["buses"][0]
+
+
+def test_fifteen_khz_for_one_second(sahr: Scenario) -> None:
+    """15 kHz for 1 s: 15,000 encoder frames, +-1 for the MCU's clock phase and drift (a frame released in the
+    last ~20 us is still on its way); none lost on a 20 % loaded network."""
+    net = network(sahr)
+    rep = by_name(net.report()["messages"])
+    for name in ("hip_encoder", "spring_encoder"):
+        row = rep[name]
+        assert abs(row["sent"] - ENCODER_HZ) <= 1, row
+        assert abs(row["delivered"] - ENCODER_HZ) <= 1, row
+        assert row["lost"] == 0
+        assert row["delivered"] + row["in_flight"] == row["sent"]
+    rel = next(r for name, r, _ in net.records() if name == "hip_encoder")
+    assert len(rel) == rep["hip_encoder"]["delivered"]
+    # the exact rate (1e9 / 15,000 = 66,666.67 ns, not a rounded period) on a clock within SimOptions' default
+    # +-50 ppm: consecutive releases 66,666 or 66,667 ns apart, give or take 50e-6 x 66,667 ns = 3.3 ns
+    gaps = np.diff(np.sort(rel))
+    assert gaps.min() >= 66_666 - 4 and gaps.max() <= 66_667 + 4
+    assert (rel.max() - rel.min()) / (len(rel) - 1) == pytest.approx(SECOND / ENCODER_HZ, rel=50e-6)
+
+
+def test_link_utilisation_matches_the_analysis(sahr: Scenario, sahr_analysis: dict[str, Any]) -> None:
+    """sw1 -> pc carries both encoders: 2 x 15,000 frames/s x 84 bytes x 8 bit / 100 Mbit/s = 0.2016 (seed 001's
+    figures), which is what `netcfg check` reports for that link. Every link's measured busy time over the run
+    is within 1 % of the analysed utilisation."""
+    analysed = {(r["from"], r["to"]): r["utilization"] for r in sahr_analysis["links"]}
+    assert analysed[("sw1", "pc")] == pytest.approx(2 * ENCODER_HZ * 84 * 8 / 100e6)
+    measured = link_rows(network(sahr).report()["links"])
+    assert set(measured) == set(analysed)
+    for key, util in analysed.items():
+        assert measured[key]["utilization"] == pytest.approx(util, rel=0.01), key
+        assert measured[key]["utilization_offered"] == pytest.approx(util, abs=1e-6), key
+
+
+def test_latencies_within_the_analysed_wcrt(sahr: Scenario) -> None:
+    """Every message's simulated worst latency stays within its analysed wcrt_ns (runtime.json); the best case is
+    two store-and-forward hops of a minimum frame with no cable, switch or node delay (seed 001, eq. 6.3/6.4)."""
+    cfg = sahr.cfg
+    seen = 0
+    for name, rel, end in network(sahr).records():
+        wcrt = cfg.message(name).wcrt_ns
+        assert wcrt is not None
+        lat = end - rel
+        assert len(lat) > 0
+        assert int(lat.max()) <= wcrt, (name, int(lat.max()), wcrt)
+        assert int(lat.min()) == 2 * MIN_FRAME_NS, name
+        seen += 1
+    assert seen == 3
+
+
+def overloaded_sahr(rate_hz: int) -> rt.RuntimeConfig:
+    data = json.loads(SAHR_RUNTIME.read_text(encoding="utf-8"))
+    for m in data["messages"]:
+        if m["name"] in ("hip_encoder", "spring_encoder"):
+            m["rate_hz"] = [rate_hz, 1]
+            m["period_ns"] = m["interval_ns"] = round(SECOND / rate_hz)
+    return rt.parse(data)
+
+
+def test_eighty_khz_overloads_the_pc_port(tmp_path: Path) -> None:
+    """At 80 kHz per MCU the pc port must carry 160 kHz > f_max = 148.81 kHz (seed 001: f_transm < f_max / n, n = 2):
+    the analysis says 107.5 %. The port's FIFO fills to its capacity and the excess is lost and counted. A
+    saturated port sends at most duration / 6.72 us frames; everything else sent is lost or, at most one queue's
+    worth, still held when the run ends."""
+    spec = yaml.safe_load((SPECS / "ntua_sahr.yaml").read_text(encoding="utf-8"))
+    for m in spec["messages"]:
+        if m["name"].endswith("_encoder"):
+            m["rate"] = "80 kHz"
+    path = tmp_path / "sahr80.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    link = {(r["from"], r["to"]): r for r in check(path)["buses"][0]["links"]}[("sw1", "pc")]
+    assert link["utilization"] == pytest.approx(1.0752) and not link["ok"]
+
+    duration = SECOND // 5
+    sc = simulate(overloaded_sahr(80_000), SimOptions(duration_ns=duration, seed=2))
+    rep = network(sc).report()
+    port = link_rows(rep["links"])[("sw1", "pc")]
+    msgs = by_name(rep["messages"])
+    encoders = [msgs["hip_encoder"], msgs["spring_encoder"]]
+    assert port["max_queue"] == QUEUE_FRAMES
+    assert port["lost"] > 0
+    assert port["lost"] == sum(m["lost"] for m in encoders)
+    for m in encoders:
+        assert m["lost"] > 0
+        assert m["lost"] + m["delivered"] + m["in_flight"] == m["sent"], m
+        assert m["wcrt_us"] is not None and m["latency_us"]["max"] > m["wcrt_us"]  # the analysis' bound assumed < 100 %
+    sent = sum(m["sent"] for m in encoders)
+    capacity = duration // MIN_FRAME_NS
+    assert abs(port["lost"] - (sent - capacity)) <= QUEUE_FRAMES + 4
+    assert port["utilization"] > 0.99
+    # a queue of 64 minimum frames ahead: about 64 x 6.72 us = 430 us of delay (seed 001: "unwanted latency ...
+    # equal to the time required to empty the respective buffers")
+    assert max(m["latency_us"]["max"] for m in encoders) == pytest.approx(QUEUE_FRAMES * MIN_FRAME_NS / 1000, rel=0.05)
+
+
+def test_queue_capacity_is_a_parameter() -> None:
+    """A smaller egress buffer (the options' eth_queue_frames) loses more and never holds more."""
+    cfg = overloaded_sahr(80_000)
+    duration = SECOND // 20
+    small = simulate(cfg, EthOptions(duration_ns=duration, seed=2, eth_queue_frames=8))
+    big = simulate(cfg, EthOptions(duration_ns=duration, seed=2))
+    p_small = link_rows(network(small).report()["links"])[("sw1", "pc")]
+    p_big = link_rows(network(big).report()["links"])[("sw1", "pc")]
+    assert p_small["max_queue"] == 8 and p_big["max_queue"] == QUEUE_FRAMES
+    assert p_small["lost"] > p_big["lost"]
+
+
+def test_pc_processing_is_a_separate_latency(sahr: Scenario) -> None:
+    """The PC consuming frames one at a time, 20..30 us each (this test's parameter): 30,000 frames/s x 25 us mean
+    = 75 % busy. Every frame is processed at least 20 us after its delivery, in FIFO order; the delivery instants
+    (what the analysis bounds) do not change."""
+    service = (20_000, 30_000)
+    sc = simulate(rt.load(SAHR_RUNTIME), EthOptions(duration_ns=SECOND, seed=1, eth_processing_ns={"pc": service}))
+    net = network(sc)
+    rep = net.report()
+    assert rep["receivers"]["pc"]["utilization"] == pytest.approx(2 * ENCODER_HZ * 25e-6, abs=0.02)
+    delivered = {n: (r, e) for n, r, e in net.records()}
+    base = {n: (r, e) for n, r, e in network(sahr).records()}
+    processed = {n: (r, e) for n, r, e in net.processed_records()}
+    for name in ("hip_encoder", "spring_encoder"):
+        assert np.array_equal(delivered[name][1], base[name][1])
+        rel_d, end_d = delivered[name]
+        rel_p, end_p = processed[name]
+        done = dict(zip(rel_p.tolist(), end_p.tolist()))
+        gaps = [done[r] - e for r, e in zip(rel_d.tolist(), end_d.tolist()) if r in done]
+        assert len(gaps) >= len(rel_d) - 2
+        assert min(gaps) >= service[0]
+
+
+def test_crashed_sender_stops() -> None:
+    """crash:NODE@t (netcfg.sim.faults: "the node stops: it sends nothing more"): about half of 15,000 frames in 1 s
+    when the spring MCU crashes at 500 ms; nothing of it is delivered later than one worst-case delay after that."""
+    crash = SECOND // 2
+    sc = simulate(
+        rt.load(SAHR_RUNTIME), SimOptions(duration_ns=SECOND, seed=1, faults=(Fault.parse("crash:mcu_spring@500ms"),))
+    )
+    rep = by_name(network(sc).report()["messages"])
+    assert abs(rep["spring_encoder"]["sent"] - ENCODER_HZ // 2) <= 1
+    assert abs(rep["hip_encoder"]["sent"] - ENCODER_HZ) <= 1
+    _, _, end = next(r for r in network(sc).records() if r[0] == "spring_encoder")
+    assert int(end.max()) <= crash + sc.cfg.message("spring_encoder").wcrt_ns  # type: ignore[operator]
+
+
+TWO_SWITCHES = """
+system: two_switches
+buses:
+  - name: lan
+    protocol: ethernet-udp
+    bitrate: 100 Mbit/s
+    ethernet:
+      switches:
+        - name: sw1
+          latency: 2 us
+          ports:
+            - {port: 1, to: a, cable: 20}
+            - {port: 2, to: b, cable: 20}
+            - {port: 3, to: sw2, cable: 50}
+        - name: sw2
+          latency: 2 us
+          ports:
+            - {port: 1, to: pc, cable: 10}
+            - {port: 2, to: logger, cable: 10}
+nodes:
+  - {name: a, ip: 10.0.0.1, buses: [lan], tx_delay: 3 us}
+  - {name: b, ip: 10.0.0.2, buses: [lan]}
+  - {name: pc, ip: 10.0.0.3, buses: [lan], rx_delay: 4 us}
+  - {name: logger, ip: 10.0.0.4, buses: [lan]}
+messages:
+  - {name: a_state, id: 0x10, producer: a, consumers: [pc, logger], size: 30, rate: 10 kHz}
+  - {name: b_state, id: 0x11, producer: b, consumers: [pc], size: 4, rate: 20 kHz}
+  - {name: pc_cmd, id: 0x20, producer: pc, consumers: [a, b], size: 1, rate: 1 kHz}
+"""
+
+
+def test_two_switches_multicast_against_the_analysis(tmp_path: Path) -> None:
+    """Cables, switch latency, Tpre/Tpost, a switch-to-switch link and multicast, compiled by netcfg itself: every
+    message within its analysed wcrt_ns, every link within 1 % of its analysed utilisation, a multicast crossing
+    sw1 -> sw2 once per frame (netcfg.timing.ethernet: "a switch forwards a multicast once per egress port") and
+    reaching both consumers."""
+    from netcfg.check import analyse_spec
+    from netcfg.emit.runtime_json import runtime_document
+
+    path = tmp_path / "two.yaml"
+    path.write_text(TWO_SWITCHES, encoding="utf-8")
+    model, report = analyse_spec(path)
+    assert model is not None and report["ok"], report["errors"]
+    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))))
+    sc = simulate(cfg, SimOptions(duration_ns=SECOND // 2, seed=5))
+    net = network(sc)
+    for name, rel, end in net.records():
+        wcrt = cfg.message(name).wcrt_ns
+        assert wcrt is not None and len(rel) > 0
+        assert int((end - rel).max()) <= wcrt, (name, int((end - rel).max()), wcrt)
+    # eq. 6.3 with Twait = Tqueue = 0, from the spec: Tpre + hops x Tframe + Tprop + 2 x Tmux + Tpost, Tprop for
+    # 20 + 50 + 10 m at 0.7 c rounded per cable (95 + 238 + 48 ns); a_state is 30 + 1 bytes: 97 on the wire
+    prop = 95 + 238 + 48
+    lowest = {name: int((end - rel).min()) for name, rel, end in net.records()}
+    assert lowest["pc_cmd"] == 3 * MIN_FRAME_NS + prop + 2 * 2_000 == cfg.message("pc_cmd").wcrt_ns
+    assert lowest["a_state"] == 3_000 + 3 * 97 * 80 + prop + 2 * 2_000  # to the logger, which has no Tpost
+    assert lowest["b_state"] == 3 * MIN_FRAME_NS + prop + 2 * 2_000 + 4_000  # to the pc, Tpost 4 us
+    rep = net.report()
+    links = link_rows(rep["links"])
+    for row in report["buses"][0]["links"]:
+        assert links[(row["from"], row["to"])]["utilization"] == pytest.approx(row["utilization"], rel=0.01)
+    a_state = by_name(rep["messages"])["a_state"]
+    assert a_state["delivered"] + a_state["in_flight"] == 2 * a_state["sent"]
+    from_a = links[("a", "sw1")]["frames"]
+    assert abs(links[("sw2", "logger")]["frames"] - from_a) <= 1
+    assert abs(links[("sw1", "sw2")]["frames"] - from_a - links[("b", "sw1")]["frames"]) <= 2
