@@ -22,10 +22,11 @@ from netcfg.timing.frames import bits_to_ns, can_frame_bits, can_frame_bits_exac
 # intermission (3): ISO 11898-1's active error frame at its longest.
 ERROR_FRAME_BITS = 6 + 6 + 8 + 3
 CHUNK_NS = 200_000_000  # release streams are expanded this much simulated time at a time
+NEVER = 1 << 62
 
 Listener = Callable[[int, int, int, bytes | None], None]  # (end_ns, message index, release_ns, data)
 Gate = Callable[[int, int], int]  # (t, duration) -> earliest start >= t at which the frame may go
-Pending = tuple[int, int, int, int, bytes | None, int]  # key, release, seq (FIFO order), msg, data, attempts
+Pending = tuple[int, int, int, int, bytes | None]  # key, release, seq (FIFO order), msg, data
 
 
 def arbitration_key(can_id: int, extended: bool) -> int:
@@ -61,11 +62,9 @@ class Record:
     """Every transmitted frame, in bus order; numpy arrays at the end of the run."""
 
     msg: list[int] = field(default_factory=list)
-    release: list[int] = field(default_factory=list)
-    start: list[int] = field(default_factory=list)
-    end: list[int] = field(default_factory=list)
-    attempts: list[int] = field(default_factory=list)
-    data: list[bytes | None] = field(default_factory=list)
+    response: list[int] = field(default_factory=list)  # end - release
+    end: list[int] = field(default_factory=list)  # only when a trace is kept
+    data: list[bytes | None] = field(default_factory=list)  # only when a trace is kept
 
 
 class CanBus:
@@ -80,6 +79,8 @@ class CanBus:
         self.stuffing = stuffing
         self.trace = trace
         self.sources: list[CanSource] = []
+        self._keys: list[int] = []  # per source, for the loop
+        self._durs: list[int] = []
         self.by_name: dict[str, CanSource] = {}
         self.streams: list[Stream] = []
         self.listeners: dict[int, list[Listener]] = {}
@@ -93,7 +94,7 @@ class CanBus:
         self.babble: tuple[int, int, int] | None = None  # (source index, from, until)
         self.lose: dict[int, list[int]] = {}  # message index -> instants: the next frame queued after is lost
         self.retries: dict[int, int] = {}  # message index -> retransmissions after bit errors
-        self._pending: list[Pending] = []  # key, release, seq, msg, data, attempts
+        self._pending: list[Pending] = []
         self._seq = 0
         self._rel_t: list[int] = []
         self._rel_src: list[int] = []
@@ -112,6 +113,8 @@ class CanBus:
         src.dur_ns = bits_to_ns(bits, self.bitrate)
         self.sources.append(src)
         self.by_name[name] = src
+        self._keys.append(src.key)
+        self._durs.append(src.dur_ns)
         return src.index
 
     def add_stream(self, stream: Stream) -> None:
@@ -129,7 +132,7 @@ class CanBus:
         """Queue a frame now (a reactive sender: a task, the CANopen master, the FTT-CAN master)."""
         now = self.sim.now
         self._seq += 1
-        heapq.heappush(self._pending, (self.sources[source].key, now, self._seq, source, data, 1))
+        heapq.heappush(self._pending, (self.sources[source].key, now, self._seq, source, data))
         self._wake(now)
 
     def drop(self, source: int) -> None:
@@ -192,30 +195,38 @@ class CanBus:
         self._step_at = None
         sim = self.sim
         queue = sim._queue
+        until = sim.until
         pending = self._pending
         push, pop = heapq.heappush, heapq.heappop
         sources = self.sources
-        rec = self.record
+        keys, durs = self._keys, self._durs
+        rec_msg, rec_resp = self.record.msg, self.record.response
         rel_t, rel_src = self._rel_t, self._rel_src
         ri, rn = self._rel_i, len(self._rel_t)
         listeners = self.listeners
         monitors = self.monitors
+        lose = self.lose
         errors = self.error_times
         ei, en = self._err_i, len(errors)
         gate = self.gate
         exact = self.stuffing == "exact"
         keep_data = self.trace
+        babble = self.babble
+        seq = self._seq
         busy = self._free_at
         t = max(sim.now, busy)  # the next arbitration instant
         while True:
             # whatever else is due before this decision (or at it, and must happen first) runs first
             if queue:
-                ht = queue[0][0]
-                if ht < t or (ht == t and queue[0][1] < LATE):
+                head = queue[0]
+                ht = head[0]
+                if ht < t or (ht == t and head[1] < LATE):
                     break
-                horizon = ht
+                horizon = ht if ht < until else until  # equal to t when another bus decides at this instant
             else:
-                horizon = 1 << 62
+                horizon = until
+            if t >= until:
+                break
             if t >= self._chunk_end and self.streams:
                 self._rel_i = ri
                 self._refill(self._chunk_end)
@@ -223,16 +234,12 @@ class CanBus:
                 ri, rn = 0, len(rel_t)
             while ri < rn and rel_t[ri] <= t:
                 s = rel_src[ri]
-                self._seq += 1
-                push(pending, (sources[s].key, rel_t[ri], self._seq, s, None, 1))
+                seq += 1
+                push(pending, (keys[s], rel_t[ri], seq, s, None))
                 ri += 1
-            babble = self.babble
-            if babble is not None and babble[1] <= t < babble[2] and (
-                not pending or sources[babble[0]].key < pending[0][0]
-            ):
-                item: Pending | None = (
-                    sources[babble[0]].key, t, -1, babble[0], None, 1
-                )
+            item: Pending | None
+            if babble is not None and babble[1] <= t < babble[2] and (not pending or keys[babble[0]] < pending[0][0]):
+                item = (keys[babble[0]], t, -1, babble[0], None)
             elif pending:
                 item = pop(pending)
                 if gate is not None and sources[item[3]].gated:
@@ -240,44 +247,41 @@ class CanBus:
             else:
                 item = None
             if item is None:  # nothing may start now: jump to the next release or window
-                nxt = rel_t[ri] if ri < rn else 1 << 62
-                if self.streams:
-                    nxt = min(nxt, self._chunk_end)
+                nxt = rel_t[ri] if ri < rn else NEVER
+                if self.streams and self._chunk_end < nxt:
+                    nxt = self._chunk_end
                 if pending:
                     nxt = min(nxt, self._next_gate_time(t))
                 if babble is not None and t < babble[1]:
                     nxt = min(nxt, babble[1])
-                if nxt >= horizon or nxt >= 1 << 62:
-                    t = max(t, min(nxt, horizon))
+                if nxt >= horizon:
+                    t = nxt  # nothing happens on this bus before then, unless a frame is submitted
                     break
                 t = nxt
                 continue
-            _, release, seq, m, data, attempts = item
-            if m in self.lose and self._lost(m, release):
+            release, m, data = item[1], item[3], item[4]
+            if lose and m in lose and self._lost(m, release):
                 continue
-            src = sources[m]
-            dur = self._duration(src, data) if exact else src.dur_ns
-            end = t + dur
-            while ei < en and errors[ei] < t:
-                ei += 1
-            if ei < en and errors[ei] < end:
-                # a bit error: error frame, then the frame competes again (automatic retransmission)
-                if keep_data:
-                    self.error_log.append(errors[ei])
-                t = busy = errors[ei] + self.error_ns
-                ei += 1
-                self.error_frames += 1
-                self.retries[m] = self.retries.get(m, 0) + 1
-                if seq >= 0:  # a babbler's frame is not queued: it simply comes back
-                    push(pending, (item[0], release, seq, m, data, attempts + 1))
-                continue
-            rec.msg.append(m)
-            rec.release.append(release)
-            rec.start.append(t)
-            rec.end.append(end)
-            rec.attempts.append(attempts)
+            end = t + (self._duration(sources[m], data) if exact else durs[m])
+            if ei < en:
+                while ei < en and errors[ei] < t:
+                    ei += 1
+                if ei < en and errors[ei] < end:
+                    # a bit error: error frame, then the frame competes again (automatic retransmission)
+                    if keep_data:
+                        self.error_log.append(errors[ei])
+                    t = busy = errors[ei] + self.error_ns
+                    ei += 1
+                    self.error_frames += 1
+                    self.retries[m] = self.retries.get(m, 0) + 1
+                    if item[2] >= 0:  # a babbler's frame is not queued: it simply comes back
+                        push(pending, (item[0], release, item[2], m, data))
+                    continue
+            rec_msg.append(m)
+            rec_resp.append(end - release)
             if keep_data:
-                rec.data.append(data)
+                self.record.end.append(end)
+                self.record.data.append(data)
             t = busy = end
             if m in listeners or monitors:
                 for fn in listeners.get(m, ()):
@@ -285,10 +289,11 @@ class CanBus:
                 for fn in monitors:
                     sim.at(end, _deliver, (fn, end, m, release, data))
                 break
+        self._seq = seq
         self._rel_i = ri
         self._err_i = ei
         self._free_at = busy
-        if pending or ri < rn or self.streams or self.babble is not None:
+        if t < NEVER and (pending or ri < rn or self.streams or babble is not None):
             self._wake(t)
 
     def _lost(self, m: int, release: int) -> bool:
@@ -321,7 +326,7 @@ class CanBus:
     def _next_gate_time(self, t: int) -> int:
         """The next instant at which some queued gated frame could start."""
         assert self.gate is not None
-        best = 1 << 62
+        best = NEVER
         for item in self._pending:
             src = self.sources[item[3]]
             best = min(best, self.gate(t, self._duration(src, item[4])) if src.gated else t)

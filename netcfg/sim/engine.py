@@ -27,7 +27,7 @@ class Simulator:
         self.rng = np.random.default_rng(seed)
         self._queue: list[tuple[int, int, int, Callable[..., Any], Any]] = []
         self._seq = count()
-        self.stopped = False
+        self.until = 0  # the end of the current run_until: loops that batch work must not pass it
 
     def at(self, t: int, fn: Callable[..., Any], arg: Any = None, priority: int = EARLY) -> None:
         """Call fn(arg) at virtual time t (never before now)."""
@@ -44,6 +44,7 @@ class Simulator:
         """Run every event before t_end (or until stop() turns true after an event); then now = t_end."""
         queue = self._queue
         pop = heapq.heappop
+        self.until = t_end
         while queue and queue[0][0] < t_end:
             t, _, _, fn, arg = pop(queue)
             self.now = t

@@ -72,8 +72,8 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
     known = {m.name: m for m in cfg.messages}
     for can in sc.can.values():
         rec = can.record
-        msg = np.asarray(rec.msg, dtype=np.int64)
-        resp = np.asarray(rec.end, dtype=np.int64) - np.asarray(rec.release, dtype=np.int64)
+        msg = np.array(rec.msg, dtype=np.int64)
+        resp = np.array(rec.response, dtype=np.int64)
         res.frames += len(msg)
         order = np.argsort(msg, kind="stable")
         bounds = np.searchsorted(msg[order], np.arange(len(can.sources) + 1))

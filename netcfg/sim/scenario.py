@@ -50,6 +50,7 @@ class SimOptions:
     seed: int = 0
     stuffing: str = "worst"  # "exact" | "worst" | "none"
     drift_ppm: float = 50.0
+    random_phase: bool = True  # False: every node's clock starts at 0 (offsets as written)
     mode: str = "auto"  # "auto": each bus's own protocol; "unsync": CAN buses run as free-running CAN
     # "pdo": the SYNC master cycle; "sdo": concurrent SDO polling loops; "external": only the drives, which answer
     # the SYNCs a program sends through netcfg.sim.pybus (a live master run in virtual time)
@@ -82,7 +83,7 @@ class Scenario:
             periods = [m.interval_ns or 0 for m in cfg.messages if m.producer == node.name]
             periods += [t.period_ns or 0 for t in node.tasks]
             span = max(periods, default=0)
-            phase = int(rng.integers(0, span)) if span > 0 else 0
+            phase = int(rng.integers(0, span)) if span > 0 and opts.random_phase else 0
             drift = int(rng.uniform(-opts.drift_ppm, opts.drift_ppm) * 1000)
             if node.name in masters and opts.mode != "unsync":
                 drift = 0

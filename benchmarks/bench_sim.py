@@ -1,0 +1,127 @@
+"""Simulator speed, side by side with its peers (benchmarks/sim_peers.py), on this machine.
+
+    python benchmarks/bench_sim.py [--seconds 10] [--runs 8]
+
+1. A 1 Mbit/s bus loaded to 90 % (sim_peers.fully_loaded_set): netcfg's single run against the plain simpy
+   model on the same frames (same release instants: no drift, no phase), with their maximum response times
+   compared message by message (they must agree exactly), and python-can's virtual bus for scale.
+2. A Monte Carlo batch of the same bus over random phasings and drifts on every core: frames per second.
+3. The example systems: CAMBADA (FTT-CAN), ALLEX-2 (CANopen master cycle), large_plant (three buses).
+Figures are medians of three runs; wall times are whole simulations (set-up included), not process start-up.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from sim_peers import (  # noqa: E402
+    PeerFrame,
+    fully_loaded_set,
+    median_run,
+    python_can_virtual,
+    response_maxima_match,
+    simpy_can,
+    utilisation,
+)
+
+from netcfg import runtime  # noqa: E402
+from netcfg.sim.cli import load_document  # noqa: E402
+from netcfg.sim.montecarlo import run_batch, run_once  # noqa: E402
+from netcfg.sim.scenario import SimOptions  # noqa: E402
+
+SECOND = 1_000_000_000
+
+
+def peer_spec(frames: list[PeerFrame], bitrate: int = 1_000_000) -> str:
+    """The peer set as a netcfg spec: one node per message (so each has its own queue, as in the simpy model),
+    sizes recovered from the worst-case frame time (55 + 10 s bits for 11-bit ids at this bit rate)."""
+    lines = ["system: loaded_bus", "buses:", f"  - {{name: can0, protocol: can, bitrate: {bitrate // 1000} kbit/s}}"]
+    lines.append("nodes:")
+    lines.append("  - {name: sink, buses: [can0]}")
+    lines += [f"  - {{name: n{f.can_id}, buses: [can0]}}" for f in frames]
+    lines.append("messages:")
+    for f in frames:
+        bits = f.duration_ns * bitrate // SECOND
+        size = (bits - 55) // 10
+        lines.append(
+            f"  - {{name: m{f.can_id}, id: {f.can_id:#x}, size: {size}, producer: n{f.can_id}, consumers: [sink],"
+            f" period: {f.period_ns // 1000} us, offset: {f.offset_ns // 1000} us}}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def peer_document(frames: list[PeerFrame]) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        spec = Path(tmp) / "loaded_bus.yaml"
+        spec.write_text(peer_spec(frames))
+        doc = load_document(spec)
+    assert doc is not None, "the peer set must compile"
+    return doc
+
+
+def netcfg_single(doc: dict, seconds: int, **opts: object) -> tuple[float, int, dict[str, int]]:
+    cfg = runtime.parse(doc)
+    t0 = time.perf_counter()
+    _sc, res = run_once(cfg, SimOptions(duration_ns=seconds * SECOND, **opts))  # type: ignore[arg-type]
+    wall = time.perf_counter() - t0
+    maxima = {name: int(r.max()) for name, r in res.response.items() if len(r)}
+    return wall, res.frames, maxima
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=int, default=10)
+    ap.add_argument("--runs", type=int, default=8)
+    args = ap.parse_args()
+    frames = fully_loaded_set()
+    doc = peer_document(frames)
+    secs = args.seconds
+    print(f"1 Mbit/s bus, {len(frames)} messages, worst-case load {utilisation(frames):.3f}, {secs} s simulated")
+    walls = []
+    for _ in range(3):
+        wall, n, maxima = netcfg_single(doc, secs, drift_ppm=0.0, random_phase=False)
+        walls.append(wall)
+    wall = sorted(walls)[1]
+    peer = median_run(lambda: simpy_can(frames, secs * SECOND))
+    ours = {int(name[1:]): v for name, v in maxima.items()}
+    differ = response_maxima_match(ours, peer.max_response_ns)
+    virt = median_run(lambda: python_can_virtual(200_000))
+    rows = [
+        ("netcfg simulate, one run", n, wall, secs / wall),
+        ("simpy frame-level model", peer.frames, peer.wall_s, secs / peer.wall_s),
+        ("python-can virtual bus (send+recv)", virt.frames, virt.wall_s, None),
+    ]
+    print(f"  {'':<38}{'frames':>10}{'wall s':>9}{'frames/s':>12}{'x real time':>13}")
+    for name, fr, w, x in rows:
+        print(f"  {name:<38}{fr:>10,}{w:>9.3f}{fr / w:>12,.0f}{'-' if x is None else f'{x:.1f}x':>13}")
+    print(f"  netcfg vs simpy: {peer.wall_s / wall:.1f}x faster; maximum response times differ for {len(differ)} "
+          f"of {len(frames)} messages {differ[:5] if differ else ''}")
+    jobs = os.cpu_count() or 1
+    t0 = time.perf_counter()
+    res = run_batch(doc, SimOptions(duration_ns=secs * SECOND), args.runs, jobs)
+    batch_wall = time.perf_counter() - t0
+    print(f"  Monte Carlo: {args.runs} runs x {secs} s on {jobs} cores: {res.frames:,} frames in {batch_wall:.2f} s "
+          f"= {res.frames / batch_wall:,.0f} frames/s, {args.runs * secs / batch_wall:.0f}x real time")
+    print()
+    print(f"  {'example (10 s simulated)':<38}{'frames':>10}{'wall s':>9}{'frames/s':>12}{'x real time':>13}")
+    for system in ("cambada", "allex2", "large_plant"):
+        d = json.loads((ROOT / "generated" / system / "runtime.json").read_text())
+        ws = []
+        for _ in range(3):
+            w, n, _m = netcfg_single(d, 10)
+            ws.append(w)
+        w = sorted(ws)[1]
+        print(f"  {system:<38}{n:>10,}{w:>9.3f}{n / w:>12,.0f}{10 / w:>12.0f}x")
+
+
+if __name__ == "__main__":
+    main()
