@@ -77,7 +77,7 @@ class Scenario:
         self.sends: dict[str, list[str]] = {}  # task -> messages it sends as it finishes
         # node clocks: a random phase within the node's longest period, a drift within +-drift_ppm
         self.clock: dict[str, NodeClock] = {}
-        # time is the masters' time: an FTT-CAN master or a CANopen SYNC producer does not drift, the others do
+        # time is the masters' time: an FTT-CAN master or a CANopen SYNC producer starts at 0 and does not drift
         masters = {b.ftt.master for b in cfg.buses if b.ftt} | {b.canopen.sync_producer for b in cfg.buses if b.canopen}
         for node in cfg.nodes:
             periods = [m.interval_ns or 0 for m in cfg.messages if m.producer == node.name]
@@ -86,7 +86,7 @@ class Scenario:
             phase = int(rng.integers(0, span)) if span > 0 and opts.random_phase else 0
             drift = int(rng.uniform(-opts.drift_ppm, opts.drift_ppm) * 1000)
             if node.name in masters and opts.mode != "unsync":
-                drift = 0
+                phase, drift = 0, 0  # the master's first cycle starts the run
             self.clock[node.name] = NodeClock(phase, drift)
         self.flows = [FlowTracker(cfg, f) for f in cfg.flows]
         self._flow_refs: dict[str, list[FlowTracker]] = {}

@@ -1,0 +1,392 @@
+"""The simulator (netcfg simulate) against the seed papers, the analysis and a peer simulator.
+
+Where a figure comes from:
+* seed 002 (CAMBADA), Table 3: end-to-end delays, FTT-CAN Motion 26.7-27.7 ms, Odometry 21.6-21.7 ms; plain CAN
+  Motion 38.8-64.4 ms, Odometry 12-21 ms;
+* seed 000 (ALLEX-2), section 4.4.2: 20 ms period, 8 s gait cycle = 400 samples, 12 TxPDOs per cycle (6 drives x 2)
+  inside the 10 ms read window; section 5.2 and Figure 8: the SDO approach gives fewer samples at a variable rate;
+* the analysis: worst-case response times and flow bounds in runtime.json (checked against hand calculations in
+  test_seeds.py and test_rta.py); the simulator must never exceed them;
+* the plain simpy frame-level model in benchmarks/sim_peers.py: the same frames, the same maxima.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import can
+import cantools
+import pytest
+from conftest import ROOT, cli
+
+from netcfg import runtime
+from netcfg.sim.montecarlo import run_batch, run_once
+from netcfg.sim.results import summary
+from netcfg.sim.scenario import SimOptions
+
+GEN = ROOT / "generated"
+MS = 1_000_000
+SECOND = 1_000_000_000
+
+
+def cfg_of(system: str) -> runtime.RuntimeConfig:
+    return runtime.load(GEN / system / "runtime.json")
+
+
+def flow(doc: dict, name: str) -> dict:
+    return next(f for f in doc["flows"] if f["name"] == name)
+
+
+def message(doc: dict, name: str) -> dict:
+    return next(m for m in doc["messages"] if m["name"] == name)
+
+
+# -- CAMBADA, FTT-CAN ---------------------------------------------------------------------------------------
+
+
+def test_cambada_ftt_motion_matches_table_3() -> None:
+    """Motion, from the gateway sending the velocity vector to a motor receiving its set-point (the delivery of
+    the flow's last message): Table 3 measured 26.7-27.7 ms with FTT-CAN; within 1 ms of that, and a jitter of at
+    most the paper's 1.0 ms."""
+    _, res = run_once(cfg_of("cambada"), SimOptions(duration_ns=3 * SECOND, seed=1))
+    d = flow(summary(res), "motion")["delivery_us"]
+    print("motion delivery (us):", d)
+    assert d["min"] >= 26_700 - 1_000 and d["max"] <= 27_700 + 1_000
+    assert d["max"] - d["min"] <= 1_000
+
+
+def test_cambada_ftt_flows_stay_within_the_analysis() -> None:
+    """Every flow's latency inside the analysed synchronised bounds (runtime.json flows). Odometry comes out at
+    about 23.7-24.6 ms, not Table 3's 21.6-21.7 ms: netcfg places the synchronous window at the end of the EC
+    (the FTT-CAN layout: TM, asynchronous window, synchronous window), so the pose sent in EC 4 arrives at
+    20 ms + 5 ms - 1.9 ms (window) + 3 x 340 us (encoders) + 500 + 380 us = 24.6 ms after the read at the TM; the
+    paper's 21.6 ms fits a synchronous window right after the TM (20 + 0.85 + 0.41 + 0.32 ms with nominal frames)."""
+    _, res = run_once(cfg_of("cambada"), SimOptions(duration_ns=3 * SECOND, seed=2))
+    doc = summary(res)
+    for f in doc["flows"]:
+        print(f["name"], f["latency_us"], f["analysis_us"])
+        assert f["samples"] > 0
+        assert f["within_analysis"], f["name"]
+
+
+def test_cambada_unsynchronised_is_wide_like_table_3() -> None:
+    """Plain CAN from the same configuration, over random phasings and drifts: Motion spreads over tens of
+    milliseconds (Table 3: 38.8-64.4 ms, a 25.6 ms spread); both flows stay within the analysis' unsynchronised
+    bounds (netcfg check: Motion 15.79-80.70 ms, Odometry 4.85-19.94 ms)."""
+    res = run_batch(
+        json.loads((GEN / "cambada" / "runtime.json").read_text()),
+        SimOptions(duration_ns=2 * SECOND, seed=10, mode="unsync"),
+        runs=6,
+        jobs=1,
+    )
+    doc = summary(res)
+    motion, odo = flow(doc, "motion")["latency_us"], flow(doc, "odometry")["latency_us"]
+    print("unsync motion", motion, "odometry", odo)
+    assert motion["max"] - motion["min"] >= 10_000
+    assert motion["min"] >= 15_792 and motion["max"] <= 80_700
+    assert odo["min"] >= 4_846 and odo["max"] <= 19_940
+
+
+# -- ALLEX-2, CANopen ---------------------------------------------------------------------------------------
+
+
+def test_allex2_gait_cycle_gives_400_samples_in_the_read_window() -> None:
+    """8 s at 20 ms: 400 cycles, 400 complete samples per joint, no missing TxPDO, all 12 inside the 10 ms read
+    window (seed 000, section 4.4.2)."""
+    _, res = run_once(cfg_of("allex2"), SimOptions(duration_ns=8 * SECOND, seed=3))
+    rep = res.protocols["can0"][0]
+    print("cycle period (us):", rep["cycle_period_us"], "collection (us):", rep["collection_us"])
+    print("paper, section 5.2: gait-cycle error 1.266 ms mean, 1.3345 ms standard deviation")
+    assert rep["cycles"] == 400
+    assert rep["incomplete_cycles"] == 0
+    for drive, d in rep["drives"].items():
+        assert d["samples"] == 400, drive
+        assert d["missing_frames"] == 0, drive
+    assert rep["collection_us"]["max"] < 10_000
+
+
+def test_allex2_sdo_polling_gives_fewer_samples_at_a_variable_period() -> None:
+    """The SDO approach of [8] (seed 000, Figure 8 and section 5.2): fewer than the PDO approach's 400 samples in
+    an 8 s gait cycle, and a sampling period that varies."""
+    _, res = run_once(cfg_of("allex2"), SimOptions(duration_ns=8 * SECOND, seed=3, canopen="sdo"))
+    rep = res.protocols["can0"][0]
+    for drive, d in rep["drives"].items():
+        print(drive, d["samples"], d["period_us"])
+        assert 0 < d["samples"] < 400
+        assert d["period_us"]["std"] > 0
+
+
+def test_allex2_lost_sync_costs_one_cycle() -> None:
+    """A lost SYNC: the drives answer nothing in that cycle, so the master misses 12 TxPDOs (6 drives x 2, seed 000)
+    and each joint has 399 samples of 400; the loss is counted, not hidden."""
+    _, res = run_once(
+        cfg_of("allex2"), SimOptions(duration_ns=8 * SECOND, seed=4, faults=(_fault("lose:can0_SYNC@1s"),))
+    )
+    rep = res.protocols["can0"][0]
+    assert sum(d["missing_frames"] for d in rep["drives"].values()) == 12
+    assert all(d["samples"] == 399 for d in rep["drives"].values())
+    assert res.lost["can0_SYNC"] == 1
+
+
+def test_allex2_babbling_node_starves_the_bus() -> None:
+    """A node flooding identifier 0 for 0.5 s wins every arbitration, so no SYNC goes out for 0.5 s / 20 ms = 25
+    cycles: 12 TxPDOs missing in each, plus at most one more cycle's worth at each edge of the window (a cycle cut
+    at the start, the frames queued meanwhile flushed at the end), and the run goes on."""
+    fault = _fault("babble:hip_l@2s..2.5s=0")
+    _, res = run_once(cfg_of("allex2"), SimOptions(duration_ns=4 * SECOND, seed=5, faults=(fault,)))
+    rep = res.protocols["can0"][0]
+    missing = sum(d["missing_frames"] for d in rep["drives"].values())
+    print("missing TxPDOs:", missing)
+    assert 25 * 12 <= missing <= 27 * 12
+    assert rep["cycles"] in (200, 201)  # 4 s / 20 ms, +1 when the waiting error ends the run just after a start
+
+
+# -- faults on CAMBADA ---------------------------------------------------------------------------------------
+
+
+def test_cambada_crashed_motor_stops_and_is_counted() -> None:
+    """motor1 crashes at 1 s of a 2 s run: encoder1 (period 10 ms, Table 2) is sent about 100 times and the
+    other scheduled instances are counted as lost: sent + lost = 2 s / 10 ms = 200."""
+    _, res = run_once(
+        cfg_of("cambada"), SimOptions(duration_ns=2 * SECOND, seed=6, faults=(_fault("crash:motor1@1s"),))
+    )
+    sent, lost = res.sent["encoder1"], res.lost["encoder1"]
+    print("encoder1 sent", sent, "lost", lost)
+    assert sent + lost in (199, 200)
+    assert 95 <= sent <= 105
+
+
+def test_cambada_backup_master_takes_over() -> None:
+    """The master fails at 1 s; the backup master sends the TM itself within the same EC (its timeout, 2 TM
+    times, is far below the 5 ms EC), so no EC goes without its schedule and the flows keep running."""
+    fault = _fault("master-fail@1s")
+    _, res = run_once(cfg_of("cambada"), SimOptions(duration_ns=2 * SECOND, seed=7, faults=(fault,)))
+    rep = res.protocols["lowlevel"][0]
+    print(rep)
+    assert rep["backup"] == "backup_master"
+    assert 1_000_000 <= rep["takeover_at_us"] <= 1_005_000
+    assert rep["ecs_without_tm"] == 0
+    assert all(v == 0 for v in res.lost.values())
+
+
+def test_cambada_lost_trigger_message_loses_that_ecs_traffic() -> None:
+    """A lost TM: nodes do not know the EC's schedule, so none of its synchronous messages is sent and each is
+    counted as lost; one EC without TM."""
+    fault = _fault("lose:lowlevel_TM@1s")
+    _, res = run_once(cfg_of("cambada"), SimOptions(duration_ns=2 * SECOND, seed=8, faults=(fault,)))
+    rep = res.protocols["lowlevel"][0]
+    assert rep["ecs_without_tm"] == 1
+    assert res.lost["lowlevel_TM"] == 1
+    cfg = cfg_of("cambada")
+    ftt = cfg.bus("lowlevel").ftt
+    assert ftt is not None
+    lost_sync = sum(v for k, v in res.lost.items() if k != "lowlevel_TM")
+    assert lost_sync in {len(s.messages) for s in ftt.schedule}
+
+
+# -- bit errors ----------------------------------------------------------------------------------------------
+
+
+def test_one_bit_error_costs_an_error_frame_and_a_retransmission() -> None:
+    """A bit error 10 bit times into the first SYNC of ALLEX-2 (1 Mbit/s: 1 us per bit): ISO 11898-1's error frame
+    (at most 6 + 6 + 8 bits of flags and delimiter, 3 of intermission) and the SYNC again, so its response grows
+    by at least 10 + 23 bits = 33 us over the error-free run."""
+    cfg = cfg_of("allex2")
+    opts = SimOptions(duration_ns=100 * MS, seed=9, trace=True)
+    sc, clean = run_once(cfg, opts)
+    bus = sc.can["can0"]
+    sync = bus.by_name["can0_SYNC"].index
+    first = bus.record.msg.index(sync)
+    end = bus.record.end[first]
+    start = end - bus.sources[sync].dur_ns
+    hit = SimOptions(duration_ns=100 * MS, seed=9, faults=(_fault(f"bit-error@{start + 10_000}ns"),))
+    _, res = run_once(cfg, hit)
+    assert res.error_frames == 1
+    assert res.retransmissions["can0_SYNC"] == 1
+    assert res.response["can0_SYNC"][0] >= clean.response["can0_SYNC"][0] + 33_000
+
+
+def test_random_bit_errors_are_retransmitted_and_flagged_against_an_analysis_without_errors() -> None:
+    """With a bit error rate every error frame leads to one retransmission (nothing dropped), and where a response
+    exceeds the analysed worst case the summary says the analysis has no error model."""
+    _, res = run_once(cfg_of("large_plant"), SimOptions(duration_ns=1 * SECOND, seed=11, faults=(_fault("ber=2e-5"),)))
+    doc = summary(res)
+    print("error frames", res.error_frames, "exceeds", doc["exceeds_analysis"])
+    assert res.error_frames > 0
+    assert sum(res.retransmissions.values()) == res.error_frames
+    assert doc["lost"] == 0
+    if doc["exceeds_analysis"]:
+        assert "no error model" in doc["note"]
+
+
+# -- soundness -----------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("system", ["cambada", "allex2", "large_plant", "ntua_sahr"])
+def test_simulated_responses_never_exceed_the_analysis(system: str) -> None:
+    """Over 12 seeds (random phasings, drifts, execution times), no message's simulated response exceeds its
+    analysed worst case; a failure names the message, the seed and both figures."""
+    cfg = cfg_of(system)
+    for seed in range(12):
+        _, res = run_once(cfg, SimOptions(duration_ns=SECOND // 2, seed=seed))
+        for name, r in res.response.items():
+            w = res.wcrt.get(name)
+            if w is not None and len(r):
+                assert int(r.max()) <= w, f"{system} seed {seed}: {name} simulated {r.max()} ns > analysed {w} ns"
+
+
+def test_same_frames_same_maxima_as_the_simpy_model() -> None:
+    """The 90 %-loaded 1 Mbit/s set of benchmarks/sim_peers.py, without drift or phase: netcfg's simulated maximum
+    response of every message equals the plain simpy model's (a peer simulator) on the same release instants."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_sim import peer_document
+    from sim_peers import fully_loaded_set, simpy_can
+
+    frames = fully_loaded_set()
+    duration = 2 * SECOND
+    peer = simpy_can(frames, duration)
+    _, res = run_once(
+        runtime.parse(peer_document(frames)), SimOptions(duration_ns=duration, drift_ppm=0.0, random_phase=False)
+    )
+    ours = {int(name[1:]): int(r.max()) for name, r in res.response.items() if len(r)}
+    assert ours == peer.max_response_ns
+
+
+# -- outputs -------------------------------------------------------------------------------------------------
+
+
+def test_traces_read_back_frame_for_frame(tmp_path: Path) -> None:
+    """The candump -L and ASC traces hold every simulated frame: python-can's LogReader returns them in order
+    with the same identifiers, and cantools decodes ALLEX-2's TxPDOs with the generated DBC."""
+    log, asc = tmp_path / "run.log", tmp_path / "run.asc"
+    assert (
+        cli("simulate", str(GEN / "allex2" / "runtime.json"), "--duration", "200ms", "--log", str(log)).returncode == 0
+    )
+    assert (
+        cli("simulate", str(GEN / "allex2" / "runtime.json"), "--duration", "200ms", "--log", str(asc)).returncode == 0
+    )
+    sc, _ = run_once(cfg_of("allex2"), SimOptions(duration_ns=200 * MS, trace=True))
+    bus = sc.can["can0"]
+    expected = [bus.sources[m].can_id for m in bus.record.msg]
+    db = cantools.database.load_file(str(GEN / "allex2" / "dbc" / "can0.dbc"))
+    state = db.get_message_by_name("hip_l_state")
+    for path in (log, asc):
+        frames = [f for f in can.LogReader(str(path)) if not f.is_error_frame]
+        assert [f.arbitration_id for f in frames] == expected
+        decoded = [db.decode_message(f.arbitration_id, f.data) for f in frames if f.arbitration_id == state.frame_id]
+        assert len(decoded) == 10  # 200 ms / 20 ms SYNC cycles, one hip_l_state each
+    again = tmp_path / "again.log"
+    assert (
+        cli("simulate", str(GEN / "allex2" / "runtime.json"), "--duration", "200ms", "--log", str(again)).returncode
+        == 0
+    )
+    assert again.read_bytes() == log.read_bytes()  # same seed, same trace, byte for byte
+
+
+def test_json_contract_and_determinism() -> None:
+    """`netcfg simulate --format json` has the keys DESIGN.md promises, and the same seed gives the same
+    figures."""
+    args = ("simulate", "specs/cambada.yaml", "--duration", "500ms", "--format", "json", "--seed", "3")
+    a, b = cli(*args), cli(*args)
+    assert a.returncode == 0, a.stderr
+    da, db = json.loads(a.stdout), json.loads(b.stdout)
+    for key in ("duration_us", "frames", "messages", "flows", "lost", "deadline_misses"):
+        assert key in da
+    assert {"name", "count", "response_us"} <= set(da["messages"][0])
+    assert {"min", "mean", "max", "p99"} <= set(da["messages"][0]["response_us"])
+    assert {"name", "latency_us", "samples"} <= set(da["flows"][0])
+    da.pop("speed"), db.pop("speed")
+    assert da == db
+
+
+def test_monte_carlo_is_the_same_on_one_core_or_two() -> None:
+    """Run i uses seed + i and results merge in seed order, so the core count does not change the figures."""
+    doc = json.loads((GEN / "allex2" / "runtime.json").read_text())
+    opts = SimOptions(duration_ns=200 * MS, seed=20)
+    one = summary(run_batch(doc, opts, runs=4, jobs=1))
+    two = summary(run_batch(doc, opts, runs=4, jobs=2))
+    one.pop("speed"), two.pop("speed")
+    assert one == two
+
+
+def test_exact_stuffing_lies_between_nominal_and_worst() -> None:
+    """Exact stuffing (the frame's real bits, ISO 11898-1) never makes a response longer than worst-case stuffing
+    and never shorter than no stuffing at all."""
+    cfg = cfg_of("allex2")
+    runs = {
+        s: run_once(cfg, SimOptions(duration_ns=200 * MS, seed=1, stuffing=s))[1] for s in ("none", "exact", "worst")
+    }
+    for name in runs["worst"].response:
+        lo, mid, hi = (int(runs[s].response[name].max()) for s in ("none", "exact", "worst"))
+        assert lo <= mid <= hi, name
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "text"),
+    [
+        (["--fault", "crash:nobody@1s"], 1, "no node named 'nobody'"),
+        (["--fault", "melt@1s"], 2, "cannot read fault"),
+        (["--duration", "ten seconds"], 2, "is not a time"),
+        (["--log", "trace.txt"], 2, "trace formats are .log, .asc"),
+    ],
+)
+def test_bad_simulate_input_is_a_clear_error(args: list[str], code: int, text: str, tmp_path: Path) -> None:
+    r = cli("simulate", str(GEN / "allex2" / "runtime.json"), *args, cwd=tmp_path)
+    assert r.returncode == code
+    assert text in r.stderr
+    assert "Traceback" not in r.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def test_simulating_a_spec_with_errors_simulates_nothing(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text((ROOT / "specs" / "cambada.yaml").read_text().replace("odometry.pose", "odometry.nothing", 1))
+    r = cli("simulate", str(bad))
+    assert r.returncode == 1
+    assert f"{bad}:" in r.stderr and "nothing was simulated" in r.stderr
+
+
+def test_a_runtime_json_of_another_version_is_refused(tmp_path: Path) -> None:
+    doc = json.loads((GEN / "allex2" / "runtime.json").read_text())
+    doc["version"] = 99
+    path = tmp_path / "runtime.json"
+    path.write_text(json.dumps(doc))
+    r = cli("simulate", str(path))
+    assert r.returncode == 1
+    assert "version" in r.stderr
+
+
+# -- a live master in virtual time (issue: live master) ------------------------------------------------------
+
+
+def test_live_master_runs_400_cycles_in_virtual_time() -> None:
+    """The live master (netcfg.runtime.canopen_master.MasterCycle), unchanged, on the simulator's python-can bus
+    and clock, against the simulated drives: 400 cycles of 20 ms, 400 complete samples per joint (seed 000)."""
+    import time
+
+    from netcfg.runtime.canopen_master import MasterCycle
+    from netcfg.sim.pybus import SimCanBus, VirtualClock
+    from netcfg.sim.scenario import Scenario
+
+    cfg = cfg_of("allex2")
+    sc = Scenario(cfg, SimOptions(duration_ns=10 * SECOND, canopen="external"))
+    sc.start()
+    bus = SimCanBus(sc, "can0", node="master")
+    t0 = time.perf_counter()
+    try:
+        run = MasterCycle(cfg, bus, VirtualClock(sc)).run(400)
+    finally:
+        bus.shutdown()
+    print(f"400 cycles in {time.perf_counter() - t0:.3f} s wall; {run.period_stats()}")
+    assert sum(run.missing_by_node().values()) == 0
+    for drive in ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r"):
+        assert run.complete_samples(drive) == 400
+    assert sc.sim.now == pytest.approx(8 * SECOND, abs=20 * MS)
+
+
+def _fault(text: str):
+    from netcfg.sim.faults import Fault
+
+    return Fault.parse(text)
