@@ -16,6 +16,7 @@ $(BIN)/.installed: pyproject.toml
 demo: $(BIN)/.installed
 	$(BIN)/netcfg check specs/cambada.yaml specs/allex2.yaml specs/ntua_sahr.yaml
 	$(BIN)/netcfg build specs/allex2.yaml -o build/allex2
+	$(BIN)/netcfg simulate build/allex2/runtime.json --duration 8s --log build/allex2/sim.log
 
 test: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks
@@ -32,6 +33,7 @@ generated: $(BIN)/.installed
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_check.py
 	$(BIN)/python benchmarks/bench_build.py
+	$(BIN)/python benchmarks/bench_sim.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -7,6 +7,7 @@ send back from a worker process; several merge into one; `summary()` gives the J
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -225,10 +226,41 @@ def text(doc: dict[str, Any]) -> str:
                 f"  {f['name']:<28}{f['samples']:>8}{_f(r.get('min')):>10}{_f(r.get('mean')):>10}"
                 f"{_f(r.get('p99')):>10}{_f(r.get('max')):>10}  {span}"
             )
+    for bus, reports in doc.get("protocols", {}).items():
+        lines += ["", *_protocol_text(bus, reports[0])]
     if doc.get("note"):
         lines.append("")
         lines.append("  " + doc["note"])
     return "\n".join(lines)
+
+
+def _protocol_text(bus: str, rep: dict[str, Any]) -> list[str]:
+    """A few lines per bus on what its protocol did: the CANopen master's samples, FTT-CAN's ECs, Ethernet links."""
+    if "drives" in rep:
+        out = [f"  bus {bus}: CANopen master, {rep['mode'].upper()} mode, period {rep['period_us']:.0f} us"]
+        if "cycles" in rep:
+            out.append(f"    {rep['cycles']} cycles, {rep['incomplete_cycles']} incomplete")
+        for drive, d in rep["drives"].items():
+            p = d["period_us"] or {}
+            out.append(
+                f"    {drive:<16} {d['samples']:>6} samples, {d['missing_frames']} missing frames, period "
+                f"{_f(p.get('mean'))} us mean, {_f(p.get('std'))} us std"
+            )
+        return out
+    if "ecs" in rep:
+        out = [f"  bus {bus}: FTT-CAN, {rep['ecs']} elementary cycles, {rep['ecs_without_tm']} without trigger message"]
+        if rep.get("takeover_at_us") is not None:
+            out.append(f"    backup master {rep['backup']} took over at {rep['takeover_at_us']:.0f} us")
+        return out
+    if "links" in rep:
+        out = [f"  bus {bus}: switched Ethernet"]
+        for link in rep["links"]:
+            out.append(
+                f"    {link['from'] + ' -> ' + link['to']:<24} {link['frames']:>8} frames, utilisation "
+                f"{link['utilization']:.4f}, longest queue {link['max_queue']}, lost {link['lost']}"
+            )
+        return out
+    return [f"  bus {bus}: {json.dumps(rep)[:200]}"]
 
 
 def _f(x: float | None) -> str:
