@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from netcfg.sim.engine import LATE, Simulator
-from netcfg.timing.frames import bits_to_ns, can_frame_bits, can_frame_bits_exact
+from netcfg.timing.frames import bits_to_ns, can_frame_bits, can_frame_bits_exact, can_frame_bits_exact_batch
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
 # intermission (3): ISO 11898-1's active error frame at its longest.
@@ -98,6 +98,8 @@ class CanBus:
         self._seq = 0
         self._rel_t: list[int] = []
         self._rel_src: list[int] = []
+        self._rel_data: list[bytes | None] = []  # payloads of free-running frames (exact stuffing only)
+        self._exact: dict[tuple[int, bytes], int] = {}  # (source, payload) -> frame time, exact stuffing
         self._rel_i = 0
         self._chunk_end = 0
         self._free_at = 0  # the bus is busy until then
@@ -131,6 +133,8 @@ class CanBus:
     def submit(self, source: int, data: bytes | None = None) -> None:
         """Queue a frame now (a reactive sender: a task, the CANopen master, the FTT-CAN master)."""
         now = self.sim.now
+        if data is None and self.stuffing == "exact" and self.sources[source].size:
+            data = self.sim.rng.integers(0, 256, self.sources[source].size, dtype=np.uint8).tobytes()
         self._seq += 1
         heapq.heappush(self._pending, (self.sources[source].key, now, self._seq, source, data))
         self._wake(now)
@@ -169,8 +173,9 @@ class CanBus:
     def _refill(self, t0: int) -> None:
         """Expand the release streams for [t0, t0 + CHUNK_NS) and merge them with what is left."""
         t1 = t0 + CHUNK_NS
-        times = [np.asarray(self._rel_t[self._rel_i :], dtype=np.int64)]
-        srcs = [np.asarray(self._rel_src[self._rel_i :], dtype=np.int64)]
+        left = slice(self._rel_i, None)
+        times = [np.asarray(self._rel_t[left], dtype=np.int64)]
+        srcs = [np.asarray(self._rel_src[left], dtype=np.int64)]
         for stream in self.streams:
             ts, ss = stream(t0, t1)
             times.append(ts)
@@ -178,15 +183,39 @@ class CanBus:
         all_t = np.concatenate(times)
         all_s = np.concatenate(srcs)
         order = np.argsort(all_t, kind="stable")
+        data: list[bytes | None] = self._rel_data[left] + [None] * (len(all_t) - len(times[0]))
+        if self.stuffing == "exact":
+            data = self._random_payloads(all_s, data, len(times[0]))
         self._rel_t = all_t[order].tolist()
         self._rel_src = all_s[order].tolist()
+        self._rel_data = [data[i] for i in order.tolist()]
         self._rel_i = 0
         self._chunk_end = t1
+
+    def _random_payloads(self, srcs: np.ndarray, data: list[bytes | None], first_new: int) -> list[bytes | None]:
+        """Exact stuffing needs each frame's bits: free-running frames carry seeded random payloads, whose frame
+        lengths are computed here in one vectorised pass per message and remembered for the loop."""
+        carried = {(s, d) for s, d in zip(srcs[:first_new].tolist(), data[:first_new]) if d is not None}
+        self._exact = {k: v for k, v in self._exact.items() if k in carried}  # forget frames already sent
+        new = srcs[first_new:]
+        for s in np.unique(new).tolist():
+            src = self.sources[s]
+            rows = np.flatnonzero(new == s)
+            payloads = self.sim.rng.integers(0, 256, (len(rows), src.size), dtype=np.uint8)
+            bits = can_frame_bits_exact_batch(src.can_id, src.extended, payloads)
+            for r, payload, b in zip(rows.tolist(), payloads, bits.tolist()):
+                blob = payload.tobytes()
+                data[first_new + r] = blob
+                self._exact[(s, blob)] = bits_to_ns(b, self.bitrate)
+        return data
 
     def _duration(self, src: CanSource, data: bytes | None) -> int:
         if self.stuffing != "exact":
             return src.dur_ns
         payload = data if data is not None else bytes(src.size)
+        known = self._exact.get((src.index, payload))
+        if known is not None:
+            return known
         return bits_to_ns(can_frame_bits_exact(src.can_id, src.extended, payload), self.bitrate)
 
     def _step(self, token: int) -> None:
@@ -201,7 +230,7 @@ class CanBus:
         sources = self.sources
         keys, durs = self._keys, self._durs
         rec_msg, rec_resp = self.record.msg, self.record.response
-        rel_t, rel_src = self._rel_t, self._rel_src
+        rel_t, rel_src, rel_data = self._rel_t, self._rel_src, self._rel_data
         ri, rn = self._rel_i, len(self._rel_t)
         listeners = self.listeners
         monitors = self.monitors
@@ -230,12 +259,12 @@ class CanBus:
             if t >= self._chunk_end and self.streams:
                 self._rel_i = ri
                 self._refill(self._chunk_end)
-                rel_t, rel_src = self._rel_t, self._rel_src
+                rel_t, rel_src, rel_data = self._rel_t, self._rel_src, self._rel_data
                 ri, rn = 0, len(rel_t)
             while ri < rn and rel_t[ri] <= t:
                 s = rel_src[ri]
                 seq += 1
-                push(pending, (keys[s], rel_t[ri], seq, s, None))
+                push(pending, (keys[s], rel_t[ri], seq, s, rel_data[ri]))
                 ri += 1
             item: Pending | None
             if babble is not None and babble[1] <= t < babble[2] and (not pending or keys[babble[0]] < pending[0][0]):
