@@ -9,7 +9,11 @@ Everything about the network comes from generated/allex2/runtime.json and the ED
   samples").
 - PDO configuration values: runtime.json itself (the read-back must equal it); COB-ID flag bits and transmission type
   meaning: CiA 301 (bit 31 = PDO not valid, bit 30 = no RTR; type n = every n-th SYNC; 255 = on receipt).
-- Interpolation time period 0x60C2 = (20, -3): CiA 402, value * 10^index s = the 20 ms SYNC period.
+- Interpolation time period 0x60C2 = (20, -3): CiA 402, value * 10^index s = the 20 ms SYNC period; runtime.json
+  states it as node.sdo_init.
+- Expected identity: runtime.json's node.identity, vendor 0x000000FB (maxon: [DeviceInfo] VendorNumber of maxon's
+  EPOS4 EDS, netcfg/devices/profiles/epos4.yaml), product code unknown (the built-in profile covers every variant).
+- PDO counts: 4 RPDOs and 4 TPDOs (the EPOS4's 0x1400-0x1403 / 0x1800-0x1803, runtime.json node.rpdo_count/tpdo_count).
 - SDO abort codes: CiA 301 table 22 (0x06040041 object cannot be mapped, 0x08000022 refused in present state).
 """
 
@@ -37,6 +41,7 @@ from netcfg.runtime.canopen_master import (
     configure_network,
     identities_from_dir,
     identity_from_eds,
+    identity_from_runtime,
     interpolation_period,
 )
 from netcfg.runtime.clock import SystemClock
@@ -120,13 +125,16 @@ def test_master_configures_six_drives_and_runs_400_cycles(
         # factory state: nothing configured, so every value below comes from the master's SDO writes
         assert all(not valid for _, _, _, valid, _, _ in bench["hip_l"].pdo_slots())
 
-        report = configure_network(cfg, master_bus, identities=identities_from_dir(cfg, CANOPEN_DIR))
+        # the expected identities, COB-IDs, PDO counts and start-up writes: runtime.json alone
+        report = configure_network(cfg, master_bus)
         print(report)
         assert report.ok, str(report)
         for joint in JOINTS:
             setup = report.node(joint)
             assert setup.started
+            assert setup.identity is not None and setup.identity[0] == 0x000000FB  # checked against node.identity
             assert setup.interpolation == (20, -3)  # CiA 402 0x60C2 for the 20 ms SYNC period
+            assert setup.start_up == ((0x60C2, 1, 20), (0x60C2, 2, -3))  # node.sdo_init, read back
             assert bench[joint].value(0x60C2, 1) == 20 and bench[joint].value(0x60C2, 2) == -3
             want = pdo_config(cfg, joint)
             # the master's own read-back
@@ -198,7 +206,7 @@ def test_setup_errors_are_per_node_and_leave_the_others_alone(
         "ankle_l": {"abort_writes": {0x1A01: 0x06040041}},
     }
     with DriveBench(cfg, CANOPEN_DIR, channel=channel, options=faults) as bench:
-        report = configure_network(cfg, master_bus, identities=identities_from_dir(cfg, CANOPEN_DIR), sdo_timeout_s=0.2)
+        report = configure_network(cfg, master_bus, sdo_timeout_s=0.2)
         print(report)
         assert [n.node for n in report.failed] == ["hip_l", "knee_l", "ankle_l"]
 
@@ -206,6 +214,7 @@ def test_setup_errors_are_per_node_and_leave_the_others_alone(
         assert wrong.step == "identity" and wrong.identity == (0x12345678, 0x42)
         assert wrong.error is not None
         assert "wrong device" in wrong.error and "0x12345678" in wrong.error and "0x000000FB" in wrong.error
+        assert "from runtime.json" in wrong.error  # where the expectation came from
         assert "node id" in wrong.error  # what to do
         assert bench["hip_l"].sdo_writes == []  # nothing written to the wrong device
 
@@ -324,16 +333,95 @@ def test_drive_refuses_mapping_a_valid_pdo(cfg: rt.RuntimeConfig, channel: str) 
     assert drive.errors == []
 
 
-def test_expected_identity_and_interpolation_period() -> None:
+def test_expected_identity_and_interpolation_period(cfg: rt.RuntimeConfig) -> None:
     """hip_l.dcf [DeviceInfo]: VendorNumber 0x000000FB (maxon, netcfg/devices/profiles/epos4.yaml) and
-    ProductNumber 0 (the profile leaves the variant's code open), so only the vendor is checked."""
+    ProductNumber 0 (the profile leaves the variant's code open), so only the vendor is checked. runtime.json's
+    node.identity says the same, and identities_from_dir takes it from there when it is present."""
     ident = identity_from_eds(CANOPEN_DIR / "hip_l.dcf")
     assert (ident.vendor_id, ident.product_code) == (0x000000FB, None)
+    stated = identity_from_runtime(cfg, cfg.node("hip_l"))
+    assert stated is not None and (stated.vendor_id, stated.product_code) == (ident.vendor_id, ident.product_code)
+    assert identities_from_dir(cfg, CANOPEN_DIR)["hip_l"] == stated
+    assert Path(stated.source).name == "runtime.json"
+    assert interpolation_period is rt.interpolation_period  # the emitter's sdo_init and this fallback agree
     # CiA 402 0x60C2: value * 10^index s
     assert interpolation_period(20_000_000) == (20, -3)
     assert interpolation_period(2_500_000) == (25, -4)
     assert interpolation_period(500_000_000) == (50, -2)
     assert interpolation_period(20_000_001) is None
+
+
+def without_added_keys(data: dict[str, Any]) -> dict[str, Any]:
+    """A runtime.json as written before node.identity/eds/dcf/sdo_init/rpdo_count/tpdo_count and pdo.cob_id."""
+    for node in data["nodes"]:
+        for key in ("identity", "eds", "dcf", "sdo_init", "rpdo_count", "tpdo_count"):
+            del node[key]
+    for msg in data["messages"]:
+        if msg["pdo"] is not None:
+            del msg["pdo"]["cob_id"]
+    return data
+
+
+def test_an_older_runtime_json_still_configures_the_drives(channel: str, master_bus: can.BusABC) -> None:
+    """Without the device facts the master falls back: identity from hip_l.dcf, COB-ID flag bits derived (the same
+    values, CiA 301: TPDO1 0x40000181 with 'no RTR', RPDO1 0x201), PDOs 1-4 (the pre-defined connection set),
+    0x60C2 from the 20 ms SYNC period."""
+    old = rt.parse(without_added_keys(json.loads((GENERATED / "runtime.json").read_text(encoding="utf-8"))))
+    assert old.node("hip_l").identity is None and old.node("hip_l").sdo_init is None
+    identities = identities_from_dir(old, CANOPEN_DIR, "can0")
+    assert Path(identities["hip_l"].source).name == "hip_l.dcf"
+    with DriveBench(old, CANOPEN_DIR, channel=channel, nodes=["hip_l"]) as bench:
+        report = configure_network(old, master_bus, nodes=["hip_l"], identities=identities)
+        assert report.ok, str(report)
+        assert bench["hip_l"].value(0x60C2, 1) == 20 and bench["hip_l"].value(0x60C2, 2) == -3
+    setup = report.node("hip_l")
+    assert setup.interpolation == (20, -3) and setup.start_up == ()
+    cobs = {(p.kind, p.number): p.cob_id for p in setup.pdos}
+    assert cobs[("tpdo", 1)] == 0x40000181 and cobs[("rpdo", 1)] == 0x201
+
+
+def test_master_writes_what_runtime_json_states(channel: str, master_bus: can.BusABC) -> None:
+    """The master takes 0x60C2 from node.sdo_init and the COB-ID from pdo.cob_id, not from its own derivation: a
+    config stating 0x60C2:1 = 10 and TPDO1 without the 'no RTR' bit (0x181) gets exactly that into the drive."""
+    data = json.loads((GENERATED / "runtime.json").read_text(encoding="utf-8"))
+    for node in data["nodes"]:
+        if node["name"] == "hip_l":
+            node["sdo_init"][0]["value"] = 10
+    for msg in data["messages"]:
+        if msg["name"] == "hip_l_state":
+            msg["pdo"]["cob_id"] = 0x181
+    changed = rt.parse(data)
+    with DriveBench(changed, CANOPEN_DIR, channel=channel, nodes=["hip_l"]) as bench:
+        report = configure_network(changed, master_bus, nodes=["hip_l"])
+        assert report.ok, str(report)
+        assert bench["hip_l"].value(0x60C2, 1) == 10
+    setup = report.node("hip_l")
+    assert setup.interpolation == (10, -3) and setup.start_up == ((0x60C2, 1, 10), (0x60C2, 2, -3))
+    assert {(p.kind, p.number): p.cob_id for p in setup.pdos}[("tpdo", 1)] == 0x181
+
+
+def test_master_uses_the_stated_identity_and_pdo_counts(channel: str, master_bus: can.BusABC) -> None:
+    """node.identity with a product code the drive does not hold (hip_l.eds has ProductNumber 0, so the simulated
+    drive's 0x1018:2 is 0) fails the identity check; node.tpdo_count 5 makes the master disable TPDO5, which the
+    EPOS4 lacks: SDO abort 0x06020000 (CiA 301 table 22, object does not exist)."""
+    data = json.loads((GENERATED / "runtime.json").read_text(encoding="utf-8"))
+    for node in data["nodes"]:
+        if node["name"] == "hip_l":
+            node["identity"]["product_code"] = 0x61500000  # maxon's EDS: the EPOS4 50/5
+        if node["name"] == "knee_l":
+            node["tpdo_count"] = 5
+    changed = rt.parse(data)
+    with DriveBench(changed, CANOPEN_DIR, channel=channel, nodes=["hip_l", "knee_l"]):
+        report = configure_network(changed, master_bus, nodes=["hip_l", "knee_l"])
+    wrong = report.node("hip_l")
+    assert wrong.step == "identity" and wrong.error is not None and "product 0x61500000" in wrong.error
+    missing = report.node("knee_l")
+    assert missing.step == "disabling unused TPDO5" and missing.abort_code == 0x06020000
+
+
+def test_drive_bench_finds_the_eds_runtime_json_names(cfg: rt.RuntimeConfig, channel: str) -> None:
+    with DriveBench(cfg, channel=channel, nodes=["hip_l"]) as bench:
+        assert bench["hip_l"].has(0x60C2, 1)  # built from canopen/hip_l.eds beside runtime.json
 
 
 def test_system_clock_never_returns_early() -> None:

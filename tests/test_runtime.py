@@ -1,22 +1,31 @@
 """runtime.json and netcfg.runtime: typed access for a live master, without the compiler.
 
 Numbers come from the specs (specs/*.yaml), CiA 301 (pre-defined connection set: RPDO1 = 0x200 + node id,
-TPDO1 = 0x180 + node id, SYNC = 0x080; PDO data little-endian) and seed 001's Table 6.1 (a UDP payload is one
-byte of message id, 0x31 PWM or 0x42 encoder, then the data).
+TPDO1 = 0x180 + node id, SYNC = 0x080; PDO data little-endian; PDO COB-ID bit 31 = not valid, bit 30 = no RTR,
+bit 29 = 29-bit identifier; data type codes 0x02 INTEGER8, 0x05 UNSIGNED8), CiA 402 (0x60C2 interpolation time
+period: sub 1 value, sub 2 index, period = value * 10^index s), maxon's EDS of the EPOS4 50/5 in ../shared/devices/
+([DeviceInfo] VendorNumber 0x000000FB, ProductNumber 0x61500000, RevisionNumber 0x01700000; 4 RPDO and 4 TPDO
+communication objects 0x1400-0x1403, 0x1800-0x1803) and seed 001's Table 6.1 (a UDP payload is one byte of message
+id, 0x31 PWM or 0x42 encoder, then the data).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
+import shutil
 import subprocess
 import sys
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import can
+import canopen
 import pytest
-from conftest import ROOT, SPECS
+import yaml
+from conftest import EPOS4_EDS, ROOT, SPECS, check, load_spec
 
 import netcfg.runtime as rt
 from netcfg.build import build
@@ -218,3 +227,205 @@ def test_runtime_does_not_import_the_compiler(built: dict[str, Path]) -> None:
     compiler = ("netcfg.spec", "netcfg.resolve", "netcfg.model", "netcfg.timing", "netcfg.emit")
     assert [m for m in loaded if m.startswith(compiler)] == []
     assert "netcfg.runtime" in loaded and "pydantic" not in loaded and "yaml" not in loaded
+
+
+# --- CANopen device facts and the simulator's bounds (keys added within version 1) ------------------------------------
+
+NEW_NODE_KEYS = ("identity", "eds", "dcf", "sdo_init", "rpdo_count", "tpdo_count")
+NEW_PDO_KEYS = ("cob_id",)
+NEW_FLOW_KEYS = ("unsync_latency_min_ns", "unsync_latency_max_ns")
+DRIVES = ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r")  # specs/allex2.yaml, device epos4
+EPOS4_VENDOR = 0x000000FB  # maxon_epos4_50-5.eds [DeviceInfo] VendorNumber; also epos4.yaml vendor_id
+EPOS4_50_5_PRODUCT = 0x61500000  # maxon_epos4_50-5.eds [DeviceInfo] ProductNumber (the 50/5 variant only)
+EPOS4_50_5_REVISION = 0x01700000  # maxon_epos4_50-5.eds [DeviceInfo] RevisionNumber
+UNSIGNED8, INTEGER8 = 0x05, 0x02  # CiA 301 table 44; the EDS's 60C2sub1 / 60C2sub2 DataType
+PDO_INVALID, NO_RTR, EXTENDED = 1 << 31, 1 << 30, 1 << 29  # CiA 301 PDO COB-ID bits
+
+
+def vendor_eds_build(tmp_path: Path) -> rt.RuntimeConfig:
+    """allex2 with every drive described by maxon's EDS instead of the built-in profile."""
+    shutil.copy(EPOS4_EDS, tmp_path / "epos4.eds")
+    data = load_spec("allex2.yaml")
+    for node in data["nodes"]:
+        if node.get("device") == "epos4":
+            node["device"] = {"eds": "epos4.eds"}
+    spec = tmp_path / "allex2_vendor.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    report, target, _ = build(spec, tmp_path / "out")
+    assert target is not None, report["errors"]
+    return rt.load(target / "runtime.json")
+
+
+def eds_pdo_objects(text: str) -> tuple[int, int]:
+    """How many RPDO (0x1400-0x15FF) and TPDO (0x1800-0x19FF) communication objects an EDS/DCF defines."""
+    heads = {int(h, 16) for h in re.findall(r"^\[([0-9A-Fa-f]{4})\]", text, re.MULTILINE)}
+    return sum(0x1400 <= h < 0x1600 for h in heads), sum(0x1800 <= h < 0x1A00 for h in heads)
+
+
+def test_identity_comes_from_the_device_profile(allex2: rt.RuntimeConfig, sahr: rt.RuntimeConfig) -> None:
+    """The built-in epos4 profile knows maxon's vendor id; its product code differs per variant (allex2.yaml's
+    drives are 50/8, the shared EDS is the 50/5's), so it stays unknown rather than guessed, as does the revision."""
+    for name in DRIVES:
+        assert allex2.node(name).identity == rt.NodeIdentity(EPOS4_VENDOR, None, None), name
+    assert allex2.node("master").identity is None  # no device profile: nothing to check
+    assert all(n.identity is None for n in sahr.nodes)  # Ethernet nodes
+
+
+@pytest.mark.usefixtures("needs_shared")
+def test_identity_and_pdo_counts_from_a_vendor_eds(tmp_path: Path) -> None:
+    """With maxon's EDS as the device, its [DeviceInfo] gives all three identity values (0x1018 has no
+    DefaultValue there), and its 0x1400-0x1403 / 0x1800-0x1803 give the PDO counts."""
+    cfg = vendor_eds_build(tmp_path)
+    rx, tx = eds_pdo_objects(EPOS4_EDS.read_text(encoding="latin-1"))
+    assert (rx, tx) == (4, 4)
+    for name in DRIVES:
+        node = cfg.node(name)
+        assert node.identity == rt.NodeIdentity(EPOS4_VENDOR, EPOS4_50_5_PRODUCT, EPOS4_50_5_REVISION), name
+        assert (node.rpdo_count, node.tpdo_count) == (rx, tx)
+        # the EDS's own data types for 0x60C2
+        assert [(w.index, w.sub, w.data_type) for w in node.sdo_init or ()] == [
+            (0x60C2, 1, UNSIGNED8),
+            (0x60C2, 2, INTEGER8),
+        ]
+
+
+@pytest.mark.usefixtures("needs_shared")
+def test_pdo_counts_equal_the_eds_pdo_objects(allex2: rt.RuntimeConfig, built: dict[str, Path]) -> None:
+    """The built-in profile's counts equal the vendor EDS's number of PDO communication objects, and the generated
+    DCF of each drive defines exactly that many (NrOfRXPDO / NrOfTXPDO too)."""
+    vendor = eds_pdo_objects(EPOS4_EDS.read_text(encoding="latin-1"))
+    for name in DRIVES:
+        node = allex2.node(name)
+        assert (node.rpdo_count, node.tpdo_count) == vendor, name
+        assert node.dcf is not None
+        dcf = (built["allex2"].parent / node.dcf).read_text(encoding="ascii")
+        assert eds_pdo_objects(dcf) == vendor
+        assert f"NrOfRXPDO={vendor[0]}\n" in dcf and f"NrOfTXPDO={vendor[1]}\n" in dcf
+    master = allex2.node("master")
+    assert (master.rpdo_count, master.tpdo_count) == (None, None)  # no device profile
+
+
+def test_eds_and_dcf_name_the_files_the_build_wrote(allex2: rt.RuntimeConfig, built: dict[str, Path]) -> None:
+    """Every CANopen file the build wrote is named by exactly one node, and each named file exists, relative to
+    the runtime.json's folder; the master without a device profile has a DCF only."""
+    hip = allex2.node("hip_l")
+    assert (hip.eds, hip.dcf) == ("canopen/hip_l.eds", "canopen/hip_l.dcf")
+    assert allex2.path("canopen/hip_l.eds") == built["allex2"].parent / "canopen" / "hip_l.eds"
+    master = allex2.node("master")
+    assert (master.eds, master.dcf) == (None, "canopen/master.dcf")
+    named = sorted(f for n in allex2.nodes for f in (n.eds, n.dcf) if f is not None)
+    folder = built["allex2"].parent
+    written = sorted(str(p.relative_to(folder)) for p in (folder / "canopen").glob("*.[ed][dc][sf]"))
+    assert named == written and len(named) == 2 * len(DRIVES) + 1
+    with pytest.raises(ValueError, match="not loaded from a file"):
+        rt.parse(json.loads(built["allex2"].read_text())).path("canopen/hip_l.eds")
+
+
+def test_non_canopen_nodes_have_no_device_facts(built: dict[str, Path]) -> None:
+    for name in ("cambada", "ntua_sahr"):
+        for node in rt.load(built[name]).nodes:
+            assert (node.eds, node.dcf, node.identity, node.rpdo_count, node.tpdo_count) == (None,) * 5
+            assert node.sdo_init == ()  # stated: nothing to write
+
+
+def test_sdo_init_sets_the_cia402_interpolation_period_to_the_sync_period(allex2: rt.RuntimeConfig) -> None:
+    """allex2.yaml: SYNC every 20 ms. CiA 402 0x60C2: 20 * 10^-3 s = 20 ms, sub 1 UNSIGNED8, sub 2 INTEGER8.
+    Nothing else: the spec cannot state the modes of operation (0x6060)."""
+    want = (rt.SdoWrite(0x60C2, 1, UNSIGNED8, 20), rt.SdoWrite(0x60C2, 2, INTEGER8, -3))
+    for name in DRIVES:
+        assert allex2.node(name).sdo_init == want, name
+    assert allex2.node("master").sdo_init == ()
+
+
+def test_sdo_init_follows_the_sync_period_unit(tmp_path: Path) -> None:
+    """A 7.5 ms SYNC is no whole number of ms: CiA 402 allows 75 * 10^-4 s; 300 ms exceeds an UNSIGNED8 of ms,
+    so 30 * 10^-2 s."""
+    data = load_spec("allex2.yaml")
+    for node in data["nodes"]:
+        node.pop("tasks", None)  # task timing that fitted 20 ms is not the point here
+    data.pop("flows", None)
+    for period, value in (("7.5 ms", (75, -4)), ("300 ms", (30, -2))):
+        data["buses"][0]["canopen"] = {"sync_period": period}
+        spec = tmp_path / "fast.yaml"
+        spec.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+        report, target, _ = build(spec, tmp_path / period.replace(" ", ""))
+        assert target is not None, report["errors"]
+        writes = rt.load(target / "runtime.json").node("hip_l").sdo_init
+        assert writes is not None and tuple(w.value for w in writes) == value, period
+
+
+def test_pdo_cob_id_has_the_cia301_bits_and_equals_the_dcf(allex2: rt.RuntimeConfig, built: dict[str, Path]) -> None:
+    """hip_l (node 1): TPDO1 0x180 + 1 with bit 30 (no RTR) = 0x40000181; RPDO1 0x200 + 1 without flags = 0x201; both
+    valid (bit 31 clear). Every PDO's value equals 0x14xx/0x18xx sub 1's ParameterValue in the DCF of the node whose
+    slot it is, as the canopen package reads it."""
+    state, cmd = allex2.message("hip_l_state").pdo, allex2.message("hip_l_cmd").pdo
+    assert state is not None and cmd is not None
+    assert state.cob_id == NO_RTR | (0x180 + 1) == 0x40000181
+    assert cmd.cob_id == 0x200 + 1
+    folder = built["allex2"].parent
+    ods: dict[str, Any] = {}
+    pdos = [m for m in allex2.messages if m.pdo is not None]
+    assert len(pdos) == 4 * len(DRIVES)
+    for m in pdos:
+        assert m.pdo is not None and m.pdo.cob_id is not None
+        assert not m.pdo.cob_id & PDO_INVALID and bool(m.pdo.cob_id & EXTENDED) == m.extended
+        assert m.pdo.cob_id & 0x7FF == m.id
+        node = allex2.node(m.pdo.node)
+        assert node.dcf is not None
+        od = ods.setdefault(node.name, canopen.import_od(str(folder / node.dcf), node.node_id))
+        comm = (0x1400 if m.pdo.kind == "rpdo" else 0x1800) + m.pdo.number - 1
+        assert od[comm][1].value == m.pdo.cob_id, m.name
+
+
+def test_flows_carry_the_unsynchronised_bounds(built: dict[str, Path]) -> None:
+    """The analysis report (netcfg check) gives each flow's bounds without SYNC alignment in us; runtime.json has them
+    in ns."""
+    for name in ("allex2", "cambada", "ntua_sahr"):
+        report = check(SPECS / f"{name}.yaml")
+        cfg = rt.load(built[name])
+        for row in report["flows"]:
+            flow = cfg.flow(row["name"])
+            unsync = row["unsynchronised"]
+            assert flow.unsync_latency_min_ns == round(unsync["latency_min_us"] * 1000), (name, flow.name)
+            assert flow.unsync_latency_max_ns == round(unsync["latency_max_us"] * 1000), (name, flow.name)
+    # allex2.yaml joint_feedback: SYNC alignment makes the flow slower at best and faster at worst
+    flow = rt.load(built["allex2"]).flow("joint_feedback")
+    assert flow.unsync_latency_min_ns is not None and flow.latency_min_ns is not None
+    assert flow.unsync_latency_max_ns is not None and flow.latency_max_ns is not None
+    assert flow.unsync_latency_min_ns < flow.latency_min_ns and flow.unsync_latency_max_ns > flow.latency_max_ns
+
+
+def test_a_version_1_file_without_the_added_keys_still_loads(built: dict[str, Path], tmp_path: Path) -> None:
+    """runtime.json written before the device facts and unsynchronised bounds existed: same version, loads, the
+    new fields are None, and everything else is as before."""
+    data = json.loads(built["allex2"].read_text())
+    new = rt.load(built["allex2"])
+    stripped = 0
+    for node in data["nodes"]:
+        for key in NEW_NODE_KEYS:
+            del node[key]
+            stripped += 1
+    for msg in data["messages"]:
+        if msg["pdo"] is not None:
+            for key in NEW_PDO_KEYS:
+                del msg["pdo"][key]
+                stripped += 1
+    for flow in data["flows"]:
+        for key in NEW_FLOW_KEYS:
+            del flow[key]
+            stripped += 1
+    assert stripped == 6 * 7 + 24 + 2 * len(data["flows"])  # 7 nodes, 24 PDOs (allex2.yaml)
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(data))
+    old = rt.load(path)
+    assert old.version == new.version == 1
+    for node in old.nodes:
+        assert (node.identity, node.eds, node.dcf, node.sdo_init, node.rpdo_count, node.tpdo_count) == (None,) * 6
+    assert all(m.pdo.cob_id is None for m in old.messages if m.pdo is not None)
+    assert all(f.unsync_latency_min_ns is None and f.unsync_latency_max_ns is None for f in old.flows)
+    assert [m.name for m in old.messages] == [m.name for m in new.messages]
+    values = {"target_velocity": 1000, "velocity_offset": -5}
+    assert old.message("hip_l_cmd").encode(**values) == new.message("hip_l_cmd").encode(**values)
+    assert [(f.latency_min_ns, f.latency_max_ns) for f in old.flows] == [
+        (f.latency_min_ns, f.latency_max_ns) for f in new.flows
+    ]

@@ -86,6 +86,7 @@ class DeviceProfile:
     objects: dict[tuple[int, int], ObjectEntry] = field(default_factory=dict)
     vendor_id: int | None = None
     product_code: int | None = None
+    revision: int | None = None  # 0x1018 sub 3 / [DeviceInfo] RevisionNumber; None: not known
     rpdo_count: int = 4
     tpdo_count: int = 4
     max_mapped_objects: int = 8
@@ -116,6 +117,7 @@ def builtin_profile(name: str) -> DeviceProfile:
         source=f"builtin:{name}",
         vendor_id=raw.get("vendor_id"),
         product_code=raw.get("product_code"),
+        revision=raw.get("revision"),
         rpdo_count=raw["rpdo_count"],
         tpdo_count=raw["tpdo_count"],
         max_mapped_objects=raw["max_mapped_objects"],

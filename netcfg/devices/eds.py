@@ -50,6 +50,14 @@ def import_eds(path: Path, name: str) -> DeviceProfile:
         profile.vendor_id = identity[1].default if isinstance(identity[1].default, int) else None
     if identity is not None and 2 in identity:
         profile.product_code = identity[2].default if isinstance(identity[2].default, int) else None
+    if identity is not None and 3 in identity:
+        profile.revision = identity[3].default if isinstance(identity[3].default, int) else None
+    # vendors often give 0x1018 no DefaultValue (maxon's EPOS4 EDS): CiA 306 [DeviceInfo] states the identity too.
+    # 0 there means "not stated" (netcfg's own files write 0 when the profile does not know)
+    info = od.device_information
+    profile.vendor_id = profile.vendor_id or info.vendor_number or None
+    profile.product_code = profile.product_code or info.product_number or None
+    profile.revision = profile.revision or info.revision_number or None
     profile.rpdo_count = sum(1 for i in range(0x1400, 0x1600) if i in od)
     profile.tpdo_count = sum(1 for i in range(0x1800, 0x1A00) if i in od)
     if 0x1A00 in od:

@@ -174,6 +174,22 @@ def _copy(obj: _Obj) -> _Obj:
 def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
     files: dict[str, bytes] = {}
     cache: Cache = {}
+    for (bus_name, name), paths in file_names(model).items():
+        bus, node = model.buses[bus_name], model.nodes[name]
+        if node.device is not None:
+            view = _device_view(model, bus, node, node.device, cache)
+        else:
+            view = _master_view(model, bus, node)
+        for ext, path in paths.items():
+            files[path] = _render(view, PurePath(path).name, ext == "dcf")
+    return files
+
+
+def file_names(model: Model) -> dict[tuple[str, str], dict[str, str]]:
+    """(bus, node) -> {"eds": path, "dcf": path} of the files emit() writes, relative to the output folder: both for
+    a node with a device profile, a DCF only for the master or SYNC producer without one. runtime.json names the
+    same files from here."""
+    out: dict[tuple[str, str], dict[str, str]] = {}
     buses = [b for b in model.buses.values() if b.canopen is not None]
     for bus in buses:
         assert bus.canopen is not None
@@ -184,13 +200,18 @@ def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
             on = sum(1 for b in buses if name in b.nodes)
             folder = "canopen" if on == 1 else f"canopen/{bus.name}"
             if node.device is not None:
-                view = _device_view(model, bus, node, node.device, cache)
-                for ext in ("eds", "dcf"):
-                    files[f"{folder}/{name}.{ext}"] = _render(view, f"{name}.{ext}", ext == "dcf")
+                out[(bus.name, name)] = {ext: f"{folder}/{name}.{ext}" for ext in ("eds", "dcf")}
             elif node.role == "master" or name == bus.canopen.sync_producer:
-                view = _master_view(model, bus, node)
-                files[f"{folder}/{name}.dcf"] = _render(view, f"{name}.dcf", True)
-    return files
+                out[(bus.name, name)] = {"dcf": f"{folder}/{name}.dcf"}
+    return out
+
+
+def pdo_cob_id(kind: str, can_id: int, extended: bool = False, valid: bool = True) -> int:
+    """The value of a PDO's COB-ID (0x14xx/0x18xx sub 1, CiA 301 7.5.2.35/37) as netcfg writes it, seen from the
+    node whose RPDO/TPDO slot it is: bit 31 set when not valid, bit 30 ('no RTR') on TPDOs as the vendors' EDS have
+    it, bit 29 for a 29-bit identifier. runtime.json carries the same value."""
+    flags = PDO_NO_RTR if kind == "tpdo" else 0
+    return (0 if valid else PDO_INVALID) | flags | (PDO_EXTENDED if extended else 0) | can_id
 
 
 def _render(view: FileView, file_name: str, dcf: bool) -> bytes:
@@ -294,11 +315,10 @@ def _device_pdo(od: Dictionary, dev: DeviceProfile, nid: int, kind: PdoKind, n: 
             p is not None and p.sync_start is not None,
         )
     default_id = cia301.default_pdo_cob_id(kind, n, nid)
-    flags = PDO_NO_RTR if tpdo else 0  # 'no RTR' on TPDOs, as the vendors' EDS have it
     if m is None or p is None:
-        cob = PDO_INVALID | flags | (default_id or 0)
+        cob = pdo_cob_id(kind, default_id or 0, valid=False)
     else:
-        cob = flags | (PDO_EXTENDED if m.extended else 0) | m.id
+        cob = pdo_cob_id(kind, m.id, m.extended)
     relative = default_id is not None and (m is None or (m.id == default_id and not m.extended))
     _sub(comm, 1, f"COB-ID used by {kind.upper()}", U32).configure(cob, nid if relative else None)
     mapping = od.get(comm_index + 0x200)
@@ -356,8 +376,7 @@ def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
             # a master TPDO is sent by the master's application (its runtime configuration times it): inhibit time
             # and event timer exist, set to 0 (off)
             comm = od[comm_index] = _comm_record(kind, kind == "tpdo", kind == "tpdo", False)
-            extended = PDO_EXTENDED if m.extended else 0
-            _sub(comm, 1, "", U32).configure((PDO_NO_RTR if kind == "tpdo" else 0) | extended | m.id)
+            _sub(comm, 1, "", U32).configure(pdo_cob_id(kind, m.id, m.extended))
             # RPDO types 252/253 do not exist: a mirrored RTR-only TPDO is received as an event (255)
             tt = m.pdo.transmission if kind == "tpdo" or m.pdo.transmission <= 240 else 255
             _sub(comm, 2, "", U8).configure(tt)

@@ -5,6 +5,10 @@ compiler); floats appear only for signal scale/offset/min/max and cable lengths.
 [numerator, denominator] pair, because 15 kHz has no exact period in ns. Lists keep the spec's order (buses,
 nodes, messages per bus with the implicit SYNC/heartbeats where the resolver put them), so the file is
 byte-identical across builds. The FTT-CAN schedule comes from netcfg.timing.ftt, never recomputed here.
+
+CANopen facts a live master needs come from where the other artifacts take them, so they cannot disagree: the
+file names and PDO COB-ID values from netcfg.emit.canopen_dcf, the identity and PDO counts from the node's device
+profile (built-in or EDS). Keys added later within version 1 only ever add information (see netcfg.runtime).
 """
 
 from __future__ import annotations
@@ -15,10 +19,15 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import model
+from netcfg.emit import canopen_dcf
+from netcfg.runtime import interpolation_period
 from netcfg.timing import ftt
 
 FORMAT = "netcfg-runtime"
 VERSION = 1  # bump when a key changes meaning or disappears; netcfg.runtime.SUPPORTED_VERSIONS must follow
+
+INTERPOLATION = 0x60C2  # CiA 402 interpolation time period: sub 1 value (UNSIGNED8), sub 2 index (INTEGER8)
+CIA402 = 402  # CiA 301 7.5.2.1: device type 0x1000, low 16 bits = the device profile number
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
@@ -30,6 +39,7 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
 def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
     wcrt = _report_wcrt(report)
     flow_rows = {f["name"]: f for f in report.get("flows", [])}
+    files = canopen_dcf.file_names(m)
     return {
         "format": FORMAT,
         "version": VERSION,
@@ -37,7 +47,7 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
         # lets a master refuse a runtime.json built from another revision of the spec
         "spec_sha256": hashlib.sha256(Path(m.file).read_bytes()).hexdigest(),
         "buses": [_bus(m, b) for b in m.buses.values()],
-        "nodes": [_node(n) for n in m.nodes.values()],
+        "nodes": [_node(m, n, files) for n in m.nodes.values()],
         "messages": [_message(msg, wcrt.get(msg.name)) for b in m.buses.values() for msg in b.messages],
         "triggers": [_trigger(t) for t in m.triggers.values()],
         "flows": [_flow(f, flow_rows.get(f.name)) for f in m.flows.values()],
@@ -126,7 +136,11 @@ def _switch(s: model.Switch) -> dict[str, Any]:
     }
 
 
-def _node(n: model.Node) -> dict[str, Any]:
+def _node(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[str, str]]) -> dict[str, Any]:
+    dev = n.device
+    # a node on several CANopen buses has one folder of files per bus (canopen/<bus>/); these keys then stay null
+    own = [paths for (_, name), paths in files.items() if name == n.name]
+    paths = own[0] if len(own) == 1 else {}
     return {
         "name": n.name,
         "node_id": n.node_id,
@@ -150,7 +164,41 @@ def _node(n: model.Node) -> dict[str, Any]:
             }
             for t in n.tasks.values()
         ],
+        "identity": None
+        if dev is None
+        else {"vendor_id": dev.vendor_id, "product_code": dev.product_code, "revision": dev.revision},
+        "eds": paths.get("eds"),
+        "dcf": paths.get("dcf"),
+        "rpdo_count": None if dev is None else dev.rpdo_count,
+        "tpdo_count": None if dev is None else dev.tpdo_count,
+        "sdo_init": _sdo_init(m, n),
     }
+
+
+def _sdo_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
+    """Start-up SDO writes the model determines. Only one so far: a CiA 402 drive interpolates its set-points over
+    the interpolation time period 0x60C2 (CiA 402 / IEC 61800-7-201: period = sub 1 value * 10^(sub 2 index) s),
+    which in the cyclic synchronous modes is the SYNC period that delivers them (CiA 402, cyclic synchronous
+    position/velocity/torque modes). The spec cannot state the modes of operation, so 0x6060 is never written here.
+    A CiA 402 device: its profile has a writable 0x60C2:1 and :2, and a device type (0x1000), where the profile
+    knows it, naming profile 402. The SYNC period: the one of the node's CANopen buses, when they agree."""
+    dev = n.device
+    if dev is None:
+        return []
+    device_type = dev.lookup(0x1000, 0)
+    if device_type is not None and device_type.default is not None and device_type.default & 0xFFFF != CIA402:
+        return []
+    value, index = dev.lookup(INTERPOLATION, 1), dev.lookup(INTERPOLATION, 2)
+    if value is None or index is None or not (value.writable and index.writable):
+        return []
+    periods = {co.sync_period_ns for b in n.buses if (co := m.buses[b].canopen) is not None}
+    period = interpolation_period(periods.pop()) if len(periods) == 1 else None
+    if period is None:
+        return []
+    return [
+        {"index": INTERPOLATION, "sub": 1, "data_type": value.data_type, "value": period[0]},
+        {"index": INTERPOLATION, "sub": 2, "data_type": index.data_type, "value": period[1]},
+    ]
 
 
 def _message(msg: model.Message, wcrt_ns: int | None) -> dict[str, Any]:
@@ -172,14 +220,15 @@ def _message(msg: model.Message, wcrt_ns: int | None) -> dict[str, Any]:
         "window": msg.window,
         "ftt_id": msg.ftt_id,
         "udp": None if msg.udp_ports is None else {"src_port": msg.udp_ports[0], "dst_port": msg.udp_ports[1]},
-        "pdo": _pdo(msg.pdo),
+        "pdo": _pdo(msg),
         "signals": [_signal(s) for s in msg.signals],
         "implicit": msg.implicit,
         "wcrt_ns": wcrt_ns,  # the analysis' bound, for a simulator or master to compare against
     }
 
 
-def _pdo(p: model.Pdo | None) -> dict[str, Any] | None:
+def _pdo(msg: model.Message) -> dict[str, Any] | None:
+    p = msg.pdo
     if p is None:
         return None
     return {
@@ -190,6 +239,7 @@ def _pdo(p: model.Pdo | None) -> dict[str, Any] | None:
         "inhibit_100us": p.inhibit_100us,
         "event_timer_ms": p.event_timer_ms,
         "sync_start": p.sync_start,
+        "cob_id": canopen_dcf.pdo_cob_id(p.kind, msg.id, msg.extended),  # the DCF's value: the same function
         "entries": [
             {"index": e.index, "sub": e.sub, "bits": e.bits, "name": e.name, "data_type": e.data_type}
             for e in p.entries
@@ -225,6 +275,7 @@ def _trigger(t: model.Trigger) -> dict[str, Any]:
 
 
 def _flow(f: model.Flow, row: dict[str, Any] | None) -> dict[str, Any]:
+    unsync = (row or {}).get("unsynchronised")
     return {
         "name": f.name,
         "steps": [{"kind": s.kind, "refs": list(s.refs)} for s in f.steps],
@@ -232,4 +283,7 @@ def _flow(f: model.Flow, row: dict[str, Any] | None) -> dict[str, Any]:
         # the analysis' bounds, for comparison with measured latencies
         "latency_min_ns": _ns(row.get("latency_min_us")) if row else None,
         "latency_max_ns": _ns(row.get("latency_max_us")) if row else None,
+        # the same without SYNC alignment, for a simulator that runs the bus unsynchronised
+        "unsync_latency_min_ns": _ns(unsync.get("latency_min_us")) if unsync else None,
+        "unsync_latency_max_ns": _ns(unsync.get("latency_max_us")) if unsync else None,
     }

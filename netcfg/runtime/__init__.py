@@ -10,6 +10,11 @@ A master runs this without the compiler: it imports only the standard library an
 
 Times are integer nanoseconds ("_ns"), as in the file. A message without signals (only a size) is read and
 written through one unsigned field `<message>_raw` spanning its payload, the same name the DBC files use.
+
+Version 1 has grown without changing the meaning of any key, so it is still version 1: nodes gained `identity`,
+`eds`, `dcf`, `sdo_init`, `rpdo_count` and `tpdo_count`, PDOs `cob_id`, flows `unsync_latency_min_ns` and
+`unsync_latency_max_ns`. A file written before them still loads: their fields are then None (`sdo_init` None means
+"not stated", () means "nothing to write"), and a master falls back to what it did without them.
 """
 
 from __future__ import annotations
@@ -42,10 +47,12 @@ __all__ = [
     "FttParams",
     "Message",
     "Node",
+    "NodeIdentity",
     "Pdo",
     "PdoEntry",
     "RuntimeConfig",
     "RuntimeConfigError",
+    "SdoWrite",
     "Signal",
     "SrtEntry",
     "Switch",
@@ -54,6 +61,7 @@ __all__ = [
     "Trigger",
     "UdpPorts",
     "UnknownNameError",
+    "interpolation_period",
     "load",
     "parse",
     "raw_signal_name",
@@ -78,6 +86,18 @@ class UnknownNameError(KeyError):
 def raw_signal_name(message: str) -> str:
     """The field through which a message without signals is encoded (shared with the DBC emitter)."""
     return f"{message}_raw"
+
+
+def interpolation_period(period_ns: int) -> tuple[int, int] | None:
+    """(value, index) for CiA 402 0x60C2 with value * 10^index s = period exactly: in milliseconds when it can
+    (20 ms -> (20, -3)), else the coarsest finer unit down to 1 us, else a coarser one up to 1 s; None when no unit
+    holds it in an UNSIGNED8. Here, not in the compiler, so that runtime.json's sdo_init and a master reading an
+    older runtime.json without it compute the same value."""
+    for index in (-3, -4, -5, -6, -2, -1, 0):  # milliseconds first: the unit drives commonly take (EPOS4: -3)
+        unit_ns = 10 ** (9 + index)
+        if period_ns % unit_ns == 0 and 0 < period_ns // unit_ns <= 255:
+            return period_ns // unit_ns, index
+    return None
 
 
 # --- the configuration ----------------------------------------------------------------------------------------
@@ -130,6 +150,9 @@ class Pdo:
     event_timer_ms: int | None
     sync_start: int | None
     entries: tuple[PdoEntry, ...]
+    # the 32-bit value of the slot's COB-ID (0x14xx/0x18xx sub 1), CiA 301 flag bits included, as the node's DCF
+    # has it; None in files written before it
+    cob_id: int | None = None
 
 
 @dataclass(frozen=True)
@@ -240,9 +263,36 @@ class Node:
     tx_delay_ns: int
     rx_delay_ns: int
     tasks: tuple[Task, ...]
+    # CANopen device facts (None: not a device, or a file written before these keys)
+    identity: NodeIdentity | None = None  # what 0x1018 holds, from the device profile or EDS
+    eds: str | None = None  # canopen/<node>.eds, relative to the runtime.json's folder (see RuntimeConfig.path)
+    dcf: str | None = None
+    sdo_init: tuple[SdoWrite, ...] | None = None  # start-up SDO writes, in order; () nothing to write
+    rpdo_count: int | None = None  # PDO communication objects the device has (0x1400.., 0x1800..)
+    tpdo_count: int | None = None
 
     def task(self, name: str) -> Task:
         return _lookup({t.name: t for t in self.tasks}, name, f"task of node '{self.name}'")
+
+
+@dataclass(frozen=True)
+class NodeIdentity:
+    """A device's identity object 0x1018 (CiA 301): sub 1 vendor id, sub 2 product code, sub 3 revision number.
+    None: the device profile does not know it (e.g. the product code of a profile that covers several variants)."""
+
+    vendor_id: int | None
+    product_code: int | None
+    revision: int | None
+
+
+@dataclass(frozen=True)
+class SdoWrite:
+    """One start-up SDO download: data_type is the CiA 301 data type code, which fixes the value's size and sign."""
+
+    index: int
+    sub: int
+    data_type: int
+    value: int
 
 
 @dataclass(frozen=True)
@@ -352,6 +402,9 @@ class Flow:
     deadline_ns: int | None
     latency_min_ns: int | None  # the analysis' bounds
     latency_max_ns: int | None
+    # the analysis' bounds for the same flow without SYNC alignment; None when it gave none
+    unsync_latency_min_ns: int | None = None
+    unsync_latency_max_ns: int | None = None
 
 
 T = TypeVar("T")
@@ -403,6 +456,12 @@ class RuntimeConfig:
                 "udp": udp_ids,
             },
         )
+
+    def path(self, relative: str) -> Path:
+        """A file runtime.json names (node.eds, node.dcf) as a path: relative to the runtime.json's folder."""
+        if self.source == "<memory>":
+            raise ValueError(f"{relative}: this config was not loaded from a file, so its folder is unknown")
+        return Path(self.source).parent / relative
 
     def matches_spec(self, spec: str | Path) -> bool:
         """Whether this config was built from exactly this spec file (a master can refuse a stale one)."""
@@ -631,7 +690,19 @@ def _node(d: dict[str, Any]) -> Node:
             )
             for t in d["tasks"]
         ),
+        identity=_identity(d.get("identity")),
+        eds=d.get("eds"),
+        dcf=d.get("dcf"),
+        sdo_init=None
+        if d.get("sdo_init") is None
+        else tuple(SdoWrite(w["index"], w["sub"], w["data_type"], w["value"]) for w in d["sdo_init"]),
+        rpdo_count=d.get("rpdo_count"),
+        tpdo_count=d.get("tpdo_count"),
     )
+
+
+def _identity(d: dict[str, Any] | None) -> NodeIdentity | None:
+    return None if d is None else NodeIdentity(d["vendor_id"], d["product_code"], d["revision"])
 
 
 def _message(d: dict[str, Any], protocol: str) -> Message:
@@ -666,6 +737,7 @@ def _message(d: dict[str, Any], protocol: str) -> Message:
             event_timer_ms=pdo["event_timer_ms"],
             sync_start=pdo["sync_start"],
             entries=tuple(PdoEntry(e["index"], e["sub"], e["bits"], e["name"], e["data_type"]) for e in pdo["entries"]),
+            cob_id=pdo.get("cob_id"),
         ),
         signals=tuple(
             Signal(
@@ -700,4 +772,6 @@ def _flow(d: dict[str, Any]) -> Flow:
         deadline_ns=d["deadline_ns"],
         latency_min_ns=d["latency_min_ns"],
         latency_max_ns=d["latency_max_ns"],
+        unsync_latency_min_ns=d.get("unsync_latency_min_ns"),
+        unsync_latency_max_ns=d.get("unsync_latency_max_ns"),
     )

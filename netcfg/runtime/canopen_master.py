@@ -5,10 +5,10 @@ Two phases, as in the ALLEX-2 exoskeleton (seed 000, sections 4.3-4.4):
 1. `configure_network(cfg, bus)` - the "network management" phase. For each configured slave, through the
    `canopen` package's SDO client: check the device identity (0x1018), switch it to PRE-OPERATIONAL, and for each of
    its PDOs in runtime.json disable it (COB-ID bit 31), write the communication parameters and the mapping, re-enable
-   it; disable the predefined PDOs the spec does not use; set the interpolation time period (0x60C2) to the SYNC
-   period; read everything back and compare; start the node (NMT). A node that fails is reported with what to do and
-   left in PRE-OPERATIONAL; the others carry on. This phase may use canopen's threads (a python-can Notifier); it
-   stops them before returning.
+   it; disable the device's other PDOs; write the start-up SDO values (the interpolation time period 0x60C2 of a
+   CiA 402 drive); read everything back and compare; start the node (NMT). A node that fails is reported with what
+   to do and left in PRE-OPERATIONAL; the others carry on. This phase may use canopen's threads (a python-can
+   Notifier); it stops them before returning.
 
 2. `MasterCycle(cfg, bus, clock).run(n)` - Figure 7: each period write the RxPDOs, send SYNC, collect the
    synchronous TxPDOs until all have arrived or the read window ends, store the samples, and wait dynamically
@@ -18,9 +18,11 @@ Two phases, as in the ALLEX-2 exoskeleton (seed 000, sections 4.3-4.4):
    Such a bus overrides recv() itself, not just _recv_internal(): python-can's BusABC.recv() re-checks the timeout
    against the wall clock and would call _recv_internal() again until real time has passed.
 
-Identifiers, mappings, periods and windows all come from runtime.json. It does not carry the expected device
-identity, so that comes from the node's generated EDS/DCF (`identities_from_dir`), nor the interpolation period,
-which is taken as the bus's SYNC period (the drive interpolates between SYNCs, CiA 402 0x60C2).
+Identifiers, mappings, periods and windows all come from runtime.json, and so do the device facts: the expected
+identity (node.identity), the COB-ID values (pdo.cob_id), how many PDOs the device has (node.rpdo_count/tpdo_count)
+and the start-up SDO writes (node.sdo_init). A runtime.json written before those keys lacks them; the master then
+does what it did before they existed: the identity from the node's generated EDS/DCF (`identities_from_dir`), the
+COB-ID flag bits netcfg's DCF uses, PDOs 1-4 of the pre-defined connection set, and 0x60C2 = the SYNC period.
 
 This module imports only the standard library, python-can, canopen and netcfg.runtime.
 """
@@ -41,7 +43,7 @@ import can
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from netcfg.runtime import Bus, Message, Node, RuntimeConfig
+from netcfg.runtime import Bus, Message, Node, RuntimeConfig, SdoWrite, interpolation_period
 from netcfg.runtime.clock import Clock
 from netcfg.runtime.codec import CodecError, Number
 
@@ -59,6 +61,7 @@ __all__ = [
     "configure_network",
     "identities_from_dir",
     "identity_from_eds",
+    "identity_from_runtime",
     "interpolation_period",
 ]
 
@@ -72,6 +75,27 @@ IDENTITY = 0x1018
 INTERPOLATION = 0x60C2  # CiA 402 interpolation time period: sub 1 value (UNSIGNED8), sub 2 index (INTEGER8, 10^index s)
 
 NMT_START, NMT_PRE_OPERATIONAL = 0x01, 0x80
+
+# CiA 301 table 44: the integer data types a start-up SDO write may have -> (bytes over SDO, signed)
+SDO_INTEGERS = {
+    0x01: (1, False),  # BOOLEAN
+    0x02: (1, True),
+    0x03: (2, True),
+    0x04: (4, True),
+    0x05: (1, False),
+    0x06: (2, False),
+    0x07: (4, False),
+    0x10: (3, True),
+    0x12: (5, True),
+    0x13: (6, True),
+    0x14: (7, True),
+    0x15: (8, True),
+    0x16: (3, False),
+    0x18: (5, False),
+    0x19: (6, False),
+    0x1A: (7, False),
+    0x1B: (8, False),
+}
 
 # Abort codes whose meaning is "the device has no such object"
 ABORT_NO_OBJECT = (0x06020000, 0x06090011)
@@ -98,7 +122,7 @@ _ABORT_HINTS = {
 class Identity:
     """What a node's 0x1018 must hold. None: not checked (an EDS with product number 0 gives no product code)."""
 
-    vendor_id: int
+    vendor_id: int | None
     product_code: int | None = None
     revision: int | None = None
     source: str = ""
@@ -121,11 +145,24 @@ def identity_from_eds(path: str | Path) -> Identity:
     return Identity(_eds_int(info["VendorNumber"]), product or None, revision or None, str(path))
 
 
+def identity_from_runtime(cfg: RuntimeConfig, node: Node) -> Identity | None:
+    """The identity runtime.json states for a node (node.identity); None when it states none or knows no value."""
+    ident = node.identity
+    if ident is None or (ident.vendor_id is None and ident.product_code is None):
+        return None
+    return Identity(ident.vendor_id, ident.product_code, ident.revision, cfg.source)
+
+
 def identities_from_dir(cfg: RuntimeConfig, directory: str | Path, bus_name: str | None = None) -> dict[str, Identity]:
-    """Expected identities of a bus's slaves from `<directory>/<node>.dcf` (else `.eds`), as netcfg writes them to
-    generated/<system>/canopen/. Nodes without a file are left out (not checked)."""
+    """Expected identities of a bus's slaves: runtime.json's node.identity where it has one, else (a runtime.json
+    written before that key) `<directory>/<node>.dcf` (else `.eds`), as netcfg writes them to
+    generated/<system>/canopen/. Nodes without either are left out (not checked)."""
     found = {}
     for node in _slaves(cfg, _canopen_bus(cfg, bus_name)):
+        stated = identity_from_runtime(cfg, node)
+        if stated is not None:
+            found[node.name] = stated
+            continue
         for suffix in (".dcf", ".eds"):
             path = Path(directory) / f"{node.name}{suffix}"
             if path.is_file():
@@ -175,6 +212,7 @@ class NodeSetup:
     interpolation: tuple[int, int] | None = None  # 0x60C2 (value, index) read back
     started: bool = False
     notes: tuple[str, ...] = ()
+    start_up: tuple[tuple[int, int, int], ...] = ()  # the start-up SDO writes read back: (index, sub, value)
 
     def __str__(self) -> str:
         if self.ok:
@@ -208,17 +246,6 @@ class SetupReport:
 
 
 # --- set-up ---------------------------------------------------------------------------------------------------------
-
-
-def interpolation_period(period_ns: int) -> tuple[int, int] | None:
-    """(value, index) for CiA 402 0x60C2 with value * 10^index s = period exactly: in milliseconds when it can
-    (20 ms -> (20, -3)), else the coarsest finer unit down to 1 us, else a coarser one up to 1 s; None when no unit
-    holds it in an UNSIGNED8."""
-    for index in (-3, -4, -5, -6, -2, -1, 0):  # milliseconds first: the unit drives commonly take (EPOS4: -3)
-        unit_ns = 10 ** (9 + index)
-        if period_ns % unit_ns == 0 and 0 < period_ns // unit_ns <= 255:
-            return period_ns // unit_ns, index
-    return None
 
 
 class _NodeFailed(Exception):
@@ -255,6 +282,8 @@ class _NodeConfigurator:
         )
         self.disabled: list[tuple[str, int]] = []
         self.interp: tuple[int, int] | None = None
+        self.written: list[SdoWrite] = []  # start-up SDO writes done, read back at the end
+        self.start_up: list[tuple[int, int, int]] = []  # ... and what the read-back found
 
     def _fail(self, error: str, abort_code: int | None = None) -> _NodeFailed:
         return _NodeFailed(self.step, error, abort_code)
@@ -306,7 +335,10 @@ class _NodeConfigurator:
         if self.disable_unused:
             self.disable_other_pdos()
         if self.interpolation:
-            self.write_interpolation()
+            if self.node.sdo_init is None:  # a runtime.json written before sdo_init existed
+                self.write_interpolation()
+            else:
+                self.write_start_up(self.node.sdo_init)
 
     def check_identity(self) -> None:
         vendor = self._read_int(IDENTITY, 1)
@@ -320,10 +352,14 @@ class _NodeConfigurator:
         want = self.expected_identity
         if want is None:
             return
-        wrong = vendor != want.vendor_id or (want.product_code is not None and product != want.product_code)
+        wrong = (want.vendor_id is not None and vendor != want.vendor_id) or (
+            want.product_code is not None and product != want.product_code
+        )
         if wrong:
-            expected = f"vendor 0x{want.vendor_id:08X}" + (
-                f", product 0x{want.product_code:08X}" if want.product_code is not None else ""
+            expected = ", ".join(
+                f"{what} 0x{value:08X}"
+                for what, value in (("vendor", want.vendor_id), ("product", want.product_code))
+                if value is not None
             )
             raise self._fail(
                 f"wrong device at this node id: 0x1018 holds vendor 0x{vendor:08X}, product 0x{product:08X}; "
@@ -361,30 +397,58 @@ class _NodeConfigurator:
 
     @staticmethod
     def _cob_id(msg: Message) -> int:
-        """The COB-ID value netcfg's DCF writes: RTR not allowed on TPDOs (CiA AN 802 discourages RTR)."""
+        """The COB-ID value to write: runtime.json's pdo.cob_id (the value in netcfg's DCF). A runtime.json written
+        before that key: the same flag bits derived here, RTR not allowed on TPDOs (CiA AN 802 discourages RTR)."""
         assert msg.pdo is not None
+        if msg.pdo.cob_id is not None:
+            return msg.pdo.cob_id
         value = msg.id | (COB_EXTENDED if msg.extended else 0)
         return value | (RTR_NOT_ALLOWED if msg.pdo.kind == "tpdo" else 0)
 
     def disable_other_pdos(self) -> None:
+        """Disable every PDO of the device the spec does not use: as many as runtime.json says it has, else the
+        pre-defined connection set's 4 per direction, skipping those the device lacks."""
         used = {(m.pdo.kind, m.pdo.number) for m in self.pdos if m.pdo is not None}
+        counts = {"rpdo": self.node.rpdo_count, "tpdo": self.node.tpdo_count}
         for kind in ("rpdo", "tpdo"):
-            for number in range(1, PREDEFINED_PDOS + 1):
+            known = counts[kind]
+            for number in range(1, (PREDEFINED_PDOS if known is None else known) + 1):
                 if (kind, number) in used:
                     continue
                 comm, _ = self._indices(kind, number)
                 self.step = f"disabling unused {kind.upper()}{number}"
-                try:
-                    cob = int.from_bytes(self.remote.sdo.upload(comm, 1), "little")
-                except SdoAbortedError as exc:
-                    if exc.code in ABORT_NO_OBJECT:
-                        continue  # the device has fewer PDOs
-                    raise
+                if known is not None:  # the device has it: an abort is a fault, reported with its hint
+                    cob = self._read_int(comm, 1)
+                else:
+                    try:
+                        cob = int.from_bytes(self.remote.sdo.upload(comm, 1), "little")
+                    except SdoAbortedError as exc:
+                        if exc.code in ABORT_NO_OBJECT:
+                            continue  # the device has fewer PDOs
+                        raise
                 if not cob & PDO_INVALID:
                     self._sdo("disabling the unused PDO", comm, 1, _u(cob | PDO_INVALID, 4))
                 self.disabled.append((kind, number))
 
+    def write_start_up(self, writes: Iterable[SdoWrite]) -> None:
+        """runtime.json's start-up SDO writes, in order; a device that refuses one fails with the abort's hint."""
+        for w in writes:
+            self.step = f"start-up write 0x{w.index:04X}:{w.sub:02X}"
+            size_sign = SDO_INTEGERS.get(w.data_type)
+            if size_sign is None:
+                raise self._fail(f"data type 0x{w.data_type:04X} of 0x{w.index:04X}:{w.sub:02X} is not an integer")
+            size, signed = size_sign
+            lo, hi = (-(1 << (8 * size - 1)), (1 << (8 * size - 1)) - 1) if signed else (0, (1 << (8 * size)) - 1)
+            if not lo <= w.value <= hi:
+                raise self._fail(f"0x{w.index:04X}:{w.sub:02X} = {w.value} does not fit its data type")
+            self._sdo("writing", w.index, w.sub, _u(w.value, size))
+            self.written.append(w)
+        got = {(w.index, w.sub): w.value for w in self.written}
+        if (INTERPOLATION, 1) in got and (INTERPOLATION, 2) in got:
+            self.interp = (got[INTERPOLATION, 1], got[INTERPOLATION, 2])
+
     def write_interpolation(self) -> None:
+        """For a runtime.json without sdo_init: 0x60C2 = the SYNC period, on any slave that has the object."""
         assert self.bus.canopen is not None
         self.step = "interpolation time period 0x60C2"
         value = interpolation_period(self.bus.canopen.sync_period_ns)
@@ -416,7 +480,13 @@ class _NodeConfigurator:
             comm, _ = self._indices(kind, number)
             if not self._read_int(comm, 1) & PDO_INVALID:
                 problems.append(f"unused {kind.upper()}{number} is still enabled")
-        if self.interp is not None:
+        for w in self.written:
+            signed = SDO_INTEGERS[w.data_type][1]
+            have = int.from_bytes(self._sdo("read", w.index, w.sub), "little", signed=signed)
+            self.start_up.append((w.index, w.sub, have))
+            if have != w.value:
+                problems.append(f"0x{w.index:04X}:{w.sub:02X} reads {have}, {w.value} written")
+        if self.interp is not None and not self.written:  # written from the SYNC period (older runtime.json)
             index = int.from_bytes(self._sdo("read", INTERPOLATION, 2), "little", signed=True)
             got_interp = (self._read_int(INTERPOLATION, 1), index)
             if got_interp != self.interp:
@@ -486,8 +556,10 @@ def configure_network(
     start: bool = True,
 ) -> SetupReport:
     """Configure the CANopen slaves of `bus_name` (the config's only CANopen bus by default) over SDO as runtime.json
-    says, read it back, and start the nodes that passed. `identities` (see identities_from_dir) are checked first;
-    a node without one is not checked. Returns one NodeSetup per node; never raises for a node's fault.
+    says, read it back, and start the nodes that passed. Each node's identity is checked first: the one `identities`
+    gives for it, else runtime.json's node.identity; a node with neither is not checked (for a runtime.json written
+    before node.identity, pass identities_from_dir). `interpolation` writes the start-up SDO values (node.sdo_init).
+    Returns one NodeSetup per node; never raises for a node's fault.
 
     `bus` stays open and usable by a MasterCycle afterwards: the Notifier this uses is stopped before returning."""
     co_bus = _canopen_bus(cfg, bus_name)
@@ -511,7 +583,7 @@ def configure_network(
                         co_bus,
                         node,
                         remote,
-                        (identities or {}).get(node.name),
+                        (identities or {}).get(node.name) or identity_from_runtime(cfg, node),
                         interpolation,
                         disable_unused,
                         start,
@@ -554,7 +626,18 @@ def _configure_node(
     if start:
         remote.nmt.send_command(NMT_START)
     return NodeSetup(
-        node.name, node.node_id, True, None, "done", None, job.identity, readback, job.interp, start, notes
+        node.name,
+        node.node_id,
+        True,
+        None,
+        "done",
+        None,
+        job.identity,
+        readback,
+        job.interp,
+        start,
+        notes,
+        tuple(job.start_up),
     )
 
 

@@ -442,7 +442,7 @@ class SimulatedDrive:
 
 class DriveBench:
     """The configured CANopen slaves of a runtime config as SimulatedDrives on python-can `channel`, built from
-    `<canopen_dir>/<node>.eds`.
+    `<canopen_dir>/<node>.eds`, or without canopen_dir from the EDS runtime.json names (node.eds, beside it).
 
         with DriveBench(cfg, "generated/allex2/canopen", channel="bench") as bench:
             ...  # a master on can.Bus(interface="virtual", channel="bench")
@@ -458,7 +458,7 @@ class DriveBench:
     def __init__(
         self,
         cfg: RuntimeConfig,
-        canopen_dir: str | Path,
+        canopen_dir: str | Path | None = None,
         *,
         channel: str,
         interface: str = "virtual",
@@ -480,7 +480,13 @@ class DriveBench:
             if node.role == "master" or node.node_id is None or (wanted is not None and name not in wanted):
                 continue
             kwargs = {**drive_options, **(options or {}).get(name, {})}
-            self.drives[name] = SimulatedDrive(node.node_id, Path(canopen_dir) / f"{name}.eds", name=name, **kwargs)
+            if canopen_dir is not None:
+                eds = Path(canopen_dir) / f"{name}.eds"
+            elif node.eds is not None:
+                eds = cfg.path(node.eds)
+            else:
+                raise ValueError(f"runtime.json names no EDS for node '{name}': give canopen_dir")
+            self.drives[name] = SimulatedDrive(node.node_id, eds, name=name, **kwargs)
 
     def start(self) -> DriveBench:
         if self.separate_connections:
