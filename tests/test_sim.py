@@ -87,6 +87,8 @@ def test_cambada_unsynchronised_is_wide_like_table_3() -> None:
     assert motion["max"] - motion["min"] >= 10_000
     assert motion["min"] >= 15_792 and motion["max"] <= 80_700
     assert odo["min"] >= 4_846 and odo["max"] <= 19_940
+    assert flow(doc, "motion")["analysis_us"] == {"min": 15_792, "max": 80_700}  # runtime.json: unsynchronised
+    assert all(f["within_analysis"] for f in doc["flows"])
 
 
 # -- ALLEX-2, CANopen ---------------------------------------------------------------------------------------

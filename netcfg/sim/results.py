@@ -109,7 +109,10 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
         res.flow_latency[tr.name] = np.asarray(tr.latency.samples, dtype=np.int64)
         if tr.delivery is not None:
             res.flow_delivery[tr.name] = np.asarray(tr.delivery.samples, dtype=np.int64)
-        res.flow_bounds[tr.name] = (tr.flow.latency_min_ns, tr.flow.latency_max_ns)
+        if sc.opts.mode == "unsync":  # free-running: the analysis' unsynchronised bounds apply
+            res.flow_bounds[tr.name] = (tr.flow.unsync_latency_min_ns, tr.flow.unsync_latency_max_ns)
+        else:
+            res.flow_bounds[tr.name] = (tr.flow.latency_min_ns, tr.flow.latency_max_ns)
     return res
 
 
