@@ -1,14 +1,16 @@
 """Faults a simulation can inject, written on the command line as `--fault TEXT`:
 
-    ber=1e-6[:BUS]              random bit errors, this probability per bit while a frame is on the wire
-    bit-error@12.5ms[:BUS]      one bit error at that instant (repeat the option for a scripted list)
+    ber=1e-6[:BUS]              random bit errors, this probability per bit while a frame is on the wire (CAN)
+    bit-error@12.5ms[:BUS]      one bit error at that instant (repeat the option for a scripted list; CAN)
     crash:NODE@2s               the node stops: it sends nothing more and its queued frames are lost
     babble:NODE@1s[..2s][=ID]   the node floods its buses with back-to-back frames of identifier ID (default 0)
-    lose:MESSAGE@100ms          the first instance of MESSAGE queued at or after that instant is lost
+    lose:MESSAGE@100ms          the first instance of MESSAGE queued at or after that instant is lost (CAN or
+                                Ethernet: for Ethernet, queued = handed to the producer's NIC)
     master-fail@2s[:BACKUP]     the FTT-CAN master stops; the backup master (a node named *backup*, or BACKUP)
                                 notices the missing trigger message and takes over
 
-Without :BUS a bit-error fault applies to every CAN bus.
+Without :BUS a bit-error fault applies to every CAN bus. Bit errors are CAN only: the Ethernet model has no
+error model (a corrupted Ethernet frame is simply dropped by the receiver's FCS check; use lose: for that).
 """
 
 from __future__ import annotations
@@ -83,6 +85,13 @@ class Fault:
         errors = self.kind in ("ber", "bit-error")
         buses = [b for b in sc.can.values() if self.target in (None, b.name)] if errors else []
         if errors and not buses:
+            # Ethernet: only lose and crash (bit errors are modelled on CAN buses only)
+            if any(b.name == self.target and b.protocol == "ethernet-udp" for b in sc.cfg.buses):
+                raise FaultError(
+                    f"fault '{self.kind}': bus '{self.target}' is Ethernet; bit errors are simulated on CAN buses only"
+                )
+            if self.target is None:
+                raise FaultError(f"fault '{self.kind}': no CAN bus to apply it to (bit errors are CAN only)")
             raise FaultError(f"fault '{self.kind}': no CAN bus named '{self.target}'")
         if self.kind == "ber":
             for bus in buses:
@@ -107,8 +116,11 @@ class Fault:
                     src = bus.add_source(f"{node}_babble", int(self.value), False, 8, node)
                     bus.babble = (src, self.at_ns, self.until_ns)
         elif self.kind == "lose":
+            if self.target in sc.eth_owner:  # Ethernet
+                sc.eth_owner[self.target].lose_at(self.target, self.at_ns)
+                return
             if self.target not in sc.msg_source:
-                raise FaultError(f"fault 'lose': no CAN message named '{self.target}'")
+                raise FaultError(f"fault 'lose': no CAN or Ethernet message named '{self.target}'")
             bus, src = sc.msg_source[self.target]
             bus.lose.setdefault(src, []).append(self.at_ns)
         elif self.kind == "master-fail":

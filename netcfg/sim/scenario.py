@@ -15,8 +15,9 @@ for a real master too. What runs:
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from netcfg.runtime import Bus, Message, RuntimeConfig, Task
 from netcfg.sim.can_bus import CanBus
@@ -24,6 +25,9 @@ from netcfg.sim.engine import NodeClock, Simulator
 from netcfg.sim.faults import Fault
 from netcfg.sim.flows import FlowTracker
 from netcfg.sim.streams import NEVER, PeriodicStreams
+
+if TYPE_CHECKING:
+    from netcfg.sim.ethernet import EthernetNetwork
 
 
 @dataclass(frozen=True)
@@ -59,6 +63,10 @@ class SimOptions:
     trace: bool = False
     master: MasterTiming = field(default_factory=MasterTiming)
     drive_delay_ns: int | None = None  # drives' SYNC -> TPDO queueing delay; None: the node's tx_delay
+    # Ethernet: egress buffer per switch port in frames (None: netcfg.sim.ethernet.QUEUE_FRAMES), and per receiving
+    # node the (BCET, WCET) of consuming one frame (None: the node's on_message task for that message, if any)
+    eth_queue_frames: int | None = None
+    eth_processing_ns: Mapping[str, tuple[int, int]] | None = None
 
 
 class Scenario:
@@ -70,6 +78,7 @@ class Scenario:
         self.rng = rng
         self.can: dict[str, CanBus] = {}
         self.msg_source: dict[str, tuple[CanBus, int]] = {}
+        self.eth_owner: dict[str, EthernetNetwork] = {}  # Ethernet message -> its network
         self.crash_at: dict[str, int] = {f.target: f.at_ns for f in opts.faults if f.kind == "crash" and f.target}
         self.lost: dict[str, int] = {}  # message -> instances that never made it (scripted loss, crash)
         self.protocols: dict[str, object] = {}  # bus -> its protocol driver (FTT master, CANopen master, network)
@@ -104,7 +113,13 @@ class Scenario:
             elif bus.protocol == "ethernet-udp":
                 from netcfg.sim.ethernet import EthernetNetwork
 
-                self.protocols[bus.name] = EthernetNetwork(self, bus)
+                # chained messages are sent by their flow task (submit), not free-running: known before the build
+                for m in cfg.messages_on(bus.name):
+                    for ref in self._sender_task(m):
+                        self.sends.setdefault(ref, []).append(m.name)
+                net = EthernetNetwork(self, bus)
+                self.protocols[bus.name] = net
+                self.eth_owner.update(dict.fromkeys(net.owned, net))
         self._start_free_running_tasks()
         for f in opts.faults:
             f.install(self)
@@ -147,6 +162,9 @@ class Scenario:
 
     def submit(self, message: str, data: bytes | None = None) -> None:
         """A reactive sender queues a frame now (unless it crashed or the frame is scripted to be lost)."""
+        if message not in self.msg_source:  # an Ethernet message: its producer's NIC queue
+            self.eth_owner[message].submit(message)
+            return
         bus, src = self.msg_source[message]
         if not self.alive(bus.sources[src].producer):
             bus.drop(src)
