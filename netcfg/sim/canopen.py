@@ -60,6 +60,8 @@ class CanopenMaster:
         self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # drive -> instants of complete samples
         self.missing: dict[str, int] = {d: 0 for d in self.drives}
         self._sync_count = 0
+        self.overruns = 0  # cycles whose processing took longer than the period
+        self.longest_ns = 0
         self._cpu_free = 0  # the master's one processor, shared by the SDO loops
         if self.mode in ("pdo", "external"):
             sc.listen(self.sync.name, self._on_sync)
@@ -150,6 +152,9 @@ class CanopenMaster:
             self.missing[drive] += len(exp) - len(got)
         t = sc.sim.now + self._draw(sc.opts.master.read)
         pt = t - cyc.start
+        if pt > self.co.sync_period_ns:
+            self.overruns += 1  # the next SYNC comes late: the master cannot keep its period
+            self.longest_ns = max(self.longest_ns, pt)
         waiting = max(0, self.co.sync_period_ns - pt - sc.opts.master.k_ns)
         mean, std = sc.opts.master.wait_error
         err = int(sc.rng.normal(mean, std))
@@ -263,6 +268,13 @@ class CanopenMaster:
             out["incomplete_cycles"] = sum(1 for c in self.cycles if c.done and set(c.expected) - c.received)
             if len(starts) > 1:
                 out["cycle_period_us"] = _summary(np.diff(starts) / 1000)
+            out["overruns"] = self.overruns
+            if self.overruns:
+                out["findings"] = [
+                    f"the master overran its {period / 1e6:g} ms period in {self.overruns} of {len(self.cycles)} "
+                    f"cycles (processing up to {self.longest_ns / 1e6:.2f} ms with {len(self.rpdos)} RxPDO writes): "
+                    "its SYNC is not periodic, so flows over this bus may leave the analysed bounds"
+                ]
             done = [c.done - c.sync_queued for c in self.cycles if c.done]
             if done:
                 out["collection_us"] = _summary(np.asarray(done) / 1000)

@@ -80,7 +80,12 @@ def simulate_command(args: argparse.Namespace) -> int:
         print(json.dumps(doc_out, indent=2))
     else:
         print(text(doc_out))
-    bad = doc_out["deadline_misses"] or doc_out["lost"] or (doc_out["exceeds_analysis"] and not res.error_model)
+    bad = (
+        doc_out["deadline_misses"]
+        or doc_out["lost"]
+        or doc_out.get("findings")
+        or (doc_out["exceeds_analysis"] and not res.error_model)
+    )
     return 1 if bad else 0
 
 

@@ -57,7 +57,7 @@ class _End:
 
 
 class FlowTracker:
-    def __init__(self, cfg: RuntimeConfig, flow: Flow) -> None:
+    def __init__(self, cfg: RuntimeConfig, flow: Flow, warm_up_ns: int = 0) -> None:
         self.flow = flow
         self.name = flow.name
         self.steps = flow.steps
@@ -83,11 +83,13 @@ class FlowTracker:
                     mine = tuple(r for r in prev.refs if prev.kind == "task" and r.split(".", 1)[0] == producer)
                 self.local[(i, ref)] = mine or prev.refs
         last = len(flow.steps) - 1
-        self.latency = _End(frozenset(flow.steps[last].refs))
+        self.latency = _End(frozenset(flow.steps[last].refs), done=warm_up_ns - 1)
         msg_steps = [i for i, s in enumerate(flow.steps) if s.kind == "message"]
         self.delivery_step = msg_steps[-1] if msg_steps and msg_steps[-1] != last else None
         self.delivery = (
-            _End(frozenset(flow.steps[self.delivery_step].refs)) if self.delivery_step is not None else None
+            _End(frozenset(flow.steps[self.delivery_step].refs), done=warm_up_ns - 1)
+            if self.delivery_step is not None
+            else None
         )
 
     def refs(self) -> Iterable[str]:

@@ -193,6 +193,9 @@ def summary(res: RunResult) -> dict[str, Any]:
             "frames_per_s": round(res.frames / res.wall_s),
             "x_real_time": round(duration / res.wall_s, 1),
         }
+    findings = [f"bus {bus}: {text}" for bus, reps in res.protocols.items() for text in reps[0].get("findings", [])]
+    if findings:
+        out["findings"] = findings
     if res.error_model and exceeded:
         out["note"] = "bit errors were injected and the analysis has no error model: exceeding it is expected"
     return out
@@ -225,12 +228,16 @@ def text(doc: dict[str, Any]) -> str:
             r = f["latency_us"] or {}
             a = f["analysis_us"]
             span = f"{a['min']:.0f}-{a['max']:.0f}" if a else "-"
+            if f["within_analysis"] is False:
+                span += "  OUTSIDE THE ANALYSED RANGE"
             lines.append(
                 f"  {f['name']:<28}{f['samples']:>8}{_f(r.get('min')):>10}{_f(r.get('mean')):>10}"
                 f"{_f(r.get('p99')):>10}{_f(r.get('max')):>10}  {span}"
             )
     for bus, reports in doc.get("protocols", {}).items():
         lines += ["", *_protocol_text(bus, reports[0])]
+    for finding in doc.get("findings", []):
+        lines += ["", f"  finding: {finding}"]
     if doc.get("note"):
         lines.append("")
         lines.append("  " + doc["note"])

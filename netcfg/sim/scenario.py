@@ -19,7 +19,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from netcfg.runtime import Bus, Message, RuntimeConfig, Task
+from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NodeClock, Simulator
 from netcfg.sim.faults import Fault
@@ -84,6 +84,7 @@ class Scenario:
         self.protocols: dict[str, object] = {}  # bus -> its protocol driver (FTT master, CANopen master, network)
         self.task_runs: dict[str, list[tuple[int, int]]] = {}
         self.sends: dict[str, list[str]] = {}  # task -> messages it sends as it finishes
+        self._last_send: dict[str, int] = {}  # sporadic message -> when its task last sent it
         # node clocks: a random phase within the node's longest period, a drift within +-drift_ppm
         self.clock: dict[str, NodeClock] = {}
         # time is the masters' time: an FTT-CAN master or a CANopen SYNC producer starts at 0 and does not drift
@@ -97,7 +98,7 @@ class Scenario:
             if node.name in masters and opts.mode != "unsync":
                 phase, drift = 0, 0  # the master's first cycle starts the run
             self.clock[node.name] = NodeClock(phase, drift)
-        self.flows = [FlowTracker(cfg, f) for f in cfg.flows]
+        self.flows = [FlowTracker(cfg, f, self._warm_up(f)) for f in cfg.flows]
         self._flow_refs: dict[str, list[FlowTracker]] = {}
         for tr in self.flows:
             for ref in tr.refs():
@@ -124,6 +125,19 @@ class Scenario:
         for f in opts.faults:
             f.install(self)
 
+    def _warm_up(self, flow: Flow) -> int:
+        """Flows are measured once every node they involve has started (its clock's phase): data that met a
+        consumer not yet running would show a start-up delay no steady state has."""
+        nodes = set()
+        for step in flow.steps:
+            for ref in step.refs:
+                if step.kind == "task":
+                    nodes.add(ref.split(".", 1)[0])
+                else:
+                    m = self.cfg.message(ref)
+                    nodes.update((m.producer, *m.consumers))
+        return max((self.clock[n].phase_ns for n in nodes if n in self.clock), default=0)
+
     # -- helpers the protocol drivers use ----------------------------------------------------------------
     def synchronised(self, bus: Bus) -> bool:
         return self.opts.mode != "unsync"
@@ -149,7 +163,13 @@ class Scenario:
         for tr in self._flow_refs.get(task.ref, ()):
             tr.task_started(task.ref, t, end)
         for name in self.sends.get(task.ref, ()):
-            self.sim.at(end + self.cfg.node(task.node).tx_delay_ns, self._send_chained, name)
+            send = end + self.cfg.node(task.node).tx_delay_ns
+            m = self.cfg.message(name)
+            if m.kind == "sporadic" and m.interval_ns:
+                if send < self._last_send.get(name, -NEVER) + m.interval_ns:
+                    continue  # too soon after the last one: this run raises no event
+                self._last_send[name] = send
+            self.sim.at(send, self._send_chained, name)
 
     def tasks_on_trigger(self, trigger: str) -> list[Task]:
         return [self.cfg.task(ref) for ref in self.cfg.trigger(trigger).tasks if self._wanted(self.cfg.task(ref))]
@@ -225,7 +245,10 @@ class Scenario:
                     continue
                 for ref in tr.steps[i - 1].refs:
                     task = self.cfg.task(ref)
-                    if task.node == m.producer and self._task_period(task) in (m.period_ns, m.interval_ns):
+                    same_rate = self._task_period(task) in (m.period_ns, m.interval_ns)
+                    # a sporadic message is an event its producer's task raises; sent at once, at most once per
+                    # minimum inter-arrival time (the analysis' load assumption)
+                    if task.node == m.producer and (same_rate or m.kind == "sporadic"):
                         out.append(ref)
         return sorted(set(out))
 
