@@ -22,6 +22,7 @@ import numpy as np
 
 from netcfg.runtime import Bus, Message
 from netcfg.sim.can_bus import CanBus
+from netcfg.sim.stats import spread
 
 if TYPE_CHECKING:
     from netcfg.sim.scenario import Scenario
@@ -258,8 +259,8 @@ class CanopenMaster:
             per_drive[drive] = {
                 "samples": len(times),
                 "missing_frames": self.missing[drive],
-                "period_us": _summary(gaps / 1000) if len(gaps) else None,
-                "period_error_us": _summary(err) if len(gaps) else None,
+                "period_us": spread(gaps / 1000) if len(gaps) else None,
+                "period_error_us": spread(err) if len(gaps) else None,
             }
         out["drives"] = per_drive
         if self.mode == "pdo":
@@ -267,7 +268,7 @@ class CanopenMaster:
             out["cycles"] = len(self.cycles)
             out["incomplete_cycles"] = sum(1 for c in self.cycles if c.done and set(c.expected) - c.received)
             if len(starts) > 1:
-                out["cycle_period_us"] = _summary(np.diff(starts) / 1000)
+                out["cycle_period_us"] = spread(np.diff(starts) / 1000)
             out["overruns"] = self.overruns
             if self.overruns:
                 out["findings"] = [
@@ -277,14 +278,5 @@ class CanopenMaster:
                 ]
             done = [c.done - c.sync_queued for c in self.cycles if c.done]
             if done:
-                out["collection_us"] = _summary(np.asarray(done) / 1000)
+                out["collection_us"] = spread(np.asarray(done) / 1000)
         return out
-
-
-def _summary(x: np.ndarray) -> dict[str, float]:
-    return {
-        "min": round(float(x.min()), 3),
-        "mean": round(float(x.mean()), 3),
-        "std": round(float(x.std()), 3),
-        "max": round(float(x.max()), 3),
-    }

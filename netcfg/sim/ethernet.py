@@ -48,6 +48,7 @@ import numpy as np
 
 from netcfg.runtime import Bus, Message
 from netcfg.sim.engine import LATE, PPB
+from netcfg.sim.stats import stats_us
 from netcfg.sim.streams import NEVER
 from netcfg.timing.ethernet import PROPAGATION_M_PER_S
 from netcfg.timing.frames import udp_frame_ns
@@ -844,7 +845,7 @@ class EthernetNetwork:
         messages = []
         for i, (name, rel, end) in enumerate(self.records()):
             m = self.messages[i]
-            latency = _summary_us(end - rel)
+            latency = stats_us(end - rel)
             worst = int((end - rel).max()) if len(end) else None
             pr, pe = processed[name]
             messages.append(
@@ -858,7 +859,7 @@ class EthernetNetwork:
                     "lost": int(self.lost[i]),
                     "in_flight": flying[name],
                     "latency_us": latency,
-                    "processed_us": _summary_us(pe - pr),
+                    "processed_us": stats_us(pe - pr),
                     "wcrt_us": None if m.wcrt_ns is None else m.wcrt_ns / 1000,
                     "within_analysis": None if m.wcrt_ns is None or worst is None else worst <= m.wcrt_ns,
                 }
@@ -910,12 +911,3 @@ def _take(pending: list[Batch], horizon: int) -> Batch | None:
     return t[:k], msg[:k], rel[:k]
 
 
-def _summary_us(x: np.ndarray) -> dict[str, float] | None:
-    if not len(x):
-        return None
-    return {
-        "min": round(float(x.min()) / 1000, 3),
-        "mean": round(float(x.mean()) / 1000, 3),
-        "p99": round(float(np.percentile(x, 99, method="higher")) / 1000, 3),
-        "max": round(float(x.max()) / 1000, 3),
-    }

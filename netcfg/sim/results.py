@@ -15,6 +15,7 @@ import numpy as np
 
 from netcfg.runtime import RuntimeConfig
 from netcfg.sim.scenario import Scenario
+from netcfg.sim.stats import stats_us
 
 HIST_BINS = 40
 
@@ -116,17 +117,6 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
     return res
 
 
-def _stats_us(x: np.ndarray) -> dict[str, float] | None:
-    if len(x) == 0:
-        return None
-    return {
-        "min": round(float(x.min()) / 1000, 3),
-        "mean": round(float(x.mean()) / 1000, 3),
-        "p99": round(float(np.percentile(x, 99, method="higher")) / 1000, 3),
-        "max": round(float(x.max()) / 1000, 3),
-    }
-
-
 def summary(res: RunResult) -> dict[str, Any]:
     """The JSON document of `netcfg simulate --format json`."""
     messages = []
@@ -145,7 +135,7 @@ def summary(res: RunResult) -> dict[str, Any]:
             {
                 "name": name,
                 "count": len(r),
-                "response_us": _stats_us(r),
+                "response_us": stats_us(r),
                 "wcrt_us": None if w is None else w / 1000,
                 "within_analysis": None if w is None or not len(r) else not over,
                 "deadline_us": None if d is None else d / 1000,
@@ -163,9 +153,9 @@ def summary(res: RunResult) -> dict[str, Any]:
         flows.append(
             {
                 "name": name,
-                "latency_us": _stats_us(lat),
+                "latency_us": stats_us(lat),
                 "samples": len(lat),
-                "delivery_us": _stats_us(res.flow_delivery[name]) if name in res.flow_delivery else None,
+                "delivery_us": stats_us(res.flow_delivery[name]) if name in res.flow_delivery else None,
                 "analysis_us": None if lo is None or hi is None else {"min": lo / 1000, "max": hi / 1000},
                 "within_analysis": within,
             }
