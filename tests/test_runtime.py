@@ -429,3 +429,22 @@ def test_a_version_1_file_without_the_added_keys_still_loads(built: dict[str, Pa
     assert [(f.latency_min_ns, f.latency_max_ns) for f in old.flows] == [
         (f.latency_min_ns, f.latency_max_ns) for f in new.flows
     ]
+
+
+@pytest.mark.parametrize(
+    ("damage", "text"),
+    [
+        (lambda d: d["messages"][0].update(period_ns="fast"), "period_ns must be a non-negative integer, not 'fast'"),
+        (lambda d: d["messages"][1].update(producer="ghost"), "node 'ghost' is not in the config"),
+        (lambda d: d["nodes"][0]["tasks"][0].update(sync_bus="can9"), "bus 'can9' is not in the config"),
+        (lambda d: d["flows"][0]["steps"][0].update(refs=["nowhere"]), "message 'nowhere' is not in the config"),
+        (lambda d: d.pop("buses"), "missing key 'buses'"),
+    ],
+)
+def test_a_damaged_runtime_config_is_refused_with_what_is_wrong(damage: Any, text: str) -> None:
+    """A hand-edited or damaged runtime.json is refused when loaded, naming what is wrong, instead of failing
+    later inside a master or the simulator."""
+    doc = json.loads((ROOT / "generated" / "allex2" / "runtime.json").read_text())
+    damage(doc)
+    with pytest.raises(rt.RuntimeConfigError, match=re.escape(text)):
+        rt.parse(doc, "damaged.json")

@@ -570,9 +570,70 @@ def parse(data: Any, source: str = "<memory>") -> RuntimeConfig:
             f"{supported}. Rebuild it with 'netcfg build' from the netcfg release the master uses."
         )
     try:
-        return _config(data, source)
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise RuntimeConfigError(f"{source}: malformed runtime config version {version}: {exc!r}") from exc
+        cfg = _config(data, source)
+    except KeyError as exc:
+        raise RuntimeConfigError(
+            f"{source}: malformed runtime config version {version}: missing key {exc}; rebuild it with 'netcfg build'"
+        ) from exc
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise RuntimeConfigError(f"{source}: malformed runtime config version {version}: {exc}") from exc
+    problems = _problems(cfg)
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise RuntimeConfigError(
+            f"{source}: malformed runtime config: {problems[0]}{more}; rebuild it with 'netcfg build'"
+        )
+    return cfg
+
+
+_INT_FIELDS = {
+    "message": ("id", "size", "period_ns", "interval_ns", "offset_ns", "deadline_ns", "jitter_ns", "wcrt_ns"),
+    "task": ("period_ns", "offset_ns", "wcet_ns", "bcet_ns"),
+    "bus": ("bitrate", "id_bits"),
+}
+
+
+def _problems(cfg: RuntimeConfig) -> list[str]:
+    """What a hand-edited or damaged file gets wrong: numbers that are not integers, names that lead nowhere."""
+    out: list[str] = []
+
+    def ints(kind: str, name: str, obj: object) -> None:
+        for attr in _INT_FIELDS[kind]:
+            v = getattr(obj, attr)
+            if v is not None and (not isinstance(v, int) or isinstance(v, bool) or v < 0):
+                out.append(f"{kind} '{name}': {attr} must be a non-negative integer, not {v!r}")
+
+    buses = {b.name for b in cfg.buses}
+    nodes = {n.name for n in cfg.nodes}
+    messages = {m.name for m in cfg.messages}
+    triggers = {t.name for t in cfg.triggers}
+    tasks = {t.ref for n in cfg.nodes for t in n.tasks}
+    for b in cfg.buses:
+        ints("bus", b.name, b)
+        out += [f"bus '{b.name}': node '{n}' is not in the config" for n in b.nodes if n not in nodes]
+    for n in cfg.nodes:
+        out += [f"node '{n.name}': bus '{b}' is not in the config" for b in n.buses if b not in buses]
+        for t in n.tasks:
+            ints("task", t.ref, t)
+            if t.trigger is not None and t.trigger not in triggers:
+                out.append(f"task '{t.ref}': trigger '{t.trigger}' is not in the config")
+            if t.on_message is not None and t.on_message not in messages:
+                out.append(f"task '{t.ref}': message '{t.on_message}' is not in the config")
+            if t.sync_bus is not None and t.sync_bus not in buses:
+                out.append(f"task '{t.ref}': bus '{t.sync_bus}' is not in the config")
+    for m in cfg.messages:
+        ints("message", m.name, m)
+        if m.bus not in buses:
+            out.append(f"message '{m.name}': bus '{m.bus}' is not in the config")
+        ends = (m.producer, *m.consumers)
+        out += [f"message '{m.name}': node '{x}' is not in the config" for x in ends if x not in nodes]
+    for trig in cfg.triggers:
+        out += [f"trigger '{trig.name}': task '{x}' is not in the config" for x in trig.tasks if x not in tasks]
+    for f in cfg.flows:
+        for step in f.steps:
+            known = tasks if step.kind == "task" else messages
+            out += [f"flow '{f.name}': {step.kind} '{r}' is not in the config" for r in step.refs if r not in known]
+    return out
 
 
 def _config(d: dict[str, Any], source: str) -> RuntimeConfig:

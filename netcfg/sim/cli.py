@@ -49,8 +49,12 @@ def simulate_command(args: argparse.Namespace) -> int:
         return 2
     try:
         doc = load_document(args.source)
-    except (runtime.RuntimeConfigError, json.JSONDecodeError) as exc:
-        print(f"netcfg: {args.source}: not a runtime configuration: {exc}", file=sys.stderr)
+    except json.JSONDecodeError as exc:
+        print(f"{args.source}:{exc.lineno}:{exc.colno}: error: not valid JSON ({exc.msg}); rebuild it with "
+              "'netcfg build'", file=sys.stderr)
+        return 1
+    except runtime.RuntimeConfigError as exc:
+        print(f"netcfg: {exc}", file=sys.stderr)
         return 1
     if doc is None:
         return 1
