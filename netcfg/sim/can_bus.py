@@ -21,6 +21,7 @@ from netcfg.timing.frames import bits_to_ns, can_frame_bits, can_frame_bits_exac
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
 # intermission (3): ISO 11898-1's active error frame at its longest.
 ERROR_FRAME_BITS = 6 + 6 + 8 + 3
+INTERMISSION_BITS = 3  # the end of every frame time: nothing to corrupt there
 CHUNK_NS = 200_000_000  # release streams are expanded this much simulated time at a time
 NEVER = 1 << 62
 
@@ -106,6 +107,7 @@ class CanBus:
         self._step_at: int | None = None  # when the arbitration loop is due to run next
         self._err_i = 0
         self.error_ns = bits_to_ns(ERROR_FRAME_BITS, bitrate)
+        self.ifs_ns = bits_to_ns(INTERMISSION_BITS, bitrate)
 
     # -- set-up -----------------------------------------------------------------------------------------
     def add_source(self, name: str, can_id: int, extended: bool, size: int, producer: str, gated: bool = False) -> int:
@@ -153,6 +155,19 @@ class CanBus:
                 self.drop(item[3])
         heapq.heapify(kept)
         self._pending = kept
+        # releases the bus has not reached yet, although due: the sender had queued them, and loses them too
+        now = self.sim.now
+        rest = range(self._rel_i, len(self._rel_t))
+        gone = [i for i in rest if self._rel_t[i] <= now and not keep(self._rel_src[i])]
+        if gone:
+            for i in gone:
+                self.drop(self._rel_src[i])
+            drop = set(gone)
+            left = [i for i in rest if i not in drop]
+            self._rel_t = [self._rel_t[i] for i in left]
+            self._rel_src = [self._rel_src[i] for i in left]
+            self._rel_data = [self._rel_data[i] for i in left]
+            self._rel_i = 0
 
     def pending_count(self) -> dict[int, int]:
         out: dict[int, int] = {}
@@ -242,6 +257,7 @@ class CanBus:
         keep_data = self.trace
         babble = self.babble
         seq = self._seq
+        ifs = self.ifs_ns
         busy = self._free_at
         t = max(sim.now, busy)  # the next arbitration instant
         while True:
@@ -295,7 +311,7 @@ class CanBus:
             if ei < en:
                 while ei < en and errors[ei] < t:
                     ei += 1
-                if ei < en and errors[ei] < end:
+                if ei < en and errors[ei] < end - ifs:  # an error in the intermission spoils no frame
                     # a bit error: error frame, then the frame competes again (automatic retransmission)
                     if keep_data:
                         self.error_log.append(errors[ei])

@@ -30,12 +30,13 @@ if TYPE_CHECKING:
 SDO_REQUEST = 0x600  # CiA 301 default COB-IDs of the first SDO server
 SDO_RESPONSE = 0x580
 SDO_OBJECTS_PER_READ = 3  # position, velocity, current (seed 000, section 4.2)
+SDO_TIMEOUT_NS = 300_000_000  # the canopen package's default SDO response timeout (SdoClient.RESPONSE_TIMEOUT)
 
 
 @dataclass
 class Cycle:
     start: int
-    sync_queued: int = 0
+    sync_queued: int | None = None
     done: int = 0  # collection finished (all arrived, or the read window ended)
     received: set[str] = field(default_factory=set)
     expected: tuple[str, ...] = ()
@@ -61,6 +62,8 @@ class CanopenMaster:
         self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # drive -> instants of complete samples
         self.missing: dict[str, int] = {d: 0 for d in self.drives}
         self._sync_count = 0
+        self.late: dict[str, int] = {}  # TPDO -> answers that came after their cycle's read window
+        self.sdo_timeouts: dict[str, int] = {}  # drive -> SDO transfers that timed out and were repeated
         self.overruns = 0  # cycles whose processing took longer than the period
         self.longest_ns = 0
         self._cpu_free = 0  # the master's one processor, shared by the SDO loops
@@ -108,8 +111,8 @@ class CanopenMaster:
     def _send_sync(self, cyc: Cycle) -> None:
         sc = self.sc
         cyc.sync_queued = sc.sim.now
-        n = len(self.cycles)  # this cycle's SYNC is the n-th: TPDOs of type k answer SYNCs 1, 1 + k, ...
-        cyc.expected = tuple(m.name for m in self.tpdos if (n - 1) % self.every[m.name] == 0)
+        n = len(self.cycles)  # this cycle's SYNC is the n-th: a TPDO of type k answers every k-th (CiA 301)
+        cyc.expected = tuple(m.name for m in self.tpdos if n % self.every[m.name] == 0)
         sc.submit(self.sync.name)
         window = self.co.read_window_ns or self.co.sync_period_ns
         sc.sim.at(sc.sim.now + window, self._read_window_over, cyc)
@@ -119,7 +122,7 @@ class CanopenMaster:
         self._sync_count += 1
         n = self._sync_count
         for m in self.tpdos:
-            if (n - 1) % self.every[m.name] == 0 and sc.alive(m.producer):
+            if n % self.every[m.name] == 0 and sc.alive(m.producer):
                 sc.sim.at(end + self._drive_delay(m.producer), self._tpdo, m)
         for task in sc.tasks_on_sync(self.bus.name):
             node = sc.cfg.node(task.node)
@@ -128,13 +131,14 @@ class CanopenMaster:
     def _tpdo(self, m: Message) -> None:
         self.sc.submit(m.name)
 
-    def _on_tpdo(self, end: int, src: int, _release: int, _data: bytes | None) -> None:
-        if not self.cycles:
+    def _on_tpdo(self, end: int, src: int, release: int, _data: bytes | None) -> None:
+        name = self.can.sources[src].name
+        cyc = self.cycles[-1] if self.cycles else None
+        if cyc is None or cyc.done or cyc.sync_queued is None or release < cyc.sync_queued:
+            # an answer to an earlier SYNC, after its read window: late, not a sample of this cycle
+            self.late[name] = self.late.get(name, 0) + 1
             return
-        cyc = self.cycles[-1]
-        if cyc.done:
-            return  # too late for this cycle's read window: not a sample
-        cyc.received.add(self.can.sources[src].name)
+        cyc.received.add(name)
         if cyc.expected and all(n in cyc.received for n in cyc.expected):
             self._collected(cyc)
 
@@ -175,6 +179,7 @@ class CanopenMaster:
         # per drive, the confirmed transfers waiting for its SDO server (one at a time); the first is in flight
         self._transfers: dict[str, list[tuple[int, Callable[[int], None]]]] = {d: [] for d in self.drives}
         self._read_start: dict[str, int] = {}
+        self._inflight: dict[str, int] = {}  # drive -> token of the request awaiting an answer
 
     def _cpu(self, work: int) -> int:
         """Run `work` ns on the master's processor (first come, first served); returns when it is done."""
@@ -193,7 +198,17 @@ class CanopenMaster:
         self.sc.sim.at(self._cpu(work), self._request, drive)
 
     def _request(self, drive: str) -> None:
+        self._inflight[drive] = self._inflight.get(drive, 0) + 1
         self.sc.submit(f"{drive}_sdo_request")
+        self.sc.sim.at(self.sc.sim.now + SDO_TIMEOUT_NS, self._sdo_timeout, (drive, self._inflight[drive]))
+
+    def _sdo_timeout(self, arg: tuple[str, int]) -> None:
+        """No answer in time: the client gives up on this request and sends it again (a real client would abort
+        the transfer and the application repeat it)."""
+        drive, token = arg
+        if self._inflight.get(drive) == token and self._transfers[drive]:
+            self.sdo_timeouts[drive] = self.sdo_timeouts.get(drive, 0) + 1
+            self._request(drive)
 
     def _sdo_served(self, end: int, src: int, _release: int, _data: bytes | None) -> None:
         drive = self.can.sources[src].name.removesuffix("_sdo_request")
@@ -206,6 +221,9 @@ class CanopenMaster:
     def _sdo_answered(self, end: int, src: int, _release: int, _data: bytes | None) -> None:
         drive = self.can.sources[src].producer
         queue = self._transfers[drive]
+        if not queue:
+            return  # a late answer to a request already repeated and served
+        self._inflight[drive] = self._inflight.get(drive, 0) + 1  # the pending timeout no longer applies
         _, then = queue.pop(0)
         if queue:
             self._issue(drive)
@@ -252,13 +270,14 @@ class CanopenMaster:
     def report(self) -> dict[str, object]:
         period = self.co.sync_period_ns
         out: dict[str, object] = {"mode": self.mode, "period_us": period / 1000}
-        per_drive = {}
+        per_drive: dict[str, object] = {}
         for drive, times in self.samples.items():
             gaps = np.diff(np.asarray(times, dtype=np.int64)) if len(times) > 1 else np.empty(0, np.int64)
             err = (gaps - period) / 1000 if len(gaps) else gaps
             per_drive[drive] = {
                 "samples": len(times),
                 "missing_frames": self.missing[drive],
+                "sdo_timeouts": self.sdo_timeouts.get(drive, 0),
                 "period_us": spread(gaps / 1000) if len(gaps) else None,
                 "period_error_us": spread(err) if len(gaps) else None,
             }
@@ -270,13 +289,14 @@ class CanopenMaster:
             if len(starts) > 1:
                 out["cycle_period_us"] = spread(np.diff(starts) / 1000)
             out["overruns"] = self.overruns
+            out["late_frames"] = sum(self.late.values())
             if self.overruns:
                 out["findings"] = [
                     f"the master overran its {period / 1e6:g} ms period in {self.overruns} of {len(self.cycles)} "
                     f"cycles (processing up to {self.longest_ns / 1e6:.2f} ms with {len(self.rpdos)} RxPDO writes): "
                     "its SYNC is not periodic, so flows over this bus may leave the analysed bounds"
                 ]
-            done = [c.done - c.sync_queued for c in self.cycles if c.done]
+            done = [c.done - c.sync_queued for c in self.cycles if c.done and c.sync_queued is not None]
             if done:
                 out["collection_us"] = spread(np.asarray(done) / 1000)
         return out

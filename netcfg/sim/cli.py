@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,8 @@ from netcfg.sim.montecarlo import progress_bar, run_batch, run_once
 from netcfg.sim.results import histograms, summary, text
 from netcfg.sim.scenario import SimOptions
 from netcfg.sim.trace import SUPPORTED_SUFFIXES, TraceFrame, write_trace
+
+MAX_DRIFT_PPM = 100_000.0  # 10 %: beyond any clock; the arithmetic stays meaningful below it
 
 
 def load_document(source: Path) -> dict[str, Any] | None:
@@ -44,6 +47,13 @@ def simulate_command(args: argparse.Namespace) -> int:
     if args.runs < 1 or duration <= 0:
         print("netcfg: --runs and --duration must be positive", file=sys.stderr)
         return 2
+    if not 0 <= args.drift <= MAX_DRIFT_PPM:  # also refuses nan
+        print(f"netcfg: --drift {args.drift}: give a clock tolerance between 0 and {MAX_DRIFT_PPM:g} ppm "
+              "(crystals are within about 100 ppm)", file=sys.stderr)
+        return 2
+    if args.seed < 0:
+        print("netcfg: --seed must be 0 or more", file=sys.stderr)
+        return 2
     if args.log is not None and args.log.suffix not in SUPPORTED_SUFFIXES:
         print(f"netcfg: --log {args.log}: the trace formats are {', '.join(SUPPORTED_SUFFIXES)}", file=sys.stderr)
         return 2
@@ -55,6 +65,9 @@ def simulate_command(args: argparse.Namespace) -> int:
         return 1
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
+        return 1
+    except UnicodeDecodeError:
+        print(f"{args.source}: error: not a text file; give a spec (.yaml) or a runtime.json", file=sys.stderr)
         return 1
     if doc is None:
         return 1
@@ -68,9 +81,6 @@ def simulate_command(args: argparse.Namespace) -> int:
     except (FaultError, ValueError) as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
-    if args.log is not None:
-        frames = trace_frames(sc)
-        write_trace(frames, args.log)
     if args.runs > 1:
         rest = run_batch(doc, SimOptions(**{**opts.__dict__, "seed": args.seed + 1}), args.runs - 1, args.jobs,
                          progress=lambda d, n: progress_bar(d + 1, n + 1))
@@ -79,7 +89,17 @@ def simulate_command(args: argparse.Namespace) -> int:
         res.wall_s = wall
     doc_out = summary(res)
     if args.plots is not None:
-        doc_out["plots"] = histograms(res, str(args.plots))
+        try:
+            doc_out["plots"] = histograms(res, str(args.plots))
+        except OSError as exc:
+            print(f"netcfg: cannot write plots to {args.plots}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
+    if args.log is not None:
+        try:
+            _write_atomically(args.log, trace_frames(sc))
+        except OSError as exc:
+            print(f"netcfg: cannot write the trace {args.log}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
     if args.format == "json":
         print(json.dumps(doc_out, indent=2))
     else:
@@ -91,6 +111,16 @@ def simulate_command(args: argparse.Namespace) -> int:
         or (doc_out["exceeds_analysis"] and not res.error_model)
     )
     return 1 if bad else 0
+
+
+def _write_atomically(path: Path, frames: list[TraceFrame]) -> None:
+    """The trace appears whole or not at all (a temporary file beside it, renamed)."""
+    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
+    try:
+        write_trace(frames, tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def trace_frames(sc: Any) -> list[TraceFrame]:

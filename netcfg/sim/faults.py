@@ -69,9 +69,17 @@ class Fault:
             return Fault(m.group(1), m.group(2), parse_time(m.group(3)))
         m = re.fullmatch(r"babble:([^@]+)@([^.=]+(?:\.\d+)?[a-z]+)(?:\.\.([^=]+))?(?:=(\S+))?", t)
         if m:
+            start = parse_time(m.group(2))
             until = parse_time(m.group(3)) if m.group(3) else NEVER
-            ident = int(m.group(4), 0) if m.group(4) else 0
-            return Fault("babble", m.group(1), parse_time(m.group(2)), until, float(ident))
+            try:
+                ident = int(m.group(4), 0) if m.group(4) else 0
+            except ValueError:
+                raise FaultError(f"babble identifier '{m.group(4)}' is not a number: write e.g. =0x0 or =16") from None
+            if not 0 <= ident <= 0x7FF:
+                raise FaultError(f"babble identifier {ident:#x} is not an 11-bit CAN identifier (0x000-0x7FF)")
+            if until <= start:
+                raise FaultError(f"babble window '{text}' ends before it starts: write e.g. babble:NODE@1s..2s")
+            return Fault("babble", m.group(1), start, until, float(ident))
         m = re.fullmatch(r"master-fail@([^:]+)(?::(\S+))?", t)
         if m:
             return Fault("master-fail", m.group(2), parse_time(m.group(1)))

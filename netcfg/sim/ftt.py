@@ -89,10 +89,10 @@ class FttMaster:
             self._count_lost(k - 1)
         self.ecs += 1
         sender = self._tm_sender()
-        if sender == self.master:
-            self._send_tm(k)
+        if sender == self.master or (sender is not None and self.takeover_ns is not None):
+            self._send_tm(k)  # the backup, once in charge, keeps the EC grid
         elif sender is not None:
-            sim.at(sim.now + self.tm_timeout_ns, self._backup_tm, k)
+            sim.at(sim.now + self.tm_timeout_ns, self._backup_tm, k)  # it notices the missing TM first
         sim.at(self.ec_start(k + 1), self._ec, k + 1)
 
     def _tm_sender(self) -> str | None:

@@ -13,6 +13,7 @@ sources of their own) and arbitrate like any other frame.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from typing import Any
 
@@ -78,7 +79,8 @@ class SimCanBus(can.BusABC):
         """The next frame, waiting at most `timeout` simulated seconds (None: until the simulation runs dry)."""
         if not self._rx:
             sim = self.sc.sim
-            until = (1 << 62) if timeout is None else sim.now + round(timeout * 1e9)
+            # at least 1 ns: a timeout left over from float arithmetic must still let time move on
+            until = (1 << 62) if timeout is None else sim.now + (max(1, math.ceil(timeout * 1e9)) if timeout > 0 else 0)
             sim.run_until(until, stop=lambda: bool(self._rx))
         return self._rx.popleft() if self._rx else None
 

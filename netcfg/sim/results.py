@@ -91,6 +91,8 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
             res.deadline[src.name] = m.deadline_ns if m else None
             res.wcrt[src.name] = m.wcrt_ns if m else None
         res.error_frames += can.error_frames
+    for name, n in sc.lost.items():  # losses no bus saw (a crashed task's Ethernet sends)
+        res.lost[name] = res.lost.get(name, 0) + n
     for bus, driver in sc.protocols.items():
         records = getattr(driver, "records", None)
         if records is not None:
@@ -183,7 +185,12 @@ def summary(res: RunResult) -> dict[str, Any]:
             "frames_per_s": round(res.frames / res.wall_s),
             "x_real_time": round(duration / res.wall_s, 1),
         }
-    findings = [f"bus {bus}: {text}" for bus, reps in res.protocols.items() for text in reps[0].get("findings", [])]
+    findings = [
+        f"bus {bus}{f', run {i + 1}' if res.runs > 1 else ''}: {text}"
+        for bus, reps in res.protocols.items()
+        for i, rep in enumerate(reps)
+        for text in rep.get("findings", [])
+    ]
     if findings:
         out["findings"] = findings
     if res.error_model and exceeded:

@@ -124,6 +124,10 @@ class Scenario:
         self._start_free_running_tasks()
         for f in opts.faults:
             f.install(self)
+        for can in self.can.values():  # a crashed node stops babbling too
+            if can.babble is not None:
+                src, start, stop = can.babble
+                can.babble = (src, start, min(stop, self.crash_at.get(can.sources[src].producer, NEVER)))
 
     def _warm_up(self, flow: Flow) -> int:
         """Flows are measured once every node they involve has started (its clock's phase): data that met a
@@ -157,6 +161,8 @@ class Scenario:
             return
         t = self.sim.now
         if t >= self.crash_at.get(task.node, NEVER):
+            for name in self.sends.get(task.ref, ()):
+                self.drop(name)  # what the task would have sent is lost with it
             return
         end = t + self.exec_ns(task)
         self.task_runs.setdefault(task.ref, []).append((t, end))
@@ -193,6 +199,13 @@ class Scenario:
 
     def _send_chained(self, name: str) -> None:
         self.submit(name)
+
+    def drop(self, message: str) -> None:
+        if message in self.msg_source:
+            bus, src = self.msg_source[message]
+            bus.drop(src)
+        else:
+            self.lost[message] = self.lost.get(message, 0) + 1
 
     def listen(self, message: str, fn: Callable[[int, int, int, bytes | None], None]) -> None:
         bus, src = self.msg_source[message]
@@ -277,6 +290,7 @@ class Scenario:
                 jitters=[m.jitter_ns for m in msgs],
                 until=[self.crash_at.get(m.producer, NEVER) for m in msgs],
                 rng=self.rng,
+                cut=can.dropped,
             )
         )
 

@@ -6,13 +6,13 @@ import numpy as np
 
 
 def stats_us(x: np.ndarray) -> dict[str, float] | None:
-    """min, mean, p99 (the smallest value at or above 99 % of the samples) and max in us; None without samples."""
+    """min, mean, p99 (nearest rank: the ceil(0.99 n)-th smallest sample) and max in us; None without samples."""
     if len(x) == 0:
         return None
     return {
         "min": round(float(x.min()) / 1000, 3),
         "mean": round(float(x.mean()) / 1000, 3),
-        "p99": round(float(np.percentile(x, 99, method="higher")) / 1000, 3),
+        "p99": round(float(np.percentile(x, 99, method="inverted_cdf")) / 1000, 3),
         "max": round(float(x.max()) / 1000, 3),
     }
 

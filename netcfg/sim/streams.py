@@ -2,7 +2,7 @@
 
 Source i releases at local instants off_i + k * P_i (k = 0, 1, ...) on its producer's clock, mapped to global
 time through the clock's phase and drift, plus a release jitter drawn uniformly in [0, J_i]. Releases after
-the producer's crash instant never happen.
+the producer's crash instant never happen; they are counted in `cut` (source -> instances).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ class PeriodicStreams:
         jitters: Sequence[int],
         until: Sequence[int],
         rng: np.random.Generator,
+        cut: dict[int, int] | None = None,
     ) -> None:
         self.src = np.asarray(sources, dtype=np.int64)
         self.period = np.asarray(periods, dtype=np.int64)
@@ -36,6 +37,7 @@ class PeriodicStreams:
         self.jitter = np.asarray(jitters, dtype=np.int64)
         self.until = np.asarray(until, dtype=np.int64)
         self.rng = rng
+        self.cut = cut
 
     def __call__(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray]:
         n = len(self.src)
@@ -52,7 +54,11 @@ class PeriodicStreams:
         k = lo[which] + (np.arange(total) - first)
         local = self.offset[which] + k * self.period[which]
         base = self.phase[which] + local + local * self.drift[which] // PPB
-        keep = (base >= t0) & (base < t1) & (base < self.until[which])
+        due = (base >= t0) & (base < t1)
+        keep = due & (base < self.until[which])
+        if self.cut is not None:  # releases a crashed sender never makes: counted as lost
+            for s, n in zip(*np.unique(self.src[which[due & ~keep]], return_counts=True)):
+                self.cut[int(s)] = self.cut.get(int(s), 0) + int(n)
         base, which = base[keep], which[keep]
         jit = self.jitter[which]
         if jit.any():
