@@ -15,6 +15,9 @@ Everything about the network comes from generated/allex2/runtime.json and the ED
   EPOS4 EDS, netcfg/devices/profiles/epos4.yaml), product code unknown (the built-in profile covers every variant).
 - PDO counts: 4 RPDOs and 4 TPDOs (the EPOS4's 0x1400-0x1403 / 0x1800-0x1803, runtime.json node.rpdo_count/tpdo_count).
 - SDO abort codes: CiA 301 table 22 (0x06040041 object cannot be mapped, 0x08000022 refused in present state).
+- SDO request COB-ID 0x600 + node id: CiA 301 pre-defined connection set (client to server).
+- "Transmit buffer full": the can.CanOperationError text of python-can's socketcan bus when the send queue is full.
+- 1000 kbit/s: the bus bit rate in specs/allex2.yaml (runtime.json bus.bitrate).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from typing import Any
 import can
 import canopen
 import pytest
+from can.interfaces.virtual import VirtualBus
 from canopen.sdo import SdoAbortedError
 from conftest import ROOT
 
@@ -45,7 +49,7 @@ from netcfg.runtime.canopen_master import (
     interpolation_period,
 )
 from netcfg.runtime.clock import SystemClock
-from netcfg.runtime.drives import DriveBench, SimulatedDrive
+from netcfg.runtime.drives import DriveBench, ResponseScheduler, SimulatedDrive
 
 GENERATED = ROOT / "generated" / "allex2"
 CANOPEN_DIR = GENERATED / "canopen"
@@ -244,6 +248,77 @@ def test_setup_errors_are_per_node_and_leave_the_others_alone(
     assert [run.complete_samples(j) for j in ("hip_r", "knee_r", "ankle_r")] == [5, 5, 5]
 
 
+SDO_REQUEST = 0x600  # CiA 301: SDO client -> server COB-ID is 0x600 + node id
+
+
+class FailingBus(VirtualBus):
+    """A virtual bus that fails as a real interface does on a broken bus: send() raises can.CanOperationError for
+    frames to `refuse_id` ("Transmit buffer full", socketcan's text when nothing acknowledges), and with
+    `receive_broken` every recv() raises too (an interface that went down)."""
+
+    def __init__(self, channel: str, *, refuse_id: int | None = None, receive_broken: bool = False) -> None:
+        super().__init__(channel=channel)
+        self.refuse_id, self.receive_broken = refuse_id, receive_broken
+        self.refused = 0
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if msg.arbitration_id == self.refuse_id:
+            self.refused += 1
+            raise can.CanOperationError("Transmit buffer full")
+        super().send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        if self.receive_broken:
+            raise can.CanOperationError("Failed to receive: Network is down")
+        return super()._recv_internal(timeout)
+
+
+def test_a_frame_the_interface_refuses_fails_that_node_only(cfg: rt.RuntimeConfig, channel: str) -> None:
+    """The interface refuses every frame to knee_l's SDO server (COB-ID 0x602, node id 2): knee_l fails at its first
+    SDO request with what to check, nothing is written to it, and the five other drives are configured and started."""
+    knee_l = cfg.node("knee_l").node_id
+    assert knee_l == 2
+    bus = FailingBus(channel, refuse_id=SDO_REQUEST + knee_l)
+    try:
+        with DriveBench(cfg, CANOPEN_DIR, channel=channel) as bench:
+            report = configure_network(cfg, bus, sdo_timeout_s=0.2)
+            print(report)
+            states = {joint: bench[joint].node.nmt.state for joint in JOINTS}
+            writes = bench["knee_l"].sdo_writes
+    finally:
+        bus.shutdown()
+    assert [n.node for n in report.failed] == ["knee_l"]
+    failed = report.node("knee_l")
+    assert failed.step == "identity" and failed.identity is None and not failed.started
+    assert failed.error is not None
+    for words in ("refused to send", "CanOperationError: Transmit buffer full", "termination", "powered"):
+        assert words in failed.error, words
+    assert "1000 kbit/s" in failed.error and "Nothing was written to it" in failed.error
+    assert bus.refused >= 1
+    assert writes == [] and states["knee_l"] == "PRE-OPERATIONAL"
+    others = [j for j in JOINTS if j != "knee_l"]
+    assert all(report.node(j).ok and report.node(j).started for j in others)
+    assert [states[j] for j in others] == ["OPERATIONAL"] * len(others)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # the Notifier thread's death
+def test_a_receive_failure_is_reported_on_each_node(cfg: rt.RuntimeConfig, channel: str) -> None:
+    """An interface whose every recv() raises stops canopen's receive thread; canopen re-raises that error on the next
+    send. Each node reports it (the SDO requests still go out, no answer can come back) instead of the set-up
+    raising, and none is started."""
+    bus = FailingBus(channel, receive_broken=True)
+    try:
+        with DriveBench(cfg, CANOPEN_DIR, channel=channel, nodes=["hip_l", "knee_l"]):
+            report = configure_network(cfg, bus, nodes=["hip_l", "knee_l"], sdo_timeout_s=0.2)
+    finally:
+        bus.shutdown()
+    print(report)
+    assert [n.node for n in report.failed] == ["hip_l", "knee_l"]
+    for setup in report.nodes:
+        assert setup.step == "identity" and not setup.started and setup.error is not None
+        assert "receiving from the CAN interface stopped" in setup.error and "Network is down" in setup.error
+
+
 def test_read_back_catches_a_drive_that_keeps_other_values(
     cfg: rt.RuntimeConfig, channel: str, master_bus: can.BusABC
 ) -> None:
@@ -302,6 +377,79 @@ def test_drive_slower_than_the_read_window_is_counted_missing(
     assert [rec.missing for rec in run.records] == [("hip_l_state", "hip_l_effort")] * 3
     assert [rec.late for rec in run.records] == [0, 2, 2]
     assert run.complete_samples("hip_l") == 0
+
+
+RESPONSE_DELAY_S = 0.003  # the review's example: every drive answers 3 ms after the SYNC
+READ_WINDOW_S = 0.010  # specs/allex2.yaml, seed 000 section 4.4.2: the 10 ms time slot for reading
+TIMING_CYCLES = 50  # enough cycles for a share; 1 s of bus time at T = 20 ms
+COMPLETE_SHARE = 0.95  # cycles that must be complete; the rest is left to the shared machine's scheduling
+
+
+def test_drive_response_delays_do_not_add_up(cfg: rt.RuntimeConfig, channel: str, master_bus: can.BusABC) -> None:
+    """Six drives that each answer 3 ms after the SYNC answer together, as six separate devices do.
+
+    Hand calculation: the bench serves all six drives from one thread. If each drive waited out its delay on that
+    thread, drive k (k = 1..6 in dispatch order) would answer about k x 3 ms after the SYNC: 3, 6, 9, 12, 15, 18 ms.
+    Drives 4-6 (12, 15, 18 ms > 10 ms) would miss the read window in every cycle, so no cycle would be complete, and
+    the last drive's answer would come 5 x 3 = 15 ms after the first one's. Scheduled from the SYNC, every drive
+    answers 3 ms after it plus the scheduling latency, 7 ms inside the window. The machine is shared and noisy, so no
+    time is asserted, only structure: all 12 TxPDOs in the read window in at least 95 % of 50 cycles, and the last
+    drive's median answer less than one response delay after the first drive's."""
+    with DriveBench(cfg, CANOPEN_DIR, channel=channel, response_delay_s=RESPONSE_DELAY_S) as bench:
+        assert configure_network(cfg, master_bus).ok
+        run = MasterCycle(cfg, master_bus, SystemClock()).run(TIMING_CYCLES)
+        sent = {joint: bench[joint].tpdos_sent for joint in JOINTS}
+    assert run.read_window_s == READ_WINDOW_S and len(run.expected) == FRAMES_PER_CYCLE
+    after_sync = {
+        joint: sorted(
+            t - rec.sync_sent for rec in run.records for m, t in rec.arrivals.items() if run.producers[m] == joint
+        )
+        for joint in JOINTS
+    }
+    for joint, times in after_sync.items():
+        if not times:
+            print(f"{joint}: no TxPDO within the read window")
+            continue
+        median, worst = times[len(times) // 2], times[-1]
+        print(
+            f"{joint}: {len(times)} TxPDOs in the window, {1e3 * median:.3f} ms after the SYNC (median), "
+            f"{1e3 * worst:.3f} ms at worst"
+        )
+    spreads = sorted(max(rec.arrivals.values()) - rec.sync_sent for rec in run.records if rec.arrivals)
+    print(
+        f"SYNC -> last TxPDO over {run.cycles} cycles: min {1e3 * spreads[0]:.3f} ms, median "
+        f"{1e3 * spreads[len(spreads) // 2]:.3f} ms, max {1e3 * spreads[-1]:.3f} ms "
+        f"(one delay {1e3 * RESPONSE_DELAY_S:g} ms; in series the last drive would answer at "
+        f"{1e3 * len(JOINTS) * RESPONSE_DELAY_S:g} ms)"
+    )
+    complete = sum(1 for rec in run.records if not rec.missing)
+    print(run.summary())
+    assert complete >= COMPLETE_SHARE * TIMING_CYCLES, run.missing_by_node()
+    first, last = (after_sync[j][len(after_sync[j]) // 2] for j in (JOINTS[0], JOINTS[-1]))
+    assert last - first < RESPONSE_DELAY_S
+    assert sent == dict.fromkeys(JOINTS, 2 * TIMING_CYCLES)  # every SYNC answered with both TxPDOs
+
+
+def test_response_scheduler_runs_by_due_time_and_closes_cleanly() -> None:
+    """An action added later but due earlier runs first (the thread waiting for the later one is woken); close()
+    drops what is still pending and ends the thread. Delays are only orderings here: 50 ms > 5 ms, and 60 s is far
+    beyond the test."""
+    idle = ResponseScheduler()
+    idle.close()  # never used: no thread was started
+    ran: list[str] = []
+    done = threading.Event()
+    scheduler = ResponseScheduler()
+    try:
+        scheduler.call_later(0.050, lambda: (ran.append("later"), done.set()))
+        scheduler.call_later(0.005, lambda: ran.append("sooner"))
+        assert done.wait(timeout=10.0)
+        assert ran == ["sooner", "later"]
+        scheduler.call_later(60.0, lambda: ran.append("never"))
+        assert scheduler.pending == 1
+    finally:
+        scheduler.close()
+    scheduler.call_later(0.0, lambda: ran.append("after close"))  # ignored
+    assert scheduler.dropped == 1 and scheduler.pending == 0 and ran == ["sooner", "later"]
 
 
 def test_drive_refuses_mapping_a_valid_pdo(cfg: rt.RuntimeConfig, channel: str) -> None:

@@ -7,8 +7,11 @@ Two phases, as in the ALLEX-2 exoskeleton (seed 000, sections 4.3-4.4):
    its PDOs in runtime.json disable it (COB-ID bit 31), write the communication parameters and the mapping, re-enable
    it; disable the device's other PDOs; write the start-up SDO values (the interpolation time period 0x60C2 of a
    CiA 402 drive); read everything back and compare; start the node (NMT). A node that fails is reported with what
-   to do and left in PRE-OPERATIONAL; the others carry on. This phase may use canopen's threads (a python-can
-   Notifier); it stops them before returning.
+   to do and left in PRE-OPERATIONAL; the others carry on. That holds for bus-level failures too: a frame the CAN
+   interface refuses to send (python-can's can.CanError, e.g. socketcan's "Transmit buffer full" when nothing
+   acknowledges on an unterminated or unpowered bus) or a receive thread that stopped (canopen re-raises its error on
+   the next send) fails the node being set up, not the whole set-up. This phase may use canopen's threads (a
+   python-can Notifier); it stops them before returning.
 
 2. `MasterCycle(cfg, bus, clock).run(n)` - Figure 7: each period write the RxPDOs, send SYNC, collect the
    synchronous TxPDOs until all have arrived or the read window ends, store the samples, and wait dynamically
@@ -321,6 +324,8 @@ class _NodeConfigurator:
             return "Nothing was written to it."
         if self.step == "read-back":
             return "The node is left in PRE-OPERATIONAL."
+        if self.step == "start":
+            return "Its configuration was read back correctly, but it was not started: it stays PRE-OPERATIONAL."
         return f"The node is left in PRE-OPERATIONAL; its PDO configuration is incomplete ({self.step})."
 
     def _read_int(self, index: int, sub: int) -> int:
@@ -587,6 +592,7 @@ def configure_network(
                         interpolation,
                         disable_unused,
                         start,
+                        network.notifier,
                     )
                 )
             finally:
@@ -606,6 +612,7 @@ def _configure_node(
     interpolation: bool,
     disable_unused: bool,
     start: bool,
+    notifier: can.Notifier | None = None,
 ) -> NodeSetup:
     assert node.node_id is not None
     job = _NodeConfigurator(cfg, bus, node, remote, identity, interpolation, disable_unused)
@@ -613,6 +620,9 @@ def _configure_node(
     try:
         job.run()
         readback = job.read_back()
+        if start:
+            job.step = "start"
+            remote.nmt.send_command(NMT_START)
     except _NodeFailed as exc:
         error, code = exc.error, exc.abort_code
     except SdoAbortedError as exc:  # from a step that lets some codes through (no such object)
@@ -620,11 +630,16 @@ def _configure_node(
         error, code = f"SDO abort 0x{exc.code:08X} ({text}) at {job.step}. {job._left()}", exc.code
     except SdoCommunicationError as exc:
         error = f"stopped answering SDO at {job.step} ({exc}). {job._left()}"
+    except Exception as exc:
+        # bus-level failures: canopen's Network.check() re-raises whatever stopped the Notifier's receive thread
+        # (python-can's bus.recv raised) on the next send; bus.send raises can.CanError. Anything else is a bug.
+        received = notifier is not None and exc is notifier.exception
+        if not (received or isinstance(exc, can.CanError)):
+            raise
+        error = _bus_failure(job, exc, received)
     notes = tuple(job.notes)
     if error is not None:
         return NodeSetup(node.name, node.node_id, False, error, job.step, code, job.identity, notes=notes)
-    if start:
-        remote.nmt.send_command(NMT_START)
     return NodeSetup(
         node.name,
         node.node_id,
@@ -638,6 +653,25 @@ def _configure_node(
         start,
         notes,
         tuple(job.start_up),
+    )
+
+
+def _bus_failure(job: _NodeConfigurator, exc: Exception, received: bool) -> str:
+    """What to tell the user when the CAN interface itself failed while setting up this node."""
+    kbit = job.bus.bitrate // 1000
+    if received:
+        what = (
+            f"receiving from the CAN interface stopped at {job.step} ({type(exc).__name__}: {exc}), so no answer can "
+            "arrive. Check that the interface is up and its cable plugged in,"
+        )
+    else:
+        what = (
+            f"the CAN interface refused to send a frame at {job.step} ({type(exc).__name__}: {exc}). A full transmit "
+            "buffer or a bus-off controller means no other device acknowledges its frames. Check"
+        )
+    return (
+        f"{what} the bus termination (120 ohm at each end), that the drives are powered and that every device is set "
+        f"to {kbit} kbit/s; then run the set-up again. {job._left()} The other nodes are set up on their own."
     )
 
 

@@ -10,7 +10,10 @@ server and an NMT slave; this module adds what a LocalNode does not do on its ow
 - it checks PDO writes the way CiA 301 devices do (mapping changed only while the PDO is disabled and sub-index 0 is 0,
   only mappable objects, at most 64 bits), so a master that skips a step fails here as it would on a drive;
 - optional faults for tests: wrong identity in 0x1018, never answering, aborting SDO writes to given objects;
-- an optional processing delay before the TPDOs go out, and a model hook run at each SYNC.
+- an optional processing delay before the TPDOs go out, and a model hook run at each SYNC. The delay does not hold
+  up the thread that feeds the drive its frames: the TPDOs are sampled at the SYNC and handed to a scheduler thread
+  that sends them `response_delay_s` later, so drives sharing a thread each answer that long after the SYNC, as
+  separate devices do, instead of one after the other.
 
 Its factory state (clear_pdos=True) has every PDO disabled and nothing mapped, so only a master that configures it
 gets data. It imports only the standard library, python-can, canopen and netcfg.runtime.
@@ -18,7 +21,10 @@ gets data. It imports only the standard library, python-can, canopen and netcfg.
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import logging
+import threading
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,7 +39,7 @@ from canopen.sdo import SdoAbortedError
 from netcfg.runtime import RuntimeConfig
 from netcfg.runtime.clock import Clock, SystemClock
 
-__all__ = ["DriveBench", "DriveModel", "SimulatedDrive", "follow_velocity"]
+__all__ = ["DriveBench", "DriveModel", "ResponseScheduler", "SimulatedDrive", "follow_velocity"]
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +57,85 @@ ABORT_VALUE_RANGE = 0x06090030
 ABORT_DEVICE_STATE = 0x08000022
 
 DriveModel = Callable[["SimulatedDrive"], None]
+
+
+class ResponseScheduler:
+    """One thread that runs actions at given times: the drives' delayed TPDO answers.
+
+    `call_later(delay_s, action)` puts the action on a heap ordered by due time (clock.now() + delay_s); the thread
+    sleeps on a condition variable until the earliest is due, runs every action that is due, and wakes early when an
+    earlier one is added. It starts on the first call_later (a bench without delays starts no thread) and close() stops
+    it, dropping what is still pending. Actions run on this thread one after the other, so each must be short (a few
+    bus.send calls); one that raises is logged and does not stop the others.
+
+    Waits are condition-variable timeouts in seconds, so `clock` must count real seconds (the drives run on threads
+    in real time); an action runs at its due time plus the operating system's wake-up latency (tens of microseconds
+    on an idle machine), never before it. It does not busy-wait: a spinning thread would hold the interpreter lock
+    the dispatcher and the master need.
+    """
+
+    def __init__(self, clock: Clock | None = None, name: str = "netcfg-drive-responses") -> None:
+        self.clock: Clock = clock or SystemClock()
+        self.name = name
+        self._cond = threading.Condition()
+        self._heap: list[tuple[float, int, Callable[[], None]]] = []
+        self._order = itertools.count()  # ties run in the order they were scheduled
+        self._thread: threading.Thread | None = None
+        self._closed = False
+        self.dropped = 0  # actions still pending at close()
+
+    def call_later(self, delay_s: float, action: Callable[[], None]) -> None:
+        """Run `action` on the scheduler thread `delay_s` from now; ignored once the scheduler is closed."""
+        due = self.clock.now() + delay_s
+        with self._cond:
+            if self._closed:
+                return
+            seq = next(self._order)
+            heapq.heappush(self._heap, (due, seq, action))
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name=self.name, daemon=True)
+                self._thread.start()
+            elif self._heap[0][1] == seq:
+                self._cond.notify()  # the new action is the earliest: the thread waits for it instead
+
+    def close(self, timeout: float = 2.0) -> None:
+        """Stop the thread; pending actions are dropped (counted in `dropped`)."""
+        with self._cond:
+            self._closed = True
+            self.dropped += len(self._heap)
+            self._heap.clear()
+            self._cond.notify()
+            thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+
+    @property
+    def pending(self) -> int:
+        with self._cond:
+            return len(self._heap)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._closed:
+                    if not self._heap:
+                        self._cond.wait()
+                        continue
+                    wait = self._heap[0][0] - self.clock.now()
+                    if wait <= 0:
+                        break
+                    self._cond.wait(wait)
+                if self._closed:
+                    return
+                now = self.clock.now()
+                due = []
+                while self._heap and self._heap[0][0] <= now:
+                    due.append(heapq.heappop(self._heap)[2])
+            for action in due:  # outside the lock: call_later from another thread must not wait for a send
+                try:
+                    action()
+                except Exception:
+                    log.exception("%s: a scheduled action failed", self.name)
 
 
 @dataclass(frozen=True)
@@ -92,6 +177,10 @@ class SimulatedDrive:
     Faults (for tests): `identity=(vendor_id, product_code)` puts other values in 0x1018; `silent=True` answers
     nothing at all (a drive that is off, or has another node id or bit rate); `abort_writes={index: abort_code}`
     aborts every SDO write to those objects with that code.
+
+    `response_delay_s`: the TPDOs answering a SYNC are sampled when it arrives and sent that long after it (measured
+    on `clock`, which must count real seconds), from a ResponseScheduler thread: the bench's, shared by its drives,
+    or one of the drive's own. The thread handing the drive its frames never waits for it.
     """
 
     def __init__(
@@ -121,6 +210,8 @@ class SimulatedDrive:
         self.network: canopen.Network | None = None
         self.bus: can.BusABC | None = None
         self._notifier: can.Notifier | None = None
+        self._scheduler: ResponseScheduler | None = None
+        self._own_scheduler = False
         # what happened, for tests and the bench
         self.sdo_writes: list[tuple[int, int]] = []  # accepted SDO writes, in order
         self.syncs = 0  # SYNCs received while OPERATIONAL
@@ -311,11 +402,14 @@ class SimulatedDrive:
 
     # --- the bus ------------------------------------------------------------------------------------------------------
 
-    def attach(self, bus: can.BusABC, *, listen: bool = True) -> None:
+    def attach(self, bus: can.BusABC, *, listen: bool = True, scheduler: ResponseScheduler | None = None) -> None:
         """Join a python-can bus: boot up (boot-up message, PRE-OPERATIONAL) and, with listen, serve it from a
-        python-can Notifier thread. Without listen the caller feeds every frame to on_frame()."""
+        python-can Notifier thread. Without listen the caller feeds every frame to on_frame(). Delayed TPDOs go out
+        from `scheduler` (its owner closes it); without one the drive makes its own, closed by detach()."""
         if self.network is not None:
             raise RuntimeError(f"{self.name} is already attached to a bus")
+        self._own_scheduler = scheduler is None
+        self._scheduler = scheduler or ResponseScheduler(self.clock, name=f"{self.name}-responses")
         self.bus = bus
         self.network = canopen.Network(bus)
         self.network.add_node(self.node)
@@ -330,6 +424,9 @@ class SimulatedDrive:
         if self._notifier is not None:
             self._notifier.stop(timeout=2.0)
             self._notifier = None
+        if self._scheduler is not None and self._own_scheduler:
+            self._scheduler.close()
+        self._scheduler = None
         self.node.nmt.stop_heartbeat()
         if self.network is not None:
             del self.network[self.node.id]  # type: ignore[arg-type]  # a LocalNode's id is always set
@@ -378,8 +475,7 @@ class SimulatedDrive:
         self._pending.clear()
         if self.model is not None:
             self.model(self)
-        if self.response_delay_s > 0:
-            self.clock.sleep_until(self.clock.now() + self.response_delay_s)
+        answers: list[tuple[_PdoSlot, bytes]] = []
         for slot in self._tpdos:
             if not slot.valid or not slot.entries:
                 continue
@@ -392,18 +488,37 @@ class SimulatedDrive:
                 count = self._sync_counts.get(slot.number, 0) + 1
                 self._sync_counts[slot.number] = count
                 if count % tt == 0:
-                    self._send(slot, self._pack(slot))
+                    answers.append((slot, self._pack(slot)))
             elif tt == 0:
                 payload = self._pack(slot)  # acyclic synchronous: sent at a SYNC after its data changed
                 if self._last_acyclic.get(slot.number) != payload:
                     self._last_acyclic[slot.number] = payload
-                    self._send(slot, payload)
+                    answers.append((slot, payload))
+        if not answers:
+            return
+        if self.response_delay_s > 0 and self._scheduler is not None:
+            # sampled now, sent later from the scheduler thread: the caller goes on to the next drive or frame
+            self._scheduler.call_later(self.response_delay_s, lambda: self._send_later(answers))
+        else:
+            for slot, payload in answers:
+                self._send(slot, payload)
 
     def _send(self, slot: _PdoSlot, payload: bytes) -> None:
-        assert self.network is not None and self.bus is not None
-        with self.network.send_lock:
-            self.bus.send(can.Message(arbitration_id=slot.can_id, is_extended_id=slot.extended, data=payload))
+        network, bus = self.network, self.bus
+        if network is None or bus is None:
+            return  # detached meanwhile (a delayed answer): the drive has left the bus
+        with network.send_lock:
+            bus.send(can.Message(arbitration_id=slot.can_id, is_extended_id=slot.extended, data=payload))
         self.tpdos_sent += 1
+
+    def _send_later(self, answers: list[tuple[_PdoSlot, bytes]]) -> None:
+        """A delayed SYNC answer, on the scheduler thread; errors are kept like on_frame's."""
+        for slot, payload in answers:
+            try:
+                self._send(slot, payload)
+            except Exception as exc:
+                log.exception("%s: error sending TPDO%d", self.name, slot.number)
+                self.errors.append(f"TPDO{slot.number} 0x{slot.can_id:X}: {exc!r}")
 
     def _pack(self, slot: _PdoSlot) -> bytes:
         """The mapped objects' current values, least significant bit first (CiA 301 PDO layout)."""
@@ -453,6 +568,10 @@ class DriveBench:
     `separate_connections=True` gives each drive its own connection and thread instead (closer to separate
     devices; needs more CPU). `options` gives per-node SimulatedDrive arguments (faults, delays) over the common
     `drive_options`.
+
+    Either way the drives' delayed answers (response_delay_s) go out from one ResponseScheduler thread, timed on
+    `drive_options["clock"]` (default SystemClock), so each drive answers its delay after the SYNC whatever the
+    others' delays: six drives of 3 ms all answer at 3 ms, not at 3, 6, ... 18 ms. stop() closes it.
     """
 
     def __init__(
@@ -473,6 +592,8 @@ class DriveBench:
         self.channel, self.interface = channel, interface
         self.separate_connections = separate_connections
         self._notifier: can.Notifier | None = None
+        self._clock: Clock = drive_options.get("clock") or SystemClock()
+        self.scheduler: ResponseScheduler | None = None
         self.drives: dict[str, SimulatedDrive] = {}
         self._buses: list[can.BusABC] = []
         for name in bus.nodes:
@@ -489,16 +610,17 @@ class DriveBench:
             self.drives[name] = SimulatedDrive(node.node_id, eds, name=name, **kwargs)
 
     def start(self) -> DriveBench:
+        scheduler = self.scheduler = ResponseScheduler(self._clock, name=f"{self.channel}-responses")
         if self.separate_connections:
             for drive in self.drives.values():
                 bus = can.Bus(interface=self.interface, channel=self.channel)
                 self._buses.append(bus)
-                drive.attach(bus)
+                drive.attach(bus, scheduler=scheduler)
             return self
         bus = can.Bus(interface=self.interface, channel=self.channel)
         self._buses.append(bus)
         for drive in self.drives.values():
-            drive.attach(bus, listen=False)
+            drive.attach(bus, listen=False, scheduler=scheduler)
         self._notifier = can.Notifier(bus, [self._dispatch], timeout=0.05)
         return self
 
@@ -510,6 +632,9 @@ class DriveBench:
         if self._notifier is not None:
             self._notifier.stop(timeout=2.0)
             self._notifier = None
+        if self.scheduler is not None:  # before the buses close: no delayed answer is sent on a closed bus
+            self.scheduler.close()
+            self.scheduler = None
         for drive in self.drives.values():
             drive.detach()
         for bus in self._buses:
