@@ -258,6 +258,8 @@ class CanBus:
         babble = self.babble
         seq = self._seq
         ifs = self.ifs_ns
+        streams = bool(self.streams)
+        chunk_end = self._chunk_end
         busy = self._free_at
         t = max(sim.now, busy)  # the next arbitration instant
         while True:
@@ -272,11 +274,12 @@ class CanBus:
                 horizon = until
             if t >= until:
                 break
-            if t >= self._chunk_end and self.streams:
+            if t >= chunk_end and streams:
                 self._rel_i = ri
-                self._refill(self._chunk_end)
+                self._refill(chunk_end)
                 rel_t, rel_src, rel_data = self._rel_t, self._rel_src, self._rel_data
                 ri, rn = 0, len(rel_t)
+                chunk_end = self._chunk_end
             while ri < rn and rel_t[ri] <= t:
                 s = rel_src[ri]
                 seq += 1
@@ -293,8 +296,8 @@ class CanBus:
                 item = None
             if item is None:  # nothing may start now: jump to the next release or window
                 nxt = rel_t[ri] if ri < rn else NEVER
-                if self.streams and self._chunk_end < nxt:
-                    nxt = self._chunk_end
+                if streams and chunk_end < nxt:
+                    nxt = chunk_end
                 if pending:
                     nxt = min(nxt, self._next_gate_time(t))
                 if babble is not None and t < babble[1]:
