@@ -7,7 +7,8 @@
    compared message by message (they must agree exactly), and python-can's virtual bus for scale.
 2. A Monte Carlo batch of the same bus over random phasings and drifts on every core: frames per second.
 3. The example systems: CAMBADA (FTT-CAN), ALLEX-2 (CANopen master cycle), large_plant (three buses).
-Figures are medians of three runs (seven for netcfg's single run); wall times are whole simulations (set-up included), not process start-up.
+Figures are medians of three runs (seven for netcfg's single run); wall times are whole simulations (set-up
+included), not process start-up.
 """
 
 from __future__ import annotations
