@@ -100,7 +100,10 @@ class CanopenMaster:
         cyc = Cycle(start=sc.sim.now)
         self.cycles.append(cyc)
         t = sc.sim.now
+        first = len(self.cycles) == 1
         for m in self.rpdos:
+            if m.kind == "on-demand" and not first:
+                continue  # written once, at the start (the interpolation time of seed 000, section 4.4.1)
             t += self._draw(sc.opts.master.write)
             sc.sim.at(t, self._write, m)
         sc.sim.at(t, self._send_sync, cyc)
