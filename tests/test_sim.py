@@ -16,6 +16,7 @@ import json
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import can
 import cantools
@@ -391,19 +392,8 @@ def test_live_master_runs_400_cycles_in_virtual_time() -> None:
     and clock, against the simulated drives: 400 cycles of 20 ms, 400 complete samples per joint (seed 000)."""
     import time
 
-    from netcfg.runtime.canopen_master import MasterCycle
-    from netcfg.sim.pybus import SimCanBus, VirtualClock
-    from netcfg.sim.scenario import Scenario
-
-    cfg = cfg_of("allex2")
-    sc = Scenario(cfg, SimOptions(duration_ns=10 * SECOND, canopen="external"))
-    sc.start()
-    bus = SimCanBus(sc, "can0", node="master")
     t0 = time.perf_counter()
-    try:
-        run = MasterCycle(cfg, bus, VirtualClock(sc)).run(400)
-    finally:
-        bus.shutdown()
+    run, sc = master_in_virtual_time(cfg_of("allex2"), 400)
     print(f"400 cycles in {time.perf_counter() - t0:.3f} s wall; {run.period_stats()}")
     assert sum(run.missing_by_node().values()) == 0
     for drive in ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r"):
@@ -447,10 +437,6 @@ def test_sdo_polling_survives_a_lost_request() -> None:
 def test_transmission_type_n_answers_every_nth_sync_alike_in_simulator_and_live_master() -> None:
     """A TxPDO of transmission type 2 answers every 2nd SYNC (CiA 301): in 8 s the simulated drive sends it 200
     times, and the live master, run against the simulator, expects it on the same SYNCs (no frame missing)."""
-    from netcfg.runtime.canopen_master import MasterCycle
-    from netcfg.sim.pybus import SimCanBus, VirtualClock
-    from netcfg.sim.scenario import Scenario
-
     doc = json.loads((GEN / "allex2" / "runtime.json").read_text())
     for m in doc["messages"]:
         if m["name"] == "hip_l_effort":
@@ -460,13 +446,7 @@ def test_transmission_type_n_answers_every_nth_sync_alike_in_simulator_and_live_
     _, res = run_once(cfg, SimOptions(duration_ns=8 * SECOND, seed=1))
     assert res.sent["hip_l_effort"] == 200
     assert res.protocols["can0"][0]["drives"]["hip_l"]["missing_frames"] == 0
-    sc = Scenario(cfg, SimOptions(duration_ns=10 * SECOND, canopen="external"))
-    sc.start()
-    bus = SimCanBus(sc, "can0", node="master")
-    try:
-        run = MasterCycle(cfg, bus, VirtualClock(sc)).run(20)
-    finally:
-        bus.shutdown()
+    run, _ = master_in_virtual_time(cfg, 20)
     assert run.missing_by_node()["hip_l"] == 0
 
 
@@ -474,23 +454,28 @@ def test_live_master_in_virtual_time_counts_a_silent_drive() -> None:
     """A drive that crashes 100 ms into the run answers no more SYNCs: the live master, in virtual time, still
     completes its 400 cycles and counts 2 missing TxPDOs per cycle for it (seed 000: 2 TxPDOs per drive), about
     395 cycles' worth."""
-    from netcfg.runtime.canopen_master import MasterCycle
-    from netcfg.sim.pybus import SimCanBus, VirtualClock
-    from netcfg.sim.scenario import Scenario
-
-    cfg = cfg_of("allex2")
-    sc = Scenario(cfg, SimOptions(duration_ns=10 * SECOND, canopen="external", faults=(_fault("crash:hip_l@100ms"),)))
-    sc.start()
-    bus = SimCanBus(sc, "can0", node="master")
-    try:
-        run = MasterCycle(cfg, bus, VirtualClock(sc)).run(400)
-    finally:
-        bus.shutdown()
+    run, _ = master_in_virtual_time(cfg_of("allex2"), 400, "crash:hip_l@100ms")
     missing = run.missing_by_node()
     print(missing)
     assert 2 * 394 <= missing["hip_l"] <= 2 * 396
     assert missing["knee_l"] == 0
     assert run.complete_samples("knee_l") == 400
+
+
+def master_in_virtual_time(cfg: runtime.RuntimeConfig, cycles: int, *faults: str) -> tuple[Any, Any]:
+    """The live master (netcfg.runtime.canopen_master.MasterCycle), unchanged, on the simulator's python-can bus
+    and clock against the simulated drives: (the run, the scenario)."""
+    from netcfg.runtime.canopen_master import MasterCycle
+    from netcfg.sim.pybus import SimCanBus, VirtualClock
+    from netcfg.sim.scenario import Scenario
+
+    sc = Scenario(cfg, SimOptions(duration_ns=10 * SECOND, canopen="external", faults=tuple(map(_fault, faults))))
+    sc.start()
+    bus = SimCanBus(sc, "can0", node="master")
+    try:
+        return MasterCycle(cfg, bus, VirtualClock(sc)).run(cycles), sc
+    finally:
+        bus.shutdown()
 
 
 def _fault(text: str):

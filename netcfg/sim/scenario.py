@@ -142,7 +142,7 @@ class Scenario:
                     nodes.update((m.producer, *m.consumers))
         return max((self.clock[n].phase_ns for n in nodes if n in self.clock), default=0)
 
-    # -- helpers the protocol drivers use ----------------------------------------------------------------
+    # -- what the protocol drivers call -------------------------------------------------------------------
     def synchronised(self, bus: Bus) -> bool:
         return self.opts.mode != "unsync"
 
