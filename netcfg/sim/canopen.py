@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE
 from netcfg.runtime import Bus, Message
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.stats import spread
@@ -27,8 +28,6 @@ from netcfg.sim.stats import spread
 if TYPE_CHECKING:
     from netcfg.sim.scenario import Scenario
 
-SDO_REQUEST = 0x600  # CiA 301 default COB-IDs of the first SDO server
-SDO_RESPONSE = 0x580
 SDO_OBJECTS_PER_READ = 3  # position, velocity, current (seed 000, section 4.2)
 SDO_TIMEOUT_NS = 300_000_000  # the canopen package's default SDO response timeout (SdoClient.RESPONSE_TIMEOUT)
 
@@ -173,8 +172,8 @@ class CanopenMaster:
         sc, can = self.sc, self.can
         for drive in self.drives:
             nid = sc.cfg.node(drive).node_id or 0
-            req = can.add_source(f"{drive}_sdo_request", SDO_REQUEST + nid, False, 8, self.master)
-            rsp = can.add_source(f"{drive}_sdo_response", SDO_RESPONSE + nid, False, 8, drive)
+            req = can.add_source(f"{drive}_sdo_request", SDO_RX_BASE + nid, False, 8, self.master)
+            rsp = can.add_source(f"{drive}_sdo_response", SDO_TX_BASE + nid, False, 8, drive)
             sc.msg_source[f"{drive}_sdo_request"] = (can, req)
             sc.msg_source[f"{drive}_sdo_response"] = (can, rsp)
             can.listen(req, self._sdo_served)
