@@ -259,7 +259,8 @@ def analyze_ftt(
             sync_worst[name] = max(sync_worst.get(name, 0), end)
     async_msgs = [msg for msg in bus.messages if msg.window == "async"]
     async_frames = [
-        ftt.AsyncFrame(msg.name, msg.id, timings[msg.name].tx_ns, msg.interval_ns, msg.jitter_ns) for msg in async_msgs
+        ftt.AsyncFrame(msg.name, msg.id, timings[msg.name].tx_ns, msg.interval_ns, msg.jitter_ns, msg.extended)
+        for msg in async_msgs
     ]
     async_worst = ftt.async_response_times(sched, async_frames)
     for row, msg in zip(rows, bus.messages):

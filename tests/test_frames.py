@@ -74,3 +74,22 @@ def test_rates() -> None:
     assert parse_frequency("15 kHz") == 15_000
     with pytest.raises(ValueError):
         parse_bitrate("250")
+
+
+def test_ftt_asynchronous_priority_follows_arbitration_not_the_raw_number() -> None:
+    """ISO 11898-1 arbitration: an extended frame whose 11 base bits are 0 beats standard 0x7FE and 0x7FF,
+    although its 29-bit number is far larger. Three asynchronous frames of 100, 100 and 500 us: in the right
+    order the extended one waits only for the longest lower-priority frame (100 + 500 us of demand), 0x7FE also for
+    the extended one (100 + 500 + 100 us); sorted by the raw number it would be the other way round."""
+    from netcfg.timing.ftt import AsyncFrame, EcSlot, Schedule, async_response_times
+
+    slot = EcSlot(index=0, messages=(), triggers=(), ids=(), sync_ns=0, async_ns=4_000_000)
+    sched = Schedule(ec_ns=5_000_000, tm_ns=400_000, lsw_ns=4_600_000, entries=(), slots=(slot,))
+    frames = [
+        AsyncFrame("ext", 0x0001_2345, 100_000, 100_000_000, extended=True),
+        AsyncFrame("std_7fe", 0x7FE, 100_000, 100_000_000),
+        AsyncFrame("std_7ff", 0x7FF, 500_000, 100_000_000),
+    ]
+    r = async_response_times(sched, frames)
+    assert r["ext"] is not None and r["std_7fe"] is not None
+    assert r["ext"] < r["std_7fe"]

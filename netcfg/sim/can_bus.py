@@ -16,7 +16,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from netcfg.sim.engine import LATE, Simulator
-from netcfg.timing.frames import bits_to_ns, can_frame_bits, can_frame_bits_exact, can_frame_bits_exact_batch
+from netcfg.timing.frames import (
+    arbitration_key,
+    bits_to_ns,
+    can_frame_bits,
+    can_frame_bits_exact,
+    can_frame_bits_exact_batch,
+)
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
 # intermission (3): ISO 11898-1's active error frame at its longest.
@@ -28,14 +34,6 @@ NEVER = 1 << 62
 Listener = Callable[[int, int, int, bytes | None], None]  # (end_ns, message index, release_ns, data)
 Gate = Callable[[int, int], int]  # (t, duration) -> earliest start >= t at which the frame may go
 Pending = tuple[int, int, int, int, bytes | None]  # key, release, seq (FIFO order), msg, data
-
-
-def arbitration_key(can_id: int, extended: bool) -> int:
-    """Lower wins, bit by bit as on the wire: the 11 base bits, then SRR/IDE (a standard frame beats an
-    extended one with the same base identifier), then the 18 extension bits."""
-    if extended:
-        return (can_id >> 18) << 19 | 1 << 18 | (can_id & 0x3FFFF)
-    return can_id << 19
 
 
 @dataclass

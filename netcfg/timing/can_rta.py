@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from netcfg.timing.frames import arbitration_key
+
 ONE_SHOT = 1 << 60  # "period" of an on-demand message: it interferes at most once per busy period
 MAX_INSTANCES = 1_000_000
 
@@ -42,10 +44,8 @@ class CanFrame:
     d_ns: int | None = None  # deadline
 
     @property
-    def priority_key(self) -> tuple[int, int, int]:
-        if self.extended:
-            return (self.id >> 18, 1, self.id & 0x3FFFF)
-        return (self.id, 0, 0)
+    def priority_key(self) -> int:
+        return arbitration_key(self.id, self.extended)
 
 
 @dataclass(frozen=True)

@@ -235,6 +235,15 @@ def can_frame_bits_exact_batch(can_id: int, extended: bool, payloads: NDArray[np
     return count
 
 
+def arbitration_key(can_id: int, extended: bool) -> int:
+    """Sort key of CAN arbitration, lower wins, bit by bit as on the wire (ISO 11898-1): the 11 base identifier
+    bits, then SRR/IDE (a standard frame beats an extended one with the same base identifier), then the 18
+    extension bits."""
+    if extended:
+        return (can_id >> 18) << 19 | 1 << 18 | (can_id & 0x3FFFF)
+    return can_id << 19
+
+
 def bit_time_ns(bitrate: int) -> float:
     return 1e9 / bitrate
 

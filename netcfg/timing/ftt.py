@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from math import lcm
 
 from netcfg import model
-from netcfg.timing.frames import bits_to_ns, can_frame_bits
+from netcfg.timing.frames import arbitration_key, bits_to_ns, can_frame_bits
 
 
 @dataclass(frozen=True)
@@ -34,6 +34,7 @@ class SrtEntry:
     targets: tuple[str, ...]  # consumers of a message, node.task activated by a trigger
     size: int
     can_id: int | None
+    extended: bool
     c_bits: int
     c_ns: int
     period_ec: int
@@ -121,6 +122,7 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
                 targets=m.consumers,
                 size=m.size,
                 can_id=m.id,
+                extended=m.extended,
                 c_bits=bits,
                 c_ns=bits_to_ns(bits, bus.bitrate),
                 period_ec=m.period_ns // ec,
@@ -139,6 +141,7 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
                 targets=t.tasks,
                 size=0,
                 can_id=None,
+                extended=False,
                 c_bits=0,
                 c_ns=0,
                 period_ec=t.period_ns // ec,
@@ -159,7 +162,8 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
     macro = macro_cycle(periods)
     if macro > MAX_MACRO_CYCLE:
         raise MacroCycleTooLong(macro)
-    by_can_id = sorted((e for e in entries if e.kind == "message"), key=lambda e: e.can_id or 0)
+    messages = (e for e in entries if e.kind == "message")
+    by_can_id = sorted(messages, key=lambda e: arbitration_key(e.can_id or 0, e.extended))
     slots = []
     for k in range(macro):
         msgs = [e for e in by_can_id if e.due(k, e.fastest_period_ec if fastest else None)]
@@ -188,6 +192,7 @@ class AsyncFrame:
     c_ns: int
     t_ns: int | None
     j_ns: int = 0
+    extended: bool = False
 
 
 def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str, int | None]:
@@ -199,7 +204,7 @@ def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str,
     cycle_supply = sum(supply)
     if cycle_supply == 0:
         return {f.name: None for f in frames}
-    ordered = sorted(frames, key=lambda f: f.can_id)
+    ordered = sorted(frames, key=lambda f: arbitration_key(f.can_id, f.extended))
     out: dict[str, int | None] = {}
     for i, f in enumerate(ordered):
         hp = ordered[:i]
