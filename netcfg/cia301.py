@@ -1,4 +1,8 @@
-"""CiA 301 identifier rules: the pre-defined connection set and the restricted COB-IDs."""
+"""CiA 301 as a table: identifiers, object indices, PDO parameter layouts, data types and transmission types.
+
+It imports nothing, so the compiler and the live runtime (netcfg.runtime, which must not load the compiler) both take
+the standard's numbers from here instead of writing them again.
+"""
 
 from __future__ import annotations
 
@@ -27,10 +31,122 @@ RESTRICTED = (
 )
 
 
+NODE_IDS = range(1, 128)  # CiA 301 7.2.1: node ids 1..127 (0 addresses all nodes in NMT, it is no node's id)
+
+# PDO parameter objects (CiA 301 7.5.2.35-38): one per PDO, up to 512 per direction
+RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP = 0x1400, 0x1600, 0x1800, 0x1A00
+MAX_PDOS = 512
+MAP_OFFSET = 0x200  # a PDO's mapping parameter lies this far above its communication parameter
+PDO_PARAMETERS = range(RPDO_COMM, TPDO_MAP + MAX_PDOS)  # 0x1400-0x1BFF
+
+# PDO COB-ID (0x14xx/0x18xx sub 1, CiA 301 7.5.2.35/37): flag bits above the CAN identifier
+PDO_INVALID = 1 << 31  # the PDO does not exist / is not valid
+PDO_NO_RTR = 1 << 30  # no remote transmission request allowed on this PDO
+PDO_EXTENDED = 1 << 29  # a 29-bit identifier; bits 0-10 (11-bit) or 0-28 (29-bit) hold it
+COB_ID_MASK = (1 << 29) - 1
+
+# Dummy mapping entries: index 0x0001-0x0007 sub 0 maps the data type of that index (BOOLEAN, INTEGER8/16/32,
+# UNSIGNED8/16/32, table 44) to fill a PDO's bits with nothing (CiA 301 7.4.7.1). CiA 306 4.6.6 lists exactly these
+# seven as Dummy0001-Dummy0007 in an EDS's [DummyUsage], the canopen package reads and writes those seven, and
+# maxon's EPOS4 EDS lists all seven (each 0: unsupported). BOOLEAN included: it is a dummy object like the others.
+DUMMY_INDICES = range(0x0001, 0x0008)
+
+# Static data types (CiA 301 table 44): code -> (name, size in bits, kind). Strings and domains have no fixed size.
+DATA_TYPES: dict[int, tuple[str, int, str]] = {
+    0x01: ("BOOLEAN", 1, "unsigned"),
+    0x02: ("INTEGER8", 8, "signed"),
+    0x03: ("INTEGER16", 16, "signed"),
+    0x04: ("INTEGER32", 32, "signed"),
+    0x05: ("UNSIGNED8", 8, "unsigned"),
+    0x06: ("UNSIGNED16", 16, "unsigned"),
+    0x07: ("UNSIGNED32", 32, "unsigned"),
+    0x08: ("REAL32", 32, "float"),
+    0x09: ("VISIBLE_STRING", 0, "string"),
+    0x0A: ("OCTET_STRING", 0, "string"),
+    0x0B: ("UNICODE_STRING", 0, "string"),
+    0x0C: ("TIME_OF_DAY", 48, "unsigned"),
+    0x0D: ("TIME_DIFFERENCE", 48, "unsigned"),
+    0x0F: ("DOMAIN", 0, "string"),
+    0x10: ("INTEGER24", 24, "signed"),
+    0x11: ("REAL64", 64, "float"),
+    0x12: ("INTEGER40", 40, "signed"),
+    0x13: ("INTEGER48", 48, "signed"),
+    0x14: ("INTEGER56", 56, "signed"),
+    0x15: ("INTEGER64", 64, "signed"),
+    0x16: ("UNSIGNED24", 24, "unsigned"),
+    0x18: ("UNSIGNED40", 40, "unsigned"),
+    0x19: ("UNSIGNED48", 48, "unsigned"),
+    0x1A: ("UNSIGNED56", 56, "unsigned"),
+    0x1B: ("UNSIGNED64", 64, "unsigned"),
+}
+
+
 def pdo_comm_index(kind: str, number: int) -> int:
-    """Object index of PDO n's communication parameter: RPDO 0x1400 + n - 1, TPDO 0x1800 + n - 1. Its mapping
-    parameter is 0x200 above it (0x1600 / 0x1A00)."""
-    return (0x1400 if kind == "rpdo" else 0x1800) + number - 1
+    """Object index of PDO n's communication parameter: RPDO 0x1400 + n - 1, TPDO 0x1800 + n - 1."""
+    return (RPDO_COMM if kind == "rpdo" else TPDO_COMM) + number - 1
+
+
+def pdo_map_index(kind: str, number: int) -> int:
+    """Object index of PDO n's mapping parameter: RPDO 0x1600 + n - 1, TPDO 0x1A00 + n - 1."""
+    return pdo_comm_index(kind, number) + MAP_OFFSET
+
+
+def pdo_comm_indices(kind: str) -> range:
+    """Every communication parameter index a device may have for this direction (0x1400-0x15FF / 0x1800-0x19FF)."""
+    start = pdo_comm_index(kind, 1)
+    return range(start, start + MAX_PDOS)
+
+
+def pdo_cob_id(kind: str, can_id: int, extended: bool = False, valid: bool = True) -> int:
+    """The value of a PDO's COB-ID as netcfg writes it, seen from the node whose RPDO/TPDO slot it is: bit 31 set when
+    not valid, bit 30 ('no RTR') on TPDOs as the vendors' EDS have it (CiA AN 802 discourages RTR), bit 29 for a
+    29-bit identifier. The DCFs, runtime.json and the live master all write this value."""
+    flags = PDO_NO_RTR if kind == "tpdo" else 0
+    return (0 if valid else PDO_INVALID) | flags | (PDO_EXTENDED if extended else 0) | can_id
+
+
+def pdo_can_id(cob_id: int) -> tuple[int, bool]:
+    """(CAN identifier, extended) of a PDO COB-ID value, flag bits dropped: bits 0-28 for a 29-bit identifier,
+    bits 0-10 for an 11-bit one (bits 11-28 are then 0 by CiA 301 and ignored here, as a device does)."""
+    extended = bool(cob_id & PDO_EXTENDED)
+    return cob_id & (COB_ID_MASK if extended else 0x7FF), extended
+
+
+def pack_mapping(index: int, sub: int, bits: int) -> int:
+    """A PDO mapping entry (0x16xx/0x1Axx sub 1..n, CiA 301 7.5.2.36): index << 16 | sub-index << 8 | length in
+    bits."""
+    return index << 16 | sub << 8 | bits
+
+
+def unpack_mapping(value: int) -> tuple[int, int, int]:
+    """(index, sub-index, length in bits) of a PDO mapping entry."""
+    return (value >> 16) & 0xFFFF, (value >> 8) & 0xFF, value & 0xFF
+
+
+def is_dummy(index: int, sub: int) -> bool:
+    """Whether a mapping entry is a dummy (padding) entry rather than an object."""
+    return index in DUMMY_INDICES and sub == 0
+
+
+def configured_from_bus(index: int) -> bool:
+    """Objects netcfg writes from the bus configuration for every node: SYNC (0x1005-0x1007), the heartbeat producer
+    time (0x1017) and the PDO parameters (0x1400-0x1BFF). The DCF emitter configures them per node; a bus.yml SDO
+    writing one of them would change what the timing analysis proved."""
+    return index in (0x1005, 0x1006, 0x1007, 0x1017) or index in PDO_PARAMETERS
+
+
+def sync_every(transmission: int) -> int | None:
+    """Every how many SYNCs a TPDO of this transmission type answers (CiA 301 7.5.2.35, 0x1800 sub 2), or None when
+    SYNC does not drive it (types 241-255: RTR-only, event-driven, reserved).
+
+    1..240 -> n: on every n-th SYNC, counted from 1 (the first SYNC after the node became OPERATIONAL is number 1,
+    so type n first answers the n-th), as devices and the live master count. 0 (acyclic synchronous) -> 1: it
+    answers a SYNC only when its data changed since it last went out, which may be any SYNC, so bounds and
+    simulations treat it as answering every SYNC. For RPDOs the same types say whether the received data take effect
+    at the next SYNC (not None) or at once."""
+    if 1 <= transmission <= 240:
+        return transmission
+    return 1 if transmission == 0 else None
 
 
 def default_pdo_cob_id(kind: str, number: int, node_id: int) -> int | None:

@@ -40,8 +40,10 @@ from canopen.sdo import SdoAbortedError
 from conftest import ROOT
 
 import netcfg.runtime as rt
+from netcfg import cia301
 from netcfg.runtime.canopen_master import (
     MasterCycle,
+    TimeStats,
     configure_network,
     identities_from_dir,
     identity_from_eds,
@@ -657,3 +659,70 @@ def test_cycle_in_virtual_time_keeps_eq1_and_counts_missing_frames(cfg: rt.Runti
     assert run.period_stats().run_s == pytest.approx(CYCLES * 0.019, abs=1e-6)
     knee_r = [row[run.columns().index("knee_r_effort.torque_actual_value")] for row in run.rows()]
     assert knee_r[2] == "" and knee_r.count("") == 1
+
+
+def test_acyclic_synchronous_tpdo_is_taken_but_never_waited_for(cfg: rt.RuntimeConfig) -> None:
+    """hip_l_effort with transmission type 0 (CiA 301: sent at a SYNC only after its data changed) answers SYNC 2
+    only: the live master stores it in cycle 1, never counts it due or missing, and keeps waiting for the others."""
+    data = json.loads((GENERATED / "runtime.json").read_text(encoding="utf-8"))
+    for msg in data["messages"]:
+        if msg["name"] == "hip_l_effort":
+            msg["pdo"]["transmission"] = 0
+    cfg0 = rt.parse(data)
+    tpdos = [m for m in cfg0.messages if m.pdo is not None and m.pdo.kind == "tpdo"]
+
+    def answers(sync: int) -> list[tuple[float, can.Message]]:
+        return [
+            (0.0005 + 0.0001 * rank, m.to_can(**{f.name: rank for f in m.fields}))
+            for rank, m in enumerate(tpdos)
+            if m.name != "hip_l_effort" or sync == 2
+        ]
+
+    clock = VirtualClock()
+    bus = ScriptedBus(clock, answers)
+    run = MasterCycle(cfg0, bus, clock).run(4)
+    bus.shutdown()
+    assert "hip_l_effort" not in run.expected
+    assert all("hip_l_effort" not in rec.due for rec in run.records)
+    assert [rec.index for rec in run.records if "hip_l_effort" in rec.values] == [1]
+    assert run.missing == 0 and run.late == 0
+
+
+def test_time_stats_use_the_population_standard_deviation() -> None:
+    """The run's values are all there is: std divides by n (numpy's default, netcfg.sim.stats.spread's too)."""
+    stats = TimeStats.of([1.0, 3.0])
+    assert stats.std_s == pytest.approx(1.0) and stats.mean_s == pytest.approx(2.0)
+    assert TimeStats.of([0.5]).std_s == 0.0
+
+
+def test_drive_bench_refuses_a_bus_that_is_not_canopen(channel: str) -> None:
+    """The master and the drive bench pick their bus with one function: naming a bus of another protocol is an
+    error for both (cambada's only bus, lowlevel, is FTT-CAN)."""
+    cambada = rt.load(ROOT / "generated" / "cambada" / "runtime.json")
+    with pytest.raises(ValueError, match="lowlevel' is a ftt-can bus, not CANopen"):
+        DriveBench(cambada, channel=channel, bus_name="lowlevel")
+    with pytest.raises(ValueError, match="0 CANopen buses"):
+        DriveBench(cambada, channel=channel)
+
+
+def test_cia301_pdo_rules() -> None:
+    """netcfg.cia301, the one home of the PDO rules the DCFs, runtime.json, the master and the drives use (CiA 301
+    7.5.2.35-38): COB-ID flag bits, mapping entries, parameter objects, dummy entries, SYNC-driven types."""
+    assert cia301.pdo_cob_id("tpdo", 0x181) == 0x40000181  # bit 30: no RTR on TPDOs
+    assert cia301.pdo_cob_id("rpdo", 0x201, valid=False) == 0x80000201
+    assert cia301.pdo_cob_id("rpdo", 0x12345, extended=True) == 0x20012345
+    assert cia301.pdo_can_id(0xC0000181) == (0x181, False)
+    assert cia301.pdo_can_id(0xA0012345) == (0x12345, True)
+    assert cia301.pack_mapping(0x6064, 0, 32) == 0x60640020
+    assert cia301.unpack_mapping(0x30D10210) == (0x30D1, 2, 16)
+    assert (cia301.pdo_comm_index("rpdo", 2), cia301.pdo_map_index("tpdo", 512)) == (0x1401, 0x1BFF)
+    assert list(cia301.DUMMY_INDICES) == [1, 2, 3, 4, 5, 6, 7]
+    assert cia301.is_dummy(0x0005, 0) and not cia301.is_dummy(0x0005, 1) and not cia301.is_dummy(0x0008, 0)
+    assert [cia301.sync_every(t) for t in (0, 1, 2, 240, 241, 252, 254, 255)] == [1, 1, 2, 240, None, None, None, None]
+    assert [i for i in (0x1004, 0x1005, 0x1007, 0x1017, 0x1400, 0x1BFF, 0x1C00) if cia301.configured_from_bus(i)] == [
+        0x1005,
+        0x1007,
+        0x1017,
+        0x1400,
+        0x1BFF,
+    ]

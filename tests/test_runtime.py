@@ -29,6 +29,7 @@ from conftest import EPOS4_EDS, ROOT, SPECS, check, load_spec
 
 import netcfg.runtime as rt
 from netcfg.build import build
+from netcfg.runtime import codec
 
 
 def build_into(spec: str, out: Path) -> Path:
@@ -214,9 +215,10 @@ def test_spec_hash_is_the_sha256_of_the_spec_file(built: dict[str, Path]) -> Non
 
 
 def test_runtime_does_not_import_the_compiler(built: dict[str, Path]) -> None:
-    """A master loads its config and exchanges frames with netcfg.runtime alone."""
+    """A master loads its config and exchanges frames with netcfg.runtime alone (and netcfg.cia301 for CANopen): no
+    compiler module (spec, resolve, model, timing, emit, devices) is loaded."""
     code = (
-        "import json, sys, netcfg.runtime as rt\n"
+        "import json, sys, netcfg.runtime as rt, netcfg.runtime.canopen_master, netcfg.runtime.drives\n"
         f"cfg = rt.load({str(built['allex2'])!r})\n"
         "cfg.message('hip_l_cmd').encode(target_velocity=1, velocity_offset=2)\n"
         "print(json.dumps(sorted(sys.modules)))\n"
@@ -224,8 +226,10 @@ def test_runtime_does_not_import_the_compiler(built: dict[str, Path]) -> None:
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 0, proc.stderr
     loaded = json.loads(proc.stdout)
-    compiler = ("netcfg.spec", "netcfg.resolve", "netcfg.model", "netcfg.timing", "netcfg.emit")
-    assert [m for m in loaded if m.startswith(compiler)] == []
+    # netcfg.cia301 is allowed: a table of the standard with no dependencies, from which the CANopen master and the
+    # drives take COB-ID, PDO and data type rules as the compiler does
+    allowed = ("netcfg.runtime", "netcfg.cia301")
+    assert [m for m in loaded if m.startswith("netcfg.") and not m.startswith(allowed)] == []
     assert "netcfg.runtime" in loaded and "pydantic" not in loaded and "yaml" not in loaded
 
 
@@ -448,3 +452,20 @@ def test_a_damaged_runtime_config_is_refused_with_what_is_wrong(damage: Any, tex
     damage(doc)
     with pytest.raises(rt.RuntimeConfigError, match=re.escape(text)):
         rt.parse(doc, "damaged.json")
+
+
+def test_collect_window_is_the_read_window_else_the_sync_window_else_the_period() -> None:
+    """How long a master (live or simulated) collects after SYNC: CiA 301 0x1007 ends synchronous PDOs at the
+    synchronous window, so it stands in for a missing read window; the SYNC period bounds both."""
+    params = rt.CanopenParams(20_000_000, None, None, "master", 0x80)
+    assert params.collect_window_ns() == 20_000_000
+    with_sync_window = rt.CanopenParams(20_000_000, 12_000_000, None, "master", 0x80)
+    assert with_sync_window.collect_window_ns() == 12_000_000
+    assert rt.CanopenParams(20_000_000, 12_000_000, 10_000_000, "master", 0x80).collect_window_ns() == 10_000_000
+
+
+def test_int_range_is_twos_complement_or_unsigned() -> None:
+    assert codec.int_range(8, True) == (-128, 127) and codec.int_range(8, False) == (0, 255)
+    assert codec.int_range(1, False) == (0, 1) and codec.int_range(64, True) == (-(2**63), 2**63 - 1)
+    field = codec.Field("x", 0, 24, signed=True)
+    assert field.raw_range() == codec.int_range(24, True)

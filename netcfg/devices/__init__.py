@@ -13,34 +13,8 @@ from importlib import resources
 
 import yaml
 
-# CiA 301 table 44: static data types -> (name, size in bits, kind). Strings and domains have no fixed size.
-DATA_TYPES: dict[int, tuple[str, int, str]] = {
-    0x01: ("BOOLEAN", 1, "unsigned"),
-    0x02: ("INTEGER8", 8, "signed"),
-    0x03: ("INTEGER16", 16, "signed"),
-    0x04: ("INTEGER32", 32, "signed"),
-    0x05: ("UNSIGNED8", 8, "unsigned"),
-    0x06: ("UNSIGNED16", 16, "unsigned"),
-    0x07: ("UNSIGNED32", 32, "unsigned"),
-    0x08: ("REAL32", 32, "float"),
-    0x09: ("VISIBLE_STRING", 0, "string"),
-    0x0A: ("OCTET_STRING", 0, "string"),
-    0x0B: ("UNICODE_STRING", 0, "string"),
-    0x0C: ("TIME_OF_DAY", 48, "unsigned"),
-    0x0D: ("TIME_DIFFERENCE", 48, "unsigned"),
-    0x0F: ("DOMAIN", 0, "string"),
-    0x10: ("INTEGER24", 24, "signed"),
-    0x11: ("REAL64", 64, "float"),
-    0x12: ("INTEGER40", 40, "signed"),
-    0x13: ("INTEGER48", 48, "signed"),
-    0x14: ("INTEGER56", 56, "signed"),
-    0x15: ("INTEGER64", 64, "signed"),
-    0x16: ("UNSIGNED24", 24, "unsigned"),
-    0x18: ("UNSIGNED40", 40, "unsigned"),
-    0x19: ("UNSIGNED48", 48, "unsigned"),
-    0x1A: ("UNSIGNED56", 56, "unsigned"),
-    0x1B: ("UNSIGNED64", 64, "unsigned"),
-}
+from netcfg.cia301 import DATA_TYPES  # re-exported: the profiles' data type codes are CiA 301's
+
 DATA_TYPE_CODES = {name: code for code, (name, _, _) in DATA_TYPES.items()}
 
 READABLE = frozenset({"ro", "rw", "rwr", "rww", "const"})

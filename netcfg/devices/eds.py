@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from netcfg import cia301
 from netcfg.devices import DeviceProfile, ObjectEntry
 
 
@@ -58,12 +59,12 @@ def import_eds(path: Path, name: str) -> DeviceProfile:
     profile.vendor_id = profile.vendor_id or info.vendor_number or None
     profile.product_code = profile.product_code or info.product_number or None
     profile.revision = profile.revision or info.revision_number or None
-    profile.rpdo_count = sum(1 for i in range(0x1400, 0x1600) if i in od)
-    profile.tpdo_count = sum(1 for i in range(0x1800, 0x1A00) if i in od)
-    if 0x1A00 in od:
-        profile.max_mapped_objects = len(od[0x1A00]) - 1
-    if 0x1800 in od:
-        subs = {var.subindex for var in _entries({0x1800: od[0x1800]})}  # type: ignore[attr-defined]
+    profile.rpdo_count = sum(1 for i in cia301.pdo_comm_indices("rpdo") if i in od)
+    profile.tpdo_count = sum(1 for i in cia301.pdo_comm_indices("tpdo") if i in od)
+    if cia301.TPDO_MAP in od:  # TPDO 1 stands for all
+        profile.max_mapped_objects = len(od[cia301.TPDO_MAP]) - 1
+    if cia301.TPDO_COMM in od:
+        subs = {var.subindex for var in _entries({cia301.TPDO_COMM: od[cia301.TPDO_COMM]})}  # type: ignore[attr-defined]
         profile.tpdo_event_timer = 5 in subs
         profile.tpdo_inhibit_time = 3 in subs
     return profile

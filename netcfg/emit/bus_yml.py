@@ -34,8 +34,6 @@ from netcfg.model import Bus, Message, Model, Node, PdoEntry
 from netcfg.resolve import snake
 
 TEMPLATE = "bus_yml.j2"
-PDO_EXTENDED = 1 << 29  # CiA 301 7.5.2.35: COB-ID bit 29 = 29-bit identifier
-DUMMY_TYPES = range(1, 8)  # CiA 301: data type indices a device may map as padding
 
 
 @dataclass(frozen=True)
@@ -196,7 +194,8 @@ def _pdo_view(node: Node, m: Message, sync_ns: int) -> PdoView:
     p = m.pdo
     assert p is not None and node.node_id is not None
     default_id = cia301.default_pdo_cob_id(p.kind, p.number, node.node_id)
-    cob = "auto" if m.id == default_id and not m.extended else f"0x{m.id | (PDO_EXTENDED if m.extended else 0):X}"
+    value = m.id | (cia301.PDO_EXTENDED if m.extended else 0)
+    cob = "auto" if m.id == default_id and not m.extended else f"0x{value:X}"
     dev = node.device
     tpdo = p.kind == "tpdo"
     # TPDOs: netcfg's DCF writes inhibit time and event timer (0 = off) wherever the device has them: say so here too,
@@ -226,7 +225,7 @@ def _pdo_view(node: Node, m: Message, sync_ns: int) -> PdoView:
 
 def _map_view(node: Node, k: int, e: PdoEntry) -> MapView:
     """An entry; its signal name is noted when it is not the one resolve would give it (pad<k>, or the object's)."""
-    if e.index in DUMMY_TYPES and e.sub == 0:
+    if cia301.is_dummy(e.index, e.sub):
         default = f"pad{k}"
     else:
         obj = node.device.lookup(e.index, e.sub) if node.device is not None else None

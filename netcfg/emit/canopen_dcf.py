@@ -42,14 +42,10 @@ TEMPLATE = "canopen_dcf.j2"
 
 U8, U16, U32 = 0x05, 0x06, 0x07  # CiA 301 table 44 data type codes
 VAR, ARRAY, RECORD = 0x7, 0x8, 0x9  # CiA 301 table 42 object codes
-PDO_INVALID = 1 << 31  # COB-ID bit 31: the PDO does not exist / is not valid (CiA 301 7.5.2.35)
-PDO_NO_RTR = 1 << 30  # COB-ID bit 30: no RTR allowed on this PDO
-PDO_EXTENDED = 1 << 29  # COB-ID bit 29: 29-bit identifier
 SYNC_PRODUCER = 1 << 30  # 0x1005 bit 30: this node generates SYNC (CiA 301 7.5.2.5)
 MANDATORY = (0x1000, 0x1001, 0x1018)  # CiA 306 4.6.2: the mandatory objects of every device
 MANUFACTURER = range(0x2000, 0x6000)  # CiA 301 table 43: manufacturer-specific profile area
 STANDARD_RATES = (10, 20, 50, 125, 250, 500, 800, 1000)  # kbit/s with a BaudRate_ keyword (CiA 306 4.6.1)
-MAX_PDOS = 512  # CiA 301: 0x1400-0x15FF / 0x1800-0x19FF
 PdoKind = Literal["rpdo", "tpdo"]
 KINDS: tuple[PdoKind, PdoKind] = ("rpdo", "tpdo")
 
@@ -162,11 +158,6 @@ class _Base:
     known: Known
 
 
-def _configurable(index: int) -> bool:
-    """The objects _device_view may change for one node: SYNC, heartbeat, PDO parameters."""
-    return index in (0x1005, 0x1006, 0x1007, 0x1017) or 0x1400 <= index < 0x1C00
-
-
 def _copy(obj: _Obj) -> _Obj:
     return _Obj({k: dataclasses.replace(v) for k, v in obj.subs.items()}, obj.name, obj.object_type)
 
@@ -206,14 +197,6 @@ def file_names(model: Model) -> dict[tuple[str, str], dict[str, str]]:
     return out
 
 
-def pdo_cob_id(kind: str, can_id: int, extended: bool = False, valid: bool = True) -> int:
-    """The value of a PDO's COB-ID (0x14xx/0x18xx sub 1, CiA 301 7.5.2.35/37) as netcfg writes it, seen from the
-    node whose RPDO/TPDO slot it is: bit 31 set when not valid, bit 30 ('no RTR') on TPDOs as the vendors' EDS have
-    it, bit 29 for a 29-bit identifier. runtime.json carries the same value."""
-    flags = PDO_NO_RTR if kind == "tpdo" else 0
-    return (0 if valid else PDO_INVALID) | flags | (PDO_EXTENDED if extended else 0) | can_id
-
-
 def _render(view: FileView, file_name: str, dcf: bool) -> bytes:
     return render(TEMPLATE, f=view, file_name=file_name, dcf=dcf)
 
@@ -228,7 +211,7 @@ def _base(dev: DeviceProfile, cache: Cache) -> _Base:
     dummies: set[int] = set()
     for (index, sub), e in sorted(dev.objects.items()):
         if index < 0x1000:  # data type definitions; the ones a device maps as dummies go to [DummyUsage]
-            if index in range(1, 8) and sub == 0:
+            if cia301.is_dummy(index, sub):
                 dummies.add(index)
             continue
         od.setdefault(index, _Obj()).subs[sub] = _Var(e.name, e.data_type, e.access, e.pdo_mappable, e.default)
@@ -237,7 +220,8 @@ def _base(dev: DeviceProfile, cache: Cache) -> _Base:
         if var is not None and var.default is None:
             var.default, var.relative = offset, True
     _mandatory(od, dev)
-    known = {index: (obj, _sections(index, obj)) for index, obj in od.items() if not _configurable(index)}
+    # the objects _device_view may change for one node are copied and rendered per node; the others are shared
+    known = {index: (obj, _sections(index, obj)) for index, obj in od.items() if not cia301.configured_from_bus(index)}
     base = cache[key] = _Base(dev.objects, od, frozenset(dummies), known)
     return base
 
@@ -246,7 +230,7 @@ def _device_view(model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: 
     assert bus.canopen is not None and node.node_id is not None
     nid = node.node_id
     base = _base(dev, cache)
-    od = {index: _copy(obj) if _configurable(index) else obj for index, obj in base.od.items()}
+    od = {index: _copy(obj) if cia301.configured_from_bus(index) else obj for index, obj in base.od.items()}
     dummies = set(base.dummies)
     # SYNC (CiA 301 7.5.2.5-7): configure what the device lets the bus write; a const 0x1005 stays as it is
     co = bus.canopen
@@ -264,7 +248,7 @@ def _device_view(model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: 
         p = m.pdo
         if p is not None and (m.producer == node.name if p.kind == "tpdo" else node.name in m.consumers):
             slots.setdefault((p.kind, p.number), m)
-            dummies.update(e.index for e in p.entries if e.index in range(1, 8) and e.sub == 0)
+            dummies.update(e.index for e in p.entries if cia301.is_dummy(e.index, e.sub))
     comments = [f"netcfg configuration of node {node.name} (node id {nid}) on bus {bus.name}, system {model.system}"]
     comments.append(f"device profile {dev.name} ({PurePath(dev.source).name})")
     counts = {"rpdo": dev.rpdo_count, "tpdo": dev.tpdo_count}
@@ -316,14 +300,15 @@ def _device_pdo(od: Dictionary, dev: DeviceProfile, nid: int, kind: PdoKind, n: 
         )
     default_id = cia301.default_pdo_cob_id(kind, n, nid)
     if m is None or p is None:
-        cob = pdo_cob_id(kind, default_id or 0, valid=False)
+        cob = cia301.pdo_cob_id(kind, default_id or 0, valid=False)
     else:
-        cob = pdo_cob_id(kind, m.id, m.extended)
+        cob = cia301.pdo_cob_id(kind, m.id, m.extended)
     relative = default_id is not None and (m is None or (m.id == default_id and not m.extended))
     _sub(comm, 1, f"COB-ID used by {kind.upper()}", U32).configure(cob, nid if relative else None)
-    mapping = od.get(comm_index + 0x200)
+    map_index = cia301.pdo_map_index(kind, n)
+    mapping = od.get(map_index)
     if mapping is None:
-        mapping = od[comm_index + 0x200] = _map_record(dev.max_mapped_objects)
+        mapping = od[map_index] = _map_record(dev.max_mapped_objects)
     if p is None:  # unused: disabled, nothing mapped; the other parameters keep the device's defaults
         _sub(mapping, 0, "Number of mapped application objects in PDO", U8).configure(0)
         for sub in range(1, max(mapping.subs) + 1):
@@ -364,8 +349,8 @@ def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
         identity.subs[sub] = _Var(name, U32, "ro", default=0)  # netcfg's own configuration: no registered vendor
     rx = [m for m in bus.messages if m.pdo and m.pdo.kind == "tpdo" and node.name in m.consumers]
     tx = [m for m in bus.messages if m.pdo and m.pdo.kind == "rpdo" and m.producer == node.name]
-    if len(rx) > MAX_PDOS or len(tx) > MAX_PDOS:
-        raise ValueError(f"master {node.name} on {bus.name} would need more than {MAX_PDOS} RPDOs or TPDOs")
+    if len(rx) > cia301.MAX_PDOS or len(tx) > cia301.MAX_PDOS:
+        raise ValueError(f"master {node.name} on {bus.name} would need more than {cia301.MAX_PDOS} RPDOs or TPDOs")
     comments = [f"netcfg CANopen master {node.name} (node id {node.node_id}) of bus {bus.name}, system {model.system}"]
     comments.append("RPDOs mirror the slave TPDOs it consumes, TPDOs the slave RPDOs it produces")
     next_index = MANUFACTURER.start
@@ -376,9 +361,10 @@ def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
             # a master TPDO is sent by the master's application (its runtime configuration times it): inhibit time
             # and event timer exist, set to 0 (off)
             comm = od[comm_index] = _comm_record(kind, kind == "tpdo", kind == "tpdo", False)
-            _sub(comm, 1, "", U32).configure(pdo_cob_id(kind, m.id, m.extended))
+            _sub(comm, 1, "", U32).configure(cia301.pdo_cob_id(kind, m.id, m.extended))
             # RPDO types 252/253 do not exist: a mirrored RTR-only TPDO is received as an event (255)
-            tt = m.pdo.transmission if kind == "tpdo" or m.pdo.transmission <= 240 else 255
+            synchronous = cia301.sync_every(m.pdo.transmission) is not None
+            tt = m.pdo.transmission if kind == "tpdo" or synchronous else 255
             _sub(comm, 2, "", U8).configure(tt)
             for sub in (3, 5):
                 if sub in comm.subs:
@@ -392,7 +378,7 @@ def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
                 _var(od, next_index, f"{m.name}.{e.name}", e.data_type, access, 0).pdo = True
                 mapped.append((next_index, 0, e.bits))
                 next_index += 1
-            mapping = od[comm_index + 0x200] = _map_record(len(mapped))
+            mapping = od[cia301.pdo_map_index(kind, n)] = _map_record(len(mapped))
             _map(mapping, mapped)
             comments.append(_pdo_comment(kind, n, m))
     return _file_view(
@@ -443,10 +429,10 @@ def _map_record(count: int) -> _Obj:
 
 
 def _map(mapping: _Obj, entries: list[tuple[int, int, int]]) -> None:
-    """sub 0 = number of mapped objects, sub k = index << 16 | sub-index << 8 | length in bits (CiA 301 7.5.2.36)."""
+    """sub 0 = number of mapped objects, sub k = the k-th entry (CiA 301 7.5.2.36)."""
     _sub(mapping, 0, "Number of mapped application objects in PDO", U8).configure(len(entries))
     for k, (index, sub, bits) in enumerate(entries, 1):
-        _sub(mapping, k, f"Application object {k}", U32).configure(index << 16 | sub << 8 | bits)
+        _sub(mapping, k, f"Application object {k}", U32).configure(cia301.pack_mapping(index, sub, bits))
     for k in range(len(entries) + 1, max(mapping.subs) + 1):
         if k in mapping.subs:
             mapping.subs[k].default = 0
@@ -508,10 +494,10 @@ def _file_view(
         baudrates=tuple((rate, int(rate == kbit)) for rate in STANDARD_RATES),
         boot_master=int(master),
         boot_slave=int(not master),
-        nr_rx=sum(1 for i in od if 0x1400 <= i < 0x1600),
-        nr_tx=sum(1 for i in od if 0x1800 <= i < 0x1A00),
+        nr_rx=sum(1 for i in od if i in cia301.pdo_comm_indices("rpdo")),
+        nr_tx=sum(1 for i in od if i in cia301.pdo_comm_indices("tpdo")),
         lss=0,
-        dummies=tuple((k, int(k in dummies)) for k in range(1, 8)),
+        dummies=tuple((k, int(k in dummies)) for k in cia301.DUMMY_INDICES),
         comments=tuple(ini_text(line, 255) for line in comments),
         groups=groups,
         sections=tuple(sections),
@@ -547,10 +533,10 @@ def _standard_name(index: int) -> str | None:
 _RANGES = (
     (0x1200, 0x1280, "SDO server parameter"),
     (0x1280, 0x1300, "SDO client parameter"),
-    (0x1400, 0x1600, "RPDO communication parameter"),
-    (0x1600, 0x1800, "RPDO mapping parameter"),
-    (0x1800, 0x1A00, "TPDO communication parameter"),
-    (0x1A00, 0x1C00, "TPDO mapping parameter"),
+    (cia301.RPDO_COMM, cia301.RPDO_MAP, "RPDO communication parameter"),
+    (cia301.RPDO_MAP, cia301.TPDO_COMM, "RPDO mapping parameter"),
+    (cia301.TPDO_COMM, cia301.TPDO_MAP, "TPDO communication parameter"),
+    (cia301.TPDO_MAP, cia301.PDO_PARAMETERS.stop, "TPDO mapping parameter"),
 )
 
 
@@ -574,9 +560,11 @@ def _hex(index: int, sub: int) -> bool:
     times (0x1006 in us, heartbeat in ms, transmission types...) in decimal."""
     if index in (0x1000, 0x1005, 0x1012, 0x1014) or (index == 0x1018 and sub > 0):
         return True
-    if 0x1200 <= index < 0x1300 or 0x1400 <= index < 0x1600 or 0x1800 <= index < 0x1A00:
-        return sub == 1 or (index < 0x1300 and sub == 2)
-    return (0x1600 <= index < 0x1800 or 0x1A00 <= index < 0x1C00) and sub > 0
+    if 0x1200 <= index < 0x1300:  # SDO parameters: two COB-IDs
+        return sub in (1, 2)
+    if index in cia301.pdo_comm_indices("rpdo") or index in cia301.pdo_comm_indices("tpdo"):
+        return sub == 1
+    return index in cia301.PDO_PARAMETERS and sub > 0  # the mapping parameters: the rest of 0x1400-0x1BFF
 
 
 def _var_section(section: str, var: _Var, hex_: bool) -> Section:

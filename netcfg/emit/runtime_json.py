@@ -7,8 +7,9 @@ nodes, messages per bus with the implicit SYNC/heartbeats where the resolver put
 byte-identical across builds. The FTT-CAN schedule comes from netcfg.timing.ftt, never recomputed here.
 
 CANopen facts a live master needs come from where the other artifacts take them, so they cannot disagree: the
-file names and PDO COB-ID values from netcfg.emit.canopen_dcf, the identity and PDO counts from the node's device
-profile (built-in or EDS). Keys added later within version 1 only ever add information (see netcfg.runtime).
+file names from netcfg.emit.canopen_dcf, the PDO COB-ID values from netcfg.cia301 (as the DCFs), the identity and
+PDO counts from the node's device profile (built-in or EDS). Keys added later within version 1 only ever add
+information (see netcfg.runtime).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from netcfg import model
+from netcfg import cia301, model
 from netcfg.emit import canopen_dcf
 from netcfg.runtime import interpolation_period
 from netcfg.timing import ftt
@@ -239,7 +240,7 @@ def _pdo(msg: model.Message) -> dict[str, Any] | None:
         "inhibit_100us": p.inhibit_100us,
         "event_timer_ms": p.event_timer_ms,
         "sync_start": p.sync_start,
-        "cob_id": canopen_dcf.pdo_cob_id(p.kind, msg.id, msg.extended),  # the DCF's value: the same function
+        "cob_id": cia301.pdo_cob_id(p.kind, msg.id, msg.extended),  # the DCF's value: the same function
         "entries": [
             {"index": e.index, "sub": e.sub, "bits": e.bits, "name": e.name, "data_type": e.data_type}
             for e in p.entries

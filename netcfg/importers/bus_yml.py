@@ -73,9 +73,7 @@ BusPath = tuple[str | int, ...]
 PLACEHOLDER = "@BUS_CONFIG_PATH@"
 _PLACEHOLDER_ANY = re.compile(r"@[A-Za-z_][A-Za-z0-9_]*@")
 _ANNOTATION = re.compile(r"#\s*netcfg:\s*(?P<body>.*?)\s*$")
-PDO_INVALID = 1 << 31  # CiA 301 7.5.2.35: COB-ID bit 31 = the PDO does not exist
-PDO_NO_RTR = 1 << 30
-PDO_EXTENDED = 1 << 29
+NODE_ID_LIMITS = (cia301.NODE_IDS.start, cia301.NODE_IDS[-1])  # 1, 127
 FIRST_AUTO_COB_ID = 0x680  # dcfgen: COB-IDs of 'auto' PDOs 5+ are taken from here upwards
 LAST_AUTO_COB_ID = 0x6DF  # 0x6E0-0x6FF are restricted (CiA 301 table 74)
 
@@ -112,11 +110,6 @@ MAPPING_KEYS = {"index", "sub_index"}
 SDO_KEYS = {"index", "sub_index", "value"}
 HEADER_KEYS = {"system", "bus", "master", "read_window_ns", "sync_id", "sync_producer"}
 PDO_NOTE_KEYS = {"message", "type", "period_ns", "min_interarrival_ns"}
-
-
-def _configured_by_netcfg(index: int) -> bool:
-    """Objects netcfg derives from the spec: an SDO writing them would change what the analysis proved."""
-    return index in (0x1005, 0x1006, 0x1007, 0x1017) or 0x1400 <= index < 0x1C00
 
 
 def default_timing(
@@ -218,12 +211,13 @@ class DeviceFile:
         comm = cia301.pdo_comm_index(kind, number)
         if comm not in self.od:
             return None
-        count = self._value(comm + 0x200, 0, node_id) or 0
+        map_index = cia301.pdo_map_index(kind, number)
+        count = self._value(map_index, 0, node_id) or 0
         mapping = []
         for k in range(1, count + 1):
-            value = self._value(comm + 0x200, k, node_id)
+            value = self._value(map_index, k, node_id)
             if value:
-                mapping.append(((value >> 16) & 0xFFFF, (value >> 8) & 0xFF))
+                mapping.append(cia301.unpack_mapping(value)[:2])
         return Slot(
             self._value(comm, 1, node_id),
             self._value(comm, 2, node_id),
@@ -234,7 +228,7 @@ class DeviceFile:
         )
 
     def slots(self, kind: str) -> list[int]:
-        return [n for n in range(1, 513) if cia301.pdo_comm_index(kind, n) in self.od]
+        return [n for n in range(1, cia301.MAX_PDOS + 1) if cia301.pdo_comm_index(kind, n) in self.od]
 
 
 _RAW = re.compile(r"^(?:\$NODEID\+)?(-?0X[0-9A-F]+|-?[0-9]+)(?:\+\$NODEID)?$")
@@ -555,11 +549,12 @@ class BusYmlImporter:
         if "node_id" not in master:
             self.err(
                 "node-id",
-                "master.node_id is not set (dcfgen's default 255 means unconfigured); give the master's node id 1..127",
+                "master.node_id is not set (dcfgen's default 255 means unconfigured); give the master's node id "
+                f"{NODE_ID_LIMITS[0]}..{NODE_ID_LIMITS[1]}",
                 ("master",),
                 key=True,
             )
-        elif self.integer(master["node_id"], "master.node_id (a CANopen node id)", 1, 127) is not None:
+        elif self.integer(master["node_id"], "master.node_id (a CANopen node id)", *NODE_ID_LIMITS) is not None:
             node["node_id"] = master["node_id"].value
             self.link((*path, "node_id"), master["node_id"].path)
         node["buses"] = [bus]
@@ -595,7 +590,7 @@ class BusYmlImporter:
         self.origin[path] = own
         node: dict[str, Any] = {"name": node_name}
         if "node_id" in cfg:
-            got = self.integer(cfg["node_id"], f"node_id of node '{name}' (a CANopen node id)", 1, 127)
+            got = self.integer(cfg["node_id"], f"node_id of node '{name}' (a CANopen node id)", *NODE_ID_LIMITS)
             if got is None:
                 return None
             node["node_id"] = nid = got
@@ -698,7 +693,7 @@ class BusYmlImporter:
                     f"SDO write of node '{name}' to 0x{index:04X}:{sub}: its dcf has no such object",
                     ipath,
                 )
-            elif _configured_by_netcfg(index):
+            elif cia301.configured_from_bus(index):
                 self.strict(
                     "bus-yml-sdo",
                     f"SDO write of node '{name}' to 0x{index:04X}:{sub}, which netcfg configures from the bus (SYNC, "
@@ -767,7 +762,7 @@ class BusYmlImporter:
                 self.pdo(PdoItem(name, node, kind, number, val, pdo, slot, nid, master, auto))
             for number in device.slots(kind):  # dcfgen keeps what the DCF enables and the bus.yml does not mention
                 slot = device.slot(kind, number, nid)
-                if number in listed or slot is None or slot.cob_id is None or slot.cob_id & PDO_INVALID:
+                if number in listed or slot is None or slot.cob_id is None or slot.cob_id & cia301.PDO_INVALID:
                     continue
                 if not slot.mapping:
                     continue
@@ -804,7 +799,7 @@ class BusYmlImporter:
         cob_id = self.cob_id(p, label)
         if cob_id is None:
             return
-        cob_id &= ~PDO_NO_RTR  # bit 30 only forbids remote requests; netcfg's DCFs set it on every TPDO
+        cob_id &= ~cia301.PDO_NO_RTR  # bit 30 only forbids remote requests; netcfg's DCFs set it on every TPDO
         tt_val = cfg.get("transmission")
         if tt_val is not None:
             tt = self.integer(tt_val, f"transmission of {label}", 0, 255)
@@ -864,9 +859,9 @@ class BusYmlImporter:
         else:
             message.update(producer=p.master, consumers=[p.node])
         if cob_id != cia301.default_pdo_cob_id(p.kind, p.number, p.node_id):
-            message["id"] = cob_id & 0x1FFFFFFF
+            message["id"] = cob_id & cia301.COB_ID_MASK  # 11-bit ids keep bits 11-28: resolve rejects them
             self.link((*mpath, "id"), cfg["cob_id"].path if "cob_id" in cfg else val.path)
-        if cob_id & PDO_EXTENDED:
+        if cob_id & cia301.PDO_EXTENDED:
             message["extended"] = True
         if p.from_dcf:
             lines = [f"{p.kind}.{p.number} of {p.slave}: not in {self.name}, enabled by its dcf (dcfgen keeps it)"]
@@ -884,7 +879,7 @@ class BusYmlImporter:
         cob = p.cfg.get("cob_id")
         if cob is None:  # dcfgen keeps the DCF's COB-ID
             value = p.slot.cob_id if p.slot is not None else None
-            if value is None or value & PDO_INVALID:
+            if value is None or value & cia301.PDO_INVALID:
                 self.warn(
                     "bus-yml-pdo",
                     f"{label} is enabled without a cob_id, and its dcf's COB-ID is invalid (bit 31): dcfgen leaves it "
@@ -897,7 +892,7 @@ class BusYmlImporter:
         if cob.value == "auto":
             return cia301.default_pdo_cob_id(p.kind, p.number, p.node_id) if p.number <= 4 else p.auto_id
         value = self.integer(cob, f"cob_id of {label} ('auto' or a number)", 1, 0xFFFFFFFF)
-        if value is not None and value & PDO_INVALID:
+        if value is not None and value & cia301.PDO_INVALID:
             self.warn("bus-yml-pdo", f"cob_id of {label} has bit 31 (PDO invalid) set: dcfgen leaves it off", cob.path)
             return None
         return value

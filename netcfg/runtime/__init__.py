@@ -303,6 +303,11 @@ class CanopenParams:
     sync_producer: str
     sync_id: int
 
+    def collect_window_ns(self) -> int:
+        """How long after SYNC a master collects the synchronous TPDOs: its read window; without one the synchronous
+        window (0x1007: CiA 301 lets no synchronous PDO go out after it), else the whole SYNC period."""
+        return self.read_window_ns or self.sync_window_ns or self.sync_period_ns
+
 
 @dataclass(frozen=True)
 class SrtEntry:
@@ -341,6 +346,10 @@ class FttParams:
     def slot(self, ec: int) -> EcSlot:
         """The EC-schedule of elementary cycle ec (counted from the first, wrapping over the macro-cycle)."""
         return self.schedule[ec % self.macro_cycle_ec]
+
+    def window_start(self, ec: int) -> int:
+        """Start of EC ec's synchronous window, from the EC start (as netcfg.timing.ftt.Schedule.window_start)."""
+        return self.ec_ns - self.slot(ec).sync_ns
 
 
 @dataclass(frozen=True)

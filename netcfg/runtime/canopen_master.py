@@ -27,7 +27,8 @@ and the start-up SDO writes (node.sdo_init). A runtime.json written before those
 does what it did before they existed: the identity from the node's generated EDS/DCF (`identities_from_dir`), the
 COB-ID flag bits netcfg's DCF uses, PDOs 1-4 of the pre-defined connection set, and 0x60C2 = the SYNC period.
 
-This module imports only the standard library, python-can, canopen and netcfg.runtime.
+This module imports only the standard library, python-can, canopen, netcfg.runtime and netcfg.cia301 (the
+standard's numbers, which import nothing).
 """
 
 from __future__ import annotations
@@ -46,9 +47,10 @@ import can
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
+from netcfg import cia301
 from netcfg.runtime import Bus, Message, Node, RuntimeConfig, SdoWrite, interpolation_period
 from netcfg.runtime.clock import Clock
-from netcfg.runtime.codec import CodecError, Number
+from netcfg.runtime.codec import CodecError, Number, int_range
 
 __all__ = [
     "CommandFn",
@@ -61,6 +63,8 @@ __all__ = [
     "PeriodStats",
     "SetupReport",
     "TimeStats",
+    "canopen_bus",
+    "canopen_slaves",
     "configure_network",
     "identities_from_dir",
     "identity_from_eds",
@@ -68,36 +72,18 @@ __all__ = [
     "interpolation_period",
 ]
 
-# CiA 301 object layout
-PDO_INVALID = 1 << 31
-RTR_NOT_ALLOWED = 1 << 30
-COB_EXTENDED = 1 << 29
-RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP = 0x1400, 0x1600, 0x1800, 0x1A00
-PREDEFINED_PDOS = 4  # the predefined connection set has 4 RPDOs and 4 TPDOs per node (CiA 301, 7.3.5)
+PREDEFINED_PDOS = len(cia301.TPDO_BASE)  # the pre-defined connection set has 4 RPDOs and 4 TPDOs per node
 IDENTITY = 0x1018
 INTERPOLATION = 0x60C2  # CiA 402 interpolation time period: sub 1 value (UNSIGNED8), sub 2 index (INTEGER8, 10^index s)
 
 NMT_START, NMT_PRE_OPERATIONAL = 0x01, 0x80
 
-# CiA 301 table 44: the integer data types a start-up SDO write may have -> (bytes over SDO, signed)
+# The integer data types a start-up SDO write may have -> (bytes over SDO, signed): BOOLEAN, INTEGERn and UNSIGNEDn
+# of CiA 301 table 44. TIME_OF_DAY and TIME_DIFFERENCE are no integers: they hold milliseconds and days apart.
 SDO_INTEGERS = {
-    0x01: (1, False),  # BOOLEAN
-    0x02: (1, True),
-    0x03: (2, True),
-    0x04: (4, True),
-    0x05: (1, False),
-    0x06: (2, False),
-    0x07: (4, False),
-    0x10: (3, True),
-    0x12: (5, True),
-    0x13: (6, True),
-    0x14: (7, True),
-    0x15: (8, True),
-    0x16: (3, False),
-    0x18: (5, False),
-    0x19: (6, False),
-    0x1A: (7, False),
-    0x1B: (8, False),
+    code: ((bits + 7) // 8, kind == "signed")
+    for code, (name, bits, kind) in cia301.DATA_TYPES.items()
+    if name.startswith(("BOOLEAN", "INTEGER", "UNSIGNED"))
 }
 
 # Abort codes whose meaning is "the device has no such object"
@@ -161,7 +147,7 @@ def identities_from_dir(cfg: RuntimeConfig, directory: str | Path, bus_name: str
     written before that key) `<directory>/<node>.dcf` (else `.eds`), as netcfg writes them to
     generated/<system>/canopen/. Nodes without either are left out (not checked)."""
     found = {}
-    for node in _slaves(cfg, _canopen_bus(cfg, bus_name)):
+    for node in canopen_slaves(cfg, canopen_bus(cfg, bus_name)):
         stated = identity_from_runtime(cfg, node)
         if stated is not None:
             found[node.name] = stated
@@ -193,11 +179,11 @@ class PdoReadback:
 
     @property
     def valid(self) -> bool:
-        return not self.cob_id & PDO_INVALID
+        return not self.cob_id & cia301.PDO_INVALID
 
     @property
     def can_id(self) -> int:
-        return self.cob_id & (0x1FFFFFFF if self.cob_id & COB_EXTENDED else 0x7FF)
+        return cia301.pdo_can_id(self.cob_id)[0]
 
 
 @dataclass(frozen=True)
@@ -380,7 +366,7 @@ class _NodeConfigurator:
         comm, mapping = self._indices(pdo.kind, pdo.number)
         self.step = f"{pdo.kind.upper()}{pdo.number} ({msg.name})"
         cob = self._cob_id(msg)
-        self._sdo("disabling", comm, 1, _u(cob | PDO_INVALID, 4))
+        self._sdo("disabling", comm, 1, _u(cob | cia301.PDO_INVALID, 4))
         self._sdo("writing the transmission type", comm, 2, _u(pdo.transmission, 1))
         if pdo.inhibit_100us is not None:
             self._sdo("writing the inhibit time", comm, 3, _u(pdo.inhibit_100us, 2))
@@ -390,25 +376,22 @@ class _NodeConfigurator:
             self._sdo("writing the SYNC start value", comm, 6, _u(pdo.sync_start, 1))
         self._sdo("clearing the mapping", mapping, 0, _u(0, 1))
         for sub, entry in enumerate(pdo.entries, start=1):
-            self._sdo("mapping", mapping, sub, _u(entry.index << 16 | entry.sub << 8 | entry.bits, 4))
+            self._sdo("mapping", mapping, sub, _u(cia301.pack_mapping(entry.index, entry.sub, entry.bits), 4))
         self._sdo("writing the number of mapped objects", mapping, 0, _u(len(pdo.entries), 1))
         self._sdo("enabling", comm, 1, _u(cob, 4))
 
     @staticmethod
     def _indices(kind: str, number: int) -> tuple[int, int]:
-        if kind == "rpdo":
-            return RPDO_COMM + number - 1, RPDO_MAP + number - 1
-        return TPDO_COMM + number - 1, TPDO_MAP + number - 1
+        return cia301.pdo_comm_index(kind, number), cia301.pdo_map_index(kind, number)
 
     @staticmethod
     def _cob_id(msg: Message) -> int:
         """The COB-ID value to write: runtime.json's pdo.cob_id (the value in netcfg's DCF). A runtime.json written
-        before that key: the same flag bits derived here, RTR not allowed on TPDOs (CiA AN 802 discourages RTR)."""
+        before that key: the same value, from cia301.pdo_cob_id as the DCF."""
         assert msg.pdo is not None
         if msg.pdo.cob_id is not None:
             return msg.pdo.cob_id
-        value = msg.id | (COB_EXTENDED if msg.extended else 0)
-        return value | (RTR_NOT_ALLOWED if msg.pdo.kind == "tpdo" else 0)
+        return cia301.pdo_cob_id(msg.pdo.kind, msg.id, msg.extended)
 
     def disable_other_pdos(self) -> None:
         """Disable every PDO of the device the spec does not use: as many as runtime.json says it has, else the
@@ -431,8 +414,8 @@ class _NodeConfigurator:
                         if exc.code in ABORT_NO_OBJECT:
                             continue  # the device has fewer PDOs
                         raise
-                if not cob & PDO_INVALID:
-                    self._sdo("disabling the unused PDO", comm, 1, _u(cob | PDO_INVALID, 4))
+                if not cob & cia301.PDO_INVALID:
+                    self._sdo("disabling the unused PDO", comm, 1, _u(cob | cia301.PDO_INVALID, 4))
                 self.disabled.append((kind, number))
 
     def write_start_up(self, writes: Iterable[SdoWrite]) -> None:
@@ -443,7 +426,7 @@ class _NodeConfigurator:
             if size_sign is None:
                 raise self._fail(f"data type 0x{w.data_type:04X} of 0x{w.index:04X}:{w.sub:02X} is not an integer")
             size, signed = size_sign
-            lo, hi = (-(1 << (8 * size - 1)), (1 << (8 * size - 1)) - 1) if signed else (0, (1 << (8 * size)) - 1)
+            lo, hi = int_range(8 * size, signed)
             if not lo <= w.value <= hi:
                 raise self._fail(f"0x{w.index:04X}:{w.sub:02X} = {w.value} does not fit its data type")
             self._sdo("writing", w.index, w.sub, _u(w.value, size))
@@ -483,7 +466,7 @@ class _NodeConfigurator:
             problems += [f"{msg.pdo.kind.upper()}{msg.pdo.number} ({msg.name}) {p}" for p in _differences(msg, got)]
         for kind, number in self.disabled:
             comm, _ = self._indices(kind, number)
-            if not self._read_int(comm, 1) & PDO_INVALID:
+            if not self._read_int(comm, 1) & cia301.PDO_INVALID:
                 problems.append(f"unused {kind.upper()}{number} is still enabled")
         for w in self.written:
             signed = SDO_INTEGERS[w.data_type][1]
@@ -516,9 +499,7 @@ class _NodeConfigurator:
             inhibit_100us=self._read_int(comm, 3) if pdo.inhibit_100us is not None else None,
             event_timer_ms=self._read_int(comm, 5) if pdo.event_timer_ms is not None else None,
             sync_start=self._read_int(comm, 6) if pdo.sync_start is not None else None,
-            entries=tuple(
-                (v >> 16, (v >> 8) & 0xFF, v & 0xFF) for v in (self._read_int(mapping, s) for s in range(1, count + 1))
-            ),
+            entries=tuple(cia301.unpack_mapping(self._read_int(mapping, s)) for s in range(1, count + 1)),
         )
 
 
@@ -567,9 +548,9 @@ def configure_network(
     Returns one NodeSetup per node; never raises for a node's fault.
 
     `bus` stays open and usable by a MasterCycle afterwards: the Notifier this uses is stopped before returning."""
-    co_bus = _canopen_bus(cfg, bus_name)
+    co_bus = canopen_bus(cfg, bus_name)
     wanted = set(nodes) if nodes is not None else None
-    slaves = [n for n in _slaves(cfg, co_bus) if wanted is None or n.name in wanted]
+    slaves = [n for n in canopen_slaves(cfg, co_bus) if wanted is None or n.name in wanted]
     if wanted is not None and (unknown := wanted - {n.name for n in slaves}):
         raise ValueError(f"not CANopen slaves of bus '{co_bus.name}': {', '.join(sorted(unknown))}")
     network = canopen.Network(bus)
@@ -675,7 +656,9 @@ def _bus_failure(job: _NodeConfigurator, exc: Exception, received: bool) -> str:
     )
 
 
-def _canopen_bus(cfg: RuntimeConfig, bus_name: str | None) -> Bus:
+def canopen_bus(cfg: RuntimeConfig, bus_name: str | None) -> Bus:
+    """The CANopen bus named, or the config's only one; ValueError for a bus of another protocol, or when there is
+    no single CANopen bus to default to."""
     if bus_name is not None:
         bus = cfg.bus(bus_name)
         if bus.canopen is None:
@@ -688,7 +671,8 @@ def _canopen_bus(cfg: RuntimeConfig, bus_name: str | None) -> Bus:
     return buses[0]
 
 
-def _slaves(cfg: RuntimeConfig, bus: Bus) -> list[Node]:
+def canopen_slaves(cfg: RuntimeConfig, bus: Bus) -> list[Node]:
+    """The slaves a master configures and collects from: every node on the bus with a node id but the masters."""
     return [n for n in (cfg.node(name) for name in bus.nodes) if n.role != "master" and n.node_id is not None]
 
 
@@ -750,10 +734,11 @@ class TimeStats:
 
     @classmethod
     def of(cls, values: Sequence[float]) -> TimeStats:
+        """std is the population standard deviation (divided by n), as numpy's default and the simulator's
+        netcfg.sim.stats.spread: a run's values are all the values, not a sample of a larger set."""
         if not values:
             return cls(0, math.nan, math.nan, math.nan, math.nan)
-        std = statistics.stdev(values) if len(values) > 1 else 0.0
-        return cls(len(values), statistics.fmean(values), std, min(values), max(values))
+        return cls(len(values), statistics.fmean(values), statistics.pstdev(values), min(values), max(values))
 
     def ms(self) -> str:
         if not self.count:
@@ -958,18 +943,17 @@ class MasterCycle:
     ) -> None:
         self.cfg, self.bus, self.clock = cfg, bus, clock
         self.pause_gc = pause_gc
-        co_bus = _canopen_bus(cfg, bus_name)
+        co_bus = canopen_bus(cfg, bus_name)
         params = co_bus.canopen
         assert params is not None
         self.bus_name = co_bus.name
         self.master = _master(cfg, co_bus)
-        slaves = [n.name for n in _slaves(cfg, co_bus)]
+        slaves = [n.name for n in canopen_slaves(cfg, co_bus)]
         wanted = set(nodes) if nodes is not None else set(slaves)
         if unknown := wanted - set(slaves):
             raise ValueError(f"not CANopen slaves of bus '{co_bus.name}': {', '.join(sorted(unknown))}")
         self.period_s = period_s if period_s is not None else params.sync_period_ns / 1e9
-        window_ns = params.read_window_ns or params.sync_window_ns or params.sync_period_ns
-        self.read_window_s = read_window_s if read_window_s is not None else window_ns / 1e9
+        self.read_window_s = read_window_s if read_window_s is not None else params.collect_window_ns() / 1e9
         self.k_s = k_s
         self.drift_free = drift_free
         self.commands = commands
@@ -988,14 +972,21 @@ class MasterCycle:
             for m in on_bus
             if m.pdo is not None and m.pdo.kind == "tpdo" and m.pdo.node in wanted and self.master.name in m.consumers
         ]
-        self.expected = tuple(m for m in tpdos if m.pdo is not None and 1 <= m.pdo.transmission <= 240)
+        # transmission type 0 answers only SYNCs after its data changed: taken when it comes, never waited for nor
+        # counted missing (the analysis and the simulator assume it every SYNC, the worst case for the bus)
+        self._every = {
+            m.name: every
+            for m in tpdos
+            if m.pdo is not None and m.pdo.transmission != 0 and (every := cia301.sync_every(m.pdo.transmission))
+        }
+        self.expected = tuple(m for m in tpdos if m.name in self._every)
         self._by_id = {(m.id, m.extended): m for m in tpdos}
         self._last: dict[str, dict[str, Number]] = {m.name: _rest_values(m) for m in self.rpdos}
         self._rpdo_names = {m.name for m in self.rpdos}
         self.syncs = 0  # SYNCs sent; the drives count theirs from NMT start, so "every n-th" agrees
 
     def _due(self, sync_number: int) -> tuple[Message, ...]:
-        return tuple(m for m in self.expected if m.pdo is not None and sync_number % m.pdo.transmission == 0)
+        return tuple(m for m in self.expected if sync_number % self._every[m.name] == 0)
 
     def run(self, cycles: int) -> MasterRun:
         """Run `cycles` iterations. With pause_gc, Python's cyclic garbage collector is off meanwhile (and collects

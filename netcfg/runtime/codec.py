@@ -21,6 +21,13 @@ class CodecError(ValueError):
     pass
 
 
+def int_range(bits: int, signed: bool) -> tuple[int, int]:
+    """The smallest and largest integer of `bits` bits: two's complement when signed, else unsigned."""
+    if signed:
+        return -(1 << (bits - 1)), (1 << (bits - 1)) - 1
+    return 0, (1 << bits) - 1
+
+
 @dataclass(frozen=True)
 class Field:
     name: str
@@ -39,9 +46,7 @@ class Field:
         return not self.is_float and self.scale == 1 and self.offset == 0
 
     def raw_range(self) -> tuple[int, int]:
-        if self.signed:
-            return -(1 << (self.bits - 1)), (1 << (self.bits - 1)) - 1
-        return 0, (1 << self.bits) - 1
+        return int_range(self.bits, self.signed)
 
     def to_raw(self, value: Number) -> int:
         if isinstance(value, float) and not math.isfinite(value) and not self.is_float:

@@ -16,7 +16,7 @@ server and an NMT slave; this module adds what a LocalNode does not do on its ow
   separate devices do, instead of one after the other.
 
 Its factory state (clear_pdos=True) has every PDO disabled and nothing mapped, so only a master that configures it
-gets data. It imports only the standard library, python-can, canopen and netcfg.runtime.
+gets data. It imports only the standard library, python-can, canopen, netcfg.runtime and netcfg.cia301.
 """
 
 from __future__ import annotations
@@ -36,18 +36,18 @@ from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 from canopen.objectdictionary.datatypes import NUMBER_TYPES, SIGNED_TYPES
 from canopen.sdo import SdoAbortedError
 
+from netcfg import cia301
+from netcfg.cia301 import PDO_INVALID, RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP
 from netcfg.runtime import RuntimeConfig
+from netcfg.runtime.canopen_master import canopen_bus, canopen_slaves
 from netcfg.runtime.clock import Clock, SystemClock
+from netcfg.runtime.codec import int_range
 
 __all__ = ["DriveBench", "DriveModel", "ResponseScheduler", "SimulatedDrive", "follow_velocity"]
 
 log = logging.getLogger(__name__)
 
-PDO_INVALID = 1 << 31  # COB-ID bit 31: the PDO does not exist / is disabled (CiA 301)
-COB_EXTENDED = 1 << 29  # COB-ID bit 29: 29-bit identifier
-COB_ID_MASK = 0x1FFFFFFF
-RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP = 0x1400, 0x1600, 0x1800, 0x1A00
-PDO_SLOTS = 512  # CiA 301: up to 512 PDOs per direction
+PDO_SLOTS = cia301.MAX_PDOS
 MAX_PDO_BITS = 64  # a classic CAN frame
 
 # SDO abort codes (CiA 301, table 22) the drive answers with
@@ -251,9 +251,7 @@ class SimulatedDrive:
         """Set an object as the application would (no SDO checks); integers are clamped to the type's range."""
         var = self._require(index, sub)
         if var.data_type in NUMBER_TYPES and isinstance(value, int):
-            bits = len(var)
-            signed = var.data_type in SIGNED_TYPES
-            lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
+            lo, hi = int_range(len(var), var.data_type in SIGNED_TYPES)
             value = min(max(value, lo), hi)
         self._store(index, sub, var.encode_raw(value))
 
@@ -275,7 +273,7 @@ class SimulatedDrive:
 
     def _store(self, index: int, sub: int, data: bytes) -> None:
         self.node.data_store.setdefault(index, {})[sub] = bytes(data)
-        if index == 0x1005 or RPDO_COMM <= index < TPDO_MAP + PDO_SLOTS:
+        if index == 0x1005 or index in cia301.PDO_PARAMETERS:
             self._dirty = True
 
     def _int(self, index: int, sub: int, default: int = 0) -> int:
@@ -325,14 +323,12 @@ class SimulatedDrive:
     def _slot(self, comm: int, mapping: int, n: int) -> _PdoSlot:
         cob = self._int(comm + n, 1, PDO_INVALID)
         count = self._int(mapping + n, 0)
-        entries = []
-        for sub in range(1, count + 1):
-            value = self._int(mapping + n, sub)
-            entries.append((value >> 16, (value >> 8) & 0xFF, value & 0xFF))
+        entries = [cia301.unpack_mapping(self._int(mapping + n, sub)) for sub in range(1, count + 1)]
+        can_id, extended = cia301.pdo_can_id(cob)
         return _PdoSlot(
             number=n + 1,
-            can_id=cob & (COB_ID_MASK if cob & COB_EXTENDED else 0x7FF),
-            extended=bool(cob & COB_EXTENDED),
+            can_id=can_id,
+            extended=extended,
             valid=not cob & PDO_INVALID,
             transmission=self._int(comm + n, 2, 255),
             sync_start=self._int(comm + n, 6),
@@ -364,7 +360,7 @@ class SimulatedDrive:
         if self.strict_pdo_writes:
             self._check_pdo_write(index, subindex, od, data)
         self.sdo_writes.append((index, subindex))
-        if index == 0x1005 or RPDO_COMM <= index < TPDO_MAP + PDO_SLOTS:
+        if index == 0x1005 or index in cia301.PDO_PARAMETERS:
             self._dirty = True  # LocalNode stores the value after this callback; re-read it at the next frame
 
     def _check_pdo_write(self, index: int, sub: int, od: ODVariable, data: bytes) -> None:
@@ -377,10 +373,10 @@ class SimulatedDrive:
             if sub == 1:
                 old = self._int(index, 1, PDO_INVALID)
                 # CiA 301: the identifier of a valid PDO cannot change; disable it first
-                if not old & PDO_INVALID and not value & PDO_INVALID and (old ^ value) & COB_ID_MASK:
+                if not old & PDO_INVALID and not value & PDO_INVALID and (old ^ value) & cia301.COB_ID_MASK:
                     raise SdoAbortedError(ABORT_VALUE_RANGE)
             return
-        comm = index - 0x200
+        comm = index - cia301.MAP_OFFSET
         if not self._int(comm, 1, PDO_INVALID) & PDO_INVALID:
             raise SdoAbortedError(ABORT_DEVICE_STATE)  # mapping of a valid PDO
         if sub == 0:
@@ -393,8 +389,8 @@ class SimulatedDrive:
             raise SdoAbortedError(ABORT_DEVICE_STATE)  # entries change only while sub-index 0 is 0
         if value == 0:
             return
-        target, target_sub, bits = value >> 16, (value >> 8) & 0xFF, value & 0xFF
-        if 0x0001 <= target <= 0x0007:  # dummy entries (CiA 301 data types) just reserve bits
+        target, target_sub, bits = cia301.unpack_mapping(value)
+        if cia301.is_dummy(target, target_sub):  # a dummy entry just reserves bits
             return
         var = self._variable(target, target_sub)
         if var is None or not var.pdo_mappable or bits == 0 or bits > len(var):
@@ -479,21 +475,24 @@ class SimulatedDrive:
         for slot in self._tpdos:
             if not slot.valid or not slot.entries:
                 continue
-            tt = slot.transmission
-            if 1 <= tt <= 240:
-                if slot.sync_start and counter is not None and slot.number not in self._sync_started:
-                    if counter != slot.sync_start:
-                        continue  # CiA 301: the first SYNC counted is the one carrying the start value
-                    self._sync_started.add(slot.number)
-                count = self._sync_counts.get(slot.number, 0) + 1
-                self._sync_counts[slot.number] = count
-                if count % tt == 0:
-                    answers.append((slot, self._pack(slot)))
-            elif tt == 0:
-                payload = self._pack(slot)  # acyclic synchronous: sent at a SYNC after its data changed
+            every = cia301.sync_every(slot.transmission)
+            if every is None:
+                continue  # event-driven or RTR-only: no answer to SYNC
+            if slot.transmission == 0:
+                # acyclic synchronous: sent at a SYNC after its data changed (every SYNC is only its worst case)
+                payload = self._pack(slot)
                 if self._last_acyclic.get(slot.number) != payload:
                     self._last_acyclic[slot.number] = payload
                     answers.append((slot, payload))
+                continue
+            if slot.sync_start and counter is not None and slot.number not in self._sync_started:
+                if counter != slot.sync_start:
+                    continue  # CiA 301: the first SYNC counted is the one carrying the start value
+                self._sync_started.add(slot.number)
+            count = self._sync_counts.get(slot.number, 0) + 1
+            self._sync_counts[slot.number] = count
+            if count % every == 0:
+                answers.append((slot, self._pack(slot)))
         if not answers:
             return
         if self.response_delay_s > 0 and self._scheduler is not None:
@@ -525,7 +524,7 @@ class SimulatedDrive:
         acc, offset = 0, 0
         for index, sub, bits in slot.entries:
             raw = 0
-            if not 0x0001 <= index <= 0x0007:
+            if not cia301.is_dummy(index, sub):
                 raw = int.from_bytes(self.node.get_data(index, sub), "little") & ((1 << bits) - 1)
             acc |= raw << offset
             offset += bits
@@ -535,7 +534,7 @@ class SimulatedDrive:
         if 8 * len(data) < slot.bits:
             self.rpdo_length_errors += 1
             return
-        if slot.transmission <= 240:
+        if cia301.sync_every(slot.transmission) is not None:
             self._pending[slot.number] = (slot, data)  # synchronous RPDO: takes effect at the next SYNC
         else:
             self._apply(slot, data)
@@ -587,7 +586,7 @@ class DriveBench:
         separate_connections: bool = False,
         **drive_options: Any,
     ) -> None:
-        bus = _canopen_bus(cfg, bus_name)
+        bus = canopen_bus(cfg, bus_name)
         wanted = set(nodes) if nodes is not None else None
         self.channel, self.interface = channel, interface
         self.separate_connections = separate_connections
@@ -596,10 +595,11 @@ class DriveBench:
         self.scheduler: ResponseScheduler | None = None
         self.drives: dict[str, SimulatedDrive] = {}
         self._buses: list[can.BusABC] = []
-        for name in bus.nodes:
-            node = cfg.node(name)
-            if node.role == "master" or node.node_id is None or (wanted is not None and name not in wanted):
+        for node in canopen_slaves(cfg, bus):
+            name = node.name
+            if wanted is not None and name not in wanted:
                 continue
+            assert node.node_id is not None
             kwargs = {**drive_options, **(options or {}).get(name, {})}
             if canopen_dir is not None:
                 eds = Path(canopen_dir) / f"{name}.eds"
@@ -649,13 +649,3 @@ class DriveBench:
 
     def __getitem__(self, name: str) -> SimulatedDrive:
         return self.drives[name]
-
-
-def _canopen_bus(cfg: RuntimeConfig, bus_name: str | None) -> Any:
-    if bus_name is not None:
-        return cfg.bus(bus_name)
-    buses = [b for b in cfg.buses if b.canopen is not None]
-    if len(buses) != 1:
-        names = ", ".join(b.name for b in buses) or "none"
-        raise ValueError(f"{cfg.system}: say which CANopen bus (bus_name); it has {names}")
-    return buses[0]

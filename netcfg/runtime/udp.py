@@ -482,7 +482,9 @@ class RttStats:
 
 
 def rtt_stats(samples_ns: Iterable[int]) -> RttStats:
-    """min/mean/p50/p99/max in microseconds; percentiles by nearest rank (the ceil(p*n)-th smallest sample)."""
+    """min/mean/p50/p99/max in microseconds; percentiles by nearest rank (the ceil(p*n)-th smallest sample), the
+    definition the simulator's reports use (netcfg.sim.stats: numpy's inverted_cdf), written out here because the
+    runtime does without numpy."""
     xs = sorted(samples_ns)
     if not xs:
         raise ValueError("no round-trip samples")

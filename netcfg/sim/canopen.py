@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE
+from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE, sync_every
 from netcfg.runtime import Bus, Message
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.stats import spread
@@ -53,8 +53,10 @@ class CanopenMaster:
         self.master = co.sync_producer
         self.sync = next(m for m in msgs if m.implicit == "SYNC")
         self.rpdos = [m for m in msgs if m.pdo is not None and m.pdo.kind == "rpdo" and m.producer == self.master]
-        self.tpdos = [m for m in msgs if m.pdo is not None and m.pdo.kind == "tpdo" and m.pdo.transmission <= 240]
-        self.every = {m.name: max(1, m.pdo.transmission) for m in self.tpdos if m.pdo is not None}
+        every = {m.name: sync_every(m.pdo.transmission) for m in msgs if m.pdo is not None and m.pdo.kind == "tpdo"}
+        # TPDOs answering SYNC, every how many SYNCs; type 0 answers every SYNC here, its worst case
+        self.every = {name: n for name, n in every.items() if n is not None}
+        self.tpdos = [m for m in msgs if m.name in self.every]
         self.drives = sorted({m.producer for m in self.tpdos} | {c for m in self.rpdos for c in m.consumers})
         self.owned = {self.sync.name} | {m.name for m in self.rpdos} | {m.name for m in self.tpdos}
         self.cycles: list[Cycle] = []
@@ -116,7 +118,7 @@ class CanopenMaster:
         n = len(self.cycles)  # this cycle's SYNC is the n-th: a TPDO of type k answers every k-th (CiA 301)
         cyc.expected = tuple(m.name for m in self.tpdos if n % self.every[m.name] == 0)
         sc.submit(self.sync.name)
-        window = self.co.read_window_ns or self.co.sync_period_ns
+        window = self.co.collect_window_ns()
         sc.sim.at(sc.sim.now + window, self._read_window_over, cyc)
 
     def _on_sync(self, end: int, _src: int, _release: int, _data: bytes | None) -> None:

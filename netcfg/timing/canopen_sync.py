@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import lcm
 
-from netcfg import model
+from netcfg import cia301, model
 
 MAX_CYCLES = 240 * 8
 
@@ -32,11 +32,13 @@ class SyncCycle:
 
 
 def sync_transmissions(bus: model.Bus) -> dict[str, int]:
-    """Synchronous TPDOs of the bus and every how many SYNCs they go out (type 0 counts as every SYNC)."""
+    """Synchronous TPDOs of the bus and every how many SYNCs they go out (cia301.sync_every: type 0 counts as every
+    SYNC, its worst case)."""
     out = {}
     for m in bus.messages:
-        if m.pdo is not None and m.pdo.kind == "tpdo" and m.pdo.transmission <= 240:
-            out[m.name] = max(1, m.pdo.transmission)
+        every = cia301.sync_every(m.pdo.transmission) if m.pdo is not None and m.pdo.kind == "tpdo" else None
+        if every is not None:
+            out[m.name] = every
     return out
 
 
