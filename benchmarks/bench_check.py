@@ -38,7 +38,7 @@ from netcfg.analyze import analyze, rta_frames
 from netcfg.check import load_model
 from netcfg.diagnostics import Collector
 from netcfg.model import Model
-from netcfg.timing import can_rta
+from netcfg.timing import can_rta, load
 from netcfg.timing.frames import bits_to_ns
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -76,7 +76,7 @@ def wall(spec: Path, runs: int) -> tuple[list[float], int]:
 def can_frames(model: Model) -> tuple[list[can_rta.CanFrame], int]:
     """The frames of the first plain-CAN bus (large_plant: `plant`) and its bit time."""
     bus = next(b for b in model.buses.values() if b.protocol == "can")
-    return rta_frames(bus, bus.messages), bits_to_ns(1, bus.bitrate)
+    return rta_frames(bus.messages, load.can_bus_load(bus)[0]), bits_to_ns(1, bus.bitrate)
 
 
 def pycpa_analyse(frames: list[can_rta.CanFrame], tau_ns: int, peer: str, runs: int) -> tuple[list[float], Any]:

@@ -90,14 +90,14 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
             )
 
 
-def rta_frames(bus: model.Bus, msgs: list[model.Message]) -> list[can_rta.CanFrame]:
-    """The bus's messages as the response-time analysis sees them (worst-case frame times from the load)."""
+def rta_frames(msgs: list[model.Message], timings: dict[str, load.FrameTiming]) -> list[can_rta.CanFrame]:
+    """The messages as the response-time analysis sees them (worst-case frame times from the load)."""
     return [
         can_rta.CanFrame(
             msg.name,
             msg.id,
             msg.extended,
-            load.frame_timing(msg, bus.bitrate).tx_ns,
+            timings[msg.name].tx_ns,
             msg.interval_ns,
             msg.jitter_ns,
             msg.deadline_ns,
@@ -108,12 +108,13 @@ def rta_frames(bus: model.Bus, msgs: list[model.Message]) -> list[can_rta.CanFra
 
 def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     timings, worst, nominal = load.can_bus_load(bus)
+    # (nominal, worst-case) frame time of each message: without and with stuff bits
+    frame_ns = {name: (bits_to_ns(t.bits_nominal, bus.bitrate), t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
-    plain = can_rta.analyse(rta_frames(bus, bus.messages), tau)
+    plain = can_rta.analyse(rta_frames(bus.messages, timings), tau)
     for msg in bus.messages:
-        best = bits_to_ns(timings[msg.name].bits_nominal, bus.bitrate)
-        acc.plain[msg.name] = flows.Delivery(best, plain[msg.name].wcrt_ns)
+        acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], plain[msg.name].wcrt_ns)
     out: dict[str, Any] = {
         "name": bus.name,
         "protocol": bus.protocol,
@@ -123,7 +124,7 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
         "messages": rows,
     }
     if bus.ftt is not None:
-        out["ftt"] = analyze_ftt(m, bus, rows, timings, diags, acc)
+        out["ftt"] = analyze_ftt(m, bus, rows, frame_ns, diags, acc)
         out["utilization_with_tm"] = round(worst + out["ftt"]["tm_overhead"], 6)
     else:
         for row, msg in zip(rows, bus.messages):
@@ -134,7 +135,7 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             row["instances"] = r.instances
             acc.chained[msg.name] = acc.plain[msg.name]
     if bus.canopen is not None:
-        out["sync"] = analyze_sync(m, bus, timings, diags, acc)
+        out["sync"] = analyze_sync(m, bus, frame_ns, diags, acc)
     if worst > 1:
         diags.add(
             "overload",
@@ -147,17 +148,17 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
 
 
 def analyze_sync(
-    m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming], diags: Collector, acc: _Analysis
+    m: model.Model, bus: model.Bus, frame_ns: dict[str, tuple[int, int]], diags: Collector, acc: _Analysis
 ) -> dict[str, Any]:
     co = bus.canopen
     assert co is not None
-    cycles = canopen_sync.analyse(bus, {k: t.tx_ns for k, t in timings.items()})
+    cycles = canopen_sync.analyse(bus, {name: worst for name, (_, worst) in frame_ns.items()})
     sync_msg = next(msg for msg in bus.messages if msg.implicit == "SYNC")
     acc.canopen[bus.name] = flows.SyncTimes(
         period_ns=co.sync_period_ns,
         sync=acc.chained[sync_msg.name],
         every=canopen_sync.sync_transmissions(bus),
-        frame_ns={name: bits_to_ns(t.bits_nominal, bus.bitrate) for name, t in timings.items()},
+        frame_ns={name: nominal for name, (nominal, _) in frame_ns.items()},
         completion_ns=[c.completion_ns for c in cycles],
     )
     rows = []
@@ -206,7 +207,7 @@ def analyze_ftt(
     m: model.Model,
     bus: model.Bus,
     rows: list[dict[str, Any]],
-    timings: dict[str, load.FrameTiming],
+    frame_ns: dict[str, tuple[int, int]],
     diags: Collector,
     acc: _Analysis,
 ) -> dict[str, Any]:
@@ -225,7 +226,7 @@ def analyze_ftt(
             "(multiples of each other)",
             m.source.at((*bus.path, "ftt")),
         )
-        tm_ns = ftt.tm_time_ns(bus)
+        tm_ns = ftt.tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
         return {
             "ec_us": us(bus.ftt.ec_ns),
             "tm_us": us(tm_ns),
@@ -234,10 +235,6 @@ def analyze_ftt(
             "macro_cycle_ec": exc.ecs,
             "srt": [srt_row(e) for e in entries],
         }
-    frame_ns = {
-        msg.name: (bits_to_ns(timings[msg.name].bits_nominal, bus.bitrate), timings[msg.name].tx_ns)
-        for msg in bus.messages
-    }
     acc.ftt[bus.name] = flows.FttTimes(sched, frame_ns, {e.name: (e.period_ec, e.init_ec) for e in entries})
     for label, s in (("", sched), (" at the fastest periods of period_range", fastest)):
         for slot in s.slots:
@@ -259,7 +256,7 @@ def analyze_ftt(
             sync_worst[name] = max(sync_worst.get(name, 0), end)
     async_msgs = [msg for msg in bus.messages if msg.window == "async"]
     async_frames = [
-        ftt.AsyncFrame(msg.name, msg.id, timings[msg.name].tx_ns, msg.interval_ns, msg.jitter_ns, msg.extended)
+        ftt.AsyncFrame(msg.name, msg.id, frame_ns[msg.name][1], msg.interval_ns, msg.jitter_ns, msg.extended)
         for msg in async_msgs
     ]
     async_worst = ftt.async_response_times(sched, async_frames)

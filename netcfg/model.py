@@ -10,7 +10,6 @@ from fractions import Fraction
 from typing import Literal
 
 from netcfg.devices import DeviceProfile
-from netcfg.diagnostics import Diagnostic
 from netcfg.spec.source import Path, SourceMap
 
 Protocol = Literal["can", "canopen", "ftt-can", "ethernet-udp"]
@@ -134,7 +133,7 @@ class Trigger:
 class FttBus:
     ec_ns: int
     tm_size: int
-    lsw_ns: int | None
+    lsw_ns: int  # the spec's LSW, by default EC - TM (the whole EC after the trigger message)
     tm_id: int
     master: str
 
@@ -200,9 +199,12 @@ class Model:
     messages: dict[str, Message]
     triggers: dict[str, Trigger]
     flows: dict[str, Flow]
-    warnings: list[Diagnostic] = field(default_factory=list)
     description: str | None = None
 
     def task(self, ref: str) -> Task:
         node, name = ref.split(".", 1)
         return self.nodes[node].tasks[name]
+
+
+# What the spec can give a description: free text the emitters escape for their format.
+Described = Model | Bus | Node | Task | Message | Trigger | Flow

@@ -5,21 +5,23 @@ from __future__ import annotations
 from typing import Any
 
 
-def _fmt(value: Any) -> str:
-    """One way for every number: thousands separated, at most 3 decimals, no trailing zeros."""
+def num(value: Any, false: str = "no") -> str:
+    """One way for every number of the reports (this text and report.md): thousands separated, at most 3
+    decimals, no trailing zeros; None is '-', a boolean 'yes' or `false`."""
     if value is None:
         return "-"
     if isinstance(value, bool):
-        return "yes" if value else "NO"
+        return "yes" if value else false
     if isinstance(value, (int, float)):
         return f"{value:,.3f}".rstrip("0").rstrip(".")
     return str(value)
 
 
-def _rate(bitrate: int) -> str:
+def rate(bitrate: int) -> str:
+    """A bit rate in the largest unit it reaches: 1 Mbit/s, 250 kbit/s."""
     for unit, scale in (("Gbit/s", 10**9), ("Mbit/s", 10**6), ("kbit/s", 10**3)):
         if bitrate >= scale:
-            return f"{_fmt(bitrate / scale)} {unit}"
+            return f"{num(bitrate / scale)} {unit}"
     return f"{bitrate} bit/s"
 
 
@@ -43,7 +45,7 @@ def render(report: dict[str, Any]) -> str:
     for bus in report["buses"]:
         out.append("")
         out.append(
-            f"bus {bus['name']} ({bus['protocol']}, {_rate(bus['bitrate'])}): "
+            f"bus {bus['name']} ({bus['protocol']}, {rate(bus['bitrate'])}): "
             f"utilisation {bus['utilization']:.1%} worst case"
             + (f", {bus['utilization_with_tm']:.1%} with the trigger message" if "ftt" in bus else "")
         )
@@ -55,13 +57,13 @@ def render(report: dict[str, Any]) -> str:
                     m["name"],
                     ident,
                     str(m["size"]),
-                    _fmt(m["interval_us"]),
+                    num(m["interval_us"]),
                     str(m["frame_bits_worst"]),
-                    _fmt(m["tx_us"]),
+                    num(m["tx_us"]),
                     f"{m['utilization']:.2%}",
-                    _fmt(m["wcrt_us"]),
-                    _fmt(m["deadline_us"]),
-                    _fmt(m["schedulable"]),
+                    num(m["wcrt_us"]),
+                    num(m["deadline_us"]),
+                    num(m["schedulable"], false="NO"),
                 ]
             )
         headers = ["message", "id", "bytes", "every/us", "bits", "tx/us", "load", "wcrt/us", "deadline/us", "ok"]
@@ -71,13 +73,13 @@ def render(report: dict[str, Any]) -> str:
         if "sync" in bus:
             s = bus["sync"]
             out.append(
-                f"  SYNC every {_fmt(s['period_us'])} us from {s['producer']}: up to {s['max_tpdos_per_cycle']} "
-                f"synchronous TPDOs, the last done {_fmt(s['worst_completion_us'])} us after SYNC "
-                f"(window {_fmt(s['window_us'])} us, read window {_fmt(s['read_window_us'])} us)"
+                f"  SYNC every {num(s['period_us'])} us from {s['producer']}: up to {s['max_tpdos_per_cycle']} "
+                f"synchronous TPDOs, the last done {num(s['worst_completion_us'])} us after SYNC "
+                f"(window {num(s['window_us'])} us, read window {num(s['read_window_us'])} us)"
             )
         if "links" in bus:
             out.append(
-                f"  minimum frame {_fmt(bus['min_frame_us'])} us, f_max {bus['f_max_hz'] / 1000:.2f} kHz per link"
+                f"  minimum frame {num(bus['min_frame_us'])} us, f_max {bus['f_max_hz'] / 1000:.2f} kHz per link"
             )
             rows = [
                 [
@@ -86,7 +88,7 @@ def render(report: dict[str, Any]) -> str:
                     f"{ll['frames_per_s'] / 1000:.2f}",
                     f"{ll['f_max_per_sender_hz'] / 1000:.2f}",
                     f"{ll['utilization']:.2%}",
-                    _fmt(ll["ok"]),
+                    num(ll["ok"], false="NO"),
                 ]
                 for ll in bus["links"]
             ]
@@ -102,9 +104,9 @@ def render(report: dict[str, Any]) -> str:
                 [
                     f["name"],
                     f["mode"],
-                    f"{_fmt(sync['latency_min_us'])} .. {_fmt(sync['latency_max_us'])}" if sync else "-",
-                    f"{_fmt(u['latency_min_us'])} .. {_fmt(u['latency_max_us'])}",
-                    _fmt(f["deadline_us"]),
+                    f"{num(sync['latency_min_us'])} .. {num(sync['latency_max_us'])}" if sync else "-",
+                    f"{num(u['latency_min_us'])} .. {num(u['latency_max_us'])}",
+                    num(f["deadline_us"]),
                 ]
             )
         out.extend(table(["flow", "mode", "synchronised", "unsynchronised", "deadline"], rows, "llrrr"))
@@ -115,12 +117,12 @@ def render(report: dict[str, Any]) -> str:
 
 def render_ftt(f: dict[str, Any]) -> list[str]:
     out = [
-        f"  FTT-CAN: EC {_fmt(f['ec_us'])} us, trigger message {_fmt(f['tm_us'])} us (overhead "
-        f"{f['tm_overhead']:.1%}), LSW {_fmt(f['lsw_us'])} us, macro-cycle {_fmt(f['macro_cycle_ec'])} ECs"
+        f"  FTT-CAN: EC {num(f['ec_us'])} us, trigger message {num(f['tm_us'])} us (overhead "
+        f"{f['tm_overhead']:.1%}), LSW {num(f['lsw_us'])} us, macro-cycle {num(f['macro_cycle_ec'])} ECs"
     ]
     if "worst_ec" in f:
         w = f["worst_ec"]
-        out[0] += f"; busiest EC {w['index']} needs {_fmt(w['sync_us'])} us of synchronous window"
+        out[0] += f"; busiest EC {w['index']} needs {num(w['sync_us'])} us of synchronous window"
     rows = [
         [
             str(e["id"]),
@@ -129,7 +131,7 @@ def render_ftt(f: dict[str, Any]) -> list[str]:
             e["producer"] or "-",
             str(e["period_ec"]),
             str(e["init_ec"]),
-            _fmt(e["c_us"]),
+            num(e["c_us"]),
         ]
         for e in f["srt"]
     ]

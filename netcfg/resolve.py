@@ -19,14 +19,14 @@ from netcfg.diagnostics import Collector
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
 from netcfg.spec.units import Duration, format_ns
-from netcfg.timing.frames import CAN_MAX_PAYLOAD, MAX_UDP_PAYLOAD, bits_to_ns, can_frame_bits
+from netcfg.timing.frames import CAN_MAX_PAYLOAD, MAX_UDP_PAYLOAD
+from netcfg.timing.ftt import tm_time_ns
 from netcfg.timing.offsets import derive_offsets
 
 CAN_PROTOCOLS = ("can", "canopen", "ftt-can")
 MAX_CAN_BITRATE = 1_000_000  # classical CAN, ISO 11898-1
 _OBJECT_REF = re.compile(r"^\s*(0x[0-9A-Fa-f]{1,4}|[0-9]{1,5})\s*(?:(?::|sub)\s*(0x[0-9A-Fa-f]{1,2}|[0-9]{1,3}))?\s*$")
 # CiA 301 dummy mapping: index 0x0001-0x0007 stands for a data type, to skip bytes in an RPDO.
-DUMMY_TYPES = range(0x0002, 0x0008)
 
 
 def resolve(spec: schema.Spec, smap: SourceMap, diags: Collector, spec_dir: FsPath) -> model.Model | None:
@@ -39,11 +39,9 @@ def resolve(spec: schema.Spec, smap: SourceMap, diags: Collector, spec_dir: FsPa
 
 
 def snake(text: str) -> str:
-    """'Position actual value' -> 'position_actual_value' (a safe name for generated code)."""
-    s = re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower()
-    if not s or not s[0].isalpha():
-        s = "obj_" + s
-    return s[:63]
+    """'Position actual value' -> 'position_actual_value', the signal name of a mapped device object; a name
+    check_name refuses gets 'obj_' in front ('1st' -> 'obj_1st') or '_obj' behind ('Switch' -> 'switch_obj')."""
+    return schema.safe_name(re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower(), "obj", "_obj")
 
 
 class _Resolver:
@@ -86,6 +84,36 @@ class _Resolver:
             self.err("ec-unit", f"'{value}' is in elementary cycles, which only FTT-CAN buses have; use ms or us", path)
         return out
 
+    def check_offset(self, offset: int | None, period: int | None, path: Path, what: str = "the period") -> None:
+        """An offset shifts releases within one period (path: the item with the 'offset' key)."""
+        if offset is not None and period is not None and offset >= period:
+            self.err(
+                "offset",
+                f"offset {format_ns(offset)} must be smaller than {what} {format_ns(period)}",
+                (*path, "offset"),
+            )
+
+    def period_range(
+        self, given: tuple[Duration, Duration], period: int | None, path: Path, ec: int | None
+    ) -> int | None:
+        """FTT-CAN on-line rate adaptation (messages and triggers): [fastest, slowest] around the period, both
+        whole numbers of ECs. -> the fastest period, or None when a bound could not be read."""
+        rpath = (*path, "period_range")
+        lo = self.ns(given[0], (*rpath, 0), ec)
+        hi = self.ns(given[1], (*rpath, 1), ec)
+        if lo is None or hi is None or period is None:
+            return None
+        if not 0 < lo <= period <= hi:
+            self.err(
+                "period-range",
+                f"need 0 < fastest <= period <= slowest; got {format_ns(lo)}, {format_ns(period)}, {format_ns(hi)}",
+                rpath,
+            )
+        for k, v in enumerate((lo, hi)):
+            if ec and v % ec:
+                self.err("ec-multiple", f"{format_ns(v)} is not a whole number of ECs ({format_ns(ec)})", (*rpath, k))
+        return lo
+
     def ec_of(self, bus_names: Iterable[str]) -> int | None:
         ecs = [b.ftt.ec.ns for n in bus_names if (b := self.spec_buses.get(n)) and b.ftt and b.ftt.ec.ns]
         return ecs[0] if len(ecs) == 1 else None
@@ -105,7 +133,6 @@ class _Resolver:
         self.resolve_flows()
         if not self.d.errors:
             derive_offsets(self.model, self.err)
-        self.model.warnings = list(self.d.warnings)
 
     def check_unique_names(self) -> None:
         kinds: list[tuple[str, list[tuple[str, Any]]]] = [
@@ -195,7 +222,7 @@ class _Resolver:
             return
         ec = f.ec.ns
         lsw = self.ns(f.lsw, (*fpath, "lsw"), ec)
-        tm_ns = bits_to_ns(can_frame_bits(f.tm_size, b.id_bits == 29), b.bitrate)
+        tm_ns = tm_time_ns(f.tm_size, b.id_bits == 29, b.bitrate)
         if lsw is not None and lsw + tm_ns > ec:
             self.err(
                 "lsw",
@@ -218,7 +245,9 @@ class _Resolver:
         elif master not in self.spec_nodes or b.name not in self.spec_nodes[master].buses:
             self.err("unknown-node", f"FTT-CAN master '{master}' is not a node on bus '{b.name}'", (*fpath, "master"))
             return
-        bus.ftt = model.FttBus(ec_ns=ec, tm_size=f.tm_size, lsw_ns=lsw, tm_id=f.tm_id, master=master)
+        bus.ftt = model.FttBus(
+            ec_ns=ec, tm_size=f.tm_size, lsw_ns=ec - tm_ns if lsw is None else lsw, tm_id=f.tm_id, master=master
+        )
 
     def resolve_canopen(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
         if b.canopen is None:
@@ -261,8 +290,6 @@ class _Resolver:
                 "unknown-node", f"SYNC producer '{producer}' is not a node on bus '{b.name}'", (*cpath, "sync_producer")
             )
             return
-        if c.sync_id > 0x7FF:
-            self.err("id-range", "the SYNC COB-ID must be an 11-bit identifier", (*cpath, "sync_id"))
         bus.canopen = model.CanopenBus(
             sync_period_ns=period, sync_window_ns=window, read_window_ns=read, sync_producer=producer, sync_id=c.sync_id
         )
@@ -284,7 +311,7 @@ class _Resolver:
             protocols = {self.spec_buses[b].protocol for b in n.buses if b in self.spec_buses}
             on_canopen = "canopen" in protocols
             if n.node_id is not None:
-                if on_canopen and not 1 <= n.node_id <= 127:
+                if on_canopen and n.node_id not in cia301.NODE_IDS:
                     self.err("node-id", f"CANopen node ids are 1..127; '{n.name}' has {n.node_id}", (*path, "node_id"))
                 elif not 0 <= n.node_id <= 255:
                     self.err("node-id", f"node ids are 0..255; '{n.name}' has {n.node_id}", (*path, "node_id"))
@@ -382,12 +409,7 @@ class _Resolver:
             if period <= 0:
                 self.err("period", "a task period must be above zero", (*path, "period"))
             else:
-                if offset >= period:
-                    self.err(
-                        "offset",
-                        f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
-                        (*path, "offset"),
-                    )
+                self.check_offset(offset, period, path)
                 if wcet > period:
                     self.err(
                         "wcet",
@@ -399,12 +421,7 @@ class _Resolver:
         sync_bus = None
         if t.sync:
             sync_bus, period = self.sync_task(node, t, path, period)
-            if period is not None and offset >= period:
-                self.err(
-                    "offset",
-                    f"offset {format_ns(offset)} must be smaller than the SYNC period {format_ns(period)}",
-                    (*path, "offset"),
-                )
+            self.check_offset(offset, period, path, "the SYNC period")
         return model.Task(
             description=t.description,
             node=node,
@@ -592,7 +609,7 @@ class _Resolver:
                     )
         if pdo is not None and ident is None:
             node = self.spec_nodes[pdo.device_node]
-            if node.node_id is not None and 1 <= node.node_id <= 127:
+            if node.node_id is not None and node.node_id in cia301.NODE_IDS:
                 ident = cia301.default_pdo_cob_id(pdo.kind, pdo.number, node.node_id)
             if ident is None:
                 self.err(
@@ -647,10 +664,7 @@ class _Resolver:
         if rate is not None:
             if period is not None:
                 self.err("period", "give either 'period' or 'rate', not both", (*path, "rate"))
-            period = round(1_000_000_000 / rate)
-            if period == 0:
-                self.err("rate", "the rate is above 1 GHz", (*path, "rate"))
-                return None
+            period = round(1_000_000_000 / rate)  # at least 1: units.parse_frequency admits at most 1 GHz
         kind = m.type
         # CANopen PDOs: the transmission type says when a TPDO goes out (CiA 301, 0x1800 sub 2).
         if pdo is not None and pdo.kind == "tpdo" and bus.canopen is not None:
@@ -715,24 +729,8 @@ class _Resolver:
             if bus.protocol != "ftt-can" or kind != "periodic":
                 self.err("period-range", "period_range is for periodic FTT-CAN messages", (*path, "period_range"))
             else:
-                lo = self.ns(m.period_range[0], (*path, "period_range", 0), ec)
-                hi = self.ns(m.period_range[1], (*path, "period_range", 1), ec)
-                if lo is not None and hi is not None and period is not None:
-                    if not (0 < lo <= period <= hi):
-                        self.err(
-                            "period-range",
-                            f"need 0 < fastest <= period <= slowest; got {format_ns(lo)}, "
-                            f"{format_ns(period)}, {format_ns(hi)}",
-                            (*path, "period_range"),
-                        )
-                    interval = lo
-                    for k, v in ((0, lo), (1, hi)):
-                        if ec and v % ec:
-                            self.err(
-                                "ec-multiple",
-                                f"{format_ns(v)} is not a whole number of ECs ({format_ns(ec)})",
-                                (*path, "period_range", k),
-                            )
+                fastest = self.period_range(m.period_range, period, path, ec)
+                interval = interval if fastest is None else fastest
         offset_auto = m.offset == "auto"
         offset = None
         if isinstance(m.offset, Duration):
@@ -745,12 +743,7 @@ class _Resolver:
                 "'offset: auto' is derived from FTT-CAN flows; give this message a duration",
                 (*path, "offset"),
             )
-        if offset is not None and period is not None and offset >= period:
-            self.err(
-                "offset",
-                f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
-                (*path, "offset"),
-            )
+        self.check_offset(offset, period, path)
         if bus.protocol == "ftt-can" and ec and kind == "periodic" and (m.window or "sync") == "sync":
             for key, value in (("period", period), ("offset", offset)):
                 if value is not None and value % ec:
@@ -886,9 +879,9 @@ class _Resolver:
             if parsed is None:
                 continue
             index, sub = parsed
-            if index in DUMMY_TYPES and sub == 0:
+            if cia301.is_dummy(index, sub):
                 if kind == "tpdo":
-                    self.err("pdo-dummy", "dummy entries (0x0002-0x0007) only pad RPDOs", epath)
+                    self.err("pdo-dummy", "dummy entries (0x0001-0x0007) only pad RPDOs", epath)
                 bits = DATA_TYPES[index][1]
                 name = f"pad{k}"
                 entries.append(model.PdoEntry(index, sub, bits, name, index))
@@ -1108,16 +1101,9 @@ class _Resolver:
             offset = self.ns(t.offset, (*path, "offset"), ec) if isinstance(t.offset, Duration) else None
             interval = period
             if t.period_range is not None:
-                interval = self.ns(t.period_range[0], (*path, "period_range", 0), ec) or period
-                slowest = self.ns(t.period_range[1], (*path, "period_range", 1), ec) or period
-                if not 0 < interval <= period <= slowest:
-                    self.err(
-                        "period-range",
-                        f"need 0 < fastest <= period <= slowest; got {format_ns(interval)}, {format_ns(period)}, "
-                        f"{format_ns(slowest)}",
-                        (*path, "period_range"),
-                    )
-            for key_name, value in (("period", period), ("offset", offset), ("period_range", interval)):
+                fastest = self.period_range(t.period_range, period, path, ec)
+                interval = period if fastest is None else fastest
+            for key_name, value in (("period", period), ("offset", offset)):
                 if value is not None and value % ec:
                     self.err(
                         "ec-multiple",
@@ -1126,12 +1112,8 @@ class _Resolver:
                     )
             if period <= 0:
                 self.err("period", "a trigger period must be at least one EC", (*path, "period"))
-            elif offset is not None and offset >= period:
-                self.err(
-                    "offset",
-                    f"offset {format_ns(offset)} must be smaller than the period {format_ns(period)}",
-                    (*path, "offset"),
-                )
+            else:
+                self.check_offset(offset, period, path)
             for j, ref in enumerate(t.tasks):
                 node_name, task_name = ref.split(".", 1)
                 node = self.model.nodes.get(node_name)
@@ -1159,7 +1141,9 @@ class _Resolver:
                         f"fires every {format_ns(period)}; drop the task's period",
                         (*path, "tasks", j),
                     )
-                node.tasks[task_name] = _replace_task(task, period_ns=period, trigger=t.name, offset_ns=offset or 0)
+                node.tasks[task_name] = dataclasses.replace(
+                    task, period_ns=period, trigger=t.name, offset_ns=offset or 0
+                )
             self.model.triggers[t.name] = model.Trigger(
                 description=t.description,
                 name=t.name,
@@ -1245,7 +1229,7 @@ class _Resolver:
                 taken[(False, cia301.NMT_ID)] = "NMT"
                 for name in bus.nodes:
                     node = self.model.nodes.get(name)
-                    if node is None or node.node_id is None or not 1 <= node.node_id <= 127:
+                    if node is None or node.node_id is None or node.node_id not in cia301.NODE_IDS:
                         continue
                     for service, cob in cia301.node_services(node.node_id).items():
                         if service.startswith("heartbeat") and node.heartbeat_ns:
@@ -1452,12 +1436,6 @@ def _some(names: Iterable[str], limit: int = 8) -> str:
     items = sorted(names)
     more = f" (+{len(items) - limit} more)" if len(items) > limit else ""
     return (", ".join(items[:limit]) or "none") + more
-
-
-def _replace_task(task: model.Task, **changes: object) -> model.Task:
-    from dataclasses import replace
-
-    return replace(task, **changes)  # type: ignore[arg-type]
 
 
 _EDS_CACHE: dict[tuple[str, int], DeviceProfile] = {}

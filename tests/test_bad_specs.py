@@ -83,6 +83,7 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "ftt_period_not_ec_multiple.yaml": (23, "ec-multiple", "not a whole number"),
     "ftt_offset_not_ec_multiple.yaml": (24, "ec-multiple", "not a whole number"),
     "ftt_offset_not_below_period.yaml": (24, "offset", "must be smaller than the period"),
+    "ftt_trigger_period_range_not_ec_multiple.yaml": (25, "ec-multiple", "23 ms is not a whole number of ECs"),
     "ftt_id_beyond_capacity.yaml": (24, "ftt-id-range", "does not fit"),
     "can_payload_over_8.yaml": (17, "payload", "at most 8"),
     "can_id_over_11_bits.yaml": (16, "id-range", "11 bits"),

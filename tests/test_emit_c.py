@@ -23,6 +23,7 @@ import yaml
 from conftest import ROOT, SPECS, load_spec
 from test_seeds import TABLE_2
 
+from netcfg.build import build
 from netcfg.check import analyse_spec
 from netcfg.emit import c_header, field_of, srt
 from netcfg.model import Model
@@ -680,3 +681,115 @@ def test_two_emits_are_byte_identical_and_carry_no_machine_paths() -> None:
         for rel, data in first.items():
             assert str(ROOT).encode() not in data, rel
             assert not re.search(rb"20\d\d-\d\d-\d\d", data), rel  # no build dates
+
+
+# A vendor EDS whose object names are no C identifiers: 'Switch' is a C keyword once in lower case, '2nd input'
+# starts with a digit. Objects 0x1800/0x1A00 give the device one TPDO of up to two mapped objects (CiA 301).
+IO_EDS = """\
+[FileInfo]
+FileName=io.eds
+[DeviceInfo]
+VendorName=netcfg tests
+ProductName=io module
+NrOfRXPDO=0
+NrOfTXPDO=1
+[1000]
+ParameterName=Device type
+ObjectType=0x7
+DataType=0x0007
+AccessType=ro
+DefaultValue=0
+PDOMapping=0
+[1800]
+ParameterName=TPDO 1 communication
+ObjectType=0x9
+SubNumber=3
+[1800sub0]
+ParameterName=Highest sub-index
+ObjectType=0x7
+DataType=0x0005
+AccessType=ro
+DefaultValue=2
+PDOMapping=0
+[1800sub1]
+ParameterName=COB-ID
+ObjectType=0x7
+DataType=0x0007
+AccessType=rw
+DefaultValue=$NODEID+0x180
+PDOMapping=0
+[1800sub2]
+ParameterName=Transmission type
+ObjectType=0x7
+DataType=0x0005
+AccessType=rw
+DefaultValue=255
+PDOMapping=0
+[1A00]
+ParameterName=TPDO 1 mapping
+ObjectType=0x9
+SubNumber=3
+[1A00sub0]
+ParameterName=Number of mapped objects
+ObjectType=0x7
+DataType=0x0005
+AccessType=rw
+DefaultValue=0
+PDOMapping=0
+[1A00sub1]
+ParameterName=Mapped object 1
+ObjectType=0x7
+DataType=0x0007
+AccessType=rw
+DefaultValue=0
+PDOMapping=0
+[1A00sub2]
+ParameterName=Mapped object 2
+ObjectType=0x7
+DataType=0x0007
+AccessType=rw
+DefaultValue=0
+PDOMapping=0
+[2000]
+ParameterName=Switch
+ObjectType=0x7
+DataType=0x0004
+AccessType=ro
+PDOMapping=1
+[2001]
+ParameterName=2nd input
+ObjectType=0x7
+DataType=0x0005
+AccessType=ro
+PDOMapping=1
+"""
+
+
+@needs_gcc
+def test_eds_object_names_become_c_identifiers(tmp_path: Path) -> None:
+    """Signal names taken from EDS object names obey the name rules (netcfg.spec.schema.check_name): 'Switch'
+    becomes switch_obj, not the keyword switch; '2nd input' becomes obj_2nd_input. The build's headers compile."""
+    (tmp_path / "io.eds").write_text(IO_EDS, encoding="utf-8")
+    spec = {
+        "system": "eds_names",
+        "buses": [{"name": "can0", "protocol": "canopen", "bitrate": "1 Mbit/s", "canopen": {"sync_period": "10 ms"}}],
+        "nodes": [
+            {"name": "master", "role": "master", "node_id": 1, "buses": ["can0"]},
+            {"name": "io", "node_id": 2, "buses": ["can0"], "device": {"eds": "io.eds"}},
+        ],
+        "messages": [
+            {
+                "name": "io_inputs",
+                "producer": "io",
+                "consumers": ["master"],
+                "pdo": {"tpdo": 1, "transmission": 1, "map": [0x2000, 0x2001]},
+            }
+        ],
+    }
+    report, out, files = build(dump_spec(tmp_path, spec, "eds_names.yaml"), tmp_path / "out")
+    assert out is not None, report["errors"]
+    master = files["c/master.h"].decode()
+    assert "int32_t switch_obj;" in master and "uint8_t obj_2nd_input;" in master
+    headers = [rel for rel in files if rel.startswith("c/")]
+    assert GCC is not None
+    compile_units(GCC, C_FLAGS, include_units(out, headers, ".c"), out)

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
 from conftest import bus, check_data, message
+
+from netcfg.check import analyse_spec
+from netcfg.emit import c_header
 
 
 def ftt_spec() -> dict:
@@ -55,6 +59,27 @@ def test_trigger_message_capacity_and_lsw(tmp_path: Path) -> None:
     spec["buses"][0]["ftt"]["lsw"] = "950 us"  # 950 + 65 > 1000
     report = check_data(tmp_path, spec)
     assert [e["code"] for e in report["errors"]] == ["lsw"]
+
+
+def test_lsw_defaults_to_ec_minus_tm_everywhere(tmp_path: Path) -> None:
+    """Without 'lsw' the synchronous window may fill the EC after the TM: 1000 - 65 = 935 us (the 65 us TM of
+    test_asynchronous_window_response). The report says so also when the periods (7 and 11 ... 19 ECs, LCM
+    323,323 above the table limit ftt.MAX_MACRO_CYCLE) give no table, and the node headers carry the value."""
+    spec = ftt_spec()
+    del spec["buses"][0]["ftt"]["lsw"]
+    path = tmp_path / "ftt.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    model, report = analyse_spec(path)
+    assert model is not None and report["ok"], report["errors"]
+    assert bus(report, "f")["ftt"]["lsw_us"] == 935.0
+    assert "#define BUS_F_LSW_NS UINT32_C(935000)" in c_header.emit(model, report)["c/a.h"].decode()
+    spec["messages"] += [
+        {"name": f"p{n}", "producer": "a", "consumers": ["b"], "size": 1, "period": f"{n} EC"}
+        for n in (7, 11, 13, 17, 19)
+    ]
+    report = check_data(tmp_path, spec)
+    assert [e["code"] for e in report["errors"]] == ["macro-cycle"]
+    assert bus(report, "f")["ftt"]["lsw_us"] == 935.0
 
 
 def canopen_spec() -> dict:

@@ -217,10 +217,9 @@ class NodeView:
     peers: tuple[PeerView, ...]  # other nodes this one exchanges UDP datagrams with
 
 
-def _description(obj: object) -> str | None:
-    # free text from the spec, when the Model carries it; the template passes it through c_comment
-    value = getattr(obj, "description", None)
-    return str(value) if value else None
+def _description(obj: model.Described) -> str | None:
+    # free text from the spec; the template passes it through c_comment
+    return obj.description or None
 
 
 def _ip_u32(ip: str | None) -> int | None:

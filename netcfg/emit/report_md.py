@@ -12,7 +12,8 @@ from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
 from netcfg.emit import render
-from netcfg.model import Bus, Model
+from netcfg.model import Bus, Described, Model
+from netcfg.report_text import num, rate
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -76,26 +77,8 @@ def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
 # text helpers
 
 
-def num(value: Any) -> str:
-    """The text report's number format: thousands separated, at most 3 decimals, no trailing zeros."""
-    if value is None:
-        return "-"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, (int, float)):
-        return f"{value:,.3f}".rstrip("0").rstrip(".")
-    return str(value)
-
-
 def pct(value: float | None, digits: int = 1) -> str:
     return "-" if value is None else f"{value * 100:.{digits}f} %"
-
-
-def rate(bitrate: int) -> str:
-    for unit, scale in (("Gbit/s", 10**9), ("Mbit/s", 10**6), ("kbit/s", 10**3)):
-        if bitrate >= scale:
-            return f"{num(bitrate / scale)} {unit}"
-    return f"{bitrate} bit/s"
 
 
 def one_line(text: object) -> str:
@@ -109,10 +92,10 @@ def cell(text: object) -> str:
     return one_line(text).replace("\\", "\\\\").replace("|", "\\|")
 
 
-def _description(obj: object) -> str | None:
-    # descriptions are free text from the spec; the Model may not carry them for every kind of object
-    value = getattr(obj, "description", None)
-    return value if isinstance(value, str) and value.strip() else None
+def _description(obj: Described | None) -> str | None:
+    # free text from the spec; implicit messages (SYNC, heartbeats) are not in Model.messages and have none
+    value = obj.description if obj is not None else None
+    return value if value and value.strip() else None
 
 
 def _table(headers: list[str], align: str, rows: list[list[str]]) -> dict[str, Any]:

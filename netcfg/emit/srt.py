@@ -69,10 +69,9 @@ def us(ns: int) -> str:
     return str(ns // 1000) if ns % 1000 == 0 else f"{ns / 1000:.3f}".rstrip("0")
 
 
-def _description(obj: object) -> str:
-    # free text from the spec when the Model carries it; the templates escape it for each format
-    value = getattr(obj, "description", None)
-    return " ".join(str(value).split()) if value else ""
+def _description(obj: model.Described | None) -> str:
+    # free text from the spec on one line; the templates escape it for each format
+    return " ".join(obj.description.split()) if obj is not None and obj.description else ""
 
 
 def _entry(m: model.Model, e: ftt.SrtEntry) -> EntryView:

@@ -54,7 +54,7 @@ from cantools.database.can import Database, Message, Signal
 from netcfg.diagnostics import Collector, Position, Severity
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as DataPath
-from netcfg.spec.schema import check_name
+from netcfg.spec.schema import safe_name
 
 ENCODING = "cp1252"  # what cantools.database.load_file and DBC tools read by default
 PLACEHOLDER_NODE = "unassigned"  # stands for DBC's Vector__XXX (no node) under --lenient
@@ -130,18 +130,6 @@ class _Names:
 
     def reserve(self, name: str) -> None:
         self.taken.add(name.lower())
-
-
-def safe_name(raw: str, prefix: str, suffix: str) -> str:
-    """Letters, digits and '_', a letter first, at most 63 characters, not a C/C++ keyword or C header macro."""
-    name = re.sub(r"[^A-Za-z0-9_]", "_", raw)
-    if not re.match(r"[A-Za-z]", name):
-        name = prefix.rstrip("_") + ("" if name.startswith("_") else "_") + name
-    name = name[:63]
-    try:
-        return check_name(name)
-    except ValueError:
-        return name[: 63 - len(suffix)] + suffix
 
 
 def send_kind(send_type: str | None) -> str:

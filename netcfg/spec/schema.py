@@ -102,6 +102,34 @@ def check_name(value: str) -> str:
     return value
 
 
+def is_name(value: str) -> bool:
+    """Whether check_name accepts value."""
+    try:
+        check_name(value)
+    except ValueError:
+        return False
+    return True
+
+
+def safe_name(raw: str, prefix: str, suffix: str) -> str:
+    """A name check_name accepts, made from free text (an EDS object name, a DBC or bus.yml name).
+
+    Characters other than letters, digits and '_' become '_'; a name that does not start with a letter (a digit,
+    '_', nothing at all) gets `prefix` and '_' in front; a C/C++ keyword, C header macro or reserved file name
+    gets `suffix` at the end; the result has at most 63 characters. Callers that want more (lower case, runs of
+    '_' collapsed) normalise raw first. prefix must itself be a name, e.g. 'sig' with suffix '_sig'.
+    """
+    check_name(prefix)
+    name = re.sub(r"[^A-Za-z0-9_]", "_", raw)
+    if not re.match(r"[A-Za-z]", name):
+        name = prefix.rstrip("_") + ("" if name.startswith("_") else "_") + name
+    name = name[:63]
+    for candidate in (name, name[: 63 - len(suffix)] + suffix):
+        if is_name(candidate):
+            return candidate
+    return prefix  # only for a suffix that makes matters worse, e.g. '_MAX' after 'INT8'
+
+
 Name = Annotated[str, AfterValidator(check_name)]
 
 

@@ -99,9 +99,9 @@ def macro_cycle(periods: list[int]) -> int:
     return lcm(*periods) if periods else 1
 
 
-def tm_time_ns(bus: model.Bus) -> int:
-    assert bus.ftt is not None
-    return bits_to_ns(can_frame_bits(bus.ftt.tm_size, bus.id_bits == 29), bus.bitrate)
+def tm_time_ns(tm_size: int, extended: bool, bitrate: int) -> int:
+    """Worst-case transmission time of the trigger message: a data frame of tm_size bytes."""
+    return bits_to_ns(can_frame_bits(tm_size, extended), bitrate)
 
 
 def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
@@ -157,7 +157,7 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
     """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs)."""
     assert bus.ftt is not None
     ec = bus.ftt.ec_ns
-    tm = tm_time_ns(bus)
+    tm = tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     periods = [e.fastest_period_ec if fastest else e.period_ec for e in entries]
     macro = macro_cycle(periods)
     if macro > MAX_MACRO_CYCLE:
@@ -173,8 +173,7 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
         slots.append(
             EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
         )
-    lsw = bus.ftt.lsw_ns if bus.ftt.lsw_ns is not None else ec - tm
-    return Schedule(ec, tm, lsw, tuple(entries), tuple(slots))
+    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots))
 
 
 def ec_schedule_mask(slot: EcSlot) -> int:
