@@ -5,8 +5,15 @@ from __future__ import annotations
 import pytest
 
 from netcfg.spec.units import Duration, parse_bitrate, parse_duration, parse_frequency
-from netcfg.timing.ethernet import max_min_frame_rate
-from netcfg.timing.frames import bits_to_ns, can_frame_bits, udp_frame_bytes, udp_frame_ns
+from netcfg.timing.ethernet import max_min_frame_rate, min_frame_ns, propagation_ns
+from netcfg.timing.frames import (
+    bits_to_ns,
+    can_frame_bits,
+    udp_frame_bytes,
+    udp_frame_ns,
+    udp_message_bytes,
+    udp_message_ns,
+)
 
 
 @pytest.mark.parametrize("size", range(9))
@@ -38,6 +45,21 @@ def test_ethernet_frame_sizes_match_seed_001() -> None:
     assert round(max_min_frame_rate(100_000_000), 2) == 148_809.52
     assert udp_frame_bytes(1472) == 1538
     assert udp_frame_ns(1472, 100_000_000) == 123_040
+    assert min_frame_ns(100_000_000) == 6_720
+
+
+def test_an_application_message_carries_its_id_byte() -> None:
+    """Seed 001, Table 6.1: a datagram is the 1-byte message id, then the data. SAHR's 4-byte encoder is still a
+    minimum frame (6.72 us at 100 Mbit/s); 17 data bytes fill the minimum frame, 18 do not; 1471 fill a full one."""
+    assert udp_message_ns(4, 100_000_000) == 6_720
+    assert udp_message_bytes(17) == 84 and udp_message_bytes(18) == 85
+    assert udp_message_bytes(1471) == udp_frame_bytes(1472) == 1538
+
+
+def test_cable_propagation_at_seven_tenths_of_c() -> None:
+    """Seed 001: 0.4-0.7 c in a cable; at 0.7 c, 20 m take 95.3 ns, 50 m 238.3 ns, 10 m 47.7 ns, rounded to the
+    nanosecond (the figures test_sim_ethernet's two-switch network checks)."""
+    assert [propagation_ns(m) for m in (20, 50, 10, 0)] == [95, 238, 48, 0]
 
 
 @pytest.mark.parametrize(

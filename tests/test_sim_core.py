@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from netcfg.sim.can_bus import CanBus, arbitration_key
-from netcfg.sim.engine import NodeClock, Simulator
-from netcfg.sim.streams import NEVER, PeriodicStreams
+from netcfg.sim.engine import NEVER, NodeClock, Simulator
+from netcfg.sim.streams import PeriodicStreams
 
 
 def test_arbitration_follows_the_bits_on_the_wire() -> None:
@@ -46,6 +49,20 @@ def test_non_preemptive_fixed_priority_arbitration_by_hand() -> None:
     assert got == {a: 55_000, b: 100_000, c: 165_000}
 
 
+@pytest.mark.parametrize(("stuffing", "bits"), [("worst", 65), ("none", 55), ("exact", 58)])
+def test_the_bus_takes_frame_lengths_from_the_timing_core(stuffing: str, bits: int) -> None:
+    """One 1-byte frame, identifier 0x14, data 0x01, alone at 1 Mbit/s (1 us per bit): 55 + 10 bits with the
+    worst case of stuffing (Davis et al. 2007), 47 + 8 without, 58 with the stuff bits it actually has
+    (frames.can_frame_bits_of, test_bitstream.py)."""
+    sim = Simulator()
+    bus = CanBus(sim, "can0", 1_000_000, stuffing=stuffing)
+    a = bus.add_source("A", 0x14, False, 1, "n1")
+    bus.start()
+    sim.at(0, lambda _: bus.submit(a, b"\x01"))
+    sim.run_until(1_000_000)
+    assert bus.record.response == [bits * 1_000]
+
+
 def test_a_bit_error_retransmits_after_the_error_frame() -> None:
     """One 0-byte frame (55 us at 1 Mbit/s) hit by a bit error 20 us in: error flags, delimiter and intermission
     take 6 + 6 + 8 + 3 = 23 bits (ISO 11898-1, longest active error frame), then the frame is sent again whole:
@@ -65,22 +82,32 @@ def test_a_bit_error_retransmits_after_the_error_frame() -> None:
 @settings(max_examples=40, derandomize=True, deadline=None)
 @given(
     period=st.integers(100_000, 50_000_000),
+    den=st.integers(1, 7),
     offset=st.integers(0, 10_000_000),
     phase=st.integers(0, 20_000_000),
     drift=st.integers(-100_000, 100_000),
     cut=st.integers(1, 300_000_000),
 )
 def test_release_streams_do_not_depend_on_where_chunks_are_cut(
-    period: int, offset: int, phase: int, drift: int, cut: int
+    period: int, den: int, offset: int, phase: int, drift: int, cut: int
 ) -> None:
     """The releases in [0, T) are the same whether expanded in one chunk or in two cut anywhere, and they are
-    exactly phase + L + L * drift (L = offset + k * period), the clock's mapping."""
-    make = lambda: PeriodicStreams([0], [period], [offset], [phase], [drift], [0], [NEVER], np.random.default_rng(0))  # noqa: E731
+    exactly phase + L + L * drift (L = offset + floor(k * period), the clock's mapping), for a period of whole
+    nanoseconds or a fraction of them (an exact rate in hertz); a stream of several sources gives each the same
+    releases as a stream of its own."""
+    exact = Fraction(period, den)
+    make = lambda: PeriodicStreams([0], [exact], [offset], [phase], [drift], [0], [NEVER], np.random.default_rng(0))  # noqa: E731
     end = 400_000_000
     whole = make()(0, end)[0]
     s = make()
     parts = np.concatenate([s(0, cut)[0], s(cut, end)[0]])
     assert whole.tolist() == parts.tolist()
     clock = NodeClock(phase, drift)
-    expected = [t for k in range(end // period + 2) if (t := clock.to_global(offset + k * period)) < end]
+    local = [offset + k * exact.numerator // exact.denominator for k in range(end // int(exact) + 2)]
+    expected = [t for t in map(clock.to_global, local) if t < end]
     assert whole.tolist() == expected
+    rng = np.random.default_rng(0)
+    two = PeriodicStreams([5, 0], [1_000_003, exact], [7, offset], [11, phase], [3, drift], [0, 0], [NEVER, NEVER], rng)
+    t, src = two(0, cut)
+    t2, src2 = two(cut, end)
+    assert np.concatenate([t[src == 0], t2[src2 == 0]]).tolist() == expected

@@ -15,21 +15,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from netcfg.sim.engine import LATE, Simulator
+from netcfg.sim.engine import LATE, NEVER, Simulator
 from netcfg.timing.frames import (
+    FrameStuffing,
     arbitration_key,
     bits_to_ns,
-    can_frame_bits,
-    can_frame_bits_exact,
     can_frame_bits_exact_batch,
+    can_frame_bits_of,
 )
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
 # intermission (3): ISO 11898-1's active error frame at its longest.
 ERROR_FRAME_BITS = 6 + 6 + 8 + 3
 INTERMISSION_BITS = 3  # the end of every frame time: nothing to corrupt there
+# the bus's stuffing modes as the timing core names them (can_frame_bits_of)
+FRAME_BITS: dict[str, FrameStuffing] = {"worst": "worst", "none": "nominal", "exact": "exact"}
 CHUNK_NS = 200_000_000  # release streams are expanded this much simulated time at a time
-NEVER = 1 << 62
 
 Listener = Callable[[int, int, int, bytes | None], None]  # (end_ns, message index, release_ns, data)
 Gate = Callable[[int, int], int]  # (t, duration) -> earliest start >= t at which the frame may go
@@ -70,7 +71,7 @@ class CanBus:
     def __init__(
         self, sim: Simulator, name: str, bitrate: int, stuffing: str = "worst", trace: bool = False
     ) -> None:
-        if stuffing not in ("worst", "exact", "none"):
+        if stuffing not in FRAME_BITS:
             raise ValueError(f"stuffing must be exact, worst or none, not {stuffing!r}")
         self.sim = sim
         self.name = name
@@ -111,8 +112,9 @@ class CanBus:
     def add_source(self, name: str, can_id: int, extended: bool, size: int, producer: str, gated: bool = False) -> int:
         src = CanSource(len(self.sources), name, can_id, extended, size, producer, gated=gated)
         src.key = arbitration_key(can_id, extended)
-        bits = can_frame_bits(size, extended, "nominal" if self.stuffing == "none" else "worst")
-        src.dur_ns = bits_to_ns(bits, self.bitrate)
+        # in exact mode each frame's length comes from its payload (_duration); dur_ns is then the worst case
+        mode: FrameStuffing = "worst" if self.stuffing == "exact" else FRAME_BITS[self.stuffing]
+        src.dur_ns = bits_to_ns(can_frame_bits_of(can_id, extended, bytes(size), mode), self.bitrate)
         self.sources.append(src)
         self.by_name[name] = src
         self._keys.append(src.key)
@@ -229,7 +231,7 @@ class CanBus:
         known = self._exact.get((src.index, payload))
         if known is not None:
             return known
-        return bits_to_ns(can_frame_bits_exact(src.can_id, src.extended, payload), self.bitrate)
+        return bits_to_ns(can_frame_bits_of(src.can_id, src.extended, payload, "exact"), self.bitrate)
 
     def _step(self, token: int) -> None:
         if token != self._step_at:

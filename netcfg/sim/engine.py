@@ -19,6 +19,7 @@ EARLY = 0
 LATE = 1
 
 PPB = 1_000_000_000
+NEVER = 1 << 62  # an instant after every run
 
 
 class Simulator:
@@ -32,13 +33,6 @@ class Simulator:
     def at(self, t: int, fn: Callable[..., Any], arg: Any = None, priority: int = EARLY) -> None:
         """Call fn(arg) at virtual time t (never before now)."""
         heapq.heappush(self._queue, (max(t, self.now), priority, next(self._seq), fn, arg))
-
-    def next_time(self) -> tuple[int, int] | None:
-        """(time, priority) of the next event, or None when nothing is left."""
-        if not self._queue:
-            return None
-        head = self._queue[0]
-        return head[0], head[1]
 
     def run_until(self, t_end: int, stop: Callable[[], bool] | None = None) -> None:
         """Run every event before t_end (or until stop() turns true after an event); then now = t_end."""
@@ -66,7 +60,3 @@ class NodeClock:
 
     def to_global(self, local_ns: int) -> int:
         return self.phase_ns + local_ns + local_ns * self.drift_ppb // PPB
-
-    def span(self, local_ns: int) -> int:
-        """A local duration in global nanoseconds."""
-        return local_ns + local_ns * self.drift_ppb // PPB

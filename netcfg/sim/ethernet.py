@@ -2,7 +2,7 @@
 
 Every cable is two links, one per direction, each with its own FIFO transmitter at the bus bitrate. A frame of a
 message with `size` data bytes carries the 1-byte application message id too (seed 001, Table 6.1), so it takes
-udp_frame_ns(size + 1) on every link, padded to the 84-byte minimum (seed 001, eq. 6.4). Along its tree path the
+udp_message_ns(size) on every link, padded to the 84-byte minimum (seed 001, eq. 6.4). Along its tree path the
 frame is: released on its producer's drifting clock, handed to the NIC after the node's tx_delay (Tpre), queued
 FIFO on the node's link, received completely by the switch (store and forward) after the cable's propagation time,
 queued after the switch's latency (Tmux) on each egress port it leaves by (a multicast once per port), and
@@ -47,11 +47,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netcfg.runtime import Bus, Message
-from netcfg.sim.engine import LATE, PPB
+from netcfg.sim.engine import LATE, NEVER
 from netcfg.sim.stats import stats_us
-from netcfg.sim.streams import NEVER
-from netcfg.timing.ethernet import PROPAGATION_M_PER_S
-from netcfg.timing.frames import udp_frame_ns
+from netcfg.sim.streams import PeriodicStreams
+from netcfg.timing import load
+from netcfg.timing.ethernet import propagation_ns
+from netcfg.timing.frames import udp_message_ns
 
 if TYPE_CHECKING:
     from netcfg.runtime import Task
@@ -105,21 +106,6 @@ class _Link:
 
 
 @dataclass
-class _Source:
-    """A free-running sender: release k at local offset + k * period, period = num / den ns exactly."""
-
-    msg: int
-    num: int
-    den: int
-    offset: int
-    phase: int
-    drift: int
-    jitter: int
-    until: int
-    next_k: int = 0
-
-
-@dataclass
 class _Server:
     """A receiving node consuming frames one after another (FIFO, service drawn between BCET and WCET)."""
 
@@ -159,7 +145,7 @@ class EthernetNetwork:
         self.owned = set(self.index)
         chained = {name for names in sc.sends.values() for name in names}
         self.chained = {i for i, m in enumerate(self.messages) if m.name in chained}
-        self.frame_ns = np.array([udp_frame_ns(m.size + 1, bus.bitrate) for m in self.messages], dtype=_I64)
+        self.frame_ns = np.array([udp_message_ns(m.size, bus.bitrate) for m in self.messages], dtype=_I64)
         self._frame = self.frame_ns.tolist()
         nodes = {n.name: n for n in sc.cfg.nodes}
         self.rx_delay = {n: nodes[n].rx_delay_ns for n in bus.nodes if n in nodes}
@@ -225,8 +211,7 @@ class EthernetNetwork:
     def _link(self, a: str, b: str) -> _Link:
         link = self.links.get((a, b))
         if link is None:
-            # the same rounding per hop as the analysis' Tprop
-            prop = round(self.cables.get((a, b), 0.0) / PROPAGATION_M_PER_S * 1e9)
+            prop = propagation_ns(self.cables.get((a, b), 0.0))  # per hop, as the analysis' Tprop
             crash = NEVER if a in self.switch_latency else self.sc.crash_at.get(a, NEVER)
             latency = self.switch_latency.get(b, 0)
             link = self.links[(a, b)] = _Link(len(self.links), a, b, prop, latency, crash)
@@ -270,10 +255,10 @@ class EthernetNetwork:
                 for lk in links:
                     self.downstream[(i, lk.index)] = self.downstream.get((i, lk.index), 0) + 1
                 self.deliver_to[(i, links[-1].index)] = consumer
-            rate = _rate(m)
+            rate = load.rate_hz(m)
             for lk in self.links.values():
                 if (i, lk.index) in self.downstream:
-                    lk.offered += float(rate) * int(self.frame_ns[i]) / 1e9
+                    lk.offered += rate * int(self.frame_ns[i]) / 1e9
         self.order = self._topological()
 
     def _topological(self) -> list[_Link]:
@@ -295,26 +280,41 @@ class EthernetNetwork:
         return done
 
     def _build_sources(self) -> None:
-        self.sources: list[_Source] = []
+        """The free-running senders' releases (netcfg.sim.streams), at the exact period of a rate the spec gave.
+        Release jitter takes one random draw per release of a jittered message: those have a stream of their
+        own (a stream draws for all its sources once one has jitter)."""
+        free = []
         for i, m in enumerate(self.messages):
             if m.kind not in ("periodic", "sporadic") or not m.interval_ns or i not in self.first:
                 continue  # on-demand traffic is not part of the steady state (as in the analysis)
             if i in self.chained:
                 continue  # sent by its task as it finishes (submit)
-            period = Fraction(10**9) / m.rate_hz if _exact(m) and m.rate_hz else Fraction(m.interval_ns)
-            clock = self.sc.clock[m.producer]
-            self.sources.append(
-                _Source(
-                    msg=i,
-                    num=period.numerator,
-                    den=period.denominator,
-                    offset=m.offset_ns or 0,
-                    phase=clock.phase_ns,
-                    drift=clock.drift_ppb,
-                    jitter=m.jitter_ns,
-                    until=self.sc.crash_at.get(m.producer, NEVER),
+            free.append(i)
+        jittered = [i for i in free if self.messages[i].jitter_ns]
+        steady = [i for i in free if not self.messages[i].jitter_ns]
+        self.streams: list[PeriodicStreams] = []
+        for group in (jittered, steady):
+            if not group:
+                continue
+            msgs = [self.messages[i] for i in group]
+            clocks = [self.sc.clock[m.producer] for m in msgs]
+            rates = [load.exact_rate(m) for m in msgs]
+            self.streams.append(
+                PeriodicStreams(
+                    sources=group,
+                    periods=[Fraction(10**9) / r if r else m.interval_ns or 0 for m, r in zip(msgs, rates)],
+                    offsets=[m.offset_ns or 0 for m in msgs],
+                    phases=[c.phase_ns for c in clocks],
+                    drifts_ppb=[c.drift_ppb for c in clocks],
+                    jitters=[m.jitter_ns for m in msgs],
+                    until=[self.sc.crash_at.get(m.producer, NEVER) for m in msgs],
+                    rng=self.sc.rng,
                 )
             )
+        self._free = free  # message indices, ascending
+        self._free_edges = np.array([*free, len(self.messages)], dtype=_I64)  # where each one's releases start
+        self._tx_ns = [self.tx_delay.get(m.producer, 0) for m in self.messages]
+        self._jitter_max = max((self.messages[i].jitter_ns for i in free), default=0)
 
     def _build_servers(self, nodes: Mapping[str, Any], processing: Mapping[str, tuple[int, int]]) -> None:
         n = len(self.messages)
@@ -437,8 +437,7 @@ class EthernetNetwork:
 
     def _chunk(self, t0: int) -> None:
         t1 = min(t0 + CHUNK_NS, self.duration)
-        for src in self.sources:
-            self._release(src, t0, t1)
+        self._release(t0, t1)
         for link in self.free_order:
             batch = _take(link.pending, t1)
             if batch is not None:
@@ -450,32 +449,31 @@ class EthernetNetwork:
         if t1 < self.duration:
             self.sim.at(t1, self._chunk, t1)
 
-    def _release(self, src: _Source, t0: int, t1: int) -> None:
-        """Releases whose nominal instant falls in [t0, t1), on the producer's clock (NodeClock.to_global)."""
-        scale = 1.0 + src.drift / PPB
-        guess = int((t1 - t0) / scale * src.den / src.num) + 2
-        while True:
-            k = src.next_k + np.arange(guess, dtype=_I64)
-            local = src.offset + k * src.num // src.den
-            glob = src.phase + local + local * src.drift // PPB
-            if glob[-1] >= t1:
-                break
-            guess *= 2
-        n = int(np.searchsorted(glob, t1, side="left"))
-        src.next_k += n
-        rel = glob[:n]
-        rel = rel[rel < src.until]
-        if not len(rel):
+    def _release(self, t0: int, t1: int) -> None:
+        """Free-running releases whose nominal instant falls in [t0, t1), message by message, to their first links
+        tx_delay later (Tpre)."""
+        if len(self.streams) == 1:
+            rel, msg = self.streams[0](t0, t1)
+        elif self.streams:
+            parts = [stream(t0, t1) for stream in self.streams]
+            rel = np.concatenate([p[0] for p in parts])
+            msg = np.concatenate([p[1] for p in parts])
+            order = np.argsort(msg, kind="stable")  # back in message order, each message's still in time order
+            rel, msg = rel[order], msg[order]
+        else:
             return
-        if src.jitter:
-            rel = rel + (self.sc.rng.random(len(rel)) * (src.jitter + 1)).astype(_I64)
-        m = self.messages[src.msg]
-        self.sent[src.msg] += int((rel < self.duration).sum())
-        arrive = rel + self.tx_delay.get(m.producer, 0)
-        if src.msg in self._lose:
-            keep = self._scripted_losses(src.msg, arrive)
-            arrive, rel = arrive[keep], rel[keep]
-        self._enqueue(self.first[src.msg], arrive, np.full(len(rel), src.msg, dtype=_I64), rel)
+        edges = np.searchsorted(msg, self._free_edges).tolist()
+        whole = t1 + self._jitter_max <= self.duration  # no release of this chunk falls after the run
+        for i, lo, hi in zip(self._free, edges, edges[1:]):
+            if lo == hi:
+                continue
+            r = rel[lo:hi]
+            self.sent[i] += hi - lo if whole else int((r < self.duration).sum())
+            a = r + self._tx_ns[i]
+            if i in self._lose:
+                keep = self._scripted_losses(i, a)
+                a, r = a[keep], r[keep]
+            self._enqueue(self.first[i], a, np.full(len(a), i, dtype=_I64), r)
 
     def _scripted_losses(self, i: int, arrive: np.ndarray) -> np.ndarray:
         """Which of these frames escape the scripted losses: each instant takes the first frame queued at or after
@@ -821,7 +819,8 @@ class EthernetNetwork:
         return {m.name: int(n[i]) for i, m in enumerate(self.messages)}
 
     def report(self) -> dict[str, Any]:
-        """JSON-ready: per link direction and per message, measured beside the analysis' figures."""
+        """JSON-ready: per link direction, measured beside the analysis' utilisation; per message, what the run's
+        summary (netcfg.sim.results.summary: deliveries, latency, wcrt, losses) does not say."""
         self._finish()
         d = self.duration
         links = []
@@ -841,29 +840,16 @@ class EthernetNetwork:
                 }
             )
         flying = self.in_flight()
-        processed = {name: (r, e) for name, r, e in self.processed_records()}
-        messages = []
-        for i, (name, rel, end) in enumerate(self.records()):
-            m = self.messages[i]
-            latency = stats_us(end - rel)
-            worst = int((end - rel).max()) if len(end) else None
-            pr, pe = processed[name]
-            messages.append(
-                {
-                    "name": name,
-                    "producer": m.producer,
-                    "consumers": list(m.consumers),
-                    "chained": i in self.chained,
-                    "sent": int(self.sent[i]),
-                    "delivered": len(end),
-                    "lost": int(self.lost[i]),
-                    "in_flight": flying[name],
-                    "latency_us": latency,
-                    "processed_us": stats_us(pe - pr),
-                    "wcrt_us": None if m.wcrt_ns is None else m.wcrt_ns / 1000,
-                    "within_analysis": None if m.wcrt_ns is None or worst is None else worst <= m.wcrt_ns,
-                }
-            )
+        messages = [
+            {
+                "name": name,
+                "chained": i in self.chained,
+                "sent": int(self.sent[i]),
+                "in_flight": flying[name],
+                "processed_us": stats_us(end - rel),
+            }
+            for i, (name, rel, end) in enumerate(self.processed_records())
+        ]
         servers = {s.node: {"utilization": round(s.busy_ns / d, 6) if d else 0.0} for s in self.servers.values()}
         return {
             "bus": self.bus.name,
@@ -873,20 +859,6 @@ class EthernetNetwork:
             "messages": messages,
             "receivers": servers,
         }
-
-
-def _rate(m: Message) -> Fraction:
-    """Transmissions per second at the fastest admissible rate, as netcfg.timing.load.rate_hz counts them."""
-    if m.kind == "on-demand" or not m.interval_ns:
-        return Fraction(0)
-    if _exact(m) and m.rate_hz is not None:
-        return m.rate_hz
-    return Fraction(10**9, m.interval_ns)
-
-
-def _exact(m: Message) -> bool:
-    """The spec gave a rate and the message is sent at it (not a sporadic minimum inter-arrival time)."""
-    return m.rate_hz is not None and m.period_ns == m.interval_ns
 
 
 def _take(pending: list[Batch], horizon: int) -> Batch | None:

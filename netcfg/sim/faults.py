@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from netcfg.sim.streams import NEVER
+from netcfg.sim.engine import NEVER
 
 if TYPE_CHECKING:
     from netcfg.sim.scenario import Scenario

@@ -16,8 +16,7 @@ from typing import TYPE_CHECKING
 
 from netcfg.runtime import Bus
 from netcfg.sim.can_bus import CanBus
-from netcfg.sim.engine import PPB
-from netcfg.sim.streams import NEVER
+from netcfg.sim.engine import NEVER, PPB
 
 if TYPE_CHECKING:
     from netcfg.sim.scenario import Scenario
@@ -72,7 +71,7 @@ class FttMaster:
         k = self.ec_of(t)
         for _ in range(2 * self.ftt.macro_cycle_ec + 2):
             start = self.ec_start(k)
-            window = start + self.ftt.ec_ns - self.ftt.slot(k).sync_ns
+            window = start + self.ftt.window_start(k)
             s = max(t, start)
             if s + dur <= window:
                 return s
@@ -111,12 +110,11 @@ class FttMaster:
 
     def _send_tm(self, k: int) -> None:
         slot = self.ftt.slot(k)
-        self._tm_ec = k
         self.can.submit(self.tm, (slot.mask & ((1 << 8 * self.ftt.tm_size) - 1)).to_bytes(self.ftt.tm_size, "little"))
 
     def _on_tm(self, end: int, _src: int, _release: int, data: bytes | None) -> None:
         k = self.ec_of(end)
-        if self.ec_start(k) + self.ftt.ec_ns - self.ftt.slot(k).sync_ns < end:
+        if self.ec_start(k) + self.ftt.window_start(k) < end:
             k -= 1  # cannot happen with a schedulable table; keep the EC the TM was sent for
         self._got_tm = k
         slot = self.ftt.slot(k)
@@ -125,7 +123,7 @@ class FttMaster:
                 node = self.sc.cfg.node(task.node)
                 self.sc.run_task(task, end + node.rx_delay_ns)
         if slot.messages:
-            window = self.ec_start(k) + self.ftt.ec_ns - slot.sync_ns
+            window = self.ec_start(k) + self.ftt.window_start(k)
             self.sc.sim.at(window, self._sync_window, slot.messages)
 
     def _sync_window(self, messages: tuple[str, ...]) -> None:

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from netcfg.runtime import RuntimeConfig
+from netcfg.runtime import Message, RuntimeConfig
 from netcfg.sim.scenario import Scenario
 from netcfg.sim.stats import stats_us
 
@@ -87,9 +87,7 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
             res.lost[src.name] = can.dropped.get(src.index, 0)
             res.retransmissions[src.name] = can.retries.get(src.index, 0)
             res.unsent_at_end += pending.get(src.index, 0)
-            m = known.get(src.name)
-            res.deadline[src.name] = m.deadline_ns if m else None
-            res.wcrt[src.name] = m.wcrt_ns if m else None
+            _bounds(res, src.name, known.get(src.name))
         res.error_frames += can.error_frames
     for name, n in sc.lost.items():  # losses no bus saw (a crashed task's Ethernet sends)
         res.lost[name] = res.lost.get(name, 0) + n
@@ -99,9 +97,7 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
             for name, release, end in records():
                 res.response[name] = np.asarray(end, dtype=np.int64) - np.asarray(release, dtype=np.int64)
                 res.sent[name] = len(res.response[name])
-                m = known.get(name)
-                res.deadline[name] = m.deadline_ns if m else None
-                res.wcrt[name] = m.wcrt_ns if m else None
+                _bounds(res, name, known.get(name))
                 res.frames += len(res.response[name])
             for name, n in getattr(driver, "lost_by_message", dict)().items():
                 res.lost[name] = res.lost.get(name, 0) + n
@@ -117,6 +113,13 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
         else:
             res.flow_bounds[tr.name] = (tr.flow.latency_min_ns, tr.flow.latency_max_ns)
     return res
+
+
+def _bounds(res: RunResult, name: str, m: Message | None) -> None:
+    """A message's deadline and analysed worst case; None for frames the configuration does not list (the TM, a
+    babbler's frames)."""
+    res.deadline[name] = m.deadline_ns if m else None
+    res.wcrt[name] = m.wcrt_ns if m else None
 
 
 def summary(res: RunResult) -> dict[str, Any]:

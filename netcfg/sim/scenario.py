@@ -21,10 +21,10 @@ from typing import TYPE_CHECKING
 
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
 from netcfg.sim.can_bus import CanBus
-from netcfg.sim.engine import NodeClock, Simulator
+from netcfg.sim.engine import NEVER, NodeClock, Simulator
 from netcfg.sim.faults import Fault
 from netcfg.sim.flows import FlowTracker
-from netcfg.sim.streams import NEVER, PeriodicStreams
+from netcfg.sim.streams import PeriodicStreams
 
 if TYPE_CHECKING:
     from netcfg.sim.ethernet import EthernetNetwork
@@ -143,7 +143,9 @@ class Scenario:
         return max((self.clock[n].phase_ns for n in nodes if n in self.clock), default=0)
 
     # -- what the protocol drivers call -------------------------------------------------------------------
-    def synchronised(self, bus: Bus) -> bool:
+    @property
+    def synchronised(self) -> bool:
+        """FTT-CAN and CANopen buses run their protocol (mode "auto"), not as free-running CAN ("unsync")."""
         return self.opts.mode != "unsync"
 
     def _wanted(self, task: Task) -> bool:
@@ -215,7 +217,7 @@ class Scenario:
     def _build_can(self, bus: Bus) -> None:
         can = CanBus(self.sim, bus.name, bus.bitrate, self.opts.stuffing, self.opts.trace)
         self.can[bus.name] = can
-        sync = self.synchronised(bus)
+        sync = self.synchronised
         ftt = bus.ftt if bus.protocol == "ftt-can" and sync else None
         for m in self.cfg.messages_on(bus.name):
             gated = ftt is not None and m.window != "sync"
@@ -318,22 +320,16 @@ class Scenario:
                 if not self._wanted(task) or task.on_message is not None:
                     continue
                 period = task.period_ns
+                if (task.trigger is not None or task.sync_bus is not None) and self.synchronised:
+                    continue  # its trigger message or its SYNC starts it
                 if task.trigger is not None:
-                    if self._trigger_synchronised(task.trigger):
-                        continue
                     period = self.cfg.trigger(task.trigger).interval_ns
                 elif task.sync_bus is not None:
                     bus = self.cfg.bus(task.sync_bus)
-                    if self.synchronised(bus):
-                        continue
                     period = bus.canopen.sync_period_ns if bus.canopen else period
                 if not period:
                     continue
                 self._periodic_task(task, clock, period)
-
-    def _trigger_synchronised(self, trigger: str) -> bool:
-        bus = self.cfg.bus(self.cfg.trigger(trigger).bus)
-        return self.synchronised(bus)
 
     def _periodic_task(self, task: Task, clock: NodeClock, period: int) -> None:
         k = 0

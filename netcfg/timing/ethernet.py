@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 from netcfg import model
 from netcfg.timing import load
-from netcfg.timing.frames import ETH_MIN_DATA, IPV4_HEADER, UDP_HEADER, bits_to_ns, udp_frame_bytes
+from netcfg.timing.frames import udp_frame_bytes, udp_frame_ns
 
 if TYPE_CHECKING:
     import networkx as nx
@@ -82,8 +82,14 @@ def routes(graph: nx.Graph, msg: model.Message) -> dict[str, tuple[Link, ...]]:
     return out
 
 
+def propagation_ns(cable_m: float) -> int:
+    """Tprop of one cable, rounded to the nanosecond (per hop, as the simulator does too)."""
+    return round(cable_m / PROPAGATION_M_PER_S * 1e9)
+
+
 def min_frame_ns(bitrate: int) -> int:
-    return bits_to_ns(8 * udp_frame_bytes(0), bitrate)
+    """The shortest frame on the wire (84 bytes): an empty datagram."""
+    return udp_frame_ns(0, bitrate)
 
 
 def max_min_frame_rate(bitrate: int) -> float:
@@ -118,7 +124,7 @@ def analyse(bus: model.Bus, nodes: dict[str, model.Node]) -> tuple[list[LinkLoad
             tswitch: int | None = None
             if all(w is not None for w in waits[1:]):  # every hop after the first leaves a switch's egress port
                 tswitch = sum(switches[hop[0]].latency_ns + (w or 0) for hop, w in zip(hops[1:], waits[1:]))
-            tprop = sum(round(cables.get(h, 0.0) / PROPAGATION_M_PER_S * 1e9) for h in hops)
+            tprop = sum(propagation_ns(cables.get(h, 0.0)) for h in hops)
             delays.append(
                 PathDelay(
                     message=msg.name,
@@ -146,8 +152,3 @@ def fifo_busy_period(flows: list[tuple[int, int | None]]) -> int | None:
         if nxt == w:
             return w
         w = nxt
-
-
-def useful_bytes_without_padding() -> int:
-    """Data bytes that fit a minimum frame (18 with IPv4 + UDP): the paper's 'optimal exploitation'."""
-    return ETH_MIN_DATA - IPV4_HEADER - UDP_HEADER

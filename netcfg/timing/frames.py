@@ -30,7 +30,8 @@ from numpy.typing import NDArray
 
 Stuffing = Literal["worst", "nominal"]
 # can_frame_bits sees only a size, so "exact" (which needs the identifier and the data) has its own type and entry
-# point, can_frame_bits_of; Stuffing stays as it was so that can_frame_bits cannot be asked for what it cannot do.
+# point, can_frame_bits_of (the simulator's); Stuffing stays as it is so that can_frame_bits cannot be asked for
+# what it cannot do.
 FrameStuffing = Literal["worst", "nominal", "exact"]
 
 CAN_MAX_PAYLOAD = 8
@@ -244,10 +245,6 @@ def arbitration_key(can_id: int, extended: bool) -> int:
     return can_id << 19
 
 
-def bit_time_ns(bitrate: int) -> float:
-    return 1e9 / bitrate
-
-
 def bits_to_ns(bits: int, bitrate: int) -> int:
     """Exact when bitrate divides 1e9 (every standard CAN and Ethernet rate); rounded up otherwise."""
     return -(-bits * 1_000_000_000 // bitrate)
@@ -274,3 +271,16 @@ def udp_frame_bytes(payload: int) -> int:
 
 def udp_frame_ns(payload: int, bitrate: int) -> int:
     return bits_to_ns(8 * udp_frame_bytes(payload), bitrate)
+
+
+APP_ID_BYTES = 1  # every application datagram starts with the 1-byte message id (seed 001, Table 6.1)
+
+
+def udp_message_bytes(size: int) -> int:
+    """Bytes on the wire for one application message of `size` data bytes: the message id, then the data."""
+    return udp_frame_bytes(APP_ID_BYTES + size)
+
+
+def udp_message_ns(size: int, bitrate: int) -> int:
+    """Transmission time of one application message of `size` data bytes (udp_message_bytes) on one link."""
+    return bits_to_ns(8 * udp_message_bytes(size), bitrate)

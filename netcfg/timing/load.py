@@ -7,9 +7,11 @@ time; on-demand messages (start-up, mode changes) are not part of the steady-sta
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
+from typing import Protocol
 
 from netcfg import model
-from netcfg.timing.frames import bits_to_ns, can_frame_bits, udp_frame_bytes
+from netcfg.timing.frames import bits_to_ns, can_frame_bits, udp_message_bytes
 
 
 @dataclass(frozen=True)
@@ -30,17 +32,36 @@ def frame_timing(msg: model.Message, bitrate: int) -> FrameTiming:
 
 def udp_timing(msg: model.Message, bitrate: int) -> FrameTiming:
     """One UDP datagram: the 1-byte application message id (seed 001, Table 6.1) + the data."""
-    bits = 8 * udp_frame_bytes(1 + msg.size)
+    bits = 8 * udp_message_bytes(msg.size)
     tx = bits_to_ns(bits, bitrate)
     return FrameTiming(bits, bits, tx, tx * float(rate_hz(msg)) / 1e9)
 
 
-def rate_hz(msg: model.Message) -> float:
+class Rated(Protocol):
+    """What the rate of a message depends on: a spec's message (netcfg.model) and a runtime one (netcfg.runtime)."""
+
+    @property
+    def kind(self) -> str: ...
+    @property
+    def period_ns(self) -> int | None: ...
+    @property
+    def interval_ns(self) -> int | None: ...
+    @property
+    def rate_hz(self) -> Fraction | None: ...
+
+
+def exact_rate(msg: Rated) -> Fraction | None:
+    """The rate the spec gave, when the message is sent at it (not a sporadic minimum inter-arrival time)."""
+    return msg.rate_hz if msg.rate_hz is not None and msg.period_ns == msg.interval_ns else None
+
+
+def rate_hz(msg: Rated) -> float:
     """Transmissions per second at the fastest admissible rate (exact when the spec gave a rate)."""
     if msg.kind == "on-demand" or not msg.interval_ns:
         return 0.0
-    if msg.rate_hz is not None and msg.period_ns == msg.interval_ns:
-        return float(msg.rate_hz)
+    exact = exact_rate(msg)
+    if exact is not None:
+        return float(exact)
     return 1e9 / msg.interval_ns
 
 
