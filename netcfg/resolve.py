@@ -19,7 +19,7 @@ from netcfg.diagnostics import Collector
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
 from netcfg.spec.units import Duration, format_ns
-from netcfg.timing.frames import CAN_MAX_PAYLOAD, MAX_UDP_PAYLOAD
+from netcfg.timing.frames import APP_ID_BYTES, CAN_MAX_PAYLOAD, MAX_UDP_PAYLOAD
 from netcfg.timing.ftt import tm_time_ns
 from netcfg.timing.offsets import derive_offsets
 
@@ -558,7 +558,7 @@ class _Resolver:
                 f"{size} bytes do not fit a classical CAN frame (at most 8); split the message",
                 (*path, "size") if m.size is not None else path,
             )
-        if proto == "ethernet-udp" and size + 1 > MAX_UDP_PAYLOAD:
+        if proto == "ethernet-udp" and APP_ID_BYTES + size > MAX_UDP_PAYLOAD:
             self.err(
                 "payload",
                 f"{size} bytes plus the 1-byte message id exceed one unfragmented UDP datagram "
