@@ -181,7 +181,8 @@ def test_bad_frames_are_refused(call: object, match: str) -> None:
 
 
 def test_batch_throughput() -> None:
-    """Prints the batch path's rate on 8-byte frames (the simulator's target is >= 200k frames/s); no assertion."""
+    """Prints the batch path's rate on 8-byte frames (no timing assertion); the large batch must still agree with
+    the scalar path (itself checked against crccheck above) row for row on a sample."""
     payloads = np.random.default_rng(7).integers(0, 256, size=(200_000, 8), dtype=np.uint8)
     can_frame_bits_exact_batch(0x181, False, payloads[:1000])  # warm up
     start = time.perf_counter()
@@ -189,3 +190,5 @@ def test_batch_throughput() -> None:
     elapsed = time.perf_counter() - start
     print(f"\ncan_frame_bits_exact_batch: {len(payloads) / elapsed:,.0f} frames/s (8-byte, 11-bit id)")
     assert bits.shape == (200_000,)
+    sample = range(0, 200_000, 997)
+    assert [int(bits[i]) for i in sample] == [can_frame_bits_exact(0x181, False, payloads[i].tobytes()) for i in sample]

@@ -41,7 +41,9 @@ def test_asynchronous_window_response(tmp_path: Path) -> None:
     only starts if it ends before the synchronous window: up to one longest frame, 135 us, of idle time).
     'y' (lower priority) is released just too late for EC k's window (at 65 + 665 = 730 us into it) and needs
     its own 135 us plus one 'x' (135 us): served from 1065 us to 1335 us, a response of 605 us. 'x' needs its
-    frame plus, conservatively, one lower-priority frame already started: 270 us, 605 us as well.
+    frame plus, conservatively, one lower-priority frame already started (135 + 135 = 270 us of demand): released
+    at 730 us it waits for EC k+1's window at 1000 + 65 = 1065 us and is served by 1065 + 270 = 1335 us, a
+    response of 1335 - 730 = 605 us as well.
     'x' and 'y' are sporadic with 100 ms: one instance each in that window."""
     report = check_data(tmp_path, ftt_spec())
     assert report["ok"], report["errors"]

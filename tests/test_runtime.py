@@ -111,7 +111,8 @@ def test_canopen_parameters_are_typed(allex2: rt.RuntimeConfig) -> None:
 
 def test_udp_payload_is_message_id_then_data(sahr: rt.RuntimeConfig) -> None:
     """Seed 001, Table 6.1: one byte of message id (0x42 encoder, 4 bytes; 0x31 PWM, 1 byte), then the data.
-    The spec gives only sizes, so each message has one raw field; 0x04D2 = 1234 little-endian is d2 04 00 00."""
+    The spec gives only sizes, so each message has one raw field; the paper gives no byte order, netcfg's codec
+    is little-endian (netcfg.runtime.codec), so 0x04D2 = 1234 is d2 04 00 00."""
     enc = sahr.message("hip_encoder")
     datagram = enc.encode_udp(hip_encoder_raw=1234)
     assert datagram == bytes([0x42, 0xD2, 0x04, 0x00, 0x00])

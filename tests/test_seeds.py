@@ -82,18 +82,25 @@ def test_cambada_every_ec_fits_the_synchronous_window() -> None:
 
 
 def test_cambada_flows_synchronised_versus_unsynchronised() -> None:
-    """Table 3: with FTT-CAN the Motion delay is 26.7-27.7 ms and Odometry 21.6-21.7 ms, jitter about 1 ms or less;
-    with unsynchronised CAN the ranges span tens of ms (Motion 38.8-64.4 ms)."""
+    """Table 3: with FTT-CAN the Motion delay is 26.7-27.7 ms (a 1.0 ms jitter) and Odometry 21.6-21.7 ms; with
+    unsynchronised CAN Motion spans 38.8-64.4 ms and Odometry 12-21 ms, 25 and 90 times the FTT-CAN spreads.
+
+    Motion, measured in the paper until a motor receives its set-point (our delivery range), must lie within 1 ms of
+    Table 3 with a jitter no larger than its 1.0 ms. Odometry deviates, and the test pins the reason: netcfg places
+    the synchronous window at the end of the EC, so the pose (messages 4, 5, sent in EC 4) is received at worst at
+    EC 4's end, 25,000 us after EC 0 began, while the encoders were read at the end of EC 0's TM (420 us):
+    25,000 - 420 = 24,580 us, about 3 ms above the paper's 21.7 ms (which fits a window right after the TM).
+    Unsynchronised spreads must be at least ten times the synchronised ones, a conservative reading of Table 3."""
     flows = {f["name"]: f for f in check(SPECS / "cambada.yaml")["flows"]}
     motion = flows["motion"]["synchronised"]
-    # the paper measures Motion until a motor receives the set-point: our delivery range
-    assert 26_000 <= motion["delivery_min_us"] <= motion["delivery_max_us"] <= 28_500
+    assert 26_700 - 1_000 <= motion["delivery_min_us"] <= motion["delivery_max_us"] <= 27_700 + 1_000
+    assert motion["delivery_max_us"] - motion["delivery_min_us"] <= 1_000
+    assert flows["odometry"]["synchronised"]["latency_max_us"] == 24_580
     for name in ("motion", "odometry"):
         sync, unsync = flows[name]["synchronised"], flows[name]["unsynchronised"]
-        assert sync["latency_max_us"] - sync["latency_min_us"] <= 1_300, name
-        assert unsync["latency_max_us"] - unsync["latency_min_us"] >= 10_000, name
+        spread_sync = sync["latency_max_us"] - sync["latency_min_us"]
+        assert unsync["latency_max_us"] - unsync["latency_min_us"] >= 10 * spread_sync, name
         assert flows[name]["mode"] == "synchronised"
-    assert 20_000 <= flows["odometry"]["synchronised"]["latency_min_us"] <= 25_000
 
 
 def test_cambada_odometry_at_the_fastest_rate_still_fits(tmp_path: Path) -> None:
@@ -166,9 +173,13 @@ def test_allex2_sync_driven_flows_are_deterministic() -> None:
     joint_feedback: hip_l's TxPDO1 samples at SYNC; the master's control step runs 10 ms after SYNC (after the
     read window). Best: SYNC arrives at 47 us, control at 10,047 us: 10,000 us. Worst: SYNC arrives at 47 us in one
     cycle's best case but control starts at 10,000 + 190 us: 10,143 us. Unsynchronised, the master could sample
-    up to a whole 20 ms period late: 111 us (nominal 8-byte frame) .. 20,000 + 325 us (TxPDO1's response time).
+    up to a whole 20 ms period late: 111 us (nominal 8-byte frame) .. 20,000 + 325 us (TxPDO1's response time:
+    SYNC 190 us, then hip_l's TxPDO1, 135 bits = 135 us: 190 + 135 = 325 us).
     joint_command: control (10,047 .. 10,190 us after SYNC) runs 225.8 .. 8,557.3 us (Table 5, writing), RxPDO1
-    takes 111 .. 1,135 us, the drive applies it at the next SYNC (20,047 .. 20,190 us): 10,000 .. 10,143 us."""
+    takes 111 .. 1,135 us, the drive applies it at the next SYNC (20,047 .. 20,190 us): 10,000 .. 10,143 us.
+    Unsynchronised, the drive applies it at once: 225.8 (Table 5 writing, min) + 111 (nominal RxPDO1) = 336.8 us
+    at best; at worst the command waits a whole SYNC period: 20,000 + 8,557.3 (Table 5 writing, max) + 1,135
+    (RxPDO1's worst-case response) = 29,692.3 us."""
     flows = {f["name"]: f for f in check(SPECS / "allex2.yaml")["flows"]}
     for name in ("joint_feedback", "joint_command"):
         sync = flows[name]["synchronised"]

@@ -74,9 +74,10 @@ def test_cambada_ftt_flows_stay_within_the_analysis() -> None:
 
 
 def test_cambada_unsynchronised_is_wide_like_table_3() -> None:
-    """Plain CAN from the same configuration, over random phasings and drifts: Motion spreads over tens of
-    milliseconds (Table 3: 38.8-64.4 ms, a 25.6 ms spread); both flows stay within the analysis' unsynchronised
-    bounds (netcfg check: Motion 15.79-80.70 ms, Odometry 4.85-19.94 ms)."""
+    """Plain CAN from the same configuration, over random phasings and drifts. Table 3 measured Motion over
+    38.8-64.4 ms on CAN against 26.7-27.7 ms with FTT-CAN: a spread 25 times wider (25.6 ms against 1.0 ms). The
+    simulated spread must be of that kind: more than ten times FTT-CAN's 1.0 ms. Every flow stays within the
+    analysis' unsynchronised bounds, which runtime.json carries for each flow."""
     res = run_batch(
         json.loads((GEN / "cambada" / "runtime.json").read_text()),
         SimOptions(duration_ns=2 * SECOND, seed=10, mode="unsync"),
@@ -86,11 +87,16 @@ def test_cambada_unsynchronised_is_wide_like_table_3() -> None:
     doc = summary(res)
     motion, odo = flow(doc, "motion")["latency_us"], flow(doc, "odometry")["latency_us"]
     print("unsync motion", motion, "odometry", odo)
-    assert motion["max"] - motion["min"] >= 10_000
-    assert motion["min"] >= 15_792 and motion["max"] <= 80_700
-    assert odo["min"] >= 4_846 and odo["max"] <= 19_940
-    assert flow(doc, "motion")["analysis_us"] == {"min": 15_792, "max": 80_700}  # runtime.json: unsynchronised
-    assert all(f["within_analysis"] for f in doc["flows"])
+    assert motion["max"] - motion["min"] > 10 * 1_000
+    cfg = cfg_of("cambada")
+    for f in doc["flows"]:
+        bounds = cfg.flow(f["name"])
+        assert f["samples"] > 0
+        assert f["analysis_us"] == {
+            "min": bounds.unsync_latency_min_ns / 1000,  # type: ignore[operator]
+            "max": bounds.unsync_latency_max_ns / 1000,  # type: ignore[operator]
+        }
+        assert f["within_analysis"], f["name"]
 
 
 # -- ALLEX-2, CANopen ---------------------------------------------------------------------------------------
@@ -174,36 +180,40 @@ def test_cambada_backup_master_takes_over() -> None:
     assert rep["ecs_without_tm"] == 0
     assert all(v == 0 for v in res.lost.values())
     # the TM takes 420 us (seed 002: 8.4 % of the 5 ms EC) from the EC start (the master's clock starts the run at
-    # 0); only the backup's first TM ends later, by its 2-TM-time timeout (840 us): then it keeps the EC grid
+    # 0); only the backup's first TM ends later, by the backup's timeout (a model parameter of the simulator, not
+    # from the paper: two TM times, 840 us); then it keeps the EC grid
     bus = sc.can["lowlevel"]
     tm = bus.by_name["lowlevel_TM"].index
     into_ec = [end % 5_000_000 for m, end in zip(bus.record.msg, bus.record.end) if m == tm]
-    assert sorted(set(into_ec)) == [420_000, 1_260_000]
-    assert into_ec.count(1_260_000) == 1
+    from netcfg.sim.ftt import FttMaster
+
+    late = 420_000 + next(d for d in sc.protocols.values() if isinstance(d, FttMaster)).tm_timeout_ns
+    assert late == 1_260_000
+    assert sorted(set(into_ec)) == [420_000, late]
+    assert into_ec.count(late) == 1
 
 
 def test_cambada_lost_trigger_message_loses_that_ecs_traffic() -> None:
     """A lost TM: nodes do not know the EC's schedule, so none of its synchronous messages is sent and each is
-    counted as lost; one EC without TM."""
+    counted as lost; one EC without TM. The master's clock starts the run, so the TM queued at 1 s is EC 200's,
+    slot 200 mod 30 = 20 of the macro-cycle; by Table 2 only messages 1-3 (the encoders: init 2 ECs, period 2) are
+    due there ((20 - 2) mod 2 = 0), so exactly those three are lost."""
     fault = _fault("lose:lowlevel_TM@1s")
     _, res = run_once(cfg_of("cambada"), SimOptions(duration_ns=2 * SECOND, seed=8, faults=(fault,)))
     rep = res.protocols["lowlevel"][0]
     assert rep["ecs_without_tm"] == 1
-    assert res.lost["lowlevel_TM"] == 1
-    cfg = cfg_of("cambada")
-    ftt = cfg.bus("lowlevel").ftt
-    assert ftt is not None
-    lost_sync = sum(v for k, v in res.lost.items() if k != "lowlevel_TM")
-    assert lost_sync in {len(s.messages) for s in ftt.schedule}
+    lost = {k: v for k, v in res.lost.items() if v}
+    assert lost == {"lowlevel_TM": 1, "encoder1": 1, "encoder2": 1, "encoder3": 1}
 
 
 # -- bit errors ----------------------------------------------------------------------------------------------
 
 
 def test_one_bit_error_costs_an_error_frame_and_a_retransmission() -> None:
-    """A bit error 10 bit times into the first SYNC of ALLEX-2 (1 Mbit/s: 1 us per bit): ISO 11898-1's error frame
-    (at most 6 + 6 + 8 bits of flags and delimiter, 3 of intermission) and the SYNC again, so its response grows
-    by at least 10 + 23 bits = 33 us over the error-free run."""
+    """A bit error 10 bit times into the first SYNC of ALLEX-2 (1 Mbit/s: 1 us per bit): the 10 bits sent, the
+    error frame the simulator models as ISO 11898-1's longest active one (6 + 6 + 8 bits of flags and delimiter, 3
+    of intermission = 23 bits, checked by hand in test_sim_core.py), then the SYNC again: its response grows by
+    exactly 10 + 23 bits = 33 us over the error-free run (the bus is otherwise idle at that instant)."""
     cfg = cfg_of("allex2")
     opts = SimOptions(duration_ns=100 * MS, seed=9, trace=True)
     sc, clean = run_once(cfg, opts)
@@ -216,7 +226,7 @@ def test_one_bit_error_costs_an_error_frame_and_a_retransmission() -> None:
     _, res = run_once(cfg, hit)
     assert res.error_frames == 1
     assert res.retransmissions["can0_SYNC"] == 1
-    assert res.response["can0_SYNC"][0] >= clean.response["can0_SYNC"][0] + 33_000
+    assert res.response["can0_SYNC"][0] == clean.response["can0_SYNC"][0] + 33_000
 
 
 def test_random_bit_errors_cost_time_but_no_frame() -> None:
@@ -245,12 +255,16 @@ def test_simulated_responses_never_exceed_the_analysis(system: str) -> None:
     """Over 12 seeds (random phasings, drifts, execution times), no message's simulated response exceeds its
     analysed worst case; a failure names the message, the seed and both figures."""
     cfg = cfg_of(system)
+    compared = 0
     for seed in range(12):
         _, res = run_once(cfg, SimOptions(duration_ns=SECOND // 2, seed=seed))
         for name, r in res.response.items():
             w = res.wcrt.get(name)
             if w is not None and len(r):
+                compared += 1
                 assert int(r.max()) <= w, f"{system} seed {seed}: {name} simulated {r.max()} ns > analysed {w} ns"
+    analysed = sum(1 for m in cfg.messages if m.wcrt_ns is not None)
+    assert compared >= 12 * min(analysed, 3)  # every seed compared messages, not an empty loop
 
 
 def test_same_frames_same_maxima_as_the_simpy_model() -> None:
@@ -486,7 +500,8 @@ def _fault(text: str):
 
 def test_histograms_are_written_for_flows_and_analysed_messages(tmp_path: Path) -> None:
     """--plots writes one PNG per flow and per message with an analysed bound that was sent (CAMBADA over 2 s, longer
-    than its slowest period of 1 s: 3 flows and all 17 messages `netcfg check` gives a worst-case response time),
+    than its slowest period of 1 s: 3 flows and all 17 messages of seed 002's Table 1: M1, M2, M3.1-3, M4.1-2,
+    M5.1-2, M6.1-2, M7 and M8-M12),
     each a real PNG (its 8-byte signature, RFC 2083)."""
     r = cli("simulate", "specs/cambada.yaml", "--duration", "2s", "--plots", str(tmp_path), "--format", "json")
     assert r.returncode == 0, r.stderr

@@ -107,7 +107,8 @@ def test_endpoints_bind_the_configured_ports(sahr: rt.RuntimeConfig, hosts: dict
 
 
 def test_wire_format_and_ports(sahr: rt.RuntimeConfig, hosts: dict[str, str]) -> None:
-    """Table 6.1 on the wire: hip_encoder = 1234 is 42 d2 04 00 00 (id, then 0x000004D2 little-endian), sent from
+    """Table 6.1 on the wire (the id byte, then the data; the byte order is netcfg's, little-endian as its codec
+    documents, since the paper does not give one): hip_encoder = 1234 is 42 d2 04 00 00, sent from
     mcu_hip's port 5001 to the PC's port 6001; hip_pwm = 0x80 is 31 80, sent from 6001 to mcu_hip's 5001."""
     pc_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     pc_sock.bind((hosts["pc"], 6001))
@@ -236,6 +237,8 @@ def test_port_offset_moves_every_port(treadmill: rt.RuntimeConfig) -> None:
         assert mcu.endpoint.local_address(5001) == (f"{NET}.1", 15001)
         result = exchange(pc, "pwm_cmd", "encoder", 20)
     assert result.answered == 20 and all(p.matched for p in result.pairs)
+    # paced, never early: 20 sends span at least 19 periods of 500,000 ns (a slow machine only makes it longer)
+    assert result.pairs[-1].t_send_ns - result.pairs[0].t_send_ns >= 19 * 500_000
 
 
 def test_ten_thousand_pairs_at_the_configured_rate(sahr: rt.RuntimeConfig, hosts: dict[str, str]) -> None:
@@ -275,7 +278,10 @@ def test_ten_thousand_pairs_at_the_configured_rate(sahr: rt.RuntimeConfig, hosts
     assert (pc.counters.sent, pc.counters.malformed, pc.counters.unknown) == (PAIRS, 0, 0)
     # the spring stream: its counter only rises (0, 1, 2, ...; none reordered), never more than were sent
     assert set(result.others) <= {"spring_encoder"}
+    assert spring, "the spring stream must actually arrive for the two 0x42 streams to be told apart"
     assert spring == sorted(set(spring)) and len(spring) <= spring_mcu.periodic_sent["spring_encoder"]
+    # paced at the configured period, never early: 10,000 sends span at least 9,999 periods of 1 ms
+    assert result.pairs[-1].t_send_ns - result.pairs[0].t_send_ns >= (PAIRS - 1) * cmd.period_ns
 
     rtt = result.rtt()
     rate = (PAIRS - 1) / ((result.pairs[-1].t_send_ns - result.pairs[0].t_send_ns) / 1e9)
