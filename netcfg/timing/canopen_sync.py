@@ -55,14 +55,14 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
         limits.append((co.read_window_ns, "the master's read window"))
     limit_ns, limit_name = min(limits)
     blocking = max(frame_ns.values(), default=0)
+    others = [m for m in bus.messages if m is not sync_msg and m.name not in every]  # the same in every cycle
+    rate = sum(frame_ns[m.name] / m.interval_ns for m in others if m.interval_ns)
     out = []
     for k in range(cycles):
         due = tuple(name for name, n in every.items() if k % n == 0)
-        others = [m for m in bus.messages if m is not sync_msg and m.name not in every]
         tpdos = sum(frame_ns[n] for n in due)
         fixed = frame_ns[sync_msg.name] + tpdos + blocking
         terms = {"blocking_ns": blocking, "sync_ns": frame_ns[sync_msg.name], "tpdos_ns": tpdos}
-        rate = sum(frame_ns[m.name] / m.interval_ns for m in others if m.interval_ns)
         if rate >= 1:
             out.append(SyncCycle(k, due, None, limit_ns, limit_name, **terms))
             continue
