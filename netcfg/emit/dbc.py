@@ -124,9 +124,8 @@ def _entry_comment(msg: model.Message, k: int) -> str | None:
 
 def _message_comment(m: model.Model, msg: model.Message) -> str | None:
     parts = []
-    description = getattr(msg, "description", None)  # the model may carry the spec's description one day
-    if description:
-        parts.append(str(description))
+    if msg.description:
+        parts.append(msg.description)
     if msg.implicit == "SYNC":
         parts.append("CANopen SYNC")
     elif msg.implicit == "heartbeat":
