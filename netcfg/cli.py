@@ -81,10 +81,14 @@ def _bitrate(text: str) -> int:
     scale = {"k": 1_000, "m": 1_000_000}.get(short[-1:], 0)
     try:
         if scale and short[:-1].replace(".", "", 1).isdigit():
-            return int(float(short[:-1]) * scale)
-        if short.isdigit():
-            return int(short)
-        return parse_bitrate(text)
+            rate = int(float(short[:-1]) * scale)
+        elif short.isdigit():
+            rate = int(short)
+        else:
+            rate = parse_bitrate(text)
+        if rate <= 0:
+            raise ValueError("a bit rate must be positive")
+        return rate
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"{text!r} is not a bit rate; write 500k, 1M or '500 kbit/s'") from exc
 

@@ -108,3 +108,11 @@ def test_readme_spec_example_checks(tmp_path: Path) -> None:
     spec.write_text(block.group(1))
     code, report = cli_json("check", str(spec))
     assert code == 0 and report["ok"], report["errors"]
+
+
+@pytest.mark.parametrize("rate", ["0", "0k"])
+def test_a_zero_bit_rate_is_a_usage_error(rate: str) -> None:
+    """A bus of 0 bit/s cannot carry a frame; --bitrate refuses it as argparse refuses bad options (exit 2)."""
+    r = cli("check", str(SPECS / "cambada.yaml"), "--bitrate", rate)
+    assert r.returncode == 2
+    assert "is not a bit rate" in r.stderr and "Traceback" not in r.stderr
