@@ -992,24 +992,12 @@ def _mark(file: str, pos: Position) -> yaml.Mark:
 def import_bus_yml(path: Path, options: ImportOptions, diags: Collector) -> Imported | None:
     """Read a Lely dcfgen / ros2_canopen bus.yml; None (with errors in diags) when it cannot be imported.
 
-    OSError propagates (the CLI turns it into exit code 2)."""
-    try:
-        imported = BusYmlImporter(path, options, diags).run()
-        if imported is not None and options.output is not None:
-            _relative_device_paths(imported[0], Path(options.output).resolve().parent)
-        return imported
-    except OSError:
-        raise
-    except Exception as exc:  # a bug in netcfg, not in the file: say so instead of a traceback
-        if os.environ.get("NETCFG_DEBUG"):
-            raise
-        diags.add(
-            "internal",
-            f"internal error while importing: {type(exc).__name__}: {exc}; this is a bug in netcfg, please report "
-            "it (NETCFG_DEBUG=1 shows the traceback)",
-            Position(str(path), 1, 1),
-        )
-        return None
+    OSError propagates (the CLI turns it into exit code 2), and so does a bug in netcfg: the CLI reports that
+    once, the same way for every importer (exit code 2, no traceback unless NETCFG_DEBUG is set)."""
+    imported = BusYmlImporter(path, options, diags).run()
+    if imported is not None and options.output is not None:
+        _relative_device_paths(imported[0], Path(options.output).resolve().parent)
+    return imported
 
 
 def _relative_device_paths(data: dict[str, Any], spec_folder: Path) -> None:
