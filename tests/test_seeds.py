@@ -207,6 +207,7 @@ def test_sahr_minimum_frame_and_pc_link_load() -> None:
     assert pc_link["frames_per_s"] == 30_000
     assert pc_link["utilization"] == pytest.approx(0.2016)
     assert pc_link["senders"] == 2 and pc_link["f_max_per_sender_hz"] == pytest.approx(74_404.76, abs=0.01)
+    assert pc_link["f_transm_hz"] == 15_000  # each MCU sends its one encoder message at 15 kHz
     assert pc_link["ok"]
 
 

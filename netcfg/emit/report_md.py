@@ -374,15 +374,9 @@ def _sync_view(model: Model, bus: Bus, b: dict[str, Any]) -> dict[str, Any]:
 
 
 def _links_view(b: dict[str, Any]) -> dict[str, Any]:
-    # f_transm of a sender on a link: the rate of all its messages there (seed 001 sends one message per MCU)
-    producer = {m["name"]: m["producer"] for m in b["messages"]}
-    hz = {m["name"]: m.get("rate_hz") or 0.0 for m in b["messages"]}
     rows = []
     for ll in b["links"]:
-        per_sender: dict[str, float] = {}
-        for name in ll["messages"]:
-            per_sender[producer[name]] = per_sender.get(producer[name], 0.0) + hz[name]
-        f_transm = max(per_sender.values(), default=0.0)
+        f_transm = ll["f_transm_hz"]  # the analysis' figure: one definition for the report and the checks
         rows.append(
             [
                 f"{ll['from']} -> {ll['to']}",
