@@ -1,0 +1,54 @@
+"""Spec -> Model: fill in defaults (identifiers, periods, FTT ids, device objects) and check everything that
+needs more than one item to decide: references, identifiers, PDO maps against device dictionaries, EC
+multiples, offsets. Like a linter, it reports every problem it finds, not just the first.
+
+The core (`core`) resolves what every spec has: names, nodes, tasks, a message's common fields, identifiers;
+`flows` the end-to-end chains. Each protocol is one module with one `BusProtocol` subclass, registered below.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path as FsPath
+
+from netcfg import model
+from netcfg.diagnostics import Collector
+from netcfg.resolve.can import CanProtocol
+from netcfg.resolve.canopen import CanopenProtocol
+from netcfg.resolve.core import Resolver
+from netcfg.resolve.ethernet import EthernetProtocol
+from netcfg.resolve.flows import resolve_flows
+from netcfg.resolve.ftt import FttProtocol
+from netcfg.resolve.pdo import snake
+from netcfg.resolve.protocol import BusProtocol
+from netcfg.spec import schema
+from netcfg.spec.source import SourceMap
+from netcfg.timing.offsets import derive_offsets
+
+__all__ = ["PROTOCOLS", "resolve", "snake"]
+
+# One resolver per protocol of the spec language (schema.Bus.protocol).
+PROTOCOLS: dict[str, type[BusProtocol]] = {
+    "can": CanProtocol,
+    "canopen": CanopenProtocol,
+    "ftt-can": FttProtocol,
+    "ethernet-udp": EthernetProtocol,
+}
+
+
+def resolve(spec: schema.Spec, smap: SourceMap, diags: Collector, spec_dir: FsPath) -> model.Model | None:
+    """Build the Model; returns None (with errors in diags) when the spec is inconsistent."""
+    r = Resolver(spec, smap, diags, spec_dir, PROTOCOLS)
+    r.check_unique_names()
+    r.resolve_buses()
+    r.resolve_nodes()
+    r.resolve_messages()
+    for rules in r.protocols.values():
+        rules.resolve_items()  # implicit messages, triggers, topologies
+    r.check_tasks_activated()
+    r.check_identifiers()
+    resolve_flows(r)
+    if not diags.errors:
+        derive_offsets(r.model, r.err)
+    if diags.errors:
+        return None
+    return r.model

@@ -1,0 +1,55 @@
+"""Classical CAN (ISO 11898-1): the bit rate, the 8-byte payload and unique identifiers on the bus. CANopen and
+FTT-CAN build on these rules."""
+
+from __future__ import annotations
+
+from netcfg import model
+from netcfg.resolve.protocol import BusProtocol
+from netcfg.spec import schema
+from netcfg.spec.source import Path
+from netcfg.timing.frames import CAN_MAX_PAYLOAD
+
+MAX_CAN_BITRATE = 1_000_000  # classical CAN, ISO 11898-1
+
+
+class CanProtocol(BusProtocol):
+    name = "can"
+
+    def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
+        if b.bitrate > MAX_CAN_BITRATE:
+            self.r.err(
+                "bitrate",
+                f"classical CAN runs at most 1 Mbit/s; bus '{b.name}' says {b.bitrate} bit/s",
+                (*path, "bitrate"),
+            )
+
+    def check_payload(self, m: schema.Message, size: int, path: Path) -> None:
+        if size > CAN_MAX_PAYLOAD:
+            self.r.err(
+                "payload",
+                f"{size} bytes do not fit a classical CAN frame (at most 8); split the message",
+                (*path, "size") if m.size is not None else path,
+            )
+
+    def reserved_ids(self, bus: model.Bus) -> dict[tuple[bool, int], str]:
+        """(extended, identifier) -> what the protocol itself sends with it."""
+        return {}
+
+    def check_message_id(self, bus: model.Bus, m: model.Message) -> None:
+        """A rule the protocol adds for one message's identifier once it is known to be unique."""
+
+    def check_identifiers(self, bus: model.Bus) -> None:
+        taken = self.reserved_ids(bus)
+        for m in bus.messages:
+            if m.id < 0:
+                continue
+            id_key = (m.extended, m.id)
+            if id_key in taken:
+                self.r.err(
+                    "duplicate-id",
+                    f"identifier 0x{m.id:03X} of '{m.name}' collides with {taken[id_key]}; pick a free one",
+                    self.r.key_or_item(m.path, "id"),
+                )
+                continue
+            taken[id_key] = f"'{m.name}'"
+            self.check_message_id(bus, m)

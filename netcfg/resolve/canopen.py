@@ -1,0 +1,298 @@
+"""CANopen (CiA 301): the SYNC settings of a bus, device profiles, SYNC-driven tasks, PDO timing by transmission
+type, default COB-IDs, the implicit SYNC and heartbeat messages and the identifiers the services reserve. The PDO
+maps themselves are checked in `netcfg.resolve.pdo`."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path as FsPath
+from typing import TYPE_CHECKING
+
+from netcfg import cia301, model
+from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
+from netcfg.devices.eds import EdsError, import_eds
+from netcfg.model import MessageKind
+from netcfg.resolve import pdo as pdo_map
+from netcfg.resolve.can import CanProtocol
+from netcfg.spec import schema
+from netcfg.spec.source import Path
+from netcfg.spec.units import format_ns
+
+if TYPE_CHECKING:
+    from netcfg.resolve.core import Resolver
+
+
+class CanopenProtocol(CanProtocol):
+    name = "canopen"
+    section = "canopen"
+
+    def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
+        super().resolve_bus(b, bus, path)
+        self.resolve_canopen(b, bus, path)
+
+    def resolve_canopen(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
+        if b.canopen is None:
+            self.r.err("missing-section", f"CANopen bus '{b.name}' needs 'canopen: {{sync_period: 20 ms}}'", path)
+            return
+        c = b.canopen
+        cpath = (*path, "canopen")
+        period = self.r.ns(c.sync_period, (*cpath, "sync_period"), None)
+        window = self.r.ns(c.sync_window, (*cpath, "sync_window"), None)
+        read = self.r.ns(c.read_window, (*cpath, "read_window"), None)
+        if period is None:
+            return
+        if period == 0 or period % 1000:
+            self.r.err(
+                "sync-period",
+                "the SYNC period (0x1006) is a whole, positive number of microseconds",
+                (*cpath, "sync_period"),
+            )
+        for name, value in (("sync_window", window), ("read_window", read)):
+            if value is not None and value > period:
+                self.r.err(
+                    "sync-window",
+                    f"{name} {format_ns(value)} is longer than the SYNC period {format_ns(period)}",
+                    (*cpath, name),
+                )
+        producer = c.sync_producer
+        if producer is None:
+            ms = self.r.masters(b.name)
+            if len(ms) != 1:
+                self.r.err(
+                    "sync-producer",
+                    f"CANopen bus '{b.name}' needs one node with 'role: master' (found "
+                    f"{len(ms)}) or 'canopen: {{sync_producer: <node>}}'",
+                    cpath,
+                )
+                return
+            producer = ms[0]
+        elif producer not in self.r.spec_nodes or b.name not in self.r.spec_nodes[producer].buses:
+            self.r.err(
+                "unknown-node", f"SYNC producer '{producer}' is not a node on bus '{b.name}'", (*cpath, "sync_producer")
+            )
+            return
+        bus.canopen = model.CanopenBus(
+            sync_period_ns=period, sync_window_ns=window, read_window_ns=read, sync_producer=producer, sync_id=c.sync_id
+        )
+
+    def resolve_items(self) -> None:
+        self.check_sync_ids()
+        self.add_implicit_messages()
+
+    def resolve_pdo(
+        self, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
+    ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
+        return pdo_map.resolve_pdo(self.r, m, sbus, bus, path)
+
+    def pdo_timing(
+        self,
+        pdo: model.Pdo,
+        bus: model.Bus,
+        kind: MessageKind | None,
+        period: int | None,
+        mit: int | None,
+        path: Path,
+    ) -> tuple[MessageKind | None, int | None, int | None]:
+        # CANopen PDOs: the transmission type says when a TPDO goes out (CiA 301, 0x1800 sub 2).
+        if pdo.kind == "tpdo" and bus.canopen is not None:
+            sync = bus.canopen.sync_period_ns
+            tt = pdo.transmission
+            if 1 <= tt <= 240:
+                derived = tt * sync
+                if period is not None and period != derived:
+                    self.r.err(
+                        "period",
+                        f"transmission type {tt} sends on every {tt}. SYNC, i.e. every "
+                        f"{format_ns(derived)}; the period {format_ns(period)} disagrees (drop it)",
+                        (*path, "period"),
+                    )
+                period, kind = derived, kind or "periodic"
+            elif tt == 0 and period is None and mit is None:
+                mit, kind = sync, kind or "sporadic"  # acyclic synchronous: at most once per SYNC
+            elif tt >= 254 and pdo.event_timer_ms and period is None and mit is None:
+                period, kind = pdo.event_timer_ms * 1_000_000, kind or "periodic"
+            if pdo.inhibit_100us and kind != "periodic":
+                inhibit = pdo.inhibit_100us * 100_000
+                mit = max(mit or 0, inhibit)
+        return kind, period, mit
+
+    def message_id(self, m: schema.Message, pdo: model.Pdo | None, path: Path) -> int | None:
+        ident = m.id
+        if pdo is not None and ident is None:
+            node = self.r.spec_nodes[pdo.device_node]
+            if node.node_id is not None and node.node_id in cia301.NODE_IDS:
+                ident = cia301.default_pdo_cob_id(pdo.kind, pdo.number, node.node_id)
+            if ident is None:
+                self.r.err(
+                    "id-missing",
+                    f"{pdo.kind.upper()} {pdo.number} has no CiA 301 default COB-ID (only PDOs 1-4 "
+                    "have one); give an explicit 'id'",
+                    path,
+                )
+        return ident
+
+    def reserved_ids(self, bus: model.Bus) -> dict[tuple[bool, int], str]:
+        taken: dict[tuple[bool, int], str] = {}
+        if bus.canopen is not None:
+            taken[(False, cia301.NMT_ID)] = "NMT"
+            for name in bus.nodes:
+                node = self.r.model.nodes.get(name)
+                if node is None or node.node_id is None or node.node_id not in cia301.NODE_IDS:
+                    continue
+                for service, cob in cia301.node_services(node.node_id).items():
+                    if service.startswith("heartbeat") and node.heartbeat_ns:
+                        continue  # the implicit heartbeat message below claims it
+                    taken.setdefault((False, cob), f"{service} of node '{name}' (id {node.node_id})")
+            for lss in cia301.LSS_IDS:
+                taken.setdefault((False, lss), "LSS")
+        return taken
+
+    def check_message_id(self, bus: model.Bus, m: model.Message) -> None:
+        if bus.canopen is not None and m.pdo is not None and not m.extended and cia301.restricted(m.id):
+            self.r.err(
+                "restricted-id",
+                f"COB-ID 0x{m.id:03X} is restricted by CiA 301 (reserved for NMT, "
+                "SYNC/EMCY, TIME, SDO, heartbeat or LSS); PDOs must not use it",
+                self.r.key_or_item(m.path, "id"),
+            )
+
+    def check_sync_ids(self) -> None:
+        """A device whose COB-ID SYNC (0x1005) is constant cannot follow another SYNC identifier."""
+        for bus in self.r.model.buses.values():
+            if bus.canopen is None:
+                continue
+            for name in bus.nodes:
+                node = self.r.model.nodes.get(name)
+                entry = node.device.lookup(0x1005, 0) if node and node.device else None
+                fixed = entry is not None and entry.access == "const" and entry.default is not None
+                if fixed and entry.default & 0x7FF != bus.canopen.sync_id:  # type: ignore[union-attr,operator]
+                    self.r.err(
+                        "sync-id",
+                        f"device {node.device.name} of '{name}' has a fixed COB-ID SYNC (0x1005) of "  # type: ignore[union-attr]
+                        f"0x{entry.default & 0x7FF:03X}; bus '{bus.name}' uses 0x{bus.canopen.sync_id:03X}",  # type: ignore[union-attr,operator]
+                        (*bus.path, "canopen", "sync_id"),
+                    )
+
+    def add_implicit_messages(self) -> None:
+        """CANopen buses carry SYNC and heartbeats that the spec does not list as messages."""
+        for bus in self.r.model.buses.values():
+            if bus.canopen is None:
+                continue
+            co = bus.canopen
+            params = self.r.spec_buses[bus.name].canopen
+            size = 1 if params is not None and params.sync_counter else 0
+            others = tuple(n for n in bus.nodes if n != co.sync_producer)
+            cpath: Path = (*bus.path, "canopen")
+            sync = model.Message(
+                name=f"{bus.name}_SYNC",
+                bus=bus.name,
+                producer=co.sync_producer,
+                consumers=others or (co.sync_producer,),
+                id=co.sync_id,
+                extended=False,
+                size=size,
+                kind="periodic",
+                period_ns=co.sync_period_ns,
+                interval_ns=co.sync_period_ns,
+                offset_ns=0,
+                offset_auto=False,
+                deadline_ns=co.sync_window_ns or co.sync_period_ns,
+                jitter_ns=0,
+                path=cpath,
+                implicit="SYNC",
+            )
+            self.r.claim_implicit_name(sync.name, "the SYNC of bus " + bus.name)
+            bus.messages.insert(0, sync)
+            for name in bus.nodes:
+                node = self.r.model.nodes.get(name)
+                if node is None or node.heartbeat_ns is None or node.node_id is None:
+                    continue
+                self.r.claim_implicit_name(f"{name}_heartbeat", f"the heartbeat of node {name}")
+                bus.messages.append(
+                    model.Message(
+                        name=f"{name}_heartbeat",
+                        bus=bus.name,
+                        producer=name,
+                        consumers=tuple(n for n in bus.nodes if n != name) or (name,),
+                        id=cia301.HEARTBEAT_BASE + node.node_id,
+                        extended=False,
+                        size=1,
+                        kind="periodic",
+                        period_ns=node.heartbeat_ns,
+                        interval_ns=node.heartbeat_ns,
+                        offset_ns=None,
+                        offset_auto=False,
+                        deadline_ns=node.heartbeat_ns,
+                        jitter_ns=0,
+                        path=(*node.path, "heartbeat"),
+                        implicit="heartbeat",
+                    )
+                )
+
+
+def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> DeviceProfile | None:
+    if n.device is None:
+        return None
+    dpath = (*path, "device")
+    if not on_canopen:
+        r.err("wrong-section", "device profiles describe CANopen devices; this node is on no CANopen bus", dpath)
+        return None
+    if isinstance(n.device, str):
+        try:
+            return builtin_profile(n.device)
+        except KeyError:
+            r.err(
+                "unknown-device",
+                f"no built-in device profile '{n.device}'; built-in: "
+                f"{', '.join(builtin_profile_names())}, or give a vendor file as 'device: {{eds: x.eds}}'",
+                dpath,
+            )
+            return None
+    file = (r.spec_dir / n.device.eds).resolve()
+    if not file.is_file():
+        r.err(
+            "eds-missing",
+            f"EDS file '{n.device.eds}' not found (looked for {file}); paths are relative to the spec",
+            (*dpath, "eds"),
+        )
+        return None
+    try:
+        profile = _cached_eds(str(file), file.stat().st_mtime_ns, n.device.eds)
+        return dataclasses.replace(profile, source=n.device.eds)  # name the file as the spec wrote it
+    except EdsError as exc:
+        r.err("eds-invalid", f"{n.device.eds}: {exc}", (*dpath, "eds"))
+        return None
+
+
+def sync_task(r: Resolver, node: str, t: schema.Task, path: Path, period: int | None) -> tuple[str | None, int | None]:
+    """A SYNC-driven task takes its period from its node's CANopen bus."""
+    buses = [b for b in r.spec_nodes[node].buses if b in r.model.buses and r.model.buses[b].canopen]
+    if len(buses) != 1:
+        r.err(
+            "task-sync",
+            f"task '{node}.{t.name}' runs on SYNC, so its node must be on exactly one CANopen "
+            f"bus (it is on {len(buses)})",
+            (*path, "sync"),
+        )
+        return None, period
+    if t.on_message is not None:
+        r.err("task-sync", "a task runs either on SYNC or on a message, not both", (*path, "sync"))
+    sync_period = r.model.buses[buses[0]].canopen.sync_period_ns  # type: ignore[union-attr]
+    if period is not None and period != sync_period:
+        r.err(
+            "task-period",
+            f"a SYNC task runs every SYNC ({format_ns(sync_period)}); drop its period",
+            (*path, "period"),
+        )
+    return buses[0], sync_period
+
+
+_EDS_CACHE: dict[tuple[str, int], DeviceProfile] = {}
+
+
+def _cached_eds(file: str, mtime: int, display: str) -> DeviceProfile:
+    """Specs with many identical drives import their EDS once."""
+    key = (file, mtime)
+    if key not in _EDS_CACHE:
+        _EDS_CACHE[key] = import_eds(FsPath(file), FsPath(display).stem)
+    return _EDS_CACHE[key]

@@ -1,0 +1,102 @@
+"""What a protocol adds to resolution. The core calls these hooks for each bus (and each message on it) of the
+protocol; the defaults are what a protocol without the feature does, usually refusing the feature's keys.
+A new protocol is one module with one subclass, registered in `netcfg.resolve.PROTOCOLS`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Literal
+
+from netcfg import model
+from netcfg.model import MessageKind
+from netcfg.spec import schema
+from netcfg.spec.source import Path
+
+if TYPE_CHECKING:
+    from netcfg.resolve.core import Resolver
+
+
+class BusProtocol:
+    name = ""
+    section: str | None = None  # the bus's own section in the spec ('ftt:', 'canopen:', 'ethernet:')
+    explicit_ids = True  # a message needs an 'id' unless the protocol derives one
+    id_meaning = "a CAN id"  # what the id is, for the message asking for it
+    extended_ids = True  # whether 'extended' means anything on this bus
+    rate_adaptation = False  # 'period_range' (FTT-CAN on-line rate adaptation)
+    auto_offsets = False  # 'offset: auto' (derived from flows)
+
+    def __init__(self, r: Resolver) -> None:
+        self.r = r
+
+    # -- buses
+    def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
+        """Check the bus's own settings and fill its protocol section in the model."""
+
+    def resolve_items(self) -> None:
+        """What the protocol adds once every message is resolved (implicit messages, triggers, topology)."""
+
+    def check_identifiers(self, bus: model.Bus) -> None:
+        """Identifiers on the bus are unique and none is reserved by the protocol."""
+
+    # -- messages
+    def carries_messages(self, bus: model.Bus) -> bool:
+        """False when the bus's own section failed (reported already): its messages cannot be resolved."""
+        return True
+
+    def resolve_pdo(
+        self, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
+    ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
+        self.r.err("wrong-section", f"PDOs exist on CANopen buses; '{sbus.name}' is {self.name}", (*path, "pdo"))
+        return None
+
+    def check_payload(self, m: schema.Message, size: int, path: Path) -> None:
+        """The payload fits one frame of the protocol."""
+
+    def pdo_timing(
+        self,
+        pdo: model.Pdo,
+        bus: model.Bus,
+        kind: MessageKind | None,
+        period: int | None,
+        mit: int | None,
+        path: Path,
+    ) -> tuple[MessageKind | None, int | None, int | None]:
+        """-> (kind, period, min. interarrival) after the PDO's own timing settings."""
+        return kind, period, mit
+
+    def release_offset(
+        self,
+        m: schema.Message,
+        kind: MessageKind,
+        period: int | None,
+        offset: int | None,
+        offset_auto: bool,
+        path: Path,
+        ec: int | None,
+    ) -> int | None:
+        """-> the message's release offset once the protocol's release grid is checked."""
+        return offset
+
+    def resolve_window(
+        self, m: schema.Message, sbus: schema.Bus, kind: MessageKind, path: Path
+    ) -> tuple[Literal["sync", "async"] | None, int | None]:
+        """-> (FTT-CAN window, FTT id); other protocols refuse both keys."""
+        for key in ("window", "ftt_id"):
+            if getattr(m, key) is not None:
+                self.r.err(
+                    "wrong-section", f"'{key}' is an FTT-CAN setting; bus '{sbus.name}' is {self.name}", (*path, key)
+                )
+        return None, None
+
+    def message_id(self, m: schema.Message, pdo: model.Pdo | None, path: Path) -> int | None:
+        """-> the message's identifier: the spec's, or the one the protocol gives it by default."""
+        return m.id
+
+    def id_limit(self, extended: bool) -> tuple[int, str]:
+        """-> (largest identifier, its width in words)."""
+        return (0x1FFFFFFF, "29 bits") if extended else (0x7FF, "11 bits")
+
+    def check_fields(self, m: schema.Message, path: Path) -> None:
+        """Message keys that belong to another protocol."""
+        if m.udp is not None:
+            self.r.err("wrong-section", "'udp' belongs to ethernet-udp buses", (*path, "udp"))
