@@ -26,7 +26,7 @@ from netcfg.sim.can_bus import CanBus
 from netcfg.sim.stats import spread
 
 if TYPE_CHECKING:
-    from netcfg.sim.scenario import Scenario
+    from netcfg.sim.run import SimRun
 
 SDO_OBJECTS_PER_READ = 3  # position, velocity, current (seed 000, section 4.2)
 SDO_TIMEOUT_NS = 300_000_000  # the canopen package's default SDO response timeout (SdoClient.RESPONSE_TIMEOUT)
@@ -42,7 +42,7 @@ class Cycle:
 
 
 class CanopenMaster:
-    def __init__(self, sc: Scenario, bus: Bus, can: CanBus) -> None:
+    def __init__(self, sc: SimRun, bus: Bus, can: CanBus) -> None:
         assert bus.canopen is not None
         self.sc = sc
         self.bus = bus

@@ -57,7 +57,7 @@ from netcfg.timing.frames import udp_message_ns
 if TYPE_CHECKING:
     from netcfg.runtime import Task
     from netcfg.sim.flows import FlowTracker
-    from netcfg.sim.scenario import Scenario
+    from netcfg.sim.run import SimRun
 
 # Egress buffer per port, in frames: an assumption, not a datasheet figure. Small unmanaged switches share a packet
 # memory of a few tens of kilobytes among their ports; 64 frames per port is of that order for minimum-size frames.
@@ -122,7 +122,7 @@ class _Server:
 class EthernetNetwork:
     def __init__(
         self,
-        sc: Scenario,
+        sc: SimRun,
         bus: Bus,
         *,
         queue_frames: int | None = None,
@@ -341,9 +341,9 @@ class EthernetNetwork:
         sc = self.sc
         self.listeners: dict[tuple[int, str], Listen] = {}
         for i, m in enumerate(self.messages):
-            trackers = sc._flow_refs.get(m.name, [])
+            trackers = sc.trackers_of(m.name)
             for consumer in m.consumers:
-                tasks = [t for t in sc._message_tasks.get(m.name, []) if t.node == consumer]
+                tasks = [t for t in sc.tasks_on_message(m.name) if t.node == consumer]
                 if trackers or tasks:
                     self.listeners[(i, consumer)] = (trackers, tasks)
 

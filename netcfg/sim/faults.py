@@ -24,7 +24,7 @@ import numpy as np
 from netcfg.sim.engine import NEVER
 
 if TYPE_CHECKING:
-    from netcfg.sim.scenario import Scenario
+    from netcfg.sim.run import SimRun
 
 _UNITS = {"ns": 1, "us": 1_000, "ms": 1_000_000, "s": 1_000_000_000}
 _TIME = r"(\d+(?:\.\d+)?)\s*(ns|us|ms|s)"
@@ -88,7 +88,7 @@ class Fault:
             "babble:NODE@1s..2s=0x0, lose:MESSAGE@100ms, master-fail@2s"
         )
 
-    def install(self, sc: Scenario) -> None:
+    def install(self, sc: SimRun) -> None:
         """Set the fault up in a scenario whose buses exist but have not started."""
         errors = self.kind in ("ber", "bit-error")
         buses = [b for b in sc.can.values() if self.target in (None, b.name)] if errors else []
@@ -139,7 +139,7 @@ class Fault:
                 d.fail(self.at_ns, self.target)  # type: ignore[attr-defined]
 
 
-def _node(sc: Scenario, name: str | None) -> str:
+def _node(sc: SimRun, name: str | None) -> str:
     names = [n.name for n in sc.cfg.nodes]
     if name not in names:
         raise FaultError(f"no node named '{name}'; the nodes are: {', '.join(names)}")

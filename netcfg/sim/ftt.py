@@ -19,11 +19,11 @@ from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, PPB
 
 if TYPE_CHECKING:
-    from netcfg.sim.scenario import Scenario
+    from netcfg.sim.run import SimRun
 
 
 class FttMaster:
-    def __init__(self, sc: Scenario, bus: Bus, can: CanBus) -> None:
+    def __init__(self, sc: SimRun, bus: Bus, can: CanBus) -> None:
         assert bus.ftt is not None
         self.sc = sc
         self.can = can

@@ -185,6 +185,12 @@ class Scenario:
     def tasks_on_sync(self, bus: str) -> list[Task]:
         return [t for n in self.cfg.nodes for t in n.tasks if t.sync_bus == bus and self._wanted(t)]
 
+    def tasks_on_message(self, message: str) -> list[Task]:
+        return self._message_tasks.get(message, [])
+
+    def trackers_of(self, ref: str) -> list[FlowTracker]:
+        return self._flow_refs.get(ref, [])
+
     def alive(self, node: str) -> bool:
         return self.sim.now < self.crash_at.get(node, NEVER)
 
