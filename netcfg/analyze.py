@@ -235,6 +235,7 @@ def analyze_ftt(
             "macro_cycle_ec": exc.ecs,
             "srt": [srt_row(e) for e in entries],
         }
+    bus.ftt_schedule = sched
     acc.ftt[bus.name] = flows.FttTimes(sched, frame_ns, {e.name: (e.period_ec, e.init_ec) for e in entries})
     for label, s in (("", sched), (" at the fastest periods of period_range", fastest)):
         for slot in s.slots:

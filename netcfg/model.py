@@ -7,9 +7,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from netcfg.devices import DeviceProfile
+
+if TYPE_CHECKING:
+    from netcfg.timing.ftt import Schedule
 from netcfg.spec.source import Path, SourceMap
 
 Protocol = Literal["can", "canopen", "ftt-can", "ethernet-udp"]
@@ -168,6 +171,8 @@ class Bus:
     canopen: CanopenBus | None = None
     switches: list[Switch] = field(default_factory=list)
     description: str | None = None
+    # FTT-CAN: the SRT and the EC-schedules of one macro-cycle, built once by the analysis; the emitters read it
+    ftt_schedule: Schedule | None = None
 
     @property
     def is_can(self) -> bool:

@@ -25,7 +25,6 @@ from typing import Any
 from netcfg import model
 from netcfg.emit import render
 from netcfg.runtime import raw_signal_name
-from netcfg.timing import ftt
 
 # integer widths a C99 <stdint.h> always has on our targets
 _WIDTHS = (8, 16, 32, 64)
@@ -233,8 +232,9 @@ def _ftt_entries(m: model.Model, bus: model.Bus) -> dict[str, FttView]:
     """Period and init time in ECs, as the SRT has them (netcfg.timing.ftt computes them, not us)."""
     if bus.ftt is None:
         return {}
-    entries = ftt.srt(bus, [t for t in m.triggers.values() if t.bus == bus.name])
-    return {e.name: FttView(e.ftt_id, e.period_ec, e.fastest_period_ec, e.init_ec) for e in entries}
+    sched = bus.ftt_schedule
+    assert sched is not None  # the analysis built it
+    return {e.name: FttView(e.ftt_id, e.period_ec, e.fastest_period_ec, e.init_ec) for e in sched.entries}
 
 
 def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[str, FttView]) -> MessageView:

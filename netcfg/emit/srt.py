@@ -1,8 +1,8 @@
 """ftt/<bus>_srt.{h,c,csv,md} for every FTT-CAN bus: the master's Synchronous Requirements Table and the
 EC-schedules of one macro-cycle.
 
-The table and the schedule come from netcfg.timing.ftt (srt(), build_schedule(), ec_schedule_mask()), the
-same calls the analysis makes; nothing here recomputes timing. The C files give the master a const table and
+The table and the schedule are the ones the analysis built with netcfg.timing.ftt (model.Bus.ftt_schedule);
+nothing here recomputes timing. The C files give the master a const table and
 a const array of the EC-schedule bit masks its trigger message carries, EC by EC; the CSV and Markdown files
 lay the table out as the CAMBADA paper's Table 2 (seed 002): FTT ID, Source, Destination, Period and Init
 time in ECs, Short description; messages, then triggers, by FTT id.
@@ -101,11 +101,11 @@ def _entry(m: model.Model, e: ftt.SrtEntry) -> EntryView:
 
 def srt_view(m: model.Model, bus: model.Bus) -> SrtView:
     assert bus.ftt is not None
-    entries = ftt.srt(bus, [t for t in m.triggers.values() if t.bus == bus.name])
-    sched = ftt.build_schedule(bus, entries)
+    sched = bus.ftt_schedule
+    assert sched is not None  # the analysis built it; a spec whose macro-cycle is too long never gets here
     tm_bits = 8 * bus.ftt.tm_size
     # Table 2's order: messages, then triggers, each by FTT id
-    ordered = sorted(entries, key=lambda e: (e.kind != "message", e.ftt_id))
+    ordered = sorted(sched.entries, key=lambda e: (e.kind != "message", e.ftt_id))
     return SrtView(
         system=m.system,
         bus=bus.name,
