@@ -17,11 +17,27 @@ the end of the data field. After five equal bits the transmitter inserts a compl
 starts the next run. The rest of the frame is fixed form: CRC delimiter, ACK slot, ACK delimiter, 7 EOF bits, and
 (as above) the 3-bit intermission, 13 bits. The exact count of stuff bits never exceeds floor((g + 8s - 1) / 4),
 so can_frame_bits(s, x, "nominal") <= can_frame_bits_exact(...) <= can_frame_bits(s, x, "worst").
+
+CAN FD frames (ISO 11898-1:2015, clause 10.4; the FD base and extended formats), counted field by field:
+    arbitration phase, nominal rate:  SOF 1, identifier 11, RRS 1, IDE 1, FDF 1, res 1, BRS 1          = 17 bits
+                  (extended format:   SOF 1, base id 11, SRR 1, IDE 1, extension 18, RRS 1, FDF 1, res 1, BRS 1 = 36)
+    data phase, data rate:            ESI 1, DLC 4, data 8s, stuff count 4 (3-bit Gray count + parity),
+                                      CRC 17 (s <= 16) or 21 (s > 16), fixed stuff bits 6 or 7, CRC delimiter 1
+    nominal rate again:               ACK slot 1, ACK delimiter 1, EOF 7, intermission 3                  = 12 bits
+Dynamic stuffing covers SOF through the end of the data field (22 + 8s bits, 41 + 8s extended) and, as for classical
+frames, inserts at most floor((n - 1) / 4) stuff bits in n bits; at most floor((17 - 1) / 4) = 4 of them (8 of 36
+extended) fall before the rate switch. The CRC field is not dynamically stuffed: a fixed stuff bit precedes the stuff
+count and one follows every fourth bit of stuff count + CRC, 1 + 5 = 6 bits with CRC-17 (21 bits) and 1 + 6 = 7
+with CRC-21 (25 bits). The bit rate switches at the sample point of BRS and back at the sample point of the CRC
+delimiter, so those two bits are partly at each rate: the worst case counts both at the nominal rate, the best case
+(no dynamic stuff bits) both at the data rate. Without BRS every bit is at the nominal rate. A payload is padded to
+the next valid length (0-8, 12, 16, 20, 24, 32, 48, 64 bytes).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Literal
 
@@ -249,6 +265,72 @@ def bits_to_ns(bits: int, bitrate: int) -> int:
     """Exact when bitrate divides 1e9 (every standard CAN and Ethernet rate); rounded up otherwise."""
     return -(-bits * 1_000_000_000 // bitrate)
 
+
+
+CANFD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)  # data bytes of DLC 0..15
+CANFD_MAX_PAYLOAD = CANFD_LENGTHS[-1]
+CANFD_ARBITRATION_BITS = 17  # SOF .. BRS, base format
+CANFD_ARBITRATION_BITS_EXTENDED = 36
+CANFD_CONTROL_DATA_BITS = 5  # ESI, DLC: after the switch, before the data
+CANFD_STUFF_COUNT_BITS = 4
+CANFD_TAIL_BITS = 12  # ACK slot, ACK delimiter, EOF 7, intermission 3
+
+
+def canfd_padded_size(size: int) -> int:
+    """The data length a CAN FD frame carries for a payload of `size` bytes: the next valid DLC length."""
+    for length in CANFD_LENGTHS:
+        if size <= length:
+            if size < 0:
+                break
+            return length
+    raise ValueError(f"a CAN FD frame carries 0..{CANFD_MAX_PAYLOAD} data bytes, not {size}")
+
+
+def canfd_dlc(size: int) -> int:
+    """The DLC code (0..15) of a CAN FD frame carrying a `size`-byte payload (padded as canfd_padded_size)."""
+    return CANFD_LENGTHS.index(canfd_padded_size(size))
+
+
+def canfd_crc_bits(size: int) -> int:
+    """CRC sequence length: CRC-17 up to 16 data bytes, CRC-21 above."""
+    return 17 if canfd_padded_size(size) <= 16 else 21
+
+
+@dataclass(frozen=True)
+class FdFrameBits:
+    """One CAN FD frame as bit times at each rate; `data` is 0 for a frame sent without bit-rate switch."""
+
+    nominal: int
+    data: int
+
+    def ns(self, bitrate: int, data_bitrate: int) -> int:
+        """Transmission time: the nominal bits at the arbitration rate, the data-phase bits at the data rate."""
+        return bits_to_ns(self.nominal, bitrate) + (bits_to_ns(self.data, data_bitrate) if self.data else 0)
+
+
+def canfd_frame_bits(size: int, extended: bool = False, brs: bool = True, stuffing: Stuffing = "worst") -> FdFrameBits:
+    """Bits of one CAN FD data frame of `size` payload bytes at each rate, intermission included (see the module
+    docstring for the field count). "worst": every dynamic stuff bit the rule allows, the BRS bit and the CRC
+    delimiter at the nominal rate; "nominal": no dynamic stuff bits, those two bits at the data rate."""
+    length = canfd_padded_size(size)
+    arbitration = CANFD_ARBITRATION_BITS_EXTENDED if extended else CANFD_ARBITRATION_BITS
+    crc = canfd_crc_bits(length)
+    fixed_stuff = 1 + (CANFD_STUFF_COUNT_BITS + crc) // 4
+    data = CANFD_CONTROL_DATA_BITS + 8 * length + CANFD_STUFF_COUNT_BITS + crc + fixed_stuff
+    nominal = arbitration + CANFD_TAIL_BITS
+    crc_delimiter = 1
+    if stuffing == "worst":
+        stuffed = arbitration + CANFD_CONTROL_DATA_BITS + 8 * length
+        stuff_total = (stuffed - 1) // 4
+        stuff_arbitration = (arbitration - 1) // 4
+        nominal += stuff_arbitration + crc_delimiter
+        data += stuff_total - stuff_arbitration
+    else:  # BRS and the CRC delimiter at the data rate
+        nominal -= 1
+        data += 1 + crc_delimiter
+    if not brs:
+        return FdFrameBits(nominal + data, 0)
+    return FdFrameBits(nominal, data)
 
 # Ethernet II + IPv4 + UDP, bytes on the wire besides the application data.
 ETH_PREAMBLE_SFD = 8
