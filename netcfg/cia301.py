@@ -6,6 +6,8 @@ the standard's numbers from here instead of writing them again.
 
 from __future__ import annotations
 
+from typing import Literal
+
 # Pre-defined connection set (CiA 301 v4.2, table 73): function code base + node id.
 TPDO_BASE = {1: 0x180, 2: 0x280, 3: 0x380, 4: 0x480}
 RPDO_BASE = {1: 0x200, 2: 0x300, 3: 0x400, 4: 0x500}
@@ -147,6 +149,32 @@ def sync_every(transmission: int) -> int | None:
     if 1 <= transmission <= 240:
         return transmission
     return 1 if transmission == 0 else None
+
+
+def tpdo_timing(
+    transmission: int,
+    sync_ns: int,
+    event_timer_ms: int | None,
+    inhibit_100us: int | None,
+    kind: Literal["periodic", "sporadic", "on-demand"] | None = None,
+    period_ns: int | None = None,
+    mit_ns: int | None = None,
+) -> tuple[Literal["periodic", "sporadic", "on-demand"] | None, int | None, int | None]:
+    """When a TPDO goes out (0x1800: sub 2 transmission type, sub 3 inhibit time, sub 5 event timer) ->
+    (kind, period_ns, minimum inter-arrival ns); kind stays None when nothing but the inhibit time bounds it.
+
+    Types 1-240 send on every n-th SYNC, whatever period was given; type 0 (acyclic synchronous) at most once per
+    SYNC; 254/255 with an event timer every event timer. A period or minimum inter-arrival time given by the spec
+    stands for the others, and the inhibit time is a floor under the gap between event-driven sends."""
+    if 1 <= transmission <= 240:
+        period_ns, kind = transmission * sync_ns, kind or "periodic"
+    elif transmission == 0 and period_ns is None and mit_ns is None:
+        mit_ns, kind = sync_ns, kind or "sporadic"
+    elif transmission >= 254 and event_timer_ms and period_ns is None and mit_ns is None:
+        period_ns, kind = event_timer_ms * 1_000_000, kind or "periodic"
+    if inhibit_100us and kind != "periodic":
+        mit_ns = max(mit_ns or 0, inhibit_100us * 100_000)
+    return kind, period_ns, mit_ns
 
 
 def default_pdo_cob_id(kind: str, number: int, node_id: int) -> int | None:

@@ -116,15 +116,11 @@ def default_timing(
     kind: str, transmission: int, event_timer_ms: int | None, inhibit_100us: int | None, sync_ns: int
 ) -> tuple[str, int | None, int | None]:
     """(kind, period_ns, interval_ns) this importer gives a PDO without a `# netcfg:` note; the bus.yml emitter writes
-    a note only where the model differs. TPDOs follow resolve's rules for transmission types (CiA 301 0x1800 sub 2)."""
+    a note only where the model differs. TPDOs follow the one rule for transmission types (cia301.tpdo_timing)."""
     if kind == "tpdo":
-        if 1 <= transmission <= 240:
-            return "periodic", transmission * sync_ns, transmission * sync_ns
-        if transmission >= 254 and event_timer_ms:
-            return "periodic", event_timer_ms * 1_000_000, event_timer_ms * 1_000_000
-        mit = sync_ns if transmission == 0 else None
-        if inhibit_100us:
-            mit = max(mit or 0, inhibit_100us * 100_000)
+        tpdo_kind, period, mit = cia301.tpdo_timing(transmission, sync_ns, event_timer_ms, inhibit_100us)
+        if tpdo_kind == "periodic":
+            return "periodic", period, period
         return ("sporadic", None, mit) if mit else ("on-demand", None, None)
     if 1 <= transmission <= 240:
         return "periodic", transmission * sync_ns, transmission * sync_ns

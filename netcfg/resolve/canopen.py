@@ -94,27 +94,18 @@ class CanopenProtocol(CanProtocol):
         path: Path,
     ) -> tuple[MessageKind | None, int | None, int | None]:
         # CANopen PDOs: the transmission type says when a TPDO goes out (CiA 301, 0x1800 sub 2).
-        if pdo.kind == "tpdo" and bus.canopen is not None:
-            sync = bus.canopen.sync_period_ns
-            tt = pdo.transmission
-            if 1 <= tt <= 240:
-                derived = tt * sync
-                if period is not None and period != derived:
-                    self.r.err(
-                        "period",
-                        f"transmission type {tt} sends on every {tt}. SYNC, i.e. every "
-                        f"{format_ns(derived)}; the period {format_ns(period)} disagrees (drop it)",
-                        (*path, "period"),
-                    )
-                period, kind = derived, kind or "periodic"
-            elif tt == 0 and period is None and mit is None:
-                mit, kind = sync, kind or "sporadic"  # acyclic synchronous: at most once per SYNC
-            elif tt >= 254 and pdo.event_timer_ms and period is None and mit is None:
-                period, kind = pdo.event_timer_ms * 1_000_000, kind or "periodic"
-            if pdo.inhibit_100us and kind != "periodic":
-                inhibit = pdo.inhibit_100us * 100_000
-                mit = max(mit or 0, inhibit)
-        return kind, period, mit
+        if pdo.kind != "tpdo" or bus.canopen is None:
+            return kind, period, mit
+        sync = bus.canopen.sync_period_ns
+        tt = pdo.transmission
+        if 1 <= tt <= 240 and period is not None and period != tt * sync:
+            self.r.err(
+                "period",
+                f"transmission type {tt} sends on every {tt}. SYNC, i.e. every "
+                f"{format_ns(tt * sync)}; the period {format_ns(period)} disagrees (drop it)",
+                (*path, "period"),
+            )
+        return cia301.tpdo_timing(tt, sync, pdo.event_timer_ms, pdo.inhibit_100us, kind, period, mit)
 
     def message_id(self, m: schema.Message, pdo: model.Pdo | None, path: Path) -> int | None:
         ident = m.id
