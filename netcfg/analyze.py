@@ -170,6 +170,7 @@ def analyze_sync(
                 "completion_us": us(c.completion_ns),
                 "limit_us": us(c.limit_ns),
                 "slack_us": None if c.completion_ns is None else us(c.limit_ns - c.completion_ns),
+                "fits": c.completion_ns is not None and c.completion_ns <= c.limit_ns,
                 "blocking_us": us(c.blocking_ns),
                 "sync_us": us(c.sync_ns),
                 "tpdos_us": us(c.tpdos_ns),
@@ -191,13 +192,30 @@ def analyze_sync(
             )
             break
     finished = [c.completion_ns for c in cycles if c.completion_ns is not None]
+    worst = max(finished) if len(finished) == len(cycles) and finished else None
+    # the worst cycle held against each limit the bus has (canopen_sync takes the tightest of them per cycle)
+    limits = [
+        {
+            "name": name,
+            "limit_us": us(limit),
+            "fits": worst is not None and worst <= limit,
+            "margin_us": None if worst is None else us(abs(limit - worst)),
+        }
+        for name, limit in (
+            ("synchronous window (0x1007)", co.sync_window_ns),
+            ("master's read window", co.read_window_ns),
+            ("communication cycle (0x1006)", co.sync_period_ns),
+        )
+        if limit is not None
+    ]
     return {
         "period_us": us(co.sync_period_ns),
         "window_us": us(co.sync_window_ns),
         "read_window_us": us(co.read_window_ns),
         "producer": co.sync_producer,
         "cycles_analysed": len(cycles),
-        "worst_completion_us": us(max(finished)) if len(finished) == len(cycles) and finished else None,
+        "worst_completion_us": us(worst),
+        "limits": limits,
         "max_tpdos_per_cycle": max((len(c.tpdos) for c in cycles), default=0),
         "cycles": rows[:64],
     }
@@ -450,6 +468,7 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
         "latency_max_us": us(hi),
         "jitter_us": None if hi is None else us(hi - lo),
         "deadline_us": us(flow.deadline_ns),
+        "meets_deadline": None if flow.deadline_ns is None else hi is not None and hi <= flow.deadline_ns,
         "unsynchronised": {"latency_min_us": us(unsync[0]), "latency_max_us": us(unsync[1])},
         "steps": [list(s.refs) if len(s.refs) > 1 else s.refs[0] for s in flow.steps],
     }

@@ -334,16 +334,10 @@ def _sync_view(model: Model, bus: Bus, b: dict[str, Any]) -> dict[str, Any]:
     s = b["sync"]
     assert bus.canopen is not None
     worst = s["worst_completion_us"]
-    limits = []
-    for name, value in (
-        ("synchronous window (0x1007)", s["window_us"]),
-        ("master's read window", s["read_window_us"]),
-        ("communication cycle (0x1006)", s["period_us"]),
-    ):
-        if value is not None:
-            fits = worst is not None and worst <= value
-            margin = "-" if worst is None else num(abs(value - worst))
-            limits.append({"name": name, "value": num(value), "fits": fits, "margin": margin})
+    limits = [
+        {"name": lim["name"], "value": num(lim["limit_us"]), "fits": lim["fits"], "margin": num(lim["margin_us"])}
+        for lim in s["limits"]
+    ]
     rows = [
         [
             str(c["cycle"]),
@@ -351,7 +345,7 @@ def _sync_view(model: Model, bus: Bus, b: dict[str, Any]) -> dict[str, Any]:
             num(c["completion_us"]) if c["completion_us"] is not None else "never",
             num(c["limit_us"]),
             num(c["slack_us"]),
-            _verdict(c["slack_us"] is not None and c["slack_us"] >= 0),
+            _verdict(c["fits"]),
         ]
         for c in s["cycles"]
     ]
@@ -421,13 +415,16 @@ def _flows_view(flows: list[dict[str, Any]], model: Model) -> dict[str, Any]:
     for f in flows:
         sync = f.get("synchronised")
         unsync = f["unsynchronised"]
-        ok = (
-            None
-            if f["deadline_us"] is None
-            else f["latency_max_us"] is not None and f["latency_max_us"] <= f["deadline_us"]
-        )
         rows.append(
-            [f["name"], f["mode"], span(sync), span(unsync), num(f["jitter_us"]), num(f["deadline_us"]), _verdict(ok)]
+            [
+                f["name"],
+                f["mode"],
+                span(sync),
+                span(unsync),
+                num(f["jitter_us"]),
+                num(f["deadline_us"]),
+                _verdict(f["meets_deadline"]),
+            ]
         )
         chain = " -> ".join(" + ".join(s) if isinstance(s, list) else s for s in f["steps"])
         deliveries = []
