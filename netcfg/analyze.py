@@ -56,6 +56,7 @@ def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
         "tx_us": us(t.tx_ns),
         "utilization": round(t.utilization, 6),
         "wcrt_us": None,
+        "wcrt_ns": None,  # exact, for runtime.json
         "deadline_us": us(msg.deadline_ns),
         "slack_us": None,
         "schedulable": None,
@@ -64,6 +65,7 @@ def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
 
 def set_verdict(row: dict[str, Any], wcrt_ns: int | None, deadline_ns: int | None) -> None:
     row["wcrt_us"] = us(wcrt_ns)
+    row["wcrt_ns"] = wcrt_ns
     if deadline_ns is None:
         return
     row["schedulable"] = wcrt_ns is not None and wcrt_ns <= deadline_ns
@@ -466,10 +468,15 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
         "mode": "synchronised" if sync else "unsynchronised",
         "latency_min_us": us(lo),
         "latency_max_us": us(hi),
+        "latency_ns": [lo, hi],  # exact, for runtime.json
         "jitter_us": None if hi is None else us(hi - lo),
         "deadline_us": us(flow.deadline_ns),
         "meets_deadline": None if flow.deadline_ns is None else hi is not None and hi <= flow.deadline_ns,
-        "unsynchronised": {"latency_min_us": us(unsync[0]), "latency_max_us": us(unsync[1])},
+        "unsynchronised": {
+            "latency_min_us": us(unsync[0]),
+            "latency_max_us": us(unsync[1]),
+            "latency_ns": list(unsync),
+        },
         "steps": [list(s.refs) if len(s.refs) > 1 else s.refs[0] for s in flow.steps],
     }
     if sync:

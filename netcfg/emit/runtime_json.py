@@ -55,13 +55,9 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _ns(us: float | None) -> int | None:
-    """The report's microseconds (rounded to 3 decimals, i.e. to the ns) back to integer ns."""
-    return None if us is None else round(us * 1000)
-
-
 def _report_wcrt(report: dict[str, Any]) -> dict[str, int | None]:
-    return {row["name"]: _ns(row.get("wcrt_us")) for b in report.get("buses", []) for row in b.get("messages", [])}
+    """The analysed worst-case response times in integer ns."""
+    return {row["name"]: row.get("wcrt_ns") for b in report.get("buses", []) for row in b.get("messages", [])}
 
 
 def _bus(m: model.Model, b: model.Bus) -> dict[str, Any]:
@@ -282,9 +278,9 @@ def _flow(f: model.Flow, row: dict[str, Any] | None) -> dict[str, Any]:
         "steps": [{"kind": s.kind, "refs": list(s.refs)} for s in f.steps],
         "deadline_ns": f.deadline_ns,
         # the analysis' bounds, for comparison with measured latencies
-        "latency_min_ns": _ns(row.get("latency_min_us")) if row else None,
-        "latency_max_ns": _ns(row.get("latency_max_us")) if row else None,
+        "latency_min_ns": row["latency_ns"][0] if row else None,
+        "latency_max_ns": row["latency_ns"][1] if row else None,
         # the same without SYNC alignment, for a simulator that runs the bus unsynchronised
-        "unsync_latency_min_ns": _ns(unsync.get("latency_min_us")) if unsync else None,
-        "unsync_latency_max_ns": _ns(unsync.get("latency_max_us")) if unsync else None,
+        "unsync_latency_min_ns": unsync["latency_ns"][0] if unsync else None,
+        "unsync_latency_max_ns": unsync["latency_ns"][1] if unsync else None,
     }
