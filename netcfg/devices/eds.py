@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import logging
+from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 from netcfg import cia301
 from netcfg.devices import DeviceProfile, ObjectEntry
@@ -25,13 +27,35 @@ def _entries(od: object) -> list[object]:
     return out
 
 
-def import_eds(path: Path, name: str) -> DeviceProfile:
-    """Read an EDS file; EdsError carries a message for the user if canopen cannot parse it."""
+def object_dictionary(path: Path) -> Any:
+    """canopen's object dictionary of an EDS/DCF file, parsed once per file version: a bus of many identical drives
+    names one file many times, and the bus.yml importer and resolve both read it. Callers only read it.
+    OSError propagates; canopen's own errors too (they are of many kinds)."""
+    return _parsed(str(path), path.stat().st_mtime_ns)
+
+
+@lru_cache(maxsize=64)
+def _parsed(file: str, mtime_ns: int) -> Any:
     import canopen
 
     logging.getLogger("canopen").setLevel(logging.ERROR)
+    return canopen.import_od(file)
+
+
+def cached_profile(path: Path, display: str) -> DeviceProfile:
+    """The profile of an EDS file, built once per file version (named after the file as the spec writes it)."""
+    return _profile(str(path), path.stat().st_mtime_ns, Path(display).stem)
+
+
+@lru_cache(maxsize=64)
+def _profile(file: str, mtime_ns: int, name: str) -> DeviceProfile:
+    return import_eds(Path(file), name)
+
+
+def import_eds(path: Path, name: str) -> DeviceProfile:
+    """Read an EDS file; EdsError carries a message for the user if canopen cannot parse it."""
     try:
-        od = canopen.import_od(str(path))
+        od = object_dictionary(path)
     except Exception as exc:  # canopen raises many kinds for bad files; report them all the same way
         raise EdsError(f"canopen could not read the EDS file: {exc}") from exc
     profile = DeviceProfile(name=name, source=str(path))

@@ -53,7 +53,6 @@ import os
 import re
 from collections.abc import Set
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +61,7 @@ from pydantic import ValidationError
 
 from netcfg import cia301
 from netcfg.devices import builtin_profile_names
+from netcfg.devices.eds import object_dictionary
 from netcfg.diagnostics import Collector, Position
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as SpecPath
@@ -237,16 +237,6 @@ def _raw_int(raw: str, node_id: int) -> int | None:
     if m is None:
         return None
     return int(m.group(1), 0) + (node_id if "$NODEID" in text else 0)
-
-
-@lru_cache(maxsize=64)
-def _device_file(file: str, mtime_ns: int) -> DeviceFile:
-    import logging
-
-    import canopen
-
-    logging.getLogger("canopen").setLevel(logging.ERROR)
-    return DeviceFile(canopen.import_od(file))
 
 
 # -- the importer ----------------------------------------------------------------------------------------------------
@@ -652,7 +642,7 @@ class BusYmlImporter:
             )
             return None, None
         try:
-            return _device_file(str(file), file.stat().st_mtime_ns), file
+            return DeviceFile(object_dictionary(file)), file  # parsed once, shared with resolve's device profiles
         except OSError:
             raise
         except Exception as exc:  # canopen raises many kinds for bad files

@@ -5,12 +5,11 @@ maps themselves are checked in `netcfg.resolve.pdo`."""
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path as FsPath
 from typing import TYPE_CHECKING
 
 from netcfg import cia301, model
 from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
-from netcfg.devices.eds import EdsError, import_eds
+from netcfg.devices.eds import EdsError, cached_profile
 from netcfg.model import MessageKind
 from netcfg.resolve import pdo as pdo_map
 from netcfg.resolve.can import CanProtocol
@@ -248,7 +247,7 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
         )
         return None
     try:
-        profile = _cached_eds(str(file), file.stat().st_mtime_ns, n.device.eds)
+        profile = cached_profile(file, n.device.eds)
         return dataclasses.replace(profile, source=n.device.eds)  # name the file as the spec wrote it
     except EdsError as exc:
         r.err("eds-invalid", f"{n.device.eds}: {exc}", (*dpath, "eds"))
@@ -276,14 +275,3 @@ def sync_task(r: Resolver, node: str, t: schema.Task, path: Path, period: int | 
             (*path, "period"),
         )
     return buses[0], sync_period
-
-
-_EDS_CACHE: dict[tuple[str, int], DeviceProfile] = {}
-
-
-def _cached_eds(file: str, mtime: int, display: str) -> DeviceProfile:
-    """Specs with many identical drives import their EDS once."""
-    key = (file, mtime)
-    if key not in _EDS_CACHE:
-        _EDS_CACHE[key] = import_eds(FsPath(file), FsPath(display).stem)
-    return _EDS_CACHE[key]
