@@ -132,6 +132,9 @@ def overloaded_sahr(rate_hz: int) -> rt.RuntimeConfig:
         if m["name"] in ("hip_encoder", "spring_encoder"):
             m["rate_hz"] = [rate_hz, 1]
             m["period_ns"] = m["interval_ns"] = round(SECOND / rate_hz)
+            # the sampling tasks keep their 15 kHz, so they no longer send the encoders as they finish
+            # (netcfg.timing.flows.sending_tasks: same rate only): the encoders run free at the new rate
+            m["sent_by"] = []
     return rt.parse(data)
 
 

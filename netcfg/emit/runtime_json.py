@@ -22,7 +22,7 @@ from typing import Any
 from netcfg import cia301, model
 from netcfg.emit import canopen_dcf
 from netcfg.runtime import interpolation_period
-from netcfg.timing import ftt
+from netcfg.timing import flows, ftt
 
 FORMAT = "netcfg-runtime"
 VERSION = 1  # bump when a key changes meaning or disappears; netcfg.runtime.SUPPORTED_VERSIONS must follow
@@ -49,7 +49,7 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
         "spec_sha256": hashlib.sha256(Path(m.file).read_bytes()).hexdigest(),
         "buses": [_bus(m, b) for b in m.buses.values()],
         "nodes": [_node(m, n, files) for n in m.nodes.values()],
-        "messages": [_message(msg, wcrt.get(msg.name)) for b in m.buses.values() for msg in b.messages],
+        "messages": [_message(m, msg, wcrt.get(msg.name)) for b in m.buses.values() for msg in b.messages],
         "triggers": [_trigger(t) for t in m.triggers.values()],
         "flows": [_flow(f, flow_rows.get(f.name)) for f in m.flows.values()],
     }
@@ -198,7 +198,7 @@ def _sdo_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
     ]
 
 
-def _message(msg: model.Message, wcrt_ns: int | None) -> dict[str, Any]:
+def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None) -> dict[str, Any]:
     return {
         "name": msg.name,
         "bus": msg.bus,
@@ -221,6 +221,7 @@ def _message(msg: model.Message, wcrt_ns: int | None) -> dict[str, Any]:
         "signals": [_signal(s) for s in msg.signals],
         "implicit": msg.implicit,
         "wcrt_ns": wcrt_ns,  # the analysis' bound, for a simulator or master to compare against
+        "sent_by": list(flows.sending_tasks(m, msg)),  # tasks that send it as they finish; else it runs free
     }
 
 

@@ -116,7 +116,7 @@ class Scenario:
 
                 # chained messages are sent by their flow task (submit), not free-running: known before the build
                 for m in cfg.messages_on(bus.name):
-                    for ref in self._sender_task(m):
+                    for ref in m.sent_by or ():
                         self.sends.setdefault(ref, []).append(m.name)
                 net = EthernetNetwork(self, bus)
                 self.protocols[bus.name] = net
@@ -242,7 +242,7 @@ class Scenario:
         owned: set[str] = getattr(driver, "owned", set())
         for m in self.cfg.messages_on(bus.name):
             if m.name not in owned:
-                for task in self._sender_task(m):
+                for task in m.sent_by or ():
                     self.sends.setdefault(task, []).append(m.name)
         chained = {name for names in self.sends.values() for name in names}
         free = [
@@ -255,30 +255,6 @@ class Scenario:
             tasks = self._message_tasks.get(m.name, [])
             if trackers or tasks:
                 can.listen(self.msg_source[m.name][1], self._on_delivery(m, trackers, tasks))
-
-    def _sender_task(self, m: Message) -> list[str]:
-        """The flow task that sends this message as it finishes: on the producer, at the message's rate (the
-        analysis' rule, netcfg.timing.flows._sent_by_producer). Such a message is not free-running."""
-        out = []
-        for tr in self._flow_refs.get(m.name, []):
-            for i, step in enumerate(tr.steps):
-                if step.kind != "message" or m.name not in step.refs or i == 0 or tr.steps[i - 1].kind != "task":
-                    continue
-                for ref in tr.steps[i - 1].refs:
-                    task = self.cfg.task(ref)
-                    same_rate = self._task_period(task) in (m.period_ns, m.interval_ns)
-                    # a sporadic message is an event its producer's task raises; sent at once, at most once per
-                    # minimum inter-arrival time (the analysis' load assumption)
-                    if task.node == m.producer and (same_rate or m.kind == "sporadic"):
-                        out.append(ref)
-        return sorted(set(out))
-
-    def _task_period(self, task: Task) -> int | None:
-        if task.on_message is not None:
-            return 0
-        if task.trigger is not None:
-            return self.cfg.trigger(task.trigger).interval_ns
-        return task.period_ns
 
     @staticmethod
     def _free_running(m: Message) -> bool:

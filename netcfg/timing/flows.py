@@ -114,6 +114,25 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
     return False
 
 
+def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
+    """The tasks (node.task) that send a message as they finish, for the simulator and masters (runtime.json's
+    sent_by): in some flow, a task on the producer in the step before the message, at the message's rate (the
+    rule of _sent_by_producer); for a sporadic message any such task, whose run raises the event (at most once
+    per minimum inter-arrival time, the load the analysis assumes)."""
+    out = set()
+    for flow in m.flows.values():
+        for i, step in enumerate(flow.steps):
+            prev = flow.steps[i - 1] if i else None
+            if step.kind != "message" or msg.name not in step.refs or prev is None or prev.kind != "task":
+                continue
+            for ref in prev.refs:
+                task = m.task(ref)
+                same_rate = task_period(m, task) in (msg.period_ns, msg.interval_ns)
+                if task.node == msg.producer and (same_rate or msg.kind == "sporadic"):
+                    out.add(ref)
+    return tuple(sorted(out))
+
+
 def synchronised(
     m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery]
 ) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
