@@ -105,31 +105,10 @@ def interpolation_period(period_ns: int) -> tuple[int, int] | None:
 
 
 @dataclass(frozen=True)
-class Signal:
-    name: str
-    start_bit: int  # little-endian (Intel) numbering, the least significant bit
-    bits: int
-    signed: bool
-    is_float: bool
-    scale: float
-    offset: float
-    minimum: float | None
-    maximum: float | None
-    unit: str | None
+class Signal(Field):
+    """A codec field (start_bit in little-endian (Intel) numbering: the least significant bit) with its unit."""
 
-    @property
-    def field(self) -> Field:
-        return Field(
-            self.name,
-            self.start_bit,
-            self.bits,
-            self.signed,
-            self.is_float,
-            self.scale,
-            self.offset,
-            self.minimum,
-            self.maximum,
-        )
+    unit: str | None = None
 
 
 @dataclass(frozen=True)
@@ -190,7 +169,7 @@ class Message:
     fields: tuple[Field, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        fields = tuple(s.field for s in self.signals)
+        fields: tuple[Field, ...] = self.signals
         if not fields and self.size > 0:
             fields = (Field(raw_signal_name(self.name), 0, 8 * self.size),)
         object.__setattr__(self, "fields", fields)
