@@ -1,0 +1,100 @@
+"""The pieces a switched Ethernet run is made of: a link (one direction of one cable, its transmitter and egress
+queue), a receiving node's FIFO server, and the frame batches that flow between them.
+
+Egress queues are finite (`queue_frames`, counting the frame being sent): a frame that finds its port full is
+dropped (tail drop) and counted per port and per message. Seed 001 (section 6.2.2.5) warns of exactly this: "the
+port's buffer may overflow and lead to unexpected delays or data loss".
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from netcfg.runtime import Task
+    from netcfg.sim.flows import FlowTracker
+
+# Egress buffer per port, in frames: an assumption, not a datasheet figure. Small unmanaged switches share a packet
+# memory of a few tens of kilobytes among their ports; 64 frames per port is of that order for minimum-size frames.
+# Override with queue_frames= (or SimOptions.eth_queue_frames).
+QUEUE_FRAMES = 64
+CHUNK_NS = 5_000_000  # simulated time computed at once; frames fare the same for any value (random draws for
+# jitter may come in another order)
+
+_I64 = np.int64
+_EMPTY = np.empty(0, dtype=_I64)
+Batch = tuple[np.ndarray, np.ndarray, np.ndarray]  # (arrival at the stage, message index, release), aligned
+Waiting = tuple[int, int, int, int]  # a frame at an event link: (arrival, sequence number, message index, release)
+Listen = tuple[list["FlowTracker"], list["Task"]]
+Due = tuple[int, int, int]  # a waiting frame something observes: (latest instant to serve it by + 1, arrival, seq)
+
+
+@dataclass
+class Link:
+    """One direction of one cable with its transmitter and egress queue."""
+
+    index: int
+    src: str
+    dst: str
+    prop_ns: int
+    latency_ns: int  # the switch at the far end (Tmux) before the next egress queue; 0 at a node
+    crash_ns: int  # the sending node crashed: nothing starts from then on (NEVER for a switch)
+    busy_until: int = 0
+    frames: int = 0
+    busy_ns: int = 0
+    max_queue: int = 0
+    lost: int = 0
+    offered: float = 0.0  # sum of rate x frame time over the messages crossing it: the analysis' utilisation
+    # free-running links (numpy, a chunk at a time)
+    pending: list[Batch] = field(default_factory=list)
+    tail: np.ndarray = field(default_factory=lambda: _EMPTY)  # ends of the frames that may still be at the port
+    # event links (frame by frame, see the module's docstring)
+    event: bool = False
+    takes_chained: bool = False  # a NIC that chained frames enter at the current instant
+    waiting: list[Waiting] = field(default_factory=list)  # a heap, in arrival order (then in order of arrival known)
+    due: list[Due] = field(default_factory=list)  # a heap of the waiting frames that something observes
+    fresh: list[Due] = field(default_factory=list)  # the same, arrived since the link was last served
+    route: list[Any] = field(default_factory=list)  # per message: (next links, delivery here), see _build_event_links
+    ends: deque[int] = field(default_factory=deque)  # ends of the frames that may still be at the port
+    feeders: list[tuple[Link, int]] = field(default_factory=list)  # (link, least delay from its end to here)
+    served: int = -1  # every frame arriving here at or before this instant has been served
+
+
+@dataclass
+class Server:
+    """A receiving node consuming frames one after another (FIFO, service drawn between BCET and WCET)."""
+
+    node: str
+    bcet: np.ndarray  # per message index
+    wcet: np.ndarray
+    batches: list[Batch] = field(default_factory=list)  # deliveries (end, message, release), served after the run
+    ends: list[int] = field(default_factory=list)  # the same, delivered one by one
+    msgs: list[int] = field(default_factory=list)
+    rels: list[int] = field(default_factory=list)
+    busy_ns: int = 0
+
+
+def take(pending: list[Batch], horizon: int) -> Batch | None:
+    """The waiting frames that arrive before the horizon, sorted by arrival (FIFO, earlier batches first on ties);
+    the others stay."""
+    if not pending:
+        return None
+    if len(pending) == 1:
+        t, msg, rel = pending[0]
+    else:
+        t = np.concatenate([b[0] for b in pending])
+        msg = np.concatenate([b[1] for b in pending])
+        rel = np.concatenate([b[2] for b in pending])
+    order = np.argsort(t, kind="stable")
+    t, msg, rel = t[order], msg[order], rel[order]
+    k = int(np.searchsorted(t, horizon, side="left"))
+    pending.clear()
+    if k < len(t):
+        pending.append((t[k:], msg[k:], rel[k:]))
+    if k == 0:
+        return None
+    return t[:k], msg[:k], rel[:k]
