@@ -4,8 +4,10 @@ In cycle k the SYNC producer sends SYNC; every TPDO with transmission type n in 
 every acyclic synchronous TPDO, type 0, in the worst case) is queued on its reception. The last of them is
 done, at the latest, when the bus has carried: one frame already on the bus when SYNC was queued (blocking),
 SYNC itself, all synchronous TPDOs of that cycle, and every other frame that can be released meanwhile
-(RPDOs written by the master, event-driven PDOs, heartbeats, ...):
-    W_k = B + C_SYNC + sum over TPDOs due in k of C + sum over others of ceil(W_k / T) * C
+(RPDOs written by the master, event-driven PDOs, heartbeats, ...). A message with release jitter J can have an
+instance released late in one period and the next on time, so up to ceil((W + J) / T) of its instances fall inside
+a window of length W (the CAN response-time analysis' interference term, Davis et al. 2007, eq. 8):
+    W_k = B + C_SYNC + sum over TPDOs due in k of C + sum over others of ceil((W_k + J) / T) * C
 It must fit the synchronous window (0x1007), the master's read window and the communication cycle (0x1006).
 """
 
@@ -68,9 +70,16 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
             continue
         w = fixed + sum(frame_ns[m.name] for m in others)
         while True:
-            nxt = fixed + sum(frame_ns[m.name] * (-(-w // m.interval_ns) if m.interval_ns else 1) for m in others)
+            nxt = fixed + sum(frame_ns[m.name] * _instances(w, m) for m in others)
             if nxt == w:
                 break
             w = nxt
         out.append(SyncCycle(k, due, w, limit_ns, limit_name, **terms))
     return out
+
+
+def _instances(window_ns: int, m: model.Message) -> int:
+    """Instances of `m` released inside a window of this length: ceil((W + J) / T); once for an aperiodic one."""
+    if not m.interval_ns:
+        return 1
+    return -(-(window_ns + m.jitter_ns) // m.interval_ns)
