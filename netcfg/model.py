@@ -148,6 +148,7 @@ class CanopenBus:
     read_window_ns: int | None
     sync_producer: str
     sync_id: int
+    master_jitter_ns: int = 0  # how late the producer's SYNC and its SYNC task may come (its wake-up latency)
 
 
 @dataclass(frozen=True)

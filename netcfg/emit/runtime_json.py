@@ -82,6 +82,7 @@ def _canopen(co: model.CanopenBus | None) -> dict[str, Any] | None:
         "read_window_ns": co.read_window_ns,
         "sync_producer": co.sync_producer,
         "sync_id": co.sync_id,
+        "master_jitter_ns": co.master_jitter_ns,
     }
 
 

@@ -71,7 +71,12 @@ class CanopenProtocol(CanProtocol):
             )
             return
         bus.canopen = model.CanopenBus(
-            sync_period_ns=period, sync_window_ns=window, read_window_ns=read, sync_producer=producer, sync_id=c.sync_id
+            sync_period_ns=period,
+            sync_window_ns=window,
+            read_window_ns=read,
+            sync_producer=producer,
+            sync_id=c.sync_id,
+            master_jitter_ns=self.r.ns(c.master_jitter, (*cpath, "master_jitter"), None) or 0,
         )
 
     def resolve_items(self) -> None:

@@ -283,6 +283,7 @@ class CanopenParams:
     read_window_ns: int | None
     sync_producer: str
     sync_id: int
+    master_jitter_ns: int = 0  # how late the producer's SYNC and SYNC task may come; 0 in files written before it
 
     def collect_window_ns(self) -> int:
         """How long after SYNC a master collects the synchronous TPDOs: its read window; without one the synchronous
@@ -663,7 +664,12 @@ def _bus(d: dict[str, Any]) -> Bus:
         canopen=None
         if co is None
         else CanopenParams(
-            co["sync_period_ns"], co["sync_window_ns"], co["read_window_ns"], co["sync_producer"], co["sync_id"]
+            co["sync_period_ns"],
+            co["sync_window_ns"],
+            co["read_window_ns"],
+            co["sync_producer"],
+            co["sync_id"],
+            co.get("master_jitter_ns", 0),
         ),
         ftt=None if ft is None else _ftt(ft),
         ethernet=None

@@ -189,6 +189,12 @@ class CanopenParams(SpecModel):
     sync_producer: Name | None = Field(None, description="node producing SYNC (default: the node with role master)")
     sync_id: Int = Field(0x80, ge=1, le=0x7FF, description="COB-ID of SYNC, object 0x1005")
     sync_counter: Bool = Field(False, description="SYNC carries a 1-byte counter (CiA 301 0x1019)")
+    master_jitter: DurationField = Field(
+        default_factory=lambda: _ns(0),
+        description="how late the SYNC producer's waits may end (its operating system's wake-up latency): each SYNC "
+        "and each start of the master's SYNC task come at most this late. The master's own work each cycle is its "
+        "SYNC task (sync: true on the SYNC producer): BCET/WCET, starting `offset` after SYNC; without one, none.",
+    )
 
 
 class SwitchPort(SpecModel):
