@@ -13,9 +13,11 @@ Two phases, as in the ALLEX-2 exoskeleton (seed 000, sections 4.3-4.4):
    the next send) fails the node being set up, not the whole set-up. This phase may use canopen's threads (a
    python-can Notifier); it stops them before returning.
 
-2. `MasterCycle(cfg, bus, clock).run(n)` - Figure 7: each period write the RxPDOs, send SYNC, collect the
-   synchronous TxPDOs until all have arrived or the read window ends, store the samples, and wait dynamically
-   (eq. (1): waiting = T - Pt - K). It uses nothing but `bus.send(msg)`, `bus.recv(timeout)` and the clock (no
+2. `MasterCycle(cfg, bus, clock).run(n)` - Figure 7: each period compute and write the RxPDOs, send SYNC, collect
+   the synchronous TxPDOs until all have arrived or the read window ends, store the samples, and wait dynamically
+   (eq. (1): waiting = T - Pt - K). When the spec gives the master a SYNC task, its computation starts that task's
+   offset after SYNC and the SYNC waits for its instant instead of following the writes (see MasterCycle).
+   It uses nothing but `bus.send(msg)`, `bus.recv(timeout)` and the clock (no
    threads, no time module, no Notifier), so the same code runs in real time (SystemClock, any python-can bus) and in
    virtual time (a simulator's clock, and a bus whose recv(timeout) advances that clock; recv(0) must not wait).
    Such a bus overrides recv() itself, not just _recv_internal(): python-can's BusABC.recv() re-checks the timeout
@@ -42,7 +44,7 @@ from collections.abc import Iterable, Mapping
 import can
 
 from netcfg import cia301
-from netcfg.runtime import Message, RuntimeConfig, interpolation_period
+from netcfg.runtime import Bus, Message, RuntimeConfig, interpolation_period
 from netcfg.runtime.canopen_identity import (
     Identity,
     identities_from_dir,
@@ -52,12 +54,13 @@ from netcfg.runtime.canopen_identity import (
 from netcfg.runtime.canopen_network import canopen_bus, canopen_slaves, master_node
 from netcfg.runtime.canopen_records import CommandFn, CycleRecord, MasterRun, PeriodStats, Samples, TimeStats
 from netcfg.runtime.canopen_setup import NodeSetup, PdoReadback, SetupReport, configure_network
-from netcfg.runtime.clock import Clock
+from netcfg.runtime.clock import Clock, CycleTiming
 from netcfg.runtime.codec import CodecError, Number
 
 __all__ = [
     "CommandFn",
     "CycleRecord",
+    "CycleTiming",
     "Identity",
     "MasterCycle",
     "MasterRun",
@@ -93,6 +96,17 @@ class MasterCycle:
     machine anyway. Default 0: SystemClock spins the last 0.5 ms, so the residual error is a few microseconds.
     With drift_free=True the iteration ends at first_start + (i + 1) T - K instead, so errors do not accumulate over
     a run (the paper's anchoring lets them add up to its 1.266 ms per 8 s gait cycle).
+
+    The SYNC instant. In the paper's loop the SYNC follows the writes at once, so it moves with the writing time
+    (Table 5: 0.23 to 8.56 ms). A spec that gives the master a SYNC task (`sync: true` on the SYNC producer, e.g.
+    ALLEX-2's control step 10 ms after SYNC) fixes it instead: the iteration, which computes and writes, starts at
+    that task's offset after the previous SYNC, and the SYNC waits until `sync_lead_s` = T - offset after the
+    iteration's start. The SYNC then keeps its period whatever the computation takes, as long as offset + WCET (+ the
+    wake-up latency) fits the period, which `netcfg check` verifies. Without such a task sync_lead_s is 0: the
+    paper's loop. The offset is never taken shorter than the read window: the master computes on complete samples.
+
+    `timing` is a simulator's hook (None on real hardware, where time passes by itself): how long the computation
+    takes in virtual time, and how late each wait ends.
     """
 
     def __init__(
@@ -109,9 +123,12 @@ class MasterCycle:
         read_window_s: float | None = None,
         drift_free: bool = False,
         pause_gc: bool = True,
+        sync_lead_s: float | None = None,
+        timing: CycleTiming | None = None,
     ) -> None:
         self.cfg, self.bus, self.clock = cfg, bus, clock
         self.pause_gc = pause_gc
+        self.timing = timing
         co_bus = canopen_bus(cfg, bus_name)
         params = co_bus.canopen
         assert params is not None
@@ -125,6 +142,11 @@ class MasterCycle:
         self.read_window_s = read_window_s if read_window_s is not None else params.collect_window_ns() / 1e9
         self.k_s = k_s
         self.drift_free = drift_free
+        if sync_lead_s is None:
+            offset_ns = master_task_offset_ns(cfg, co_bus)
+            computes_at_s = None if offset_ns is None else max(offset_ns / 1e9, self.read_window_s)
+            sync_lead_s = 0.0 if computes_at_s is None else max(0.0, self.period_s - computes_at_s)
+        self.sync_lead_s = sync_lead_s
         self.commands = commands
         on_bus = cfg.messages_on(co_bus.name)
         sync = [m for m in on_bus if m.implicit == "SYNC"]
@@ -157,8 +179,9 @@ class MasterCycle:
     def _due(self, sync_number: int) -> tuple[Message, ...]:
         return tuple(m for m in self.expected if sync_number % self._every[m.name] == 0)
 
-    def run(self, cycles: int) -> MasterRun:
-        """Run `cycles` iterations. With pause_gc, Python's cyclic garbage collector is off meanwhile (and collects
+    def run(self, cycles: int, *, until_s: float | None = None) -> MasterRun:
+        """Run `cycles` iterations, or fewer: none starts at or after the clock time `until_s`.
+        With pause_gc, Python's cyclic garbage collector is off meanwhile (and collects
         once afterwards): a full collection of a large heap holds the interpreter for tens of milliseconds, stalling
         this loop and any drive threads in the process past the read window. Reference counting still frees memory.
         """
@@ -166,14 +189,17 @@ class MasterCycle:
         if self.pause_gc:
             gc.disable()
         try:
-            return self._run(cycles)
+            return self._run(cycles, until_s)
         finally:
             if self.pause_gc and was_enabled:
                 gc.enable()
                 gc.collect()
 
-    def _run(self, cycles: int) -> MasterRun:
-        clock, bus = self.clock, self.bus
+    def _sleep_until(self, t: float) -> None:
+        self.clock.sleep_until(t + (self.timing.late_s() if self.timing is not None else 0.0))
+
+    def _run(self, cycles: int, until_s: float | None) -> MasterRun:
+        clock, bus, timing = self.clock, self.bus, self.timing
         records: list[CycleRecord] = []
         duplicates: Counter[str] = Counter()
         bad: Counter[str] = Counter()
@@ -181,8 +207,12 @@ class MasterCycle:
         previous: Samples = {}
         first = start = clock.now()
         for i in range(cycles):
+            if until_s is not None and start >= until_s:
+                break
             # writing (red in Figure 7): this cycle's commands, computed from the last samples
             asked = self.commands(i, previous) if self.commands is not None else None
+            if timing is not None:
+                clock.sleep_until(clock.now() + timing.work_s(i))
             on_demand = self._take(asked or {})
             for msg in self.rpdos:
                 if msg.kind == "periodic" or msg.name in on_demand:
@@ -191,6 +221,8 @@ class MasterCycle:
                     except can.CanError:
                         unsent[msg.name] += 1
             written = clock.now()
+            if self.sync_lead_s > 0:  # the SYNC keeps its instant, whatever the computation took
+                self._sleep_until((first + i * self.period_s if self.drift_free else start) + self.sync_lead_s)
             # anything already queued cannot answer the SYNC about to go out
             late = other = 0
             while (stale := bus.recv(timeout=0)) is not None:
@@ -246,7 +278,7 @@ class MasterCycle:
             processing = processed - start
             waiting = self.period_s - processing - self.k_s  # eq. (1)
             target = first + (i + 1) * self.period_s - self.k_s if self.drift_free else start + self.period_s - self.k_s
-            clock.sleep_until(target)
+            self._sleep_until(target)
             end = clock.now()
             records.append(
                 CycleRecord(
@@ -290,6 +322,15 @@ class MasterCycle:
                 raise ValueError(f"'{msg.name}' is not an RxPDO this master sends on bus '{self.bus_name}'")
             self._last[name].update(fields)
         return set(asked)
+
+
+def master_task_offset_ns(cfg: RuntimeConfig, bus: Bus) -> int | None:
+    """When the master's computation starts after SYNC: the earliest offset of its SYNC tasks on this bus (the tasks
+    of the SYNC producer that run on this bus's SYNC); None when it has none."""
+    assert bus.canopen is not None
+    producer = cfg.node(bus.canopen.sync_producer)
+    offsets = [t.offset_ns for t in producer.tasks if t.sync_bus == bus.name]
+    return min(offsets) if offsets else None
 
 
 def _rest_values(msg: Message) -> dict[str, Number]:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from typing import Protocol, runtime_checkable
 
-__all__ = ["Clock", "SystemClock"]
+__all__ = ["Clock", "CycleTiming", "SystemClock"]
 
 
 @runtime_checkable
@@ -22,6 +22,20 @@ class Clock(Protocol):
 
     def sleep_until(self, t: float) -> None:
         """Return once now() >= t (at once when t is already past)."""
+        ...
+
+
+@runtime_checkable
+class CycleTiming(Protocol):
+    """What a master's processor adds when the master runs in virtual time (a simulator's hook): on real hardware
+    the computation and the wake-up latency take their time by themselves."""
+
+    def work_s(self, cycle: int) -> float:
+        """Seconds the master computes in this cycle before its RxPDOs go out."""
+        ...
+
+    def late_s(self) -> float:
+        """Seconds a wait ends after its target (the operating system's wake-up latency)."""
         ...
 
 
