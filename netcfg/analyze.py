@@ -10,6 +10,7 @@ from typing import Any
 
 from netcfg import model
 from netcfg.diagnostics import Collector
+from netcfg.spec.units import format_ns
 from netcfg.timing import can_rta, canopen_sync, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
@@ -156,13 +157,17 @@ def analyze_sync(
     assert co is not None
     cycles = canopen_sync.analyse(bus, {name: worst for name, (_, worst) in frame_ns.items()})
     sync_msg = next(msg for msg in bus.messages if msg.implicit == "SYNC")
+    loop = canopen_sync.master_loop(m, bus)
     acc.canopen[bus.name] = flows.SyncTimes(
         period_ns=co.sync_period_ns,
         sync=acc.chained[sync_msg.name],
         every=canopen_sync.sync_transmissions(bus),
         frame_ns={name: nominal for name, (nominal, _) in frame_ns.items()},
         completion_ns=[c.completion_ns for c in cycles],
+        master=loop,
+        release_delay_ns={msg.name: m.nodes[msg.producer].tx_delay_ns for msg in bus.messages},
     )
+    check_master_loop(m, bus, loop, diags)
     rows = []
     for c in cycles:
         rows.append(
@@ -210,7 +215,18 @@ def analyze_sync(
         )
         if limit is not None
     ]
+    master: dict[str, Any] = {
+        "node": loop.node,
+        "tasks": list(loop.tasks),
+        "offset_us": us(loop.offset_ns),
+        "bcet_us": us(loop.bcet_ns),
+        "wcet_us": us(loop.wcet_ns),
+        "jitter_us": us(loop.jitter_ns),
+        # the latest its RxPDOs are queued after SYNC (None: right before the next SYNC, the paper's loop)
+        "writes_done_us": None if loop.offset_ns is None else us(loop.offset_ns + loop.jitter_ns + loop.wcet_ns),
+    }
     return {
+        "master": master,
         "period_us": us(co.sync_period_ns),
         "window_us": us(co.sync_window_ns),
         "read_window_us": us(co.read_window_ns),
@@ -221,6 +237,35 @@ def analyze_sync(
         "max_tpdos_per_cycle": max((len(c.tpdos) for c in cycles), default=0),
         "cycles": rows[:64],
     }
+
+
+def check_master_loop(m: model.Model, bus: model.Bus, loop: canopen_sync.MasterLoop, diags: Collector) -> None:
+    """The master's computation must start on complete samples and end before its next SYNC is due."""
+    co = bus.canopen
+    assert co is not None
+    if loop.offset_ns is None:
+        return
+    where = m.source.at(m.task(loop.tasks[0]).path)
+    names = ", ".join(f"'{t}'" for t in loop.tasks)
+    window = co.read_window_ns or co.sync_window_ns
+    if window is not None and loop.offset_ns < window:
+        diags.add(
+            "master-cycle",
+            f"the master's SYNC task {names} starts {format_ns(loop.offset_ns)} after SYNC, before the "
+            f"{format_ns(window)} read window of bus '{bus.name}' ends: the master computes on the samples it "
+            "collected; give it an offset of at least the read window",
+            where,
+        )
+    end = loop.offset_ns + loop.jitter_ns + loop.wcet_ns
+    if end > co.sync_period_ns:
+        diags.add(
+            "master-cycle",
+            f"the master's SYNC task {names} on bus '{bus.name}' ends up to {format_ns(end)} after SYNC (offset "
+            f"{format_ns(loop.offset_ns)} + master_jitter {format_ns(loop.jitter_ns)} + WCET "
+            f"{format_ns(loop.wcet_ns)}), after the next SYNC is due ({format_ns(co.sync_period_ns)}): the master "
+            "cannot keep its period; shorten its offset or WCET, or lengthen the SYNC period",
+            where,
+        )
 
 
 def analyze_ftt(

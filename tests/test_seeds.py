@@ -149,7 +149,9 @@ def test_allex2_synchronous_tpdos_fit_the_read_window() -> None:
 
 def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_path: Path) -> None:
     """With a 4 ms cycle and 2.5 ms windows, the 2950 us above (every frame counted once, as 2950 < 4000) no
-    longer fit: 450 us too late. The load, 2365 bits per 4 ms = 0.59, is still fine: only the cycle fails."""
+    longer fit: 450 us too late. The load, 2365 bits per 4 ms = 0.59, is still fine. And the master cannot keep
+    the cycle either: its control step starts 2500 us after SYNC, up to 13 us late (master_jitter), and writes for
+    up to 8557.3 us (Table 5): done 11,070.3 us after SYNC, long after the next SYNC is due at 4000 us."""
     data = load_spec("allex2.yaml")
     data["buses"][0]["canopen"].update(sync_period="4 ms", sync_window="2500 us", read_window="2500 us")
     data["nodes"][0]["tasks"][0]["offset"] = "2500 us"  # the master's control step follows the read window
@@ -160,30 +162,36 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     code, report = cli_json("check", str(path))
     assert code == 1
-    assert [e["code"] for e in report["errors"]] == ["sync-cycle"]
+    assert [e["code"] for e in report["errors"]] == ["sync-cycle", "master-cycle"]
     err = report["errors"][0]
     assert "SYNC cycle 0" in err["message"] and "2950 us after SYNC, 450 us too late" in err["message"]
     assert err["file"] == str(path) and err["line"] >= 1
+    master = report["errors"][1]
+    assert "ends up to 11.0703 ms after SYNC" in master["message"], master["message"]
+    assert master["file"] == str(path) and master["line"] >= 1
 
 
 def test_allex2_sync_driven_flows_are_deterministic() -> None:
     """SYNC-driven CANopen makes the exoskeleton's loops deterministic (issue 3, item 5). At 1 Mbit/s SYNC is
     47 bits nominal (47 us) and 190 us at worst (its response time: blocked by one 135-bit frame, then 55 bits).
+    The master's loop (seed 000, Figure 7, with the spec's timing): SYNC k is queued within master_jitter = 13 us
+    (section 5.2: 20.013 ms instead of 20 ms per sample) of k x 20 ms, so drives receive it 47 .. 190 + 13 = 203 us
+    after k x 20 ms; the control step starts 10,000 .. 10,013 us after k x 20 ms (its offset, plus the jitter).
 
-    joint_feedback: hip_l's TxPDO1 samples at SYNC; the master's control step runs 10 ms after SYNC (after the
-    read window). Best: SYNC arrives at 47 us, control at 10,047 us: 10,000 us. Worst: SYNC arrives at 47 us in one
-    cycle's best case but control starts at 10,000 + 190 us: 10,143 us. Unsynchronised, the master could sample
-    up to a whole 20 ms period late: 111 us (nominal 8-byte frame) .. 20,000 + 325 us (TxPDO1's response time:
-    SYNC 190 us, then hip_l's TxPDO1, 135 bits = 135 us: 190 + 135 = 325 us).
-    joint_command: control (10,047 .. 10,190 us after SYNC) runs 225.8 .. 8,557.3 us (Table 5, writing), RxPDO1
-    takes 111 .. 1,135 us, the drive applies it at the next SYNC (20,047 .. 20,190 us): 10,000 .. 10,143 us.
+    joint_feedback: hip_l's TxPDO1 samples at SYNC reception (47 .. 203 us). Worst: sampled at 47 us, used at
+    10,013 us: 9,966 us. Best: sampled at 203 us, used at 10,000 us: 9,797 us. Unsynchronised, the master could
+    sample up to a whole 20 ms period late: 111 us (nominal 8-byte frame) .. 20,000 + 325 us (TxPDO1's response
+    time: SYNC 190 us, then hip_l's TxPDO1, 135 bits = 135 us: 190 + 135 = 325 us).
+    joint_command: control starts at 10,000 .. 10,013 us and runs 225.8 .. 8,557.3 us (Table 5, writing), RxPDO1
+    takes 111 .. 1,135 us (done by 19,705.3 us, before the next SYNC), the drive applies it at the next SYNC
+    (20,047 .. 20,203 us): worst 20,203 - 10,000 = 10,203 us, best 20,047 - 10,013 = 10,034 us.
     Unsynchronised, the drive applies it at once: 225.8 (Table 5 writing, min) + 111 (nominal RxPDO1) = 336.8 us
     at best; at worst the command waits a whole SYNC period: 20,000 + 8,557.3 (Table 5 writing, max) + 1,135
     (RxPDO1's worst-case response) = 29,692.3 us."""
     flows = {f["name"]: f for f in check(SPECS / "allex2.yaml")["flows"]}
-    for name in ("joint_feedback", "joint_command"):
+    for name, bounds in (("joint_feedback", (9_797.0, 9_966.0)), ("joint_command", (10_034.0, 10_203.0))):
         sync = flows[name]["synchronised"]
-        assert (sync["latency_min_us"], sync["latency_max_us"]) == (10_000.0, 10_143.0), name
+        assert (sync["latency_min_us"], sync["latency_max_us"]) == bounds, name
         assert flows[name]["mode"] == "synchronised"
     unsync = flows["joint_feedback"]["unsynchronised"]
     assert (unsync["latency_min_us"], unsync["latency_max_us"]) == (111.0, 20_325.0)

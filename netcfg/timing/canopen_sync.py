@@ -9,6 +9,13 @@ instance released late in one period and the next on time, so up to ceil((W + J)
 a window of length W (the CAN response-time analysis' interference term, Davis et al. 2007, eq. 8):
     W_k = B + C_SYNC + sum over TPDOs due in k of C + sum over others of ceil((W_k + J) / T) * C
 It must fit the synchronous window (0x1007), the master's read window and the communication cycle (0x1006).
+
+The master's own cycle (seed 000, Figure 7; MasterLoop) is modelled from the spec, as the live master
+(netcfg.runtime.canopen_master.MasterCycle) runs it: SYNC k is queued within the master's jitter (its wake-up latency)
+of k T; its computation, the SYNC tasks of the SYNC producer one after the other, starts within that jitter of
+k T + offset, takes BCET..WCET, and sends the RxPDOs as it ends. It must end before the next SYNC is due
+(offset + jitter + WCET <= T) and start after the read window (offset >= the window): the master computes on
+the samples it collected, and its SYNC keeps its period.
 """
 
 from __future__ import annotations
@@ -31,6 +38,31 @@ class SyncCycle:
     blocking_ns: int = 0  # the terms of W_k: a frame already on the bus,
     sync_ns: int = 0  # SYNC itself,
     tpdos_ns: int = 0  # the cycle's synchronous TPDOs; the rest of W_k is other frames released meanwhile
+
+
+@dataclass(frozen=True)
+class MasterLoop:
+    node: str  # the SYNC producer
+    tasks: tuple[str, ...]  # its SYNC tasks on this bus (node.task refs), run one after the other
+    offset_ns: int | None  # when they start after SYNC; None without any: the SYNC follows the writes at once
+    bcet_ns: int
+    wcet_ns: int
+    jitter_ns: int  # SYNC and computation start at most this late
+
+
+def master_loop(m: model.Model, bus: model.Bus) -> MasterLoop:
+    co = bus.canopen
+    assert co is not None
+    node = m.nodes[co.sync_producer]
+    tasks = sorted((t for t in node.tasks.values() if t.sync_bus == bus.name), key=lambda t: (t.offset_ns, t.name))
+    return MasterLoop(
+        node=node.name,
+        tasks=tuple(t.ref for t in tasks),
+        offset_ns=tasks[0].offset_ns if tasks else None,
+        bcet_ns=sum(t.bcet_ns for t in tasks),
+        wcet_ns=sum(t.wcet_ns for t in tasks),
+        jitter_ns=co.master_jitter_ns,
+    )
 
 
 def sync_transmissions(bus: model.Bus) -> dict[str, int]:

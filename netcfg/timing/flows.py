@@ -15,11 +15,12 @@ A step may hold several items in parallel; the data of all of them is needed, so
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import pairwise
 from math import lcm
 
 from netcfg import model
+from netcfg.timing.canopen_sync import MasterLoop
 from netcfg.timing.ftt import Schedule
 
 
@@ -255,6 +256,8 @@ class SyncTimes:
     every: dict[str, int]  # synchronous TPDO -> every how many SYNCs
     frame_ns: dict[str, int]  # message -> nominal frame time
     completion_ns: list[int | None]  # per cycle of the SYNC-cycle analysis: the last synchronous TPDO's end
+    master: MasterLoop | None = None  # the SYNC producer's cycle; None: an ideal master (no jitter, no SYNC task)
+    release_delay_ns: dict[str, int] = field(default_factory=dict)  # message -> its producer's queueing delay
 
 
 def synchronised_canopen(
@@ -262,27 +265,38 @@ def synchronised_canopen(
 ) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
     """SYNC-driven CANopen (seed 000): SYNC tasks run a fixed offset after each SYNC, synchronous TPDOs sample at
     SYNC and are done by the cycle's completion; other messages go out when their producer has the data.
-    Cycle k's SYNC is queued at k * period; None when some step is neither SYNC-driven nor chained."""
+    Cycle k's SYNC is queued within the master's jitter of k * period, so drives receive it between the SYNC frame's
+    best and worst delivery after that; the master's own SYNC tasks start within its jitter of k * period + offset
+    (MasterLoop: its loop keeps that instant, it does not wait for its SYNC's reception). None when some step is
+    neither SYNC-driven nor chained."""
     period = st.period_ns
+    jitter = st.master.jitter_ns if st.master is not None else 0
+    master = st.master.node if st.master is not None else None
     s_best = st.sync.best_ns
-    s_worst = st.sync.worst_ns
+    s_worst = None if st.sync.worst_ns is None else st.sync.worst_ns + jitter
     if s_worst is None:
         return None
     cycles = len(st.completion_ns)
 
-    def on_sync(due: int, offset: int, r: int, worst_path: bool) -> tuple[int, int]:
+    def activation(task: model.Task) -> tuple[int, int]:
+        """Earliest and latest start of a SYNC task after k * period."""
+        if task.node == master:
+            return task.offset_ns, task.offset_ns + jitter
+        return s_best + task.offset_ns, s_worst + task.offset_ns
+
+    def on_sync(due: int, window: tuple[int, int], r: int, worst_path: bool) -> tuple[int, int]:
         """First SYNC instant (plus offset) that can take data ready at r: (cycle, its time on this path)."""
         k = max(0, r // period - 1)
         while True:
             if k % due == 0:
-                earliest, latest = k * period + s_best + offset, k * period + s_worst + offset
+                earliest, latest = k * period + window[0], k * period + window[1]
                 # the worst path counts data as taken only if ready before the earliest possible instant
                 if (earliest if worst_path else latest) >= r:
                     return k, (latest if worst_path else max(r, earliest))
             k += 1
 
     def tpdo_end(name: str, r: int, worst_path: bool) -> int:
-        k, t = on_sync(st.every[name], 0, r, worst_path)
+        k, t = on_sync(st.every[name], (s_best, s_worst), r, worst_path)
         if not worst_path:
             return t + st.frame_ns[name]
         done = st.completion_ns[k % cycles]
@@ -300,16 +314,22 @@ def synchronised_canopen(
     head = first.refs[0]
     hyper = lcm(*st.every.values()) if st.every else 1
     starts = []
+    # a start instant may come this much later than the one taken (the data's age is measured from it in a run)
+    spread = 0
     for k in range(2 * hyper):
         if first.kind == "task" and m.task(head).sync_bus == bus:
-            starts.append(k * period + s_best + m.task(head).offset_ns)
+            early, late = activation(m.task(head))
+            starts.append(k * period + early)
+            spread = late - early
         elif first.kind == "message" and head in st.every and k % st.every[head] == 0:
             starts.append(k * period + s_best)
+            spread = s_worst - s_best + st.release_delay_ns.get(head, 0)
     if not starts:
         return None
     runs: list[Run] = []
     for start in starts:
-        lo = hi = start
+        # the worst case from the earliest start, the best case from the latest
+        lo, hi = start + spread, start
         got: tuple[int, int] | None = None
         for i, step in enumerate(flow.steps):
             last = i == len(flow.steps) - 1
@@ -324,13 +344,14 @@ def synchronised_canopen(
                 else:
                     task = m.task(ref)
                     if task.sync_bus == bus:
-                        a_lo = on_sync(1, task.offset_ns, lo, False)[1]
-                        a_hi = on_sync(1, task.offset_ns, hi, True)[1]
+                        a_lo = on_sync(1, activation(task), lo, False)[1]
+                        a_hi = on_sync(1, activation(task), hi, True)[1]
                     else:  # started by a message
                         a_lo, a_hi = lo, hi
                     outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + task.wcet_ns))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
             if step.kind == "message":
                 got = (lo, hi)
-        runs.append((start, lo, hi, got))
+        # runs hold ends relative to the start taken: the best case's, which began `spread` later, is moved back
+        runs.append((start, lo - spread, hi, None if got is None else (got[0] - spread, got[1])))
     return _freshest(runs, hyper * period)
