@@ -3,10 +3,13 @@ the spec, and the simulator running the live master (netcfg.runtime.canopen_mast
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+from typing import Any
 
 import pytest
-from conftest import SHARED, check
+import yaml
+from conftest import ROOT, SHARED, check, check_data, cli
 
 REPRO = SHARED / "repro" / "soundness"
 
@@ -27,3 +30,102 @@ def test_sync_cycle_counts_other_messages_release_jitter() -> None:
     assert can0["sync"]["worst_completion_us"] == 595.0
     assert [e["code"] for e in report["errors"]] == ["sync-cycle"]
     assert "595 us after SYNC, 95 us too late" in report["errors"][0]["message"]
+
+
+def repro12_data() -> dict[str, Any]:
+    data: dict[str, Any] = yaml.safe_load(repro("12-canopen-master-fixed-times.yaml").read_text(encoding="utf-8"))
+    return data
+
+
+def test_a_master_that_keeps_its_cycle_runs_without_overrun() -> None:
+    """Repro 12: a 2 ms cycle whose master computes 100 .. 200 us, starting 1 ms after SYNC (after its 1 ms read
+    window). Check: 1 ms + 200 us <= 2 ms, no error. The flow 'loop' (drive.apply, state, master.control, cmd,
+    drive.apply), with SYNC received 47 .. 190 us after k x 2 ms (47-bit frame; blocked by one 135-bit frame, then
+    55 bits) and the master starting exactly 1 ms after k x 2 ms (no master_jitter):
+    worst: apply at 47 us, ends 147 us; state samples at the next SYNC (2047 us); control starts 3000 us, ends
+    3200 us; cmd done by 3200 + 325 (its response time) = 3525 us; apply at the SYNC after: 4190 - 47 = 4143 us.
+    best: apply at 190 us, ends 240 us; state at 2047 us; control at 3000 us; apply at 4047 - 190 = 3857 us.
+    Simulated (the live master, 10 s): no overrun, every cycle complete, 'loop' inside 3857 .. 4143 us, exit 0."""
+    path = repro("12-canopen-master-fixed-times.yaml")
+    report = check(path)
+    assert report["ok"], report["errors"]
+    loop = next(f for f in report["flows"] if f["name"] == "loop")
+    assert (loop["latency_min_us"], loop["latency_max_us"]) == (3857.0, 4143.0)
+    r = cli("simulate", str(path), "--duration", "10s", "--seed", "0", "--format", "json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    doc = json.loads(r.stdout)
+    can0 = doc["protocols"]["can0"][0]
+    assert can0["cycles"] == 5000 and can0["overruns"] == 0 and can0["incomplete_cycles"] == 0
+    flow = doc["flows"][0]
+    assert flow["samples"] > 4900 and flow["within_analysis"]
+    assert 3857 <= flow["latency_us"]["min"] <= flow["latency_us"]["max"] <= 4143
+
+
+def test_check_refuses_a_cycle_its_master_cannot_keep(tmp_path: Path) -> None:
+    """Repro 12 with a WCET of 1.5 ms: the master's step ends up to 1 ms + 1.5 ms = 2.5 ms after SYNC, after the
+    next SYNC is due at 2 ms; and with an offset of 0.5 ms it would compute before its 1 ms read window ends."""
+    data = repro12_data()
+    data["nodes"][0]["tasks"][0].update(wcet="1500 us")
+    report = check_data(tmp_path, data)
+    assert [e["code"] for e in report["errors"]] == ["master-cycle"]
+    assert "ends up to 2.5 ms after SYNC" in report["errors"][0]["message"]
+    line = report["errors"][0]["line"]  # names the master's task in the file written
+    assert "control" in (tmp_path / "spec.yaml").read_text(encoding="utf-8").splitlines()[line - 1]
+    data = repro12_data()
+    data["nodes"][0]["tasks"][0].update(offset="500 us")
+    report = check_data(tmp_path, data)
+    assert [e["code"] for e in report["errors"]] == ["master-cycle"]
+    assert "before the 1 ms read window" in report["errors"][0]["message"]
+
+
+def test_a_master_slower_than_its_runtime_config_allows_is_a_finding(tmp_path: Path) -> None:
+    """The simulator runs the master's times from runtime.json, so a runtime.json whose master step outgrows the
+    cycle (edited after the build: 1 ms offset + 1.5 ms > 2 ms) shows overruns: a finding, exit 1."""
+    r = cli("build", str(repro("12-canopen-master-fixed-times.yaml")), "-o", str(tmp_path / "out"))
+    assert r.returncode == 0, r.stderr
+    path = tmp_path / "out" / "runtime.json"
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    task = doc["nodes"][0]["tasks"][0]
+    assert (doc["nodes"][0]["name"], task["name"]) == ("master", "control")
+    task["bcet_ns"], task["wcet_ns"] = 1_400_000, 1_500_000
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    r = cli("simulate", str(path), "--duration", "200ms", "--seed", "1")
+    assert r.returncode == 1
+    assert "the master overran its 2 ms period in 100 of 100 cycles" in r.stdout, r.stdout
+
+
+def test_allex2_simulated_flows_fall_inside_their_analysed_range() -> None:
+    """ALLEX-2 (seed 000) over 4 seeded gait cycles of 8 s: 400 cycles each, every drive complete, and both flows
+    inside the analysed range (test_seeds derives it: joint_feedback 9797 .. 9966 us, joint_command
+    10034 .. 10203 us)."""
+    r = cli("simulate", "specs/allex2.yaml", "--duration", "8s", "--runs", "4", "--jobs", "1", "--format", "json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    doc = json.loads(r.stdout)
+    flows = {f["name"]: f for f in doc["flows"]}
+    assert flows["joint_feedback"]["analysis_us"] == {"min": 9797.0, "max": 9966.0}
+    assert flows["joint_command"]["analysis_us"] == {"min": 10034.0, "max": 10203.0}
+    for f in flows.values():
+        assert f["samples"] > 4 * 390 and f["within_analysis"], f
+    assert doc["exceeds_analysis"] == []
+
+
+def test_the_simulated_master_is_the_live_one_with_the_spec_times() -> None:
+    """The simulator's PDO master is MasterCycle itself: one CycleRecord per cycle, the control step's runs
+    between its BCET 225.8 us and WCET 8557.3 us (Table 5, writing), and each SYNC sent 10 ms after its cycle's
+    start (20 ms - the control step's 10 ms offset), at most master_jitter = 13 us late."""
+    from netcfg.runtime import load
+    from netcfg.sim.canopen import CanopenMaster
+    from netcfg.sim.scenario import SimOptions, simulate
+
+    cfg = load(ROOT / "generated" / "allex2" / "runtime.json")
+    sc = simulate(cfg, SimOptions(duration_ns=2_000_000_000, seed=5))
+    driver = sc.protocols["can0"]
+    assert isinstance(driver, CanopenMaster) and driver.run is not None
+    assert driver.run.cycles == 100
+    runs = sc.task_runs["master.control"]
+    assert len(runs) == 100
+    assert all(225_800 <= end - start <= 8_557_300 for start, end in runs)
+    assert len({end - start for start, end in runs}) > 90  # drawn per cycle
+    for rec in driver.run.records:
+        assert 0.010 - 1e-9 <= rec.sync_sent - rec.start <= 0.010 + 13e-6 + 1e-9
+    assert cfg.bus("can0").canopen.master_jitter_ns == 13_000  # type: ignore[union-attr]

@@ -1,11 +1,12 @@
-"""A CANopen master and its drives (seed 000, sections 4.4 and 5).
+"""A CANopen bus's master and drives (seed 000, sections 4.4 and 5).
 
-PDO mode, the paper's Figure 7, one loop per period T:
-  write the RxPDOs (each costs a write processing time), send SYNC, collect the synchronous TxPDOs until all
-  arrived or the read window ends, process them (a read processing time), then wait dynamically
-  (waiting = T - Pt - K, with a residual error) so the next cycle starts T after this one.
-Drives answer each SYNC with their synchronous TxPDOs (transmission type n: every n-th SYNC) after their
-processing delay, and tasks that run on SYNC start their offset after its reception.
+PDO mode, the paper's Figure 7: the master is the live one, netcfg.runtime.canopen_master.MasterCycle, unchanged,
+on the simulator's python-can bus and clock (netcfg.sim.pybus), so what is simulated is the code that runs on the
+robot. The spec gives its timing: its SYNC task's BCET..WCET is the computation of each cycle (drawn per cycle),
+and the bus's master_jitter bounds how late each of its waits ends (drawn per wait); the cycle is anchored
+(drift_free), as the analysis assumes. Drives answer each SYNC with their synchronous TPDOs (transmission type n:
+every n-th SYNC) after their processing delay, and their tasks that run on SYNC start their offset after its
+reception.
 
 SDO mode, the earlier approach the paper compares with (section 4.2, [8]): one concurrent loop per joint reads
 three objects by confirmed SDO uploads (request 0x600 + node id, response 0x580 + node id) and a movement loop
@@ -15,13 +16,13 @@ writes commands by SDO; all of them share the master's processor, so samples com
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE, sync_every
-from netcfg.runtime import Bus, Message
+from netcfg.runtime import Bus
+from netcfg.runtime.canopen_master import CycleRecord, MasterCycle, MasterRun
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.stats import spread
 
@@ -30,15 +31,6 @@ if TYPE_CHECKING:
 
 SDO_OBJECTS_PER_READ = 3  # position, velocity, current (seed 000, section 4.2)
 SDO_TIMEOUT_NS = 300_000_000  # the canopen package's default SDO response timeout (SdoClient.RESPONSE_TIMEOUT)
-
-
-@dataclass
-class Cycle:
-    start: int
-    sync_queued: int | None = None
-    done: int = 0  # collection finished (all arrived, or the read window ended)
-    received: set[str] = field(default_factory=set)
-    expected: tuple[str, ...] = ()
 
 
 class CanopenMaster:
@@ -59,67 +51,76 @@ class CanopenMaster:
         self.tpdos = [m for m in msgs if m.name in self.every]
         self.drives = sorted({m.producer for m in self.tpdos} | {c for m in self.rpdos for c in m.consumers})
         self.owned = {self.sync.name} | {m.name for m in self.rpdos} | {m.name for m in self.tpdos}
-        self.cycles: list[Cycle] = []
-        self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # drive -> instants of complete samples
+        # the master's own SYNC tasks are its computation, run by the live master (work_s), not on SYNC reception
+        self.master_tasks = [t for t in sc.cfg.node(self.master).tasks if t.sync_bus == bus.name]
+        self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # SDO mode: drive -> instants of samples
         self.missing: dict[str, int] = {d: 0 for d in self.drives}
         self._sync_count = 0
-        self.late: dict[str, int] = {}  # TPDO -> answers that came after their cycle's read window
         self.sdo_timeouts: dict[str, int] = {}  # drive -> SDO transfers that timed out and were repeated
-        self.overruns = 0  # cycles whose processing took longer than the period
-        self.longest_ns = 0
         self._cpu_free = 0  # the master's one processor, shared by the SDO loops
+        self.run: MasterRun | None = None
+        self._lead = 0.0  # how long after a cycle's start its SYNC is due (MasterCycle.sync_lead_s)
         if self.mode in ("pdo", "external"):
             sc.listen(self.sync.name, self._on_sync)
-            for m in self.tpdos:
-                sc.listen(m.name, self._on_tpdo)
         elif self.mode == "sdo":
             self._sdo_sources()
         else:
             raise ValueError(f"CANopen master mode must be pdo, sdo or external, not {self.mode!r}")
-
-    # -- timing draws -----------------------------------------------------------------------------------
-    def _draw(self, spec: tuple[int, int, int, int]) -> int:
-        mean, std, lo, hi = spec
-        return int(np.clip(self.sc.rng.normal(mean, std), lo, hi))
 
     def _drive_delay(self, drive: str) -> int:
         d = self.sc.opts.drive_delay_ns
         return d if d is not None else self.sc.cfg.node(drive).tx_delay_ns
 
     def start(self) -> None:
-        first = self.sc.clock[self.master].phase_ns
-        if self.mode == "pdo":
-            self.sc.sim.at(first, self._cycle)
-        elif self.mode == "sdo":
-            self._start_sdo(first)
+        if self.mode == "sdo":
+            self._start_sdo(self.sc.clock[self.master].phase_ns)
 
-    # -- PDO mode: Figure 7 -----------------------------------------------------------------------------
-    def _cycle(self, _: object = None) -> None:
+    # -- PDO mode: the live master (Figure 7) --------------------------------------------------------------
+    @property
+    def live(self) -> bool:
+        """This bus's master is the live MasterCycle, run by drive()."""
+        return self.mode == "pdo"
+
+    def drive(self, until_ns: int) -> None:
+        """Run the live master until its next cycle would start at or after `until_ns` (its last cycle ends at most
+        one period later); the whole simulation advances as it waits."""
+        from netcfg.sim.pybus import SimCanBus, VirtualClock
+
+        sc = self.sc
+        sc.sim.run_until(sc.clock[self.master].phase_ns)
+        pybus = SimCanBus(sc, self.bus.name, node=self.master)
+        try:
+            cycle = MasterCycle(
+                sc.cfg,
+                pybus,
+                VirtualClock(sc),
+                bus_name=self.bus.name,
+                drift_free=True,  # anchored, as the analysis assumes (SYNC k within master_jitter of its instant)
+                pause_gc=False,
+                timing=self,
+            )
+            self._lead = cycle.sync_lead_s
+            self.run = cycle.run(1 << 62, until_s=until_ns / 1e9)
+        finally:
+            pybus.shutdown()
+
+    def work_s(self, cycle: int) -> float:
+        """The master's computation this cycle: its SYNC tasks, each for a time between its BCET and WCET."""
         sc = self.sc
         if not sc.alive(self.master):
-            return
-        cyc = Cycle(start=sc.sim.now)
-        self.cycles.append(cyc)
-        t = sc.sim.now
-        first = len(self.cycles) == 1
-        for m in self.rpdos:
-            if m.kind == "on-demand" and not first:
-                continue  # written once, at the start (the interpolation time of seed 000, section 4.4.1)
-            t += self._draw(sc.opts.master.write)
-            sc.sim.at(t, self._write, m)
-        sc.sim.at(t, self._send_sync, cyc)
+            return 0.0
+        now_s = sc.sim.now / 1e9
+        work = 0
+        for task in self.master_tasks:
+            start = sc.sim.now + work
+            work += sc.exec_ns(task)
+            # it ends where the clock will land: the same float arithmetic as MasterCycle's sleep_until(now + work)
+            sc.task_ran(task, start, max(start, round((now_s + work / 1e9) * 1e9)))
+        return work / 1e9
 
-    def _write(self, m: Message) -> None:
-        self.sc.submit(m.name)
-
-    def _send_sync(self, cyc: Cycle) -> None:
-        sc = self.sc
-        cyc.sync_queued = sc.sim.now
-        n = len(self.cycles)  # this cycle's SYNC is the n-th: a TPDO of type k answers every k-th (CiA 301)
-        cyc.expected = tuple(m.name for m in self.tpdos if n % self.every[m.name] == 0)
-        sc.submit(self.sync.name)
-        window = self.co.collect_window_ns()
-        sc.sim.at(sc.sim.now + window, self._read_window_over, cyc)
+    def late_s(self) -> float:
+        jitter = self.co.master_jitter_ns
+        return int(self.sc.rng.integers(0, jitter + 1)) / 1e9 if jitter else 0.0
 
     def _on_sync(self, end: int, _src: int, _release: int, _data: bytes | None) -> None:
         sc = self.sc
@@ -127,47 +128,15 @@ class CanopenMaster:
         n = self._sync_count
         for m in self.tpdos:
             if n % self.every[m.name] == 0 and sc.alive(m.producer):
-                sc.sim.at(end + self._drive_delay(m.producer), self._tpdo, m)
+                sc.sim.at(end + self._drive_delay(m.producer), self._tpdo, m.name)
         for task in sc.tasks_on_sync(self.bus.name):
+            if task.node == self.master:
+                continue  # the master's computation, which the live master runs (work_s)
             node = sc.cfg.node(task.node)
             sc.run_task(task, end + node.rx_delay_ns + task.offset_ns)
 
-    def _tpdo(self, m: Message) -> None:
-        self.sc.submit(m.name)
-
-    def _on_tpdo(self, end: int, src: int, release: int, _data: bytes | None) -> None:
-        name = self.can.sources[src].name
-        cyc = self.cycles[-1] if self.cycles else None
-        if cyc is None or cyc.done or cyc.sync_queued is None or release < cyc.sync_queued:
-            # an answer to an earlier SYNC, after its read window: late, not a sample of this cycle
-            self.late[name] = self.late.get(name, 0) + 1
-            return
-        cyc.received.add(name)
-        if cyc.expected and all(n in cyc.received for n in cyc.expected):
-            self._collected(cyc)
-
-    def _read_window_over(self, cyc: Cycle) -> None:
-        if not cyc.done:
-            self._collected(cyc)
-
-    def _collected(self, cyc: Cycle) -> None:
-        sc = self.sc
-        cyc.done = sc.sim.now
-        for drive in self.drives:
-            exp = [n for n in cyc.expected if sc.cfg.message(n).producer == drive]
-            got = [n for n in exp if n in cyc.received]
-            if exp and len(got) == len(exp):
-                self.samples[drive].append(cyc.start)
-            self.missing[drive] += len(exp) - len(got)
-        t = sc.sim.now + self._draw(sc.opts.master.read)
-        pt = t - cyc.start
-        if pt > self.co.sync_period_ns:
-            self.overruns += 1  # the next SYNC comes late: the master cannot keep its period
-            self.longest_ns = max(self.longest_ns, pt)
-        waiting = max(0, self.co.sync_period_ns - pt - sc.opts.master.k_ns)
-        mean, std = sc.opts.master.wait_error
-        err = int(sc.rng.normal(mean, std))
-        sc.sim.at(max(t, t + waiting + err), self._cycle)
+    def _tpdo(self, name: str) -> None:
+        self.sc.submit(name)
 
     # -- SDO mode ---------------------------------------------------------------------------------------
     def _sdo_sources(self) -> None:
@@ -274,33 +243,62 @@ class CanopenMaster:
     def report(self) -> dict[str, object]:
         period = self.co.sync_period_ns
         out: dict[str, object] = {"mode": self.mode, "period_us": period / 1000}
-        per_drive: dict[str, object] = {}
-        for drive, times in self.samples.items():
-            gaps = np.diff(np.asarray(times, dtype=np.int64)) if len(times) > 1 else np.empty(0, np.int64)
-            err = (gaps - period) / 1000 if len(gaps) else gaps
-            per_drive[drive] = {
-                "samples": len(times),
-                "missing_frames": self.missing[drive],
-                "sdo_timeouts": self.sdo_timeouts.get(drive, 0),
-                "period_us": spread(gaps / 1000) if len(gaps) else None,
-                "period_error_us": spread(err) if len(gaps) else None,
+        if self.mode == "sdo":
+            out["drives"] = {
+                drive: self._drive_report([t / 1000 for t in times], self.missing[drive], drive)
+                for drive, times in self.samples.items()
             }
-        out["drives"] = per_drive
-        if self.mode == "pdo":
-            starts = np.asarray([c.start for c in self.cycles], dtype=np.int64)
-            out["cycles"] = len(self.cycles)
-            out["incomplete_cycles"] = sum(1 for c in self.cycles if c.done and set(c.expected) - c.received)
-            if len(starts) > 1:
-                out["cycle_period_us"] = spread(np.diff(starts) / 1000)
-            out["overruns"] = self.overruns
-            out["late_frames"] = sum(self.late.values())
-            if self.overruns:
-                out["findings"] = [
-                    f"the master overran its {period / 1e6:g} ms period in {self.overruns} of {len(self.cycles)} "
-                    f"cycles (processing up to {self.longest_ns / 1e6:.2f} ms with {len(self.rpdos)} RxPDO writes): "
-                    "its SYNC is not periodic, so flows over this bus may leave the analysed bounds"
-                ]
-            done = [c.done - c.sync_queued for c in self.cycles if c.done and c.sync_queued is not None]
-            if done:
-                out["collection_us"] = spread(np.asarray(done) / 1000)
+            return out
+        run = self.run
+        if run is None:  # "external": a program ran its own master
+            return out
+        missing = run.missing_by_node()
+        out["drives"] = {
+            drive: self._drive_report(
+                [1e6 * rec.start for rec in run.records if _complete(run, rec, drive)], missing.get(drive, 0), drive
+            )
+            for drive in self.drives
+        }
+        starts = np.asarray([1e6 * rec.start for rec in run.records])
+        out["cycles"] = run.cycles
+        out["incomplete_cycles"] = sum(1 for rec in run.records if rec.missing)
+        if len(starts) > 1:
+            out["cycle_period_us"] = spread(np.diff(starts))
+        # an overrun: the SYNC left later than its instant (plus the wake-up latency), or the cycle outgrew its period
+        slack_s = (self.co.master_jitter_ns + 1000) / 1e9  # 1 us for float rounding of the clock
+        late = [
+            rec
+            for rec in run.records
+            if (self._lead > 0 and rec.sync_sent - rec.start > self._lead + slack_s)
+            or rec.period_s > run.period_s + slack_s
+        ]
+        out["overruns"] = len(late)
+        out["late_frames"] = run.late
+        if late:
+            longest = max(rec.processing_s for rec in late)
+            out["findings"] = [
+                f"the master overran its {period / 1e6:g} ms period in {len(late)} of {run.cycles} cycles "
+                f"(processing up to {1e3 * longest:.2f} ms with {len(self.rpdos)} RxPDO writes): its SYNC is not "
+                "periodic, so flows over this bus may leave the analysed bounds"
+            ]
+        done = [1e6 * rec.read_s for rec in run.records]
+        if done:
+            out["collection_us"] = spread(np.asarray(done))
         return out
+
+    def _drive_report(self, times_us: list[float], missing: int, drive: str) -> dict[str, object]:
+        period_us = self.co.sync_period_ns / 1000
+        gaps = np.diff(np.asarray(times_us)) if len(times_us) > 1 else np.empty(0)
+        return {
+            "samples": len(times_us),
+            "missing_frames": missing,
+            "sdo_timeouts": self.sdo_timeouts.get(drive, 0),
+            "period_us": spread(gaps) if len(gaps) else None,
+            "period_error_us": spread(gaps - period_us) if len(gaps) else None,
+        }
+
+
+def _complete(run: MasterRun, rec: CycleRecord, drive: str) -> bool:
+    """The drive's TPDOs due in this cycle all arrived (a sample of it)."""
+    due = {m for m in rec.due if run.producers[m] == drive}
+    return bool(due) and not due & set(rec.missing)

@@ -73,6 +73,9 @@ class SimCanBus(can.BusABC):
             src = self.sim_bus.add_source(name, msg.arbitration_id, msg.is_extended_id, msg.dlc, self.node)
             self._by_id[key] = src
         self._own.add(src)
+        if not self.sc.alive(self.node):
+            self.sim_bus.drop(src)  # a crashed node sends nothing
+            return
         self.sim_bus.submit(src, bytes(msg.data))
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
