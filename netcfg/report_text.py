@@ -17,6 +17,19 @@ def num(value: Any, false: str = "no") -> str:
     return str(value)
 
 
+def master_loop_text(loop: dict[str, Any]) -> str:
+    """One sentence on the SYNC producer's cycle as analysed (netcfg.timing.canopen_sync.MasterLoop)."""
+    late = f", starting up to {num(loop['jitter_us'])} us late" if loop["jitter_us"] else ""
+    if not loop["tasks"]:
+        late = f" up to {num(loop['jitter_us'])} us late" if loop["jitter_us"] else ""
+        return f"SYNC right after the RxPDO writes{late}; no SYNC task on {loop['node']}, so no computation modelled."
+    return (
+        f"{', '.join(loop['tasks'])} starts {num(loop['offset_us'])} us after SYNC and runs "
+        f"{num(loop['bcet_us'])} .. {num(loop['wcet_us'])} us{late}; its RxPDO writes are queued by "
+        f"{num(loop['writes_done_us'])} us after SYNC, and the next SYNC waits for its instant."
+    )
+
+
 def rate(bitrate: int) -> str:
     """A bit rate in the largest unit it reaches: 1 Mbit/s, 250 kbit/s."""
     for unit, scale in (("Gbit/s", 10**9), ("Mbit/s", 10**6), ("kbit/s", 10**3)):
@@ -77,6 +90,7 @@ def render(report: dict[str, Any]) -> str:
                 f"synchronous TPDOs, the last done {num(s['worst_completion_us'])} us after SYNC "
                 f"(window {num(s['window_us'])} us, read window {num(s['read_window_us'])} us)"
             )
+            out.append(f"  master: {master_loop_text(s['master'])}")
         if "links" in bus:
             out.append(
                 f"  minimum frame {num(bus['min_frame_us'])} us, f_max {bus['f_max_hz'] / 1000:.2f} kHz per link"

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from netcfg.emit import render
 from netcfg.model import Bus, Described, Model
-from netcfg.report_text import num, rate
+from netcfg.report_text import master_loop_text, num, rate
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -355,6 +355,7 @@ def _sync_view(model: Model, bus: Bus, b: dict[str, Any]) -> dict[str, Any]:
         "read_window": num(s["read_window_us"]),
         "producer": s["producer"],
         "sync_id": _hex(bus.canopen.sync_id),
+        "master": master_loop_text(s["master"]),
         "max_tpdos": s["max_tpdos_per_cycle"],
         "worst": num(worst) if worst is not None else None,
         "limits": limits,
