@@ -631,7 +631,8 @@ def test_cycle_in_virtual_time_keeps_eq1_and_counts_missing_frames(cfg: rt.Runti
     """The same MasterCycle on a bus and clock in virtual time (the simulator's contract). Every TxPDO answers
     0.5 ms + 0.1 ms x its rank after the SYNC, except: SYNC 3 gets no knee_r_effort (missing in cycle 2), and
     SYNC 5's hip_r_state comes after the 10 ms read window (missing in cycle 4, found queued - late - in cycle 5).
-    With K = 1 ms, eq. (1) ends each iteration at start + T - K, so every period is exactly 19 ms."""
+    With K = 1 ms, eq. (1) ends each iteration at start + T - K, so every period is exactly 19 ms. This is the
+    paper's loop, the SYNC right after the writes (sync_lead_s=0), although ALLEX-2's master has a SYNC task."""
     tpdos = [m for m in cfg.messages if m.pdo is not None and m.pdo.kind == "tpdo"]
 
     def answers(sync: int) -> list[tuple[float, can.Message]]:
@@ -645,7 +646,7 @@ def test_cycle_in_virtual_time_keeps_eq1_and_counts_missing_frames(cfg: rt.Runti
 
     clock = VirtualClock()
     bus = ScriptedBus(clock, answers)
-    run = MasterCycle(cfg, bus, clock, k_s=0.001).run(CYCLES)
+    run = MasterCycle(cfg, bus, clock, k_s=0.001, sync_lead_s=0.0).run(CYCLES)
     bus.shutdown()
     print(run.summary())
     assert [rec.missing for rec in run.records if rec.missing] == [("knee_r_effort",), ("hip_r_state",)]

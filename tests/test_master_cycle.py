@@ -131,3 +131,40 @@ def test_the_simulated_master_is_the_live_one_with_the_spec_times() -> None:
         assert 0 <= round((rec.start - first) * 1e9) - k * 20_000_000 <= 13_000
         assert 0 <= round((rec.sync_sent - first) * 1e9) - k * 20_000_000 - 10_000_000 <= 13_000
     assert cfg.bus("can0").canopen.master_jitter_ns == 13_000  # type: ignore[union-attr]
+
+
+class _FixedWork:
+    """A CycleTiming hook: the same computation time every cycle, no wake-up latency."""
+
+    def __init__(self, work_s: float) -> None:
+        self.work = work_s
+
+    def work_s(self, cycle: int) -> float:
+        return self.work
+
+    def late_s(self) -> float:
+        return 0.0
+
+
+@pytest.mark.parametrize(("work_s", "sync_after_s"), [(0.004, 0.010), (0.012, 0.012)])
+def test_the_sync_keeps_its_instant_unless_the_computation_outlasts_it(work_s: float, sync_after_s: float) -> None:
+    """ALLEX-2's master computes 10 ms after SYNC, so each SYNC is due 20 - 10 = 10 ms after its cycle's start:
+    a 4 ms computation leaves the SYNC there; a 12 ms one delays it to 12 ms (the writes come first, Figure 7)."""
+    from netcfg.runtime import load
+    from netcfg.runtime.canopen_master import MasterCycle
+    from netcfg.sim.pybus import SimCanBus, VirtualClock
+    from netcfg.sim.scenario import Scenario, SimOptions
+
+    cfg = load(ROOT / "generated" / "allex2" / "runtime.json")
+    sc = Scenario(cfg, SimOptions(duration_ns=1_000_000_000, canopen="external"))
+    sc.start()
+    bus = SimCanBus(sc, "can0", node="master")
+    try:
+        cycle = MasterCycle(cfg, bus, VirtualClock(sc), timing=_FixedWork(work_s), drift_free=True)
+        assert cycle.sync_lead_s == 0.010
+        run = cycle.run(10)
+    finally:
+        bus.shutdown()
+    for rec in run.records:
+        assert rec.written - rec.start == pytest.approx(work_s, abs=1e-9)
+        assert rec.sync_sent - rec.start == pytest.approx(sync_after_s, abs=1e-9)

@@ -222,7 +222,8 @@ class MasterCycle:
                         unsent[msg.name] += 1
             written = clock.now()
             if self.sync_lead_s > 0:  # the SYNC keeps its instant, whatever the computation took
-                self._sleep_until((first + i * self.period_s if self.drift_free else start) + self.sync_lead_s)
+                anchor = first + i * self.period_s if self.drift_free else start
+                self._sleep_until(anchor + self.sync_lead_s - self.k_s)  # K absorbs the wake-up latency here too
             # anything already queued cannot answer the SYNC about to go out
             late = other = 0
             while (stale := bus.recv(timeout=0)) is not None:
