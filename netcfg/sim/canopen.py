@@ -27,6 +27,7 @@ from netcfg.sim.can_bus import CanBus
 from netcfg.sim.stats import spread
 
 if TYPE_CHECKING:
+    from netcfg.sim.pybus import Program
     from netcfg.sim.run import SimRun
 
 SDO_OBJECTS_PER_READ = 3  # position, velocity, current (seed 000, section 4.2)
@@ -81,19 +82,25 @@ class CanopenMaster:
         """This bus's master is the live MasterCycle, run by drive()."""
         return self.mode == "pdo"
 
-    def drive(self, until_ns: int) -> None:
+    @property
+    def start_ns(self) -> int:
+        return self.sc.clock[self.master].phase_ns
+
+    def drive(self, until_ns: int, host: Program | None = None) -> None:
         """Run the live master until its next cycle would start at or after `until_ns` (its last cycle ends at most
-        one period later); the whole simulation advances as it waits."""
+        one period later); the whole simulation advances as it waits. `host`: when it shares the run with others,
+        in a thread of its own (netcfg.sim.pybus.run_programs), which starts it at start_ns."""
         from netcfg.sim.pybus import SimCanBus, VirtualClock
 
         sc = self.sc
-        sc.sim.run_until(sc.clock[self.master].phase_ns)
-        pybus = SimCanBus(sc, self.bus.name, node=self.master)
+        if host is None:
+            sc.sim.run_until(self.start_ns)
+        pybus = SimCanBus(sc, self.bus.name, node=self.master, host=host)
         try:
             cycle = MasterCycle(
                 sc.cfg,
                 pybus,
-                VirtualClock(sc),
+                VirtualClock(sc, host),
                 bus_name=self.bus.name,
                 drift_free=True,  # anchored, as the analysis assumes (SYNC k within master_jitter of its instant)
                 pause_gc=False,

@@ -7,6 +7,9 @@
 
 Nothing runs in the background: the simulation advances only while the program waits, in `recv()` or in
 `clock.sleep_until()`, so a program that takes no time in virtual time finishes a 8 s cycle in milliseconds.
+Several programs at once (one live master per CANopen bus) each run in a thread of their own, hosted by a
+`Program`: exactly one thread runs at any moment, and a program's wait hands the turn to the simulation until the
+instant it waits for or a frame it can take, so the run stays deterministic.
 Frames the program sends are matched to the configuration's messages by identifier (unknown identifiers become
 sources of their own) and arbitrate like any other frame.
 """
@@ -14,7 +17,9 @@ sources of their own) and arbitrate like any other frame.
 from __future__ import annotations
 
 import math
+import threading
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 import can
@@ -22,11 +27,78 @@ import can
 from netcfg.sim.scenario import Scenario
 
 
-class VirtualClock:
-    """The netcfg.runtime.clock.Clock protocol, in simulated seconds."""
+class Program:
+    """One program sharing the simulation with others, in a thread of its own that runs only on its turn."""
 
-    def __init__(self, sc: Scenario) -> None:
+    def __init__(self, sc: Scenario, main: Callable[[Program], None]) -> None:
         self.sc = sc
+        self.main = main
+        self._turn = threading.Semaphore(0)  # the program may run
+        self._back = threading.Semaphore(0)  # the simulation may run
+        self._token = 0  # a wake-up for an earlier wait is stale
+        self._ready: Callable[[], bool] | None = None
+        self.done = False
+        self.error: BaseException | None = None
+
+    def start(self, at_ns: int) -> None:
+        threading.Thread(target=self._run, name="netcfg-sim-program", daemon=True).start()
+        self.sc.sim.at(at_ns, self._resume, self._token)
+
+    def _run(self) -> None:
+        self._turn.acquire()
+        try:
+            self.main(self)
+        except BaseException as exc:  # handed to the simulation's thread, which raises it
+            self.error = exc
+        finally:
+            self.done = True
+            self._back.release()
+
+    def _resume(self, token: int) -> None:
+        """A simulation event: the program's turn, until it waits again or ends."""
+        if token != self._token or self.done:
+            return
+        self._token += 1
+        self._turn.release()
+        self._back.acquire()
+
+    def wait(self, until_ns: int, ready: Callable[[], bool] | None = None) -> None:
+        """In the program's thread: let the simulation run until `until_ns`, or until ready() turns true."""
+        sim = self.sc.sim
+        if until_ns <= sim.now or (ready is not None and ready()):
+            return
+        self._ready = ready
+        sim.at(until_ns, self._resume, self._token)
+        self._back.release()
+        self._turn.acquire()
+        self._ready = None
+
+    def poke(self) -> None:
+        """In the simulation's thread: something the program may wait for happened; wake it if it was that."""
+        if self._ready is not None and self._ready():
+            self.sc.sim.at(self.sc.sim.now, self._resume, self._token)
+
+
+def run_programs(sc: Scenario, programs: list[tuple[int, Callable[[Program], None]]], until_ns: int) -> None:
+    """Run the simulation to `until_ns` with these programs (start instant, main) in it, then on until every
+    program has ended; a program's exception is raised here."""
+    hosts = [Program(sc, main) for _, main in programs]
+    for host, (at, _) in zip(hosts, programs):
+        host.start(at)
+    sc.sim.run_until(until_ns)
+    if not all(h.done for h in hosts):
+        sc.sim.run_until(1 << 62, stop=lambda: all(h.done for h in hosts))
+    for host in hosts:
+        if host.error is not None:
+            raise host.error
+
+
+class VirtualClock:
+    """The netcfg.runtime.clock.Clock protocol, in simulated seconds (`host`: for a program sharing the run)."""
+
+    def __init__(self, sc: Scenario, host: Program | None = None) -> None:
+        self.sc = sc
+        self.host = host
 
     def now(self) -> float:
         return self.sc.sim.now / 1e9
@@ -34,17 +106,21 @@ class VirtualClock:
     def sleep_until(self, t: float) -> None:
         target = round(t * 1e9)
         if target > self.sc.sim.now:
-            self.sc.sim.run_until(target)
+            if self.host is not None:
+                self.host.wait(target)
+            else:
+                self.sc.sim.run_until(target)
 
 
 class SimCanBus(can.BusABC):
     """A python-can bus on one of the simulator's CAN buses, as node `node`: receives every frame others send."""
 
-    def __init__(self, sc: Scenario, channel: str, node: str, **kwargs: Any) -> None:
+    def __init__(self, sc: Scenario, channel: str, node: str, host: Program | None = None, **kwargs: Any) -> None:
         if channel not in sc.can:
             raise ValueError(f"no CAN bus named '{channel}' in the simulation; there are: {', '.join(sc.can)}")
         self.sc = sc
         self.node = node
+        self.host = host
         self.sim_bus = sc.can[channel]
         self.channel_info = f"netcfg simulator bus {channel}"
         self._rx: deque[can.Message] = deque()
@@ -64,6 +140,8 @@ class SimCanBus(can.BusABC):
                 channel=self.sim_bus.name,
             )
         )
+        if self.host is not None:
+            self.host.poke()
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         key = (msg.arbitration_id, msg.is_extended_id)
@@ -84,7 +162,10 @@ class SimCanBus(can.BusABC):
             sim = self.sc.sim
             # at least 1 ns: a timeout left over from float arithmetic must still let time move on
             until = (1 << 62) if timeout is None else sim.now + (max(1, math.ceil(timeout * 1e9)) if timeout > 0 else 0)
-            sim.run_until(until, stop=lambda: bool(self._rx))
+            if self.host is not None:
+                self.host.wait(until, ready=lambda: bool(self._rx))
+            else:
+                sim.run_until(until, stop=lambda: bool(self._rx))
         return self._rx.popleft() if self._rx else None
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from functools import partial
+from typing import TYPE_CHECKING, Any
 
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
 from netcfg.sim.can_bus import CanBus
@@ -337,14 +338,14 @@ class Scenario:
 
     def run(self) -> None:
         self.start()
-        live = [d for d in self.protocols.values() if getattr(d, "live", False)]
-        if len(live) > 1:
-            raise ValueError(
-                f"this simulator runs one live CANopen master at a time; {self.cfg.system} has {len(live)} "
-                "(simulate with --canopen sdo, or one CANopen bus per spec)"
-            )
-        for driver in live:
-            driver.drive(self.opts.duration_ns)  # type: ignore[attr-defined]  # the master's loop advances the whole simulation as it waits
+        live: list[Any] = [d for d in self.protocols.values() if getattr(d, "live", False)]
+        if len(live) == 1:  # the master's loop advances the whole simulation as it waits
+            live[0].drive(self.opts.duration_ns)
+        elif live:  # several: each in a thread of its own, one at a time (netcfg.sim.pybus)
+            from netcfg.sim.pybus import run_programs
+
+            until = self.opts.duration_ns
+            run_programs(self, [(d.start_ns, partial(d.drive, until)) for d in live], until)
         self.sim.run_until(self.opts.duration_ns)
 
 
