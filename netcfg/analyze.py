@@ -247,6 +247,14 @@ def check_master_loop(m: model.Model, bus: model.Bus, loop: canopen_sync.MasterL
         return
     where = m.source.at(m.task(loop.tasks[0]).path)
     names = ", ".join(f"'{t}'" for t in loop.tasks)
+    if len(loop.tasks) > 1:
+        diags.add(
+            "master-cycle",
+            f"the master has {len(loop.tasks)} SYNC tasks on bus '{bus.name}' ({names}); its loop computes once per "
+            "cycle and then writes its RxPDOs: give it one SYNC task per CANopen bus",
+            m.source.at(m.task(loop.tasks[1]).path),
+        )
+        return
     window = co.read_window_ns or co.sync_window_ns
     if window is not None and loop.offset_ns < window:
         diags.add(

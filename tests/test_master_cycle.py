@@ -213,3 +213,13 @@ def test_two_live_masters_share_one_simulation(tmp_path: Path) -> None:
     assert all(doc["protocols"][b][0]["overruns"] == 0 for b in ("can0", "can1"))
     for f in doc["flows"]:
         assert f["samples"] > 200 and f["within_analysis"], f
+
+
+def test_the_master_computes_once_per_cycle(tmp_path: Path) -> None:
+    """The live master computes once per cycle and then writes its RxPDOs; a second SYNC task on the master would be
+    analysed as something it does not run, so check refuses it and names it."""
+    data = repro12_data()
+    data["nodes"][0]["tasks"].append({"name": "log", "sync": True, "offset": "1500 us", "wcet": "50 us"})
+    report = check_data(tmp_path, data)
+    assert [e["code"] for e in report["errors"]] == ["master-cycle"]
+    assert "2 SYNC tasks on bus 'can0' ('master.control', 'master.log')" in report["errors"][0]["message"]
