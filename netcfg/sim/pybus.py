@@ -24,13 +24,13 @@ from typing import Any
 
 import can
 
-from netcfg.sim.scenario import Scenario
+from netcfg.sim.run import SimRun
 
 
 class Program:
     """One program sharing the simulation with others, in a thread of its own that runs only on its turn."""
 
-    def __init__(self, sc: Scenario, main: Callable[[Program], None]) -> None:
+    def __init__(self, sc: SimRun, main: Callable[[Program], None]) -> None:
         self.sc = sc
         self.main = main
         self._turn = threading.Semaphore(0)  # the program may run
@@ -79,7 +79,7 @@ class Program:
             self.sc.sim.at(self.sc.sim.now, self._resume, self._token)
 
 
-def run_programs(sc: Scenario, programs: list[tuple[int, Callable[[Program], None]]], until_ns: int) -> None:
+def run_programs(sc: SimRun, programs: list[tuple[int, Callable[[Program], None]]], until_ns: int) -> None:
     """Run the simulation to `until_ns` with these programs (start instant, main) in it, then on until every
     program has ended; a program's exception is raised here."""
     hosts = [Program(sc, main) for _, main in programs]
@@ -96,7 +96,7 @@ def run_programs(sc: Scenario, programs: list[tuple[int, Callable[[Program], Non
 class VirtualClock:
     """The netcfg.runtime.clock.Clock protocol, in simulated seconds (`host`: for a program sharing the run)."""
 
-    def __init__(self, sc: Scenario, host: Program | None = None) -> None:
+    def __init__(self, sc: SimRun, host: Program | None = None) -> None:
         self.sc = sc
         self.host = host
 
@@ -115,7 +115,7 @@ class VirtualClock:
 class SimCanBus(can.BusABC):
     """A python-can bus on one of the simulator's CAN buses, as node `node`: receives every frame others send."""
 
-    def __init__(self, sc: Scenario, channel: str, node: str, host: Program | None = None, **kwargs: Any) -> None:
+    def __init__(self, sc: SimRun, channel: str, node: str, host: Program | None = None, **kwargs: Any) -> None:
         if channel not in sc.can:
             raise ValueError(f"no CAN bus named '{channel}' in the simulation; there are: {', '.join(sc.can)}")
         self.sc = sc

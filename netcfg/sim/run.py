@@ -44,6 +44,13 @@ class SimRun(Protocol):
     def run_task(self, task: Task, start: int | None = None) -> None:
         """Activate a task now (or at `start`)."""
 
+    def exec_ns(self, task: Task) -> int:
+        """An execution time of the task, drawn between its BCET and WCET."""
+        ...
+
+    def task_ran(self, task: Task, start: int, end: int) -> None:
+        """A task that code outside the simulator ran (the live CANopen master's computation), for its flows."""
+
     def tasks_on_trigger(self, trigger: str) -> list[Task]: ...
 
     def tasks_on_sync(self, bus: str) -> list[Task]: ...
