@@ -38,6 +38,8 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "signal_overlap.yaml": (16, "signal-overlap", "inside the previous signal"),
     "sync_task_not_on_canopen.yaml": (10, "task-sync", "exactly one CANopen bus"),
     "name_taken_by_sync.yaml": (12, "duplicate-name", "taken by the SYNC of bus can0"),
+    "canopen_master_overruns_cycle.yaml": (13, "master-cycle", "ends up to 2.5 ms after SYNC"),
+    "canopen_master_jitter_negative.yaml": (7, "value-error", "cannot read '-5 us' as a duration"),
     "ftt_macro_cycle_too_long.yaml": (7, "macro-cycle", "323,323 ECs"),
     "type_bool_for_int.yaml": (16, "int-type", "valid integer"),
     "duration_too_large.yaml": (18, "value-error", "1e30 s"),
