@@ -299,8 +299,8 @@ def synchronised_canopen(
         k, t = on_sync(st.every[name], (s_best, s_worst), r, worst_path)
         if not worst_path:
             return t + st.frame_ns[name]
-        done = st.completion_ns[k % cycles]
-        return k * period + (done if done is not None else period)
+        done = st.completion_ns[k % cycles]  # after the SYNC was queued, which is up to the master's jitter late
+        return k * period + jitter + (done if done is not None else period)
 
     for step in flow.steps:
         for ref in step.refs:
