@@ -223,3 +223,12 @@ def test_the_master_computes_once_per_cycle(tmp_path: Path) -> None:
     report = check_data(tmp_path, data)
     assert [e["code"] for e in report["errors"]] == ["master-cycle"]
     assert "2 SYNC tasks on bus 'can0' ('master.control', 'master.log')" in report["errors"][0]["message"]
+
+
+def test_a_runtime_json_without_master_jitter_reads_as_an_ideal_master() -> None:
+    """runtime.json files written before canopen.master_jitter_ns load with 0, the schema's default."""
+    from netcfg.runtime import parse
+
+    doc = json.loads((ROOT / "generated" / "allex2" / "runtime.json").read_text(encoding="utf-8"))
+    assert doc["buses"][0]["canopen"].pop("master_jitter_ns") == 13_000
+    assert parse(doc).bus("can0").canopen.master_jitter_ns == 0  # type: ignore[union-attr]
