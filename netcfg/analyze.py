@@ -255,13 +255,14 @@ def check_master_loop(m: model.Model, bus: model.Bus, loop: canopen_sync.MasterL
             m.source.at(m.task(loop.tasks[1]).path),
         )
         return
-    window = co.read_window_ns or co.sync_window_ns
-    if window is not None and loop.offset_ns < window:
+    # the master collects for its read window, else the synchronous window, else the whole period (as it runs)
+    window = co.read_window_ns or co.sync_window_ns or co.sync_period_ns
+    if loop.offset_ns < window:
         diags.add(
             "master-cycle",
             f"the master's SYNC task {names} starts {format_ns(loop.offset_ns)} after SYNC, before the "
             f"{format_ns(window)} read window of bus '{bus.name}' ends: the master computes on the samples it "
-            "collected; give it an offset of at least the read window",
+            "collected; give it an offset of at least the read window, or a shorter read_window",
             where,
         )
     end = loop.offset_ns + loop.jitter_ns + loop.wcet_ns
