@@ -1,18 +1,148 @@
-"""Import a vendor EDS/DCF (CiA 306) into a DeviceProfile, using the `canopen` package's importer."""
+"""Import a vendor EDS/DCF (CiA 306) into a DeviceProfile, using the `canopen` package's importer.
+
+The file comes through netcfg's input guard (size limit, byte-order mark, Windows-1252 fallback: vendor files
+are often written on Windows) and what canopen reads is then held against CiA 301's ranges, so that a damaged
+file is refused here, naming its object, instead of surfacing later as a crash or as a wrong value in a DCF.
+"""
 
 from __future__ import annotations
 
+import io
 import logging
+import re
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from netcfg import cia301
 from netcfg.devices import DeviceProfile, ObjectEntry
+from netcfg.inputs import InputError, read_input_text
+
+UNSIGNED32_MAX = 0xFFFF_FFFF
+MAX_MAPPED_OBJECTS = 64  # CiA 301 7.5.2.36: sub-index 0 of a PDO mapping parameter is 0..64
+IDENTITY = 0x1018
+IDENTITY_NAMES = {1: "Vendor-ID", 2: "Product code", 3: "Revision number", 4: "Serial number"}
 
 
 class EdsError(Exception):
     pass
+
+
+def read_od(path: Path, node_id: int | None = None) -> Any:
+    """The canopen ObjectDictionary of an EDS/DCF file, read through the input guard and checked (check_od).
+    EdsError names what is wrong (and where, for the range checks)."""
+    import canopen
+
+    what = "DCF" if path.suffix.lower() == ".dcf" else "EDS"
+    try:
+        text = read_input_text(path, what, legacy=True)
+    except InputError as exc:
+        raise EdsError(str(exc)) from exc
+    stream = io.StringIO(text)
+    stream.name = str(path)  # canopen picks the format by the name's suffix
+    logging.getLogger("canopen").setLevel(logging.ERROR)
+    try:
+        od = canopen.import_od(stream, node_id)
+    except Exception as exc:  # canopen raises many kinds for bad files; report them all the same way
+        raise EdsError(f"canopen could not read the {what} file: {exc}") from exc
+    check_od(od, text)
+    return od
+
+
+def object_dictionary(path: Path) -> Any:
+    """canopen's object dictionary of an EDS/DCF file (read_od), parsed once per file version: a bus of many
+    identical drives names one file many times, and the bus.yml importer and resolve both read it. Callers only
+    read it. EdsError when the file cannot be read or breaks CiA 301's ranges; OSError from stat propagates."""
+    return _parsed(str(path), path.stat().st_mtime_ns)
+
+
+@lru_cache(maxsize=64)
+def _parsed(file: str, mtime_ns: int) -> Any:
+    return read_od(Path(file))
+
+
+def cached_profile(path: Path, display: str) -> DeviceProfile:
+    """The profile of an EDS file, built once per file version (named after the file as the spec writes it)."""
+    return _profile(str(path), path.stat().st_mtime_ns, Path(display).stem)
+
+
+@lru_cache(maxsize=64)
+def _profile(file: str, mtime_ns: int, name: str) -> DeviceProfile:
+    return import_eds(Path(file), name)
+
+
+def _section_line(text: str, index: int, sub: int | None) -> int | None:
+    name = f"{index:04X}" if sub is None else f"{index:04X}sub{sub:X}"
+    m = re.search(rf"^\[{name}\]", text, re.IGNORECASE | re.MULTILINE)
+    return None if m is None else text.count("\n", 0, m.start()) + 1
+
+
+def _where(text: str, index: int, sub: int | None = None) -> str:
+    line = _section_line(text, index, sub) or (_section_line(text, index, None) if sub == 0 else None)
+    obj = f"0x{index:04X}" if sub is None else f"0x{index:04X}:{sub}"
+    return f"object {obj}" + (f" (line {line})" if line else "")
+
+
+def _shown(value: int, hex_digits: int = 0) -> str:
+    """A number for a message: as written when short (a 5,000-digit one cannot even be printed in decimal)."""
+    if value.bit_length() > 64:
+        return f"a number of {value.bit_length():,} bits"
+    return f"0x{value:0{hex_digits}X}" if hex_digits and value >= 0 else str(value)
+
+
+def _value(var: Any) -> Any:
+    value = getattr(var, "value", None)
+    return value if value is not None else getattr(var, "default", None)
+
+
+def check_od(od: Any, text: str) -> None:
+    """CiA 301's shape and ranges for what netcfg reads from a device file: the identity object, PDO mapping
+    counts. EdsError names the object and its line."""
+    import canopen.objectdictionary as cod
+
+    for var in _entries(od):  # CiA 301: 16-bit indices, 8-bit sub-indices, values of at most 64 bits
+        index, sub = var.index, var.subindex  # type: ignore[attr-defined]
+        if not (0 <= index <= 0xFFFF and 0 <= sub <= 0xFF):
+            raise EdsError(f"an object numbered {_shown(index, 4)} sub {_shown(sub, 2)} is outside CiA 301's ranges "
+                           "(index 0x0000..0xFFFF, sub-index 0..255); fix the EDS")
+        for what in ("default", "value"):
+            value = getattr(var, what, None)
+            if isinstance(value, int) and value.bit_length() > 64:
+                raise EdsError(f"{_where(text, index, sub)}: its {what} value is {_shown(value)}, more than any "
+                               "CANopen data type holds (64 bits); fix the EDS")
+    identity = od.get(IDENTITY)
+    if identity is not None and isinstance(identity, cod.ODVariable):
+        raise EdsError(
+            f"{_where(text, IDENTITY)} (Identity) is a VAR; CiA 301 makes it a RECORD (ObjectType=0x9) with "
+            "sub 1 Vendor-ID, 2 Product code, 3 Revision number; fix the EDS"
+        )
+    if identity is not None:
+        for sub, what in IDENTITY_NAMES.items():
+            if sub in identity:
+                value = _value(identity[sub])
+                if isinstance(value, int) and not 0 <= value <= UNSIGNED32_MAX:
+                    raise EdsError(
+                        f"{_where(text, IDENTITY, sub)} ({what}) is {_shown(value)}, outside UNSIGNED32 "
+                        "(0..0xFFFFFFFF); "
+                        "fix the EDS"
+                    )
+    info = od.device_information
+    for attr, key in (("vendor_number", "VendorNumber"), ("product_number", "ProductNumber"),
+                      ("revision_number", "RevisionNumber")):
+        value = getattr(info, attr, None)
+        if isinstance(value, int) and not 0 <= value <= UNSIGNED32_MAX:
+            raise EdsError(f"[DeviceInfo] {key}={_shown(value)} is outside UNSIGNED32 (0..0xFFFFFFFF); fix the EDS")
+    for kind in ("rpdo", "tpdo"):
+        for number in range(1, cia301.MAX_PDOS + 1):
+            index = cia301.pdo_map_index(kind, number)
+            obj = od.get(index)
+            if obj is None or isinstance(obj, cod.ODVariable) or 0 not in obj:
+                continue
+            count = _value(obj[0])
+            if isinstance(count, int) and not 0 <= count <= MAX_MAPPED_OBJECTS:
+                raise EdsError(
+                    f"{_where(text, index, 0)}: {_shown(count)} mapped objects; CiA 301 allows 0..{MAX_MAPPED_OBJECTS}"
+                )
 
 
 def _entries(od: object) -> list[object]:
@@ -27,37 +157,9 @@ def _entries(od: object) -> list[object]:
     return out
 
 
-def object_dictionary(path: Path) -> Any:
-    """canopen's object dictionary of an EDS/DCF file, parsed once per file version: a bus of many identical drives
-    names one file many times, and the bus.yml importer and resolve both read it. Callers only read it.
-    OSError propagates; canopen's own errors too (they are of many kinds)."""
-    return _parsed(str(path), path.stat().st_mtime_ns)
-
-
-@lru_cache(maxsize=64)
-def _parsed(file: str, mtime_ns: int) -> Any:
-    import canopen
-
-    logging.getLogger("canopen").setLevel(logging.ERROR)
-    return canopen.import_od(file)
-
-
-def cached_profile(path: Path, display: str) -> DeviceProfile:
-    """The profile of an EDS file, built once per file version (named after the file as the spec writes it)."""
-    return _profile(str(path), path.stat().st_mtime_ns, Path(display).stem)
-
-
-@lru_cache(maxsize=64)
-def _profile(file: str, mtime_ns: int, name: str) -> DeviceProfile:
-    return import_eds(Path(file), name)
-
-
 def import_eds(path: Path, name: str) -> DeviceProfile:
-    """Read an EDS file; EdsError carries a message for the user if canopen cannot parse it."""
-    try:
-        od = object_dictionary(path)
-    except Exception as exc:  # canopen raises many kinds for bad files; report them all the same way
-        raise EdsError(f"canopen could not read the EDS file: {exc}") from exc
+    """Read an EDS file; EdsError carries a message for the user if it cannot be read or breaks CiA 301."""
+    od = object_dictionary(path)
     profile = DeviceProfile(name=name, source=str(path))
     for var in _entries(od):
         entry = ObjectEntry(
@@ -70,7 +172,7 @@ def import_eds(path: Path, name: str) -> DeviceProfile:
             default=var.default if isinstance(var.default, int) else None,  # type: ignore[attr-defined]
         )
         profile.objects[(entry.index, entry.sub)] = entry
-    identity = od.get(0x1018)
+    identity = od.get(IDENTITY)
     if identity is not None and 1 in identity:
         profile.vendor_id = identity[1].default if isinstance(identity[1].default, int) else None
     if identity is not None and 2 in identity:

@@ -61,11 +61,12 @@ from pydantic import ValidationError
 
 from netcfg import cia301
 from netcfg.devices import builtin_profile_names
-from netcfg.devices.eds import object_dictionary
+from netcfg.devices.eds import EdsError, object_dictionary
 from netcfg.diagnostics import Collector, Position
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as SpecPath
-from netcfg.spec.load import MAX_SPEC_BYTES, report_validation_errors
+from netcfg.inputs import InputError, check_input_path, decode_text, read_input_bytes
+from netcfg.spec.load import report_validation_errors
 from netcfg.spec.schema import check_name
 from netcfg.spec.source import SourceMap, load_yaml
 
@@ -347,15 +348,12 @@ class BusYmlImporter:
 
     # -- the whole file ------------------------------------------------------------------------------------------
     def run(self) -> Imported | None:
-        raw = self.path.read_bytes()
-        if len(raw) > MAX_SPEC_BYTES:
-            self.err("too-large", f"{self.name} is {len(raw)} bytes; netcfg reads at most {MAX_SPEC_BYTES}", ())
-            return None
+        raw = read_input_bytes(self.path, "bus.yml")  # refuses devices, FIFOs and oversized files (exit 2)
         try:
-            text = raw.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            line = raw[: exc.start].count(b"\n") + 1
-            self.d.add("encoding", f"{self.name} is not UTF-8 text; save it as UTF-8", Position(self.file, line, 1))
+            text = decode_text(raw, self.path, "bus.yml")
+        except InputError as exc:
+            what = "is not UTF-8 text; save it as UTF-8" if "UTF-8" in exc.message else "contains a NUL byte"
+            self.d.add("encoding", f"{self.name} {what}", Position(self.file, exc.line or 1, 1))
             return None
         self.lines = text.splitlines()
         data, self.smap = load_yaml(text, self.file, self.d)
@@ -632,19 +630,19 @@ class BusYmlImporter:
                 dcf.path,
             )
             return None, None
-        file = (self.folder / rel).resolve()
-        if not file.is_file():
-            self.err(
-                "bus-yml-dcf",
-                f"dcf file '{dcf.value}' of node '{name}' not found (looked for {file}); dcf paths are relative to "
-                f"the folder of {self.name}",
-                dcf.path,
-            )
+        try:
+            file = check_input_path(self.folder, rel, "dcf file")
+        except ValueError as exc:
+            self.err("bus-yml-dcf", f"node '{name}': {exc} (dcf paths are relative to the folder of {self.name})",
+                     dcf.path)
             return None, None
         try:
             return DeviceFile(object_dictionary(file)), file  # parsed once, shared with resolve's device profiles
         except OSError:
             raise
+        except EdsError as exc:
+            self.err("eds-invalid", f"dcf file '{dcf.value}' of node '{name}': {exc}", dcf.path)
+            return None, None
         except Exception as exc:  # canopen raises many kinds for bad files
             self.err("eds-invalid", f"dcf file '{dcf.value}' of node '{name}': canopen cannot read it: {exc}", dcf.path)
             return None, None

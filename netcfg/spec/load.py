@@ -7,11 +7,12 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from netcfg.diagnostics import Collector
+from netcfg.diagnostics import Collector, Position
+from netcfg.inputs import MAX_BYTES, InputError, decode_text, read_input_bytes
 from netcfg.spec.schema import Spec
 from netcfg.spec.source import SourceMap, load_yaml
 
-MAX_SPEC_BYTES = 16 * 1024 * 1024
+MAX_SPEC_BYTES = MAX_BYTES["spec"]
 
 
 def read_spec(path: Path, diags: Collector, display_name: str | None = None) -> tuple[Spec | None, SourceMap]:
@@ -20,20 +21,13 @@ def read_spec(path: Path, diags: Collector, display_name: str | None = None) -> 
     Raises OSError when the file cannot be read (the CLI turns that into exit code 2).
     """
     name = display_name or str(path)
-    raw = path.read_bytes()
-    if len(raw) > MAX_SPEC_BYTES:
-        smap = SourceMap(name)
-        diags.add("too-large", f"the spec is {len(raw)} bytes; netcfg reads at most {MAX_SPEC_BYTES}", smap.at(()))
-        return None, smap
+    raw = read_input_bytes(path, "spec")  # refuses devices, FIFOs and files over MAX_SPEC_BYTES at once
     try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        smap = SourceMap(name)
-        line = raw[: exc.start].count(b"\n") + 1
-        from netcfg.diagnostics import Position
-
-        diags.add("encoding", "the spec is not UTF-8 text; save it as UTF-8", Position(name, line, 1))
-        return None, smap
+        text = decode_text(raw, path, "spec")
+    except InputError as exc:
+        what = "is not UTF-8 text; save it as UTF-8" if "UTF-8" in exc.message else "contains a NUL byte"
+        diags.add("encoding", f"the spec {what}", Position(name, exc.line or 1, 1))
+        return None, SourceMap(name)
     data, smap = load_yaml(text, name, diags)
     if diags.errors:
         return None, smap
