@@ -18,6 +18,19 @@ Path = tuple[str | int, ...]
 # libyaml's parser when PyYAML was built with it (twice as fast), the pure-Python one otherwise; both give marks.
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 MAX_ITEMS = 300_000  # values after alias expansion: refuses "billion laughs" documents
+MAX_TEXT_CHARS = 16 * 1024 * 1024  # as netcfg.inputs' limit for specs and bus.yml files
+MAX_DEPTH = 64  # a spec nests 6 levels; libyaml itself stops at 1,000 with a less helpful message
+MAX_NUMBER_CHARS = 40  # an integer or float written with more characters is no quantity netcfg knows
+# The tags a spec may carry, explicitly or implicitly: YAML's core schema. A timestamp is read as the text it is
+# (the field's type check then names it); sets, pairs, binary, python/... are refused.
+_SCALAR_TAGS = {
+    "tag:yaml.org,2002:null",
+    "tag:yaml.org,2002:bool",
+    "tag:yaml.org,2002:int",
+    "tag:yaml.org,2002:float",
+    "tag:yaml.org,2002:str",
+}
+_TIMESTAMP = "tag:yaml.org,2002:timestamp"
 
 
 class SourceMap:
@@ -62,8 +75,20 @@ def _pos(file: str, node: yaml.Node) -> Position:
 
 
 def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
-    """Parse YAML text. Syntax errors and duplicate keys go to diags; returns (data, source map)."""
+    """Parse YAML text (one document). Syntax errors, duplicate keys, tags outside the accepted set, values that do
+    not convert, too much nesting or size go to diags; returns (data, source map).
+
+    The limits are checked before the document is composed: size first (MAX_TEXT_CHARS), then nesting depth on the
+    token stream (MAX_DEPTH; the scanner is not recursive), so a hostile document costs one linear pass."""
     smap = SourceMap(file)
+    if len(text) > MAX_TEXT_CHARS:
+        diags.add("too-large", f"the file is {len(text):,} characters; netcfg reads at most {MAX_TEXT_CHARS:,}",
+                  Position(file, 1, 1))
+        return None, smap
+    deep = _too_deep(text, file, MAX_DEPTH)
+    if deep is not None:
+        diags.add("yaml-syntax", f"the YAML is nested more than {MAX_DEPTH} levels deep; flatten it", deep)
+        return None, smap
     try:
         root = yaml.compose(text, Loader=_LOADER)
     except yaml.MarkedYAMLError as exc:
@@ -73,7 +98,7 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
         diags.add("yaml-syntax", f"cannot read YAML: {exc}", Position(file, 1, 1))
         return None, smap
     except RecursionError:
-        diags.add("yaml-syntax", "the YAML is nested too deep for a spec; flatten it", _too_deep(text, file))
+        diags.add("yaml-syntax", "the YAML is nested too deep for a spec; flatten it", Position(file, 1, 1))
         return None, smap
     if root is None:
         diags.add("empty-spec", "the spec is empty; start with 'system: <name>'", Position(file, 1, 1))
@@ -88,17 +113,17 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
         pos = Position(file, mark.line + 1, mark.column + 1) if mark else Position(file, 1, 1)
         diags.add("yaml-value", f"cannot read this value: {exc.problem}", pos)
     except RecursionError:
-        diags.add("yaml-syntax", "the YAML is nested too deep for a spec; flatten it", _too_deep(text, file))
+        diags.add("yaml-syntax", "the YAML is nested too deep for a spec; flatten it", Position(file, 1, 1))
     except _TooBig as exc:
         diags.add("too-large", f"the spec expands to more than {MAX_ITEMS} items (through YAML aliases?)", exc.pos)
     return None, smap
 
 
-def _too_deep(text: str, file: str, limit: int = 100) -> Position:
-    """Where nesting passes `limit` levels (the scanner is not recursive, so it can tell us)."""
+def _too_deep(text: str, file: str, limit: int) -> Position | None:
+    """Where nesting passes `limit` levels, None when it does not (a scanner error is left to the parser)."""
     depth = 0
     try:
-        for token in yaml.scan(text, Loader=yaml.SafeLoader):
+        for token in yaml.scan(text, Loader=_LOADER):
             if isinstance(
                 token,
                 (
@@ -113,9 +138,12 @@ def _too_deep(text: str, file: str, limit: int = 100) -> Position:
                     return Position(file, token.start_mark.line + 1, token.start_mark.column + 1)
             elif isinstance(token, (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)):
                 depth -= 1
+    except yaml.MarkedYAMLError as exc:  # libyaml's scanner stops at 1,000 flow levels before yielding a token
+        if exc.problem and "nesting depth" in exc.problem and exc.problem_mark is not None:
+            return Position(file, exc.problem_mark.line + 1, exc.problem_mark.column + 1)
     except yaml.YAMLError:
-        pass
-    return Position(file, 1, 1)
+        pass  # a syntax error: the parser reports it with its context
+    return None
 
 
 class _TooBig(Exception):
@@ -146,9 +174,10 @@ def _syntax_message(exc: yaml.MarkedYAMLError, text: str) -> str:
     return f"YAML syntax error: {what}{ctx}; fix the indentation or quoting here"
 
 
-def _build_key(node: yaml.Node, ctor: yaml.SafeLoader) -> Any:
-    construct = ctor.yaml_constructors.get(node.tag) if isinstance(node, yaml.ScalarNode) else None
-    return construct(ctor, node) if construct is not None else ctor.construct_object(node, deep=True)
+def _build_key(node: yaml.Node, file: str, ctor: yaml.SafeLoader, diags: Collector) -> Any:
+    if isinstance(node, yaml.ScalarNode):
+        return _scalar(node, file, ctor, diags)
+    return node  # a mapping or list as a key: refused by the caller
 
 
 _PLAIN_TAGS = {"tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:omap"}
@@ -174,9 +203,13 @@ def _build(
         out: dict[Any, Any] = {}
         merged_keys: set[str] = set()
         for pair_no, (key_node, value_node) in enumerate(node.value):
-            key = _build_key(key_node, ctor)
+            reported = len(diags.errors)
+            key = _build_key(key_node, file, ctor, diags)
+            if len(diags.errors) > reported:
+                continue  # a key that does not convert: already reported
             if not isinstance(key, (str, int)):
-                diags.add("yaml-key", f"keys must be plain words, not {type(key).__name__}", _pos(file, key_node))
+                kind = "a list or mapping" if isinstance(key, yaml.Node) else type(key).__name__
+                diags.add("yaml-key", f"keys must be plain words, not {kind}", _pos(file, key_node))
                 continue
             key = str(key) if not isinstance(key, bool) else str(key).lower()
             if pair_no < n_merged:
@@ -202,7 +235,34 @@ def _build(
             smap.record(child, item.start_mark)
             items.append(_build(item, child, file, smap, ctor, diags, budget))
         return items
-    construct = ctor.yaml_constructors.get(node.tag)
-    if construct is not None:  # the fast path for plain scalars
-        return construct(ctor, node)
-    return ctor.construct_object(node, deep=True)  # raises ConstructorError for unknown tags
+    return _scalar(node, file, ctor, diags)
+
+
+def _scalar(node: yaml.Node, file: str, ctor: yaml.SafeLoader, diags: Collector) -> Any:
+    """One scalar of the accepted tag set; a value its tag cannot take (`!!int abc`) or too long a number is an
+    error at its position, never an exception."""
+    tag = node.tag
+    if tag == _TIMESTAMP:
+        return str(node.value)
+    if tag not in _SCALAR_TAGS or not isinstance(node, yaml.ScalarNode):
+        diags.add(
+            "yaml-value",
+            f"cannot read this value: YAML tags such as '{tag}' are not allowed; write a plain value",
+            _pos(file, node),
+        )
+        return None
+    if tag in ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float") and len(str(node.value)) > MAX_NUMBER_CHARS:
+        diags.add(
+            "yaml-value",
+            f"cannot read this value: a number of {len(str(node.value)):,} characters is out of range for any "
+            f"field (at most {MAX_NUMBER_CHARS})",
+            _pos(file, node),
+        )
+        return None
+    try:
+        return ctor.yaml_constructors[tag](ctor, node)
+    except (ValueError, KeyError, TypeError, OverflowError, yaml.YAMLError):
+        short = tag.rsplit(":", 1)[-1]
+        diags.add("yaml-value", f"cannot read this value: {str(node.value)[:40]!r} is not a valid {short}",
+                  _pos(file, node))
+        return None
