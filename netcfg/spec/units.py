@@ -15,7 +15,8 @@ from typing import Annotated, Any
 from pydantic import PlainSerializer, PlainValidator, WithJsonSchema
 
 _NUMBER = r"([0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
-_QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-zµμ/]+)\s*$")
+_QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-zµμ/]+)\s*$", re.ASCII)
+_NUMBER_ONLY = re.compile(rf"^-?{_NUMBER}$", re.ASCII)
 
 TIME_UNITS_NS: dict[str, int] = {
     "ns": 1,
@@ -39,18 +40,43 @@ FREQ_UNITS: dict[str, int] = {"hz": 1, "khz": 1_000, "mhz": 1_000_000}
 EC_UNITS = ("ec", "ecs")
 MAX_DURATION_NS = 10**15  # about 11.6 days: longer periods are mistakes, and sums must stay in 64 bits
 MAX_EC_COUNT = 1_000_000
+MAX_BITRATE = 10**12  # 1 Tbit/s: beyond every bus netcfg models
+MAX_FREQUENCY_HZ = Fraction(10**9)
+MIN_FREQUENCY_HZ = Fraction(10**9, MAX_DURATION_NS)  # its period is the longest duration netcfg handles
+
+
+MAX_NUMBER_CHARS = 40  # no quantity needs more digits; 5,000-digit numbers are refused before any arithmetic
+MAX_EXPONENT = 24  # |exponent| of a number's leading digit: 1e24 of any unit is beyond every range below
+
+
+def parse_number(text: str, what: str = "number") -> Decimal:
+    """A plain decimal number as netcfg reads one everywhere (specs, command line): ASCII digits only, finite, at
+    most MAX_NUMBER_CHARS long, its magnitude within 10^-24..10^24 (so no arithmetic on it can blow up or hang).
+    ValueError names the problem."""
+    t = text.strip()
+    if len(t) > MAX_NUMBER_CHARS:
+        raise ValueError(f"{what}: a number of {len(t):,} characters is out of range (at most {MAX_NUMBER_CHARS})")
+    if not _NUMBER_ONLY.match(t):
+        raise ValueError(f"{what}: cannot read {text!r} as a number; write digits 0-9, e.g. 250 or 1.5")
+    try:
+        number = Decimal(t)
+    except InvalidOperation as exc:  # pragma: no cover - the regex only admits decimals
+        raise ValueError(f"{what}: cannot read the number {text!r}") from exc
+    if number and not -MAX_EXPONENT <= number.adjusted() <= MAX_EXPONENT:
+        raise ValueError(f"{what}: {text!r} is out of range (numbers are read between 1e-{MAX_EXPONENT} and "
+                         f"1e{MAX_EXPONENT})")
+    return number
 
 
 def _split(value: Any, kind: str, example: str) -> tuple[Decimal, str]:
     if isinstance(value, bool) or not isinstance(value, str):
         raise ValueError(f"write the {kind} with a unit as a string, for example '{example}' (got {value!r})")
+    if len(value) > 2 * MAX_NUMBER_CHARS:
+        raise ValueError(f"a {kind} of {len(value):,} characters is out of range; write it like '{example}'")
     m = _QUANTITY.match(value)
     if not m:
         raise ValueError(f"cannot read {value!r} as a {kind}; write it like '{example}'")
-    try:
-        number = Decimal(m.group(1))
-    except InvalidOperation as exc:  # pragma: no cover - the regex only admits decimals
-        raise ValueError(f"cannot read the number in {value!r}") from exc
+    number = parse_number(m.group(1), repr(value))
     return number, m.group(m.lastindex or 0)
 
 
@@ -111,7 +137,7 @@ def parse_bitrate(value: Any) -> int:
     if scale is None:
         raise ValueError(f"unknown bit-rate unit '{unit}' in {value!r}; use bit/s, kbit/s, Mbit/s or Gbit/s")
     rate = number * scale
-    if rate != rate.to_integral_value() or rate <= 0 or rate > 10**12:
+    if rate != rate.to_integral_value() or rate <= 0 or rate > MAX_BITRATE:
         raise ValueError(f"{value!r}: a bit rate must be a positive whole number of bit/s")
     return int(rate)
 
@@ -122,8 +148,11 @@ def parse_frequency(value: Any) -> Fraction:
     if scale is None:
         raise ValueError(f"unknown frequency unit '{unit}' in {value!r}; use Hz, kHz or MHz")
     f = Fraction(number) * scale
-    if f <= 0 or f > 10**9:
-        raise ValueError(f"{value!r}: a frequency must be above 0 and at most 1 GHz")
+    if f < MIN_FREQUENCY_HZ or f > MAX_FREQUENCY_HZ:
+        raise ValueError(
+            f"{value!r}: a frequency must be between {float(MIN_FREQUENCY_HZ):g} Hz (a period of "
+            f"{MAX_DURATION_NS // 10**9:,} s) and 1 GHz"
+        )
     return f
 
 
@@ -173,3 +202,40 @@ OffsetField = Annotated[
     PlainSerializer(str),
     WithJsonSchema({"anyOf": [_DURATION_SCHEMA, {"const": "auto"}]}),
 ]
+
+
+# --- the command line: the same grammar, plus the short forms people type there --------------------------------
+
+
+def parse_bitrate_option(text: str) -> int:
+    """A --bitrate: '500k', '1M', '250000' (bit/s) or any spec bit rate ('500 kbit/s'). ValueError when not."""
+    short = text.strip()
+    scale = {"k": 1_000, "m": 1_000_000}.get(short[-1:].lower(), 0)
+    if scale or _NUMBER_ONLY.match(short):
+        number = parse_number(short[:-1] if scale else short, f"bit rate {text!r}") * (scale or 1)
+        if number != number.to_integral_value() or not 0 < number <= MAX_BITRATE:
+            raise ValueError(f"bit rate {text!r}: give a whole number of bit/s above 0, at most 1 Tbit/s")
+        return int(number)
+    return parse_bitrate(text)
+
+
+def parse_duration_option(text: str, max_ns: int = MAX_DURATION_NS) -> int:
+    """A duration on the command line, '10s', '500 ms', '250us', as in a spec; above 0 and at most max_ns.
+    -> nanoseconds. ValueError when not."""
+    d = parse_duration(text)
+    if d.ns is None:
+        raise ValueError(f"{text!r}: give the duration in ns, us, ms or s (EC only exists inside a spec)")
+    if not 0 < d.ns <= max_ns:
+        raise ValueError(f"{text!r}: a duration must be above 0 and at most {format_ns(max_ns)}")
+    return d.ns
+
+
+def parse_int_option(text: str, what: str, low: int, high: int) -> int:
+    """A whole number on the command line (ASCII digits, within [low, high]). ValueError when not."""
+    t = text.strip()
+    if not re.fullmatch(r"[+-]?[0-9]{1,18}", t, re.ASCII):
+        raise ValueError(f"{what} {text!r}: write a whole number with the digits 0-9")
+    value = int(t)
+    if not low <= value <= high:
+        raise ValueError(f"{what} {value}: must be between {low:,} and {high:,}")
+    return value
