@@ -22,6 +22,7 @@ from typing import Any
 from netcfg import cia301, model
 from netcfg.emit import canopen_dcf
 from netcfg.runtime import interpolation_period
+from netcfg.runtime.schema import check_document
 from netcfg.timing import flows, ftt
 
 FORMAT = "netcfg-runtime"
@@ -33,6 +34,9 @@ CIA402 = 402  # CiA 301 7.5.2.1: device type 0x1000, low 16 bits = the device pr
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     doc = runtime_document(m, report)
+    problems = check_document(doc, strict=True)  # what netcfg.runtime.load accepts, checked at the source
+    if problems:
+        raise ValueError(f"runtime.json would not load: {problems[0]}")
     text = json.dumps(doc, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
     return {"runtime.json": text.encode("utf-8")}
 

@@ -22,15 +22,16 @@ from __future__ import annotations
 
 import difflib
 import hashlib
-import json
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from netcfg.inputs import InputError, JsonInputError, parse_json, read_input_text
 from netcfg.runtime import codec
 from netcfg.runtime.codec import CodecError, Field, Number
+from netcfg.runtime.schema import check_document
 
 if TYPE_CHECKING:
     import can
@@ -66,6 +67,7 @@ __all__ = [
     "load",
     "parse",
     "raw_signal_name",
+    "read_document",
 ]
 
 FORMAT = "netcfg-runtime"
@@ -539,13 +541,21 @@ def _frame_kind(extended: bool) -> str:
 def load(path: str | Path) -> RuntimeConfig:
     """Read a runtime.json; RuntimeConfigError (naming the file) when it is not one this netcfg can read."""
     source = str(path)
+    return parse(read_document(path), source)
+
+
+def read_document(path: str | Path) -> Any:
+    """The decoded JSON of a runtime.json, through netcfg's input guard (size, depth and number limits checked
+    before parsing); RuntimeConfigError naming the file when it cannot be read or is not JSON."""
+    source = str(path)
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise RuntimeConfigError(f"{source}: cannot read the runtime config: {exc.strerror or exc}") from exc
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise RuntimeConfigError(f"{source}: not a JSON runtime config: {exc}") from exc
-    return parse(data, source)
+        text = read_input_text(path, "runtime config")
+    except InputError as exc:
+        raise RuntimeConfigError(f"{source}: cannot read the runtime config: {exc}") from exc
+    try:
+        return parse_json(text)
+    except JsonInputError as exc:
+        raise RuntimeConfigError(f"{source}: not a runtime config: {exc}") from exc
 
 
 def parse(data: Any, source: str = "<memory>") -> RuntimeConfig:
@@ -559,6 +569,12 @@ def parse(data: Any, source: str = "<memory>") -> RuntimeConfig:
         raise RuntimeConfigError(
             f"{source}: runtime config version {version!r} is not supported; this netcfg reads version "
             f"{supported}. Rebuild it with 'netcfg build' from the netcfg release the master uses."
+        )
+    problems = check_document(data)  # the same field table the emitter checks what it writes against
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise RuntimeConfigError(
+            f"{source}: malformed runtime config: {problems[0]}{more}; rebuild it with 'netcfg build'"
         )
     try:
         cfg = _config(data, source)

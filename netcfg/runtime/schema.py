@@ -1,0 +1,247 @@
+"""The schema of runtime.json, with ranges: one field table that the emitter checks what it writes against
+(netcfg.emit.runtime_json) and netcfg.runtime.load checks what it reads against.
+
+Standard library only, on purpose: a live master imports netcfg.runtime without the compiler, and pydantic is a
+compiler dependency. The table is small and flat enough that a checker of forty lines walks it; pydantic models
+would state the same ranges twice. Problems come back as "where: what" strings, e.g.
+"messages[3] 'm1'.signals[0].bits: 10000000000 is out of range 1..64".
+
+Beyond single fields (`check_document`): names unique per kind, each bus's protocol section present, payloads
+within the protocol's frame, signals and PDO entries inside their payload.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+MAX_NS = 10**15  # the longest duration netcfg handles (netcfg.spec.units.MAX_DURATION_NS; a test ties the two)
+U8, U16, U32 = 0xFF, 0xFFFF, 0xFFFF_FFFF
+MAX_NAME_CHARS = 255
+PROTOCOLS = ("can", "canopen", "ftt-can", "ethernet-udp")
+MAX_PAYLOAD = {"can": 8, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472}  # CAN 2.0; UDP without fragmentation
+MAX_ID = {11: 0x7FF, 29: 0x1FFF_FFFF}
+
+
+@dataclass(frozen=True)
+class F:
+    """One field: its kind and range. kind: int | float | bool | str | name | enum | list | obj."""
+
+    kind: str
+    lo: float | None = None
+    hi: float | None = None
+    null: bool = False  # may be null
+    optional: bool = False  # may be absent: added later within version 1 (see netcfg.runtime)
+    choices: tuple[Any, ...] = ()
+    item: F | None = None  # list items
+    fields: Mapping[str, F] | None = None  # object fields
+
+
+def i(lo: int, hi: int, null: bool = False, optional: bool = False) -> F:
+    return F("int", lo, hi, null, optional)
+
+
+def ns(lo: int = 0, null: bool = False, optional: bool = False) -> F:
+    return F("int", lo, MAX_NS, null, optional)
+
+
+def name(null: bool = False, optional: bool = False) -> F:
+    return F("name", null=null, optional=optional)
+
+
+def text(null: bool = False, optional: bool = False) -> F:
+    return F("str", null=null, optional=optional)
+
+
+def enum(*choices: Any, null: bool = False) -> F:
+    return F("enum", null=null, choices=choices)
+
+
+def lst(item: F, null: bool = False, optional: bool = False, hi: int = 1_000_000) -> F:
+    return F("list", 0, hi, null, optional, item=item)
+
+
+def obj(null: bool = False, optional: bool = False, **fields: F) -> F:
+    return F("obj", null=null, optional=optional, fields=fields)
+
+
+def num(lo: float, hi: float, null: bool = False) -> F:
+    return F("float", lo, hi, null)
+
+
+BOOL = F("bool")
+BIG = 1e300  # finite: scale, offset and limits of a signal may be anything a float holds
+
+SIGNAL = obj(
+    name=name(), start_bit=i(0, 8 * 1472 - 1), bits=i(1, 64), signed=BOOL, float=BOOL,
+    scale=num(-BIG, BIG), offset=num(-BIG, BIG), min=num(-BIG, BIG, null=True), max=num(-BIG, BIG, null=True),
+    unit=text(null=True),
+)
+PDO_ENTRY = obj(index=i(0x1000, U16), sub=i(0, U8), bits=i(1, 64), name=name(), data_type=i(1, U16))
+PDO = obj(
+    null=True, kind=enum("rpdo", "tpdo"), number=i(1, 512), node=name(), transmission=i(0, U8),
+    inhibit_100us=i(0, U16, null=True), event_timer_ms=i(0, U16, null=True), sync_start=i(0, U8, null=True),
+    cob_id=i(0, U32, null=True, optional=True), entries=lst(PDO_ENTRY, hi=64),
+)
+MESSAGE = obj(
+    name=name(), bus=name(), producer=name(), consumers=lst(name()), id=i(0, MAX_ID[29]), extended=BOOL,
+    size=i(0, max(MAX_PAYLOAD.values())), kind=enum("periodic", "sporadic", "on-demand"),
+    period_ns=ns(1, null=True), interval_ns=ns(1, null=True), offset_ns=ns(null=True), deadline_ns=ns(1, null=True),
+    jitter_ns=ns(), rate_hz=lst(i(1, 10**18), null=True, hi=2), window=enum("sync", "async", null=True),
+    ftt_id=i(0, 10**6, null=True), udp=obj(null=True, src_port=i(0, U16), dst_port=i(0, U16)), pdo=PDO,
+    signals=lst(SIGNAL, hi=8 * 1472), implicit=text(null=True), wcrt_ns=ns(null=True),
+    sent_by=lst(name(), null=True, optional=True),
+)
+TASK = obj(
+    name=name(), period_ns=ns(1, null=True), offset_ns=ns(), wcet_ns=ns(1), bcet_ns=ns(),
+    trigger=name(null=True), on_message=name(null=True), sync_bus=name(null=True, optional=True),
+)
+NODE = obj(
+    name=name(), node_id=i(0, 255, null=True), role=enum("master", "slave"), buses=lst(name()), ip=text(null=True),
+    device=text(null=True), heartbeat_ns=ns(1, null=True), tx_delay_ns=ns(), rx_delay_ns=ns(), tasks=lst(TASK),
+    identity=obj(null=True, optional=True, vendor_id=i(0, U32, null=True), product_code=i(0, U32, null=True),
+                 revision=i(0, U32, null=True)),
+    eds=text(null=True, optional=True), dcf=text(null=True, optional=True),
+    rpdo_count=i(0, 512, null=True, optional=True), tpdo_count=i(0, 512, null=True, optional=True),
+    sdo_init=lst(obj(index=i(0, U16), sub=i(0, U8), data_type=i(1, U16), value=i(-(2**63), 2**64 - 1)),
+                 null=True, optional=True),
+)
+CANOPEN = obj(
+    null=True, sync_period_ns=ns(1), sync_window_ns=ns(null=True), read_window_ns=ns(null=True),
+    sync_producer=name(null=True), sync_id=i(0, MAX_ID[29]), master_jitter_ns=ns(optional=True),
+)
+FTT = obj(
+    null=True, ec_ns=ns(1), tm_size=i(0, 8), tm_id=i(0, MAX_ID[29]), tm_ns=ns(), lsw_ns=ns(), master=name(),
+    macro_cycle_ec=i(1, 1_000_000),
+    srt=lst(obj(ftt_id=i(0, 10**6), name=name(), kind=enum("message", "trigger"), targets=lst(name()),
+                period_ec=i(1, 1_000_000), fastest_period_ec=i(1, 1_000_000), init_ec=i(0, 1_000_000))),
+    schedule=lst(obj(ec=i(0, 1_000_000), ids=lst(i(0, 10**6)), messages=lst(name()), triggers=lst(name()),
+                     mask=i(0, 2**512), sync_ns=ns(), async_ns=ns())),
+)
+ETHERNET = obj(
+    null=True,
+    switches=lst(obj(name=name(), latency_ns=ns(), ports=lst(obj(port=i(0, U16), to=name(), cable_m=num(0, 1e6))))),
+)
+BUS = obj(
+    name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),
+    canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET,
+)
+TRIGGER = obj(
+    name=name(), bus=name(), ftt_id=i(0, 10**6), period_ns=ns(1), interval_ns=ns(1, null=True), offset_ns=ns(),
+    tasks=lst(name()),
+)
+FLOW = obj(
+    name=name(), steps=lst(obj(kind=enum("task", "message"), refs=lst(name()))), deadline_ns=ns(1, null=True),
+    latency_min_ns=ns(null=True), latency_max_ns=ns(null=True), unsync_latency_min_ns=ns(null=True, optional=True),
+    unsync_latency_max_ns=ns(null=True, optional=True),
+)
+DOCUMENT = obj(
+    format=text(), version=i(1, 1_000), system=name(), spec_sha256=text(), buses=lst(BUS), nodes=lst(NODE),
+    messages=lst(MESSAGE), triggers=lst(TRIGGER), flows=lst(FLOW),
+)
+
+
+def _label(item: Any, index: int) -> str:
+    n = item.get("name") if isinstance(item, dict) else None
+    return f"[{index}] {n!r}" if isinstance(n, str) else f"[{index}]"
+
+
+def _within(value: float, f: F) -> bool:
+    return (f.lo is None or f.lo <= value) and (f.hi is None or value <= f.hi)
+
+
+def _check(value: Any, f: F, where: str, out: list[str], strict: bool) -> None:
+    if value is None:
+        if not f.null:
+            out.append(f"{where}: must not be null")
+        return
+    k = f.kind
+    if k == "int" or (k == "enum" and all(isinstance(c, int) for c in f.choices)):
+        if not isinstance(value, int) or isinstance(value, bool):
+            out.append(f"{where}: must be a whole number, not {type(value).__name__}")
+        elif k == "enum" and value not in f.choices:
+            out.append(f"{where}: {value} is not one of {', '.join(map(str, f.choices))}")
+        elif k == "int" and not _within(value, f):
+            shown = str(value) if len(str(value)) <= 24 else f"a number of {len(str(value))} digits"
+            out.append(f"{where}: {shown} is out of range {f.lo:,}..{f.hi:,}")
+    elif k == "float":
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            out.append(f"{where}: must be a number, not {type(value).__name__}")
+        elif not math.isfinite(value) or not _within(value, f):
+            out.append(f"{where}: {value!r} is out of range {f.lo:g}..{f.hi:g}")
+    elif k == "bool":
+        if not isinstance(value, bool):
+            out.append(f"{where}: must be true or false, not {type(value).__name__}")
+    elif k in ("str", "name", "enum"):
+        if not isinstance(value, str):
+            out.append(f"{where}: must be a string, not {type(value).__name__}")
+        elif k == "enum" and value not in f.choices:
+            out.append(f"{where}: {value[:40]!r} is not one of {', '.join(f.choices)}")
+        elif k == "name" and not 0 < len(value) <= MAX_NAME_CHARS:
+            out.append(f"{where}: a name must have 1..{MAX_NAME_CHARS} characters")
+    elif k == "list":
+        if not isinstance(value, list):
+            out.append(f"{where}: must be a list, not {type(value).__name__}")
+        elif f.hi is not None and len(value) > f.hi:
+            out.append(f"{where}: {len(value):,} items, at most {int(f.hi):,}")
+        else:
+            assert f.item is not None
+            for n, item in enumerate(value):
+                _check(item, f.item, f"{where}{_label(item, n)}", out, strict)
+    elif k == "obj":
+        if not isinstance(value, dict):
+            out.append(f"{where}: must be an object, not {type(value).__name__}")
+            return
+        assert f.fields is not None
+        for key, sub in f.fields.items():
+            if key in value:
+                _check(value[key], sub, f"{where}.{key}" if where else key, out, strict)
+            elif not sub.optional:
+                out.append(f"{where or 'the file'}: missing key '{key}'")
+        if strict:
+            out += [f"{where or 'the file'}: key '{key}' is not in the schema" for key in value if key not in f.fields]
+
+
+def check_document(doc: Any, strict: bool = False) -> list[str]:
+    """Every problem of a runtime.json document, as "where: what". strict: also keys the schema does not know
+    (the emitter's check; a reader tolerates them, so that an older master reads a newer file)."""
+    out: list[str] = []
+    _check(doc, DOCUMENT, "", out, strict)
+    if out:
+        return out
+    for kind in ("buses", "nodes", "messages", "triggers", "flows"):
+        seen: set[str] = set()
+        for item in doc[kind]:
+            if item["name"] in seen:
+                out.append(f"{kind}: duplicate name {item['name']!r}")
+            seen.add(item["name"])
+    protocol = {b["name"]: b["protocol"] for b in doc["buses"]}
+    for b in doc["buses"]:
+        where = f"bus {b['name']!r}"
+        section = {"canopen": "canopen", "ftt-can": "ftt", "ethernet-udp": "ethernet"}.get(b["protocol"])
+        if section is not None and b[section] is None:
+            out.append(f"{where}: a {b['protocol']} bus needs its '{section}' section")
+        ftt = b["ftt"]
+        if ftt is not None and ftt["ec_ns"] <= ftt["tm_ns"]:
+            out.append(f"{where}: the elementary cycle ({ftt['ec_ns']} ns) must be longer than its trigger message "
+                       f"({ftt['tm_ns']} ns)")
+    for n in doc["nodes"]:
+        tasks = [t["name"] for t in n["tasks"]]
+        if len(set(tasks)) != len(tasks):
+            out.append(f"node {n['name']!r}: duplicate task names")
+    for m in doc["messages"]:
+        where = f"message {m['name']!r}"
+        proto = protocol.get(m["bus"])
+        if proto is not None and m["size"] > MAX_PAYLOAD[proto]:
+            out.append(f"{where}: {m['size']} bytes do not fit a {proto} frame (at most {MAX_PAYLOAD[proto]})")
+        if m["kind"] == "periodic" and m["period_ns"] is None:
+            out.append(f"{where}: a periodic message needs period_ns")
+        for s in m["signals"]:
+            if s["start_bit"] + s["bits"] > 8 * m["size"]:
+                out.append(f"{where}: signal {s['name']!r} (bits {s['start_bit']}..{s['start_bit'] + s['bits'] - 1}) "
+                           f"does not fit its {m['size']}-byte payload")
+        if m["pdo"] is not None and sum(e["bits"] for e in m["pdo"]["entries"]) > 64:
+            out.append(f"{where}: its PDO maps more than 64 bits")
+    return out
