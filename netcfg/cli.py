@@ -39,9 +39,15 @@ def main(argv: list[str] | None = None) -> int:
     p_sim = sub.add_parser("simulate", help="run the runtime configuration in the discrete-event simulator")
     p_sim.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
     p_sim.add_argument("--duration", default="10s", help="simulated time per run, e.g. 8s, 500ms (default 10s)")
-    p_sim.add_argument("--seed", type=int, default=0, help="random seed of the (first) run")
-    p_sim.add_argument("--runs", type=int, default=1, help="Monte Carlo: this many runs, seeds seed..seed+runs-1")
-    p_sim.add_argument("--jobs", type=int, help="worker processes for --runs (default: every core)")
+    p_sim.add_argument("--seed", type=_int_option("--seed", 0, MAX_SEED), default=0,
+                       help="random seed of the (first) run")
+    p_sim.add_argument("--runs", type=_int_option("--runs", 1, MAX_RUNS), default=1,
+                       help="Monte Carlo: this many runs, seeds seed..seed+runs-1")
+    p_sim.add_argument("--jobs", type=_int_option("--jobs", 1, MAX_JOBS),
+                       help="worker processes for --runs (default: every core)")
+    p_sim.add_argument("--max-events", type=_int_option("--max-events", 1, MAX_EVENTS_LIMIT), default=None,
+                       metavar="N", help="refuse a run estimated to need more simulated frames and task jobs than N "
+                       "(default 200,000,000: minutes of work)")
     p_sim.add_argument("--format", choices=("text", "json"), default="text")
     p_sim.add_argument("--log", type=Path, metavar="FILE", help="CAN trace of the first run: .log (candump -L) or .asc")
     p_sim.add_argument("--plots", type=Path, metavar="DIR", help="histogram PNGs of response times and flow latencies")
@@ -51,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
                        help="CANopen master: the SYNC/PDO cycle, or the older SDO polling loops")
     p_sim.add_argument("--stuffing", choices=("exact", "worst", "none"), default="worst",
                        help="frame lengths: bits actually stuffed, the worst case, or no stuff bits")
-    p_sim.add_argument("--drift", type=float, default=50.0, metavar="PPM", help="clock drift bound per node")
+    p_sim.add_argument("--drift", type=_number_option("--drift"), default=50.0, metavar="PPM",
+                       help="clock drift bound per node")
     p_sim.add_argument("--fault", action="append", default=[], metavar="FAULT",
                        help="inject a fault (repeatable): ber=1e-6, bit-error@12ms, crash:NODE@2s, "
                        "babble:NODE@1s..2s, lose:MESSAGE@100ms, master-fail@2s")
@@ -73,31 +80,61 @@ def main(argv: list[str] | None = None) -> int:
     return 2  # pragma: no cover - argparse rejects unknown commands
 
 
-def _bitrate(text: str) -> int:
-    """'500k', '1M', '250000' or '500 kbit/s' -> bit/s."""
-    from netcfg.spec.units import parse_bitrate
+MAX_SEED = 2**63 - 1
+MAX_RUNS = 1_000_000
+MAX_JOBS = 1024
+MAX_EVENTS_LIMIT = 10**15
 
-    short = text.strip().lower()
-    scale = {"k": 1_000, "m": 1_000_000}.get(short[-1:], 0)
+
+def _int_option(what: str, low: int, high: int) -> Any:
+    """An argparse type: a whole number in [low, high] written with ASCII digits (int() takes any script's)."""
+
+    def parse(text: str) -> int:
+        from netcfg.spec.units import parse_int_option
+
+        try:
+            return parse_int_option(text, what, low, high)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from exc
+
+    return parse
+
+
+def _number_option(what: str) -> Any:
+    """An argparse type: a finite decimal number in the units module's grammar (float() takes 'nan', '1e400')."""
+
+    def parse(text: str) -> float:
+        from netcfg.spec.units import parse_number
+
+        try:
+            return float(parse_number(text, f"{what} {text!r}"))
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from exc
+
+    return parse
+
+
+def _bitrate(text: str) -> int:
+    """'500k', '1M', '250000' or '500 kbit/s' -> bit/s (the units module's grammar and ranges)."""
+    from netcfg.spec.units import parse_bitrate_option
+
     try:
-        if scale and short[:-1].replace(".", "", 1).isdigit():
-            rate = int(float(short[:-1]) * scale)
-        elif short.isdigit():
-            rate = int(short)
-        else:
-            rate = parse_bitrate(text)
-        if rate <= 0:
-            raise ValueError("a bit rate must be positive")
-        return rate
+        return parse_bitrate_option(text)
     except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a bit rate; write 500k, 1M or '500 kbit/s'") from exc
+        raise argparse.ArgumentTypeError(f"{text!r} is not a bit rate ({exc}); write 500k, 1M or '500 kbit/s'") from exc
 
 
 def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) -> int:
     from netcfg.diagnostics import Collector, sort_diagnostics
     from netcfg.importers import write_spec
+    from netcfg.outputs import check_import_output, write_file
 
     diags = Collector()
+    try:
+        check_import_output(output, [source])  # before the import, which may take a while
+    except OSError as exc:
+        print(f"netcfg: {exc}", file=sys.stderr)
+        return 2
     try:
         if kind == "dbc":
             from netcfg.importers.dbc import import_dbc
@@ -108,7 +145,7 @@ def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) ->
 
             imported = import_bus_yml(source, options, diags)
     except OSError as exc:
-        print(f"netcfg: cannot read {source}: {exc.strerror or exc}", file=sys.stderr)
+        print(f"netcfg: {_io_problem(exc, 'read', source)}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug in netcfg, not in the file: nothing is written
         if os.environ.get("NETCFG_DEBUG"):
@@ -128,10 +165,7 @@ def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) ->
     header = f"netcfg spec imported from {source.name} ({kind}) by `netcfg import`; edit freely."
     text = write_spec(data, comments, header)
     try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-        tmp = output.with_name(f".{output.name}.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, output)  # the spec appears whole or not at all
+        write_file(output, text.encode("utf-8"), [source])  # whole or not at all, never over the source
     except OSError as exc:
         print(f"netcfg: cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
         return 2
@@ -148,7 +182,7 @@ def cmd_check(paths: list[Path], fmt: str, options: ImportOptions | None = None)
         try:
             reports.append(check(path, options))
         except OSError as exc:
-            print(f"netcfg: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
+            print(f"netcfg: {_io_problem(exc, 'read', path)}", file=sys.stderr)
             return 2
         except Exception as exc:  # a bug in netcfg, not in the spec: say so, without a wall of traceback
             if os.environ.get("NETCFG_DEBUG"):
@@ -173,9 +207,14 @@ def cmd_check(paths: list[Path], fmt: str, options: ImportOptions | None = None)
 
 def cmd_build(spec: Path, output: Path | None) -> int:
     from netcfg.build import build
+    from netcfg.inputs import InputError
+    from netcfg.outputs import OutputError
 
     try:
         report, target, files = build(spec, output)
+    except (OutputError, InputError) as exc:
+        print(f"netcfg: {exc}", file=sys.stderr)
+        return 2
     except OSError as exc:
         print(f"netcfg: cannot build {spec}: {exc.strerror or exc} ({exc.filename or ''})", file=sys.stderr)
         return 2
@@ -194,6 +233,11 @@ def cmd_build(spec: Path, output: Path | None) -> int:
     if target is None:
         print(f"netcfg: {spec} has errors; nothing was written", file=sys.stderr)
         return 1
+    kept = report.get("kept") or []
+    if kept:
+        names = ", ".join(kept[:5]) + (f" (+{len(kept) - 5} more)" if len(kept) > 5 else "")
+        print(f"netcfg: warning: {target} holds {len(kept)} file(s) netcfg did not write; kept: {names}",
+              file=sys.stderr)
     print(f"wrote {len(files)} files to {target}")
     return 0
 
@@ -204,7 +248,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     try:
         return simulate_command(args)
     except OSError as exc:
-        print(f"netcfg: cannot simulate {args.source}: {exc.strerror or exc} ({exc.filename or ''})", file=sys.stderr)
+        print(f"netcfg: {_io_problem(exc, 'simulate', args.source)}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug in netcfg
         if os.environ.get("NETCFG_DEBUG"):
@@ -215,6 +259,17 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+
+
+def _io_problem(exc: OSError, verb: str, path: Path) -> str:
+    """One line for an I/O problem: the input and output guards' own messages name the file and what to do."""
+    from netcfg.inputs import InputError
+    from netcfg.outputs import OutputError
+
+    if isinstance(exc, (InputError, OutputError)):
+        return str(exc)
+    where = f" ({exc.filename})" if exc.filename and str(exc.filename) != str(path) else ""
+    return f"cannot {verb} {path}: {exc.strerror or exc}{where}"
 
 
 def cmd_schema() -> int:
