@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
                        help="worker processes for --runs (default: every core)")
     p_sim.add_argument("--max-events", type=_int_option("--max-events", 1, MAX_EVENTS_LIMIT), default=None,
                        metavar="N", help="refuse a run estimated to need more simulated frames and task jobs than N "
-                       "(default 200,000,000: minutes of work)")
+                       "(default 20,000,000: minutes of work)")
     p_sim.add_argument("--format", choices=("text", "json"), default="text")
     p_sim.add_argument("--log", type=Path, metavar="FILE", help="CAN trace of the first run: .log (candump -L) or .asc")
     p_sim.add_argument("--plots", type=Path, metavar="DIR", help="histogram PNGs of response times and flow latencies")
