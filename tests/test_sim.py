@@ -368,7 +368,7 @@ def test_exact_stuffing_gives_each_frame_its_own_length() -> None:
     [
         (["--fault", "crash:nobody@1s"], 1, "no node named 'nobody'"),
         (["--fault", "melt@1s"], 2, "cannot read fault"),
-        (["--duration", "ten seconds"], 2, "is not a time"),
+        (["--duration", "ten seconds"], 2, "cannot read 'ten seconds' as a duration"),
         (["--log", "trace.txt"], 2, "trace formats are .log, .asc"),
     ],
 )
