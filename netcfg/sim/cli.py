@@ -5,12 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import secrets
 import sys
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 from netcfg import runtime
+from netcfg.outputs import TMP_TAG
 from netcfg.sim.faults import Fault, FaultError
 from netcfg.sim.montecarlo import progress_bar, run_batch, run_once
 from netcfg.sim.results import histograms, summary, text
@@ -205,7 +207,8 @@ def simulate_command(args: argparse.Namespace) -> int:
 
 def _write_atomically(path: Path, frames: list[TraceFrame]) -> None:
     """The trace appears whole or not at all (a temporary file beside it, renamed)."""
-    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
+    # a name no user file has (netcfg's temporary tag and a random part); the suffix picks the trace format
+    tmp = path.with_name(f".{path.name}{TMP_TAG}{secrets.token_hex(4)}{path.suffix}")
     try:
         write_trace(frames, tmp)
         os.replace(tmp, path)
