@@ -499,6 +499,20 @@ def test_19_a_negative_vendor_number_in_device_info_is_refused(tmp_path: Path,
     assert rc == 1 and "VendorNumber=-5" in err
 
 
+@pytest.mark.parametrize(
+    ("damage", "text"),
+    [(("[1018sub1]", "[1018sub" + "9" * 5000 + "]"), "outside CiA 301's ranges"),
+     (("DefaultValue=0x00020192", "DefaultValue=0x" + "9" * 5000), "more than any CANopen data type holds")],
+    ids=["5000-digit-sub-index", "5000-digit-value"],
+)
+def test_29_huge_numbers_in_an_eds_name_the_object(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                   damage: tuple[str, str], text: str) -> None:
+    """Hex numbers escape Python's 4,300-digit limit on parsing but not on printing; CiA 301's ranges stop them."""
+    spec = eds_spec(tmp_path, EDS.replace(*damage))
+    rc, err = run(capsys, "check", str(spec))
+    assert rc == 1 and text in err and f"{spec}:9:" in err
+
+
 def test_20_a_nul_byte_in_a_path_is_an_error_at_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     spec = eds_spec(tmp_path, EDS)
     spec.write_text(EDS_SPEC.replace("EDSPATH", '"dev\\0.eds"'))
