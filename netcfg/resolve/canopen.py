@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from netcfg import cia301, model
 from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.devices.eds import EdsError, cached_profile
+from netcfg.inputs import check_input_path
 from netcfg.model import MessageKind
 from netcfg.resolve import pdo as pdo_map
 from netcfg.resolve.can import CanProtocol
@@ -243,13 +244,10 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
                 dpath,
             )
             return None
-    file = (r.spec_dir / n.device.eds).resolve()
-    if not file.is_file():
-        r.err(
-            "eds-missing",
-            f"EDS file '{n.device.eds}' not found (looked for {file}); paths are relative to the spec",
-            (*dpath, "eds"),
-        )
+    try:  # the input guard: a NUL byte, a symlink loop or a missing file is placed at the spec's line
+        file = check_input_path(r.spec_dir, n.device.eds, "EDS file")
+    except ValueError as exc:
+        r.err("eds-missing", str(exc), (*dpath, "eds"))
         return None
     try:
         profile = cached_profile(file, n.device.eds)
