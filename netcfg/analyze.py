@@ -78,7 +78,13 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
     for row in rows:
         if row["schedulable"] is False:
             msg = by_name[row["name"]]
-            if row["wcrt_us"] is None:
+            if row["wcrt_us"] is None and row.get("unbounded") == "iterations":
+                text = (
+                    f"message '{msg.name}' has no worst-case response time within {can_rta.MAX_ITERATIONS:,} "
+                    "steps of the analysis: the traffic at its priority is so close to 100% of the capacity that "
+                    "its busy period is too long to follow"
+                )
+            elif row["wcrt_us"] is None:
                 text = (
                     f"message '{msg.name}' has no bounded worst-case response time: the traffic at its "
                     "priority or on its path reaches 100% of the capacity"
@@ -136,10 +142,12 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             row["blocking_us"] = us(r.blocking_ns)
             row["busy_period_us"] = us(r.busy_period_ns)
             row["instances"] = r.instances
+            if r.limit:
+                row["unbounded"] = r.limit
             acc.chained[msg.name] = acc.plain[msg.name]
     if bus.canopen is not None:
         out["sync"] = analyze_sync(m, bus, frame_ns, diags, acc)
-    if worst > 1:
+    if load.can_bus_overloaded(bus, timings, worst):
         diags.add(
             "overload",
             f"bus '{bus.name}' is loaded at {worst:.1%} in the worst case, "

@@ -1,0 +1,60 @@
+"""Minimal reproductions of unsound or hanging analyses, each held to the correct answer.
+
+The specs in tests/data/soundness keep their headers: the command, what the analysis used to print, and the
+correct figure with its derivation. Every figure asserted here is derived in that header or in the docstring.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+from conftest import bus, check, check_data, message
+
+DATA = Path(__file__).parent / "data" / "soundness"
+
+
+def spec(name: str) -> dict[str, Any]:
+    data: dict[str, Any] = yaml.safe_load(next(DATA.glob(f"{name}-*.yaml")).read_text(encoding="utf-8"))
+    return data
+
+
+def codes(report: dict[str, Any]) -> list[str]:
+    return [e["code"] for e in report["errors"]]
+
+
+def test_01_exactly_full_bus_with_a_blocker_is_unbounded_at_once() -> None:
+    """Ten frames of 135 us every 1350 us load the bus exactly 100 %; the 65 us blocker means the level-m9 busy
+    period t = 65 + sum ceil(t / 1350) * 135 never ends, so m9 has no bound (it used to loop forever)."""
+    report = check(next(DATA.glob("01-*.yaml")))
+    m9 = message(bus(report, "can0"), "m9")
+    assert m9["wcrt_us"] is None and m9["schedulable"] is False
+    assert not report["ok"] and "deadline" in codes(report)
+    assert "reaches 100%" in report["errors"][0]["message"]
+    # m8 sees nine frames and m9's blocking: 135 (B) + 9 x 135 = 1350 us, within its 1350 us period
+    assert message(bus(report, "can0"), "m8")["wcrt_us"] == 1350
+
+
+def test_02_load_a_hair_under_one_says_the_step_limit_was_reached() -> None:
+    """U = 1080000 / 1080001 < 1: the busy period spans about 1e6 instances. The analysis gives up after its
+    stated number of steps and says so, instead of claiming the load reaches 100 %."""
+    report = check(next(DATA.glob("02-*.yaml")))
+    fast = message(bus(report, "can0"), "fast")
+    assert fast["wcrt_us"] is None and fast.get("unbounded") == "iterations"
+    text = report["errors"][0]["message"]
+    assert "steps of the analysis" in text and "reaches 100%" not in text
+
+
+def test_11_full_load_has_one_verdict_in_any_order(tmp_path: Path) -> None:
+    """U = 0.20 + 0.36 + 0.34 + 0.10 = 1 exactly: not over capacity whatever the list order. u10 (lowest
+    priority, no blocking, tau = 1 us): w = ceil(676/250)*85 + ceil(676/375)*135 + ceil(676/375)*75
+    = 255 + 270 + 150 = 675 us, R = 675 + 75 = 750 us <= its 750 us period."""
+    data = spec("11")
+    reports = [check_data(tmp_path, data, "a.yaml")]
+    data["messages"] = data["messages"][2:] + data["messages"][:2]
+    reports.append(check_data(tmp_path, data, "b.yaml"))
+    for report in reports:
+        assert report["ok"], report["errors"]
+        assert message(bus(report, "can0"), "u10")["wcrt_us"] == 750
+        assert bus(report, "can0")["utilization"] == 1.0
