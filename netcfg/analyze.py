@@ -135,6 +135,14 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     if bus.ftt is not None:
         out["ftt"] = analyze_ftt(m, bus, rows, frame_ns, diags, acc)
         out["utilization_with_tm"] = round(worst + out["ftt"]["tm_overhead"], 6)
+        tm_ns, ec_ns = bus_tm_and_ec(bus)
+        if load.can_bus_overloaded(bus, timings, worst + tm_ns / ec_ns, extra=(tm_ns, ec_ns)):
+            diags.add(
+                "overload",
+                f"bus '{bus.name}' is loaded at {worst + tm_ns / ec_ns:.1%} in the worst case with its trigger "
+                "message, over its capacity: slow some messages down, lengthen the EC or raise the bit rate",
+                m.source.at(bus.path),
+            )
     else:
         for row, msg in zip(rows, bus.messages):
             r = plain[msg.name]
@@ -147,7 +155,7 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             acc.chained[msg.name] = acc.plain[msg.name]
     if bus.canopen is not None:
         out["sync"] = analyze_sync(m, bus, frame_ns, diags, acc)
-    if load.can_bus_overloaded(bus, timings, worst):
+    if bus.ftt is None and load.can_bus_overloaded(bus, timings, worst):
         diags.add(
             "overload",
             f"bus '{bus.name}' is loaded at {worst:.1%} in the worst case, "
@@ -156,6 +164,12 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
         )
     report_deadlines(m, bus, rows, diags)
     return out
+
+
+def bus_tm_and_ec(bus: model.Bus) -> tuple[int, int]:
+    """FTT-CAN: the trigger message's worst-case time and the EC, in ns."""
+    assert bus.ftt is not None
+    return ftt.tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate), bus.ftt.ec_ns
 
 
 def analyze_sync(
@@ -299,6 +313,7 @@ def analyze_ftt(
     try:
         sched = ftt.build_schedule(bus, entries)
         fastest = ftt.build_schedule(bus, entries, fastest=True)
+        envelope = ftt.envelope_schedule(bus, entries)
     except ftt.MacroCycleTooLong as exc:
         periods = sorted({e.period_ec for e in entries} | {e.fastest_period_ec for e in entries})
         diags.add(
@@ -319,7 +334,7 @@ def analyze_ftt(
         }
     bus.ftt_schedule = sched
     acc.ftt[bus.name] = flows.FttTimes(sched, frame_ns, {e.name: (e.period_ec, e.init_ec) for e in entries})
-    for label, s in (("", sched), (" at the fastest periods of period_range", fastest)):
+    for label, s in (("", sched), (" at some periods inside period_range", envelope)):
         for slot in s.slots:
             if slot.sync_ns > s.lsw_ns:
                 diags.add(
@@ -342,7 +357,7 @@ def analyze_ftt(
         ftt.AsyncFrame(msg.name, msg.id, frame_ns[msg.name][1], msg.interval_ns, msg.jitter_ns, msg.extended)
         for msg in async_msgs
     ]
-    async_worst = ftt.async_response_times(sched, async_frames)
+    async_worst = ftt.async_response_times(envelope, async_frames)
     for row, msg in zip(rows, bus.messages):
         if msg.window == "sync":
             wcrt = sync_worst.get(msg.name)

@@ -58,3 +58,28 @@ def test_11_full_load_has_one_verdict_in_any_order(tmp_path: Path) -> None:
         assert report["ok"], report["errors"]
         assert message(bus(report, "can0"), "u10")["wcrt_us"] == 750
         assert bus(report, "can0")["utilization"] == 1.0
+
+
+def test_03_async_message_counts_its_own_load() -> None:
+    """Each 5 ms EC leaves 5000 - 420 (TM) - 6 x 540 (sync) = 1340 us of asynchronous window, 800 us once the
+    inserted idle time of one 540 us frame is taken off: 0.16 of the bus. 'as' alone needs 540 / 1800 = 0.30:
+    unbounded. With the TM the bus carries 6 x 540 / 5000 + 540 / 1800 + 420 / 5000 = 1.032: refused."""
+    report = check(next(DATA.glob("03-*.yaml")))
+    assert message(bus(report, "bus"), "as")["wcrt_us"] is None
+    assert bus(report, "bus")["utilization_with_tm"] == 1.032
+    assert sorted(codes(report)) == ["deadline", "overload"]
+
+
+def test_04_async_windows_at_the_fastest_admissible_periods() -> None:
+    """At 1 EC (inside [1 EC, 2 EC]) s1-s6 fill every EC, leaving 800 us of usable asynchronous window: lo's
+    demand 3 x 540 = 1620 us needs 3 windows, 15000 + 420 + 20 - 1220 = 14220 us > its 10 ms deadline."""
+    report = check(next(DATA.glob("04-*.yaml")))
+    lo = message(bus(report, "bus"), "lo")
+    assert lo["wcrt_us"] == 14220 and lo["schedulable"] is False
+
+
+def test_05_lsw_checked_at_every_period_inside_the_range() -> None:
+    """ma at 3 EC (inside [2 EC, 4 EC]) is due in EC 3 with mb: 540 + 540 = 1080 us > LSW 1000 us."""
+    report = check(next(DATA.glob("05-*.yaml")))
+    assert codes(report) == ["lsw"]
+    assert "EC 3" in report["errors"][0]["message"] and "1080 us" in report["errors"][0]["message"]

@@ -34,6 +34,7 @@ class Resolver:
         self.smap = smap
         self.d = diags
         self.spec_dir = spec_dir
+        self.slowest: dict[Path, int] = {}  # period_range's slowest period, by the message's or trigger's path
         self.model = model.Model(
             system=spec.system,
             description=spec.description,
@@ -100,6 +101,7 @@ class Resolver:
         for k, v in enumerate((lo, hi)):
             if ec and v % ec:
                 self.err("ec-multiple", f"{format_ns(v)} is not a whole number of ECs ({format_ns(ec)})", (*rpath, k))
+        self.slowest[path] = hi
         return lo
 
     def ec_of(self, bus_names: Iterable[str]) -> int | None:
@@ -402,6 +404,7 @@ class Resolver:
             kind=kind,
             period_ns=period,
             interval_ns=interval,
+            slowest_ns=self.slowest.get(path),
             offset_ns=offset,
             offset_auto=offset_auto,
             deadline_ns=deadline,

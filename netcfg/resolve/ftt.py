@@ -215,6 +215,7 @@ class FttProtocol(CanProtocol):
                 ftt_id=t.ftt_id,
                 period_ns=period,
                 interval_ns=interval,
+                slowest_ns=self.r.slowest.get(path),
                 offset_ns=offset,
                 offset_auto=t.offset == "auto",
                 tasks=tuple(t.tasks),

@@ -92,7 +92,10 @@ def can_bus_load(bus: model.Bus) -> tuple[dict[str, FrameTiming], float, float]:
     return timings, worst, nominal
 
 
-def can_bus_overloaded(bus: model.Bus, timings: dict[str, FrameTiming], approx: float) -> bool:
-    """True when the worst-case load is above 100 %, exactly (a load of exactly 1 fits)."""
-    loads = ((timings[m.name].tx_ns, m.interval_ns) for m in bus.messages if m.interval_ns and m.kind != "on-demand")
-    return compare_to_capacity(approx, loads) > 0
+def can_bus_overloaded(
+    bus: model.Bus, timings: dict[str, FrameTiming], approx: float, extra: tuple[int, int] | None = None
+) -> bool:
+    """True when the worst-case load (plus an extra C / T such as FTT-CAN's trigger message) is above 100 %,
+    decided exactly (a load of exactly 1 fits)."""
+    loads = [(timings[m.name].tx_ns, m.interval_ns) for m in bus.messages if m.interval_ns and m.kind != "on-demand"]
+    return compare_to_capacity(approx, [*loads, *([extra] if extra else [])]) > 0
