@@ -11,7 +11,7 @@ from typing import Any
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_rta, canopen_sync, ethernet, flows, ftt, load
+from netcfg.timing import can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
 
@@ -27,6 +27,7 @@ class _Analysis:
         self.plain: dict[str, flows.Delivery] = {}  # the same bus as plain, unsynchronised CAN
         self.ftt: dict[str, flows.FttTimes] = {}
         self.canopen: dict[str, flows.SyncTimes] = {}
+        self.task_ns: dict[str, int | None] = {}  # node.task -> worst-case response time on its processor
 
 
 def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
@@ -37,7 +38,59 @@ def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
             buses.append(analyze_ethernet(m, bus, diags, acc))
         else:
             buses.append(analyze_can(m, bus, diags, acc))
-    return {"buses": buses, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
+    nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
+    return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
+
+
+def activation(m: model.Model, task: model.Task, acc: _Analysis) -> tuple[int | None, int | None]:
+    """(shortest interval, jitter) of a task's activations; jitter None when its message has no bound."""
+    if task.on_message is not None:
+        d = acc.chained.get(task.on_message)
+        if d is None or d.worst_ns is None:
+            return m.messages[task.on_message].interval_ns, None
+        return m.messages[task.on_message].interval_ns, d.worst_ns - d.best_ns
+    if task.trigger is not None:
+        return m.triggers[task.trigger].interval_ns, 0
+    if task.sync_bus is not None and task.sync_bus in acc.canopen:
+        sync = acc.canopen[task.sync_bus].sync  # the SYNC frame may be held up by arbitration
+        return task.period_ns, None if sync.worst_ns is None else sync.worst_ns - sync.best_ns
+    return task.period_ns, 0
+
+
+def analyze_node(m: model.Model, node: model.Node, acc: _Analysis, diags: Collector) -> dict[str, Any]:
+    """Response time of each task on the node's processor; a node above 100 % is an error."""
+    tasks = []
+    unbounded_input = set()
+    for task in node.tasks.values():
+        interval, jitter = activation(m, task, acc)
+        if jitter is None:
+            unbounded_input.add(task.name)
+        tasks.append(cpu.CpuTask(task.name, task.wcet_ns, interval, jitter or 0, task.priority))
+    load_ = cpu.utilisation(tasks)
+    if cpu.overloaded(tasks):
+        diags.add(
+            "cpu-overload",
+            f"node '{node.name}' needs {load_:.1%} of its processor for its tasks ({load_ - 1:.1%} too much): "
+            "shorten their execution times or lengthen their periods",
+            m.source.at(node.path),
+        )
+    response = cpu.analyse(tasks, node.scheduling)
+    rows = []
+    for rank, t in enumerate(cpu.priority_order(tasks)):
+        r = None if t.name in unbounded_input else response[t.name]
+        # flows time a task from its actual activation, whose lateness they already count: R - J
+        acc.task_ns[f"{node.name}.{t.name}"] = None if r is None else r - t.j_ns
+        rows.append(
+            {
+                "name": t.name,
+                "priority": rank,
+                "wcet_us": us(t.c_ns),
+                "interval_us": us(t.t_ns),
+                "jitter_us": us(t.j_ns),
+                "wcrt_us": us(r),
+            }
+        )
+    return {"name": node.name, "scheduling": node.scheduling, "utilization": round(load_, 6), "tasks": rows}
 
 
 def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
@@ -508,14 +561,14 @@ def _later(a: ethernet.PathDelay, b: ethernet.PathDelay) -> bool:
 
 
 def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collector) -> dict[str, Any]:
-    unsync, delivery = flows.unsynchronised(m, flow, acc.plain)
+    unsync, delivery = flows.unsynchronised(m, flow, acc.plain, acc.task_ns)
     sync = None
     ftt_bus = next(
         (m.messages[r].bus for s in flow.steps if s.kind == "message" for r in s.refs if m.messages[r].bus in acc.ftt),
         None,
     )
     if ftt_bus is not None:
-        sync = flows.synchronised(m, flow, acc.ftt[ftt_bus], acc.chained)
+        sync = flows.synchronised(m, flow, acc.ftt[ftt_bus], acc.chained, acc.task_ns)
     else:
         co_bus = next(
             (
@@ -538,7 +591,7 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
             None,
         )
         if co_bus is not None:
-            sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained)
+            sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained, acc.task_ns)
     lo, hi = sync[0] if sync else unsync
     out: dict[str, Any] = {
         "name": flow.name,

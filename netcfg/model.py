@@ -32,6 +32,7 @@ class Task:
     path: Path
     description: str | None = None
     sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
+    priority: int | None = None  # on its node's processor, 0 the highest; None: rate-monotonic
 
     @property
     def ref(self) -> str:
@@ -52,6 +53,7 @@ class Node:
     tasks: dict[str, Task]
     path: Path
     description: str | None = None
+    scheduling: Literal["preemptive", "non-preemptive"] = "preemptive"  # fixed-priority, of its tasks
 
 
 @dataclass(frozen=True)

@@ -151,7 +151,8 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     """With a 4 ms cycle and 2.5 ms windows, the 2950 us above (every frame counted once, as 2950 < 4000) no
     longer fit: 450 us too late. The load, 2365 bits per 4 ms = 0.59, is still fine. And the master cannot keep
     the cycle either: its control step starts 2500 us after SYNC, up to 13 us late (master_jitter), and writes for
-    up to 8557.3 us (Table 5): done 11,070.3 us after SYNC, long after the next SYNC is due at 4000 us."""
+    up to 8557.3 us (Table 5): done 11,070.3 us after SYNC, long after the next SYNC is due at 4000 us. Its
+    processor is over its capacity too: that task (WCET 8557.3 us, every 4 ms) needs 214 %."""
     data = load_spec("allex2.yaml")
     data["buses"][0]["canopen"].update(sync_period="4 ms", sync_window="2500 us", read_window="2500 us")
     data["nodes"][0]["tasks"][0]["offset"] = "2500 us"  # the master's control step follows the read window
@@ -162,11 +163,12 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     code, report = cli_json("check", str(path))
     assert code == 1
-    assert [e["code"] for e in report["errors"]] == ["sync-cycle", "master-cycle"]
-    err = report["errors"][0]
+    assert sorted(e["code"] for e in report["errors"]) == ["cpu-overload", "master-cycle", "sync-cycle"]
+    assert any("needs 213.9% of its processor" in e["message"] for e in report["errors"])
+    err = next(e for e in report["errors"] if e["code"] == "sync-cycle")
     assert "SYNC cycle 0" in err["message"] and "2950 us after SYNC, 450 us too late" in err["message"]
     assert err["file"] == str(path) and err["line"] >= 1
-    master = report["errors"][1]
+    master = next(e for e in report["errors"] if e["code"] == "master-cycle")
     assert "ends up to 11.0703 ms after SYNC" in master["message"], master["message"]
     assert master["file"] == str(path) and master["line"] >= 1
 

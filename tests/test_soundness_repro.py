@@ -83,3 +83,19 @@ def test_05_lsw_checked_at_every_period_inside_the_range() -> None:
     report = check(next(DATA.glob("05-*.yaml")))
     assert codes(report) == ["lsw"]
     assert "EC 3" in report["errors"][0]["message"] and "1080 us" in report["errors"][0]["message"]
+
+
+def test_07_unsynchronised_refresh_is_the_slowest_period() -> None:
+    """t_pack and enc may run at 4 EC (nominal and slowest of [1 EC, 4 EC]): the data reaching c.use is renewed
+    every 20 ms, so it may be 100 (pack) + 340 (enc's frame) + 20000 = 20440 us old; without the range the same."""
+    flow = check(next(DATA.glob("07-*.yaml")))["flows"][0]
+    assert flow["unsynchronised"]["latency_max_us"] == 20440
+
+
+def test_08_node_over_its_processor_is_an_error_and_its_flow_unbounded() -> None:
+    """ecu runs two tasks of 7 ms every 10 ms: 14 / 10 = 140 % of its processor."""
+    report = check(next(DATA.glob("08-*.yaml")))
+    assert codes(report) == ["cpu-overload"] and "140.0%" in report["errors"][0]["message"]
+    assert report["flows"][0]["latency_max_us"] is None
+    ecu = next(n for n in report["nodes"] if n["name"] == "ecu")
+    assert ecu["utilization"] == 1.4 and [t["wcrt_us"] for t in ecu["tasks"]] == [7000, None]

@@ -235,6 +235,7 @@ class Resolver:
                 path=path,
                 tx_delay_ns=self.ns(n.tx_delay, (*path, "tx_delay"), None) or 0,
                 rx_delay_ns=self.ns(n.rx_delay, (*path, "rx_delay"), None) or 0,
+                scheduling=n.scheduling,
             )
 
     def resolve_task(self, node: str, t: schema.Task, path: Path, ec: int | None) -> model.Task:
@@ -277,6 +278,7 @@ class Resolver:
             on_message=t.on_message,
             path=path,
             sync_bus=sync_bus,
+            priority=t.priority,
         )
 
     # -- messages ------------------------------------------------------------------------------------------

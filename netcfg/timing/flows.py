@@ -52,16 +52,34 @@ def _add(a: int | None, b: int | None) -> int | None:
     return None if a is None or b is None else a + b
 
 
+TaskTimes = dict[str, int | None]  # node.task -> worst-case response time on its processor (None: unbounded)
+
+
+def task_response(task: model.Task, task_ns: TaskTimes | None) -> int | None:
+    """From a task's activation to its end: its response time on its processor (its WCET when not analysed)."""
+    if task_ns is None or task.ref not in task_ns:
+        return task.wcet_ns
+    return task_ns[task.ref]
+
+
 def task_period(m: model.Model, task: model.Task) -> int | None:
+    """How long a free-running task may take to come round again: the slowest admissible activation period."""
     if task.on_message is not None:
         return 0
     if task.trigger is not None:
-        return m.triggers[task.trigger].interval_ns
+        trigger = m.triggers[task.trigger]
+        return trigger.slowest_ns or trigger.period_ns
     return task.period_ns
 
 
+def message_period(msg: model.Message) -> int | None:
+    """How long a periodic message may take to be sent again: the slowest period of a period_range, else its period
+    (a sporadic message: its minimum inter-arrival time, all that is known)."""
+    return msg.slowest_ns or msg.period_ns or msg.interval_ns
+
+
 def unsynchronised(
-    m: model.Model, flow: model.Flow, chained: dict[str, Delivery]
+    m: model.Model, flow: model.Flow, chained: dict[str, Delivery], task_ns: TaskTimes | None = None
 ) -> tuple[tuple[int, int | None], tuple[int, int | None] | None]:
     lo, hi = 0, 0  # type: int, int | None
     refresh: int | None = None  # how often the data reaching this step is renewed
@@ -77,15 +95,16 @@ def unsynchronised(
                 d = chained[ref]
                 wait = 0
                 if msg.kind == "periodic" and i and not _sent_by_producer(m, msg, prev):
-                    wait = _sampling(msg.interval_ns, refresh)
+                    wait = _sampling(message_period(msg), refresh)
                 outs.append((lo + d.best_ns, _add(_add(hi, wait), d.worst_ns)))
-                periods.append(msg.interval_ns or 0)
+                periods.append(message_period(msg) or 0)
             else:
                 task = m.task(ref)
                 period = task_period(m, task)
                 wait = _sampling(period, refresh) if i and task.on_message is None else 0
                 start_hi = _add(hi, wait)
-                outs.append((lo, start_hi) if last else (lo + task.bcet_ns, _add(start_hi, task.wcet_ns)))
+                end_hi = _add(start_hi, task_response(task, task_ns))
+                outs.append((lo, start_hi) if last else (lo + task.bcet_ns, end_hi))
                 periods.append(period or 0)
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
@@ -110,7 +129,7 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
         return False
     for ref in prev.refs:
         task = m.task(ref)
-        if task.node == msg.producer and task_period(m, task) in (msg.period_ns, msg.interval_ns):
+        if task.node == msg.producer and task_period(m, task) in (msg.period_ns, message_period(msg)):
             return True
     return False
 
@@ -135,7 +154,7 @@ def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
 
 
 def synchronised(
-    m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery]
+    m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery], task_ns: TaskTimes | None = None
 ) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
     """Latency range over every start instance in the macro-cycle; None when some step is not time-triggered."""
     s = ftt.schedule
@@ -169,7 +188,7 @@ def synchronised(
         for ref in step.refs:
             if step.kind == "task":
                 task = m.task(ref)
-                if task.trigger is None and task.on_message is None:
+                if (task.trigger is None and task.on_message is None) or task_response(task, task_ns) is None:
                     return None
             elif ref not in chained:
                 return None
@@ -213,7 +232,8 @@ def synchronised(
                         a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
                     else:  # started by a message
                         a_lo, a_hi = lo, hi
-                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + task.wcet_ns))
+                    busy = task_response(task, task_ns) or 0  # bounded: checked above
+                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
             if step.kind == "message":
                 got = (lo, hi)
@@ -261,7 +281,12 @@ class SyncTimes:
 
 
 def synchronised_canopen(
-    m: model.Model, flow: model.Flow, bus: str, st: SyncTimes, chained: dict[str, Delivery]
+    m: model.Model,
+    flow: model.Flow,
+    bus: str,
+    st: SyncTimes,
+    chained: dict[str, Delivery],
+    task_ns: TaskTimes | None = None,
 ) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
     """SYNC-driven CANopen (seed 000): SYNC tasks run a fixed offset after each SYNC, synchronous TPDOs sample at
     SYNC and are done by the cycle's completion; other messages go out when their producer has the data.
@@ -306,7 +331,7 @@ def synchronised_canopen(
         for ref in step.refs:
             if step.kind == "task":
                 task = m.task(ref)
-                if task.sync_bus != bus and task.on_message is None:
+                if (task.sync_bus != bus and task.on_message is None) or task_response(task, task_ns) is None:
                     return None
             elif ref not in st.every and (chained.get(ref) is None or chained[ref].worst_ns is None):
                 return None
@@ -348,7 +373,8 @@ def synchronised_canopen(
                         a_hi = on_sync(1, activation(task), hi, True)[1]
                     else:  # started by a message
                         a_lo, a_hi = lo, hi
-                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + task.wcet_ns))
+                    busy = task_response(task, task_ns) or 0  # bounded: checked above
+                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
             if step.kind == "message":
                 got = (lo, hi)

@@ -1,0 +1,50 @@
+"""Task response times on one processor (netcfg.timing.cpu) against textbook task sets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from conftest import check_data
+
+from netcfg.timing.cpu import CpuTask, analyse
+
+MS = 1_000_000
+
+
+def test_preemptive_rate_monotonic_textbook_set() -> None:
+    """Buttazzo, Hard Real-Time Computing Systems (3rd ed.), the classic RTA example (C, T) = (1, 4), (2, 6),
+    (3, 10) in ms, rate-monotonic: R1 = 1; R2 = 2 + ceil(3/4) = 3; R3: 3 + 1 + 2 = 6 -> 3 + 2x1 + 1x2 = 7 ->
+    3 + 2x1 + 2x2 = 9 -> 3 + 3x1 + 2x2 = 10 -> 10 (fixed point, = its period)."""
+    tasks = [CpuTask("t3", 3 * MS, 10 * MS), CpuTask("t1", 1 * MS, 4 * MS), CpuTask("t2", 2 * MS, 6 * MS)]
+    assert analyse(tasks) == {"t1": 1 * MS, "t2": 3 * MS, "t3": 10 * MS}
+
+
+def test_non_preemptive_adds_lower_priority_blocking() -> None:
+    """Same set, non-preemptive (1 ns quantum): t1 can be blocked by t3's 3 ms: R1 = 3 + 1 = 4 ms, as long as its
+    period. t3 (lowest) waits for t1 and t2 released with it: w = ceil((w + 1 ns)/4) x 1 + ceil((w + 1 ns)/6) x 2
+    = 3 ms, R3 = 3 + 3 = 6 ms."""
+    tasks = [CpuTask("t1", 1 * MS, 4 * MS), CpuTask("t2", 2 * MS, 6 * MS), CpuTask("t3", 3 * MS, 10 * MS)]
+    r = analyse(tasks, "non-preemptive")
+    assert r["t1"] == 4 * MS and r["t3"] == 6 * MS
+
+
+def test_given_priorities_override_rate_monotonic(tmp_path: Path) -> None:
+    """A spec priority 0 on the slow 3 ms task puts it first: the 1 ms task every 4 ms then waits 3 ms: R = 4 ms."""
+    spec = {
+        "system": "cpu",
+        "buses": [{"name": "can0", "protocol": "can", "bitrate": "500 kbit/s"}],
+        "nodes": [
+            {
+                "name": "ecu",
+                "buses": ["can0"],
+                "tasks": [
+                    {"name": "fast", "period": "4 ms", "wcet": "1 ms"},
+                    {"name": "slow", "period": "10 ms", "wcet": "3 ms", "priority": 0},
+                ],
+            },
+            {"name": "b", "buses": ["can0"]},
+        ],
+        "messages": [{"name": "m", "id": 1, "producer": "ecu", "consumers": ["b"], "size": 1, "period": "10 ms"}],
+    }
+    node = check_data(tmp_path, spec)["nodes"][0]
+    assert [(t["name"], t["wcrt_us"]) for t in node["tasks"]] == [("slow", 3000), ("fast", 4000)]
