@@ -6,11 +6,12 @@ correct figure with its derivation. Every figure asserted here is derived in tha
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
 import yaml
-from conftest import bus, check, check_data, message
+from conftest import bus, check, check_data, cli, cli_json, message
 
 DATA = Path(__file__).parent / "data" / "soundness"
 
@@ -99,3 +100,26 @@ def test_08_node_over_its_processor_is_an_error_and_its_flow_unbounded() -> None
     assert report["flows"][0]["latency_max_us"] is None
     ecu = next(n for n in report["nodes"] if n["name"] == "ecu")
     assert ecu["utilization"] == 1.4 and [t["wcrt_us"] for t in ecu["tasks"]] == [7000, None]
+
+
+def test_10_a_slow_message_does_not_silence_its_node(tmp_path: Path) -> None:
+    """'fast' (10 ms) of a node that also sends an hourly message: about 10 s / 10 ms = 1000 frames in 10 s
+    (one fewer when the clock's phase falls late in the first period)."""
+    code, doc = cli_json("simulate", str(next(DATA.glob("10-*.yaml"))), "--duration", "10s", "--seed", "0")
+    fast = next(m for m in doc["messages"] if m["name"] == "fast")
+    assert code == 0 and 999 <= fast["count"] <= 1000
+
+
+def test_simulate_exits_1_with_one_line_per_measured_range_outside_the_analysis(tmp_path: Path) -> None:
+    """A runtime configuration whose analysed bound is below what the bus can do: 'fast' is an 8-byte frame of
+    at least 111 bits (270 us worst) at 500 kbit/s, so a stated wcrt of 100 us must be exceeded by every frame."""
+    assert cli("build", str(next(DATA.glob("10-*.yaml"))), "-o", str(tmp_path / "out")).returncode == 0
+    runtime = tmp_path / "out" / "runtime.json"
+    doc = json.loads(runtime.read_text(encoding="utf-8"))
+    next(m for m in doc["messages"] if m["name"] == "fast")["wcrt_ns"] = 100_000
+    runtime.write_text(json.dumps(doc), encoding="utf-8")
+    proc = cli("simulate", str(runtime), "--duration", "1s", "--format", "json")
+    out = json.loads(proc.stdout)
+    assert proc.returncode == 1 and out["exceeds_analysis"] == ["fast"]
+    assert next(m for m in out["messages"] if m["name"] == "fast")["within_analysis"] is False
+    assert proc.stderr.splitlines() == [out["violations"][0].join(("netcfg: outside the analysis: ", ""))]

@@ -126,7 +126,8 @@ def summary(res: RunResult) -> dict[str, Any]:
     """The JSON document of `netcfg simulate --format json`."""
     messages = []
     misses = 0
-    exceeded = []
+    exceeded = []  # messages and flows whose measured range leaves the analysed one
+    violations = []  # one line each
     for name in res.response:
         r = res.response[name]
         d = res.deadline.get(name)
@@ -136,6 +137,7 @@ def summary(res: RunResult) -> dict[str, Any]:
         over = bool(len(r) and w is not None and int(r.max()) > w)
         if over:
             exceeded.append(name)
+            violations.append(f"message {name}: took up to {int(r.max()) / 1000:g} us, analysed {w / 1000:g} us")
         messages.append(
             {
                 "name": name,
@@ -155,6 +157,12 @@ def summary(res: RunResult) -> dict[str, Any]:
         within = None
         if len(lat) and lo is not None and hi is not None:
             within = bool(lo <= int(lat.min()) and int(lat.max()) <= hi)
+            if not within:
+                exceeded.append(name)
+                violations.append(
+                    f"flow {name}: measured {int(lat.min()) / 1000:g}-{int(lat.max()) / 1000:g} us, "
+                    f"analysed {lo / 1000:g}-{hi / 1000:g} us"
+                )
         flows.append(
             {
                 "name": name,
@@ -179,6 +187,7 @@ def summary(res: RunResult) -> dict[str, Any]:
         "error_frames": res.error_frames,
         "unsent_at_end": res.unsent_at_end,
         "exceeds_analysis": exceeded,
+        "violations": violations,
         "analysis_has_error_model": False,
         "protocols": res.protocols if res.runs == 1 else {k: v[:1] for k, v in res.protocols.items()},
     }
@@ -238,6 +247,8 @@ def text(doc: dict[str, Any]) -> str:
         lines += ["", *_protocol_text(bus, reports[0])]
     for finding in doc.get("findings", []):
         lines += ["", f"  finding: {finding}"]
+    if doc.get("violations"):
+        lines += ["", "  outside the analysis:", *(f"    {v}" for v in doc["violations"])]
     if doc.get("note"):
         lines.append("")
         lines.append("  " + doc["note"])
