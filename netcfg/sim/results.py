@@ -135,7 +135,7 @@ def summary(res: RunResult) -> dict[str, Any]:
         late = int((r > d).sum()) if d is not None and len(r) else 0
         misses += late
         over = bool(len(r) and w is not None and int(r.max()) > w)
-        if over:
+        if over and w is not None:
             exceeded.append(name)
             violations.append(f"message {name}: took up to {int(r.max()) / 1000:g} us, analysed {w / 1000:g} us")
         messages.append(
