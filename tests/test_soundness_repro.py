@@ -123,3 +123,12 @@ def test_simulate_exits_1_with_one_line_per_measured_range_outside_the_analysis(
     assert proc.returncode == 1 and out["exceeds_analysis"] == ["fast"]
     assert next(m for m in out["messages"] if m["name"] == "fast")["within_analysis"] is False
     assert proc.stderr.splitlines() == [out["violations"][0].join(("netcfg: outside the analysis: ", ""))]
+
+
+def test_06_ethernet_jitter_propagates_across_switches() -> None:
+    """x_a and x_b leave swa/swb bunched behind two 123.04 us frames (busy period 313.28 us, jitter
+    313.28 - 6.72 = 306.56 us); on sw->r each counts ceil((w + 306.56) / 33.6) frames:
+    w = 2 * ceil((w + 306.56) / 33.6) * 6.72 + 6.72 = 221.76 us, so v <= 2 x 6.72 + 221.76 - 6.72 = 228.48 us."""
+    lan = bus(check(next(DATA.glob("06-*.yaml"))), "lan")
+    assert next(ll for ll in lan["links"] if (ll["from"], ll["to"]) == ("sw", "r"))["busy_period_us"] == 221.76
+    assert message(lan, "v")["wcrt_us"] == 228.48
