@@ -592,7 +592,13 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
         )
         if co_bus is not None:
             sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained, acc.task_ns)
-    lo, hi = sync[0] if sync else unsync
+    if sync:
+        lo, hi = sync[0]
+    elif ftt_bus is not None:  # free-running steps around FTT-CAN windows: the windows' own delivery times
+        scheduled = frozenset(acc.ftt[ftt_bus].entries)
+        lo, hi = flows.unsynchronised(m, flow, acc.chained, acc.task_ns, scheduled)[0]
+    else:
+        lo, hi = unsync
     out: dict[str, Any] = {
         "name": flow.name,
         "mode": "synchronised" if sync else "unsynchronised",

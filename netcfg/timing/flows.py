@@ -79,8 +79,14 @@ def message_period(msg: model.Message) -> int | None:
 
 
 def unsynchronised(
-    m: model.Model, flow: model.Flow, chained: dict[str, Delivery], task_ns: TaskTimes | None = None
+    m: model.Model,
+    flow: model.Flow,
+    chained: dict[str, Delivery],
+    task_ns: TaskTimes | None = None,
+    scheduled: frozenset[str] = frozenset(),
 ) -> tuple[tuple[int, int | None], tuple[int, int | None] | None]:
+    """Free-running steps. `scheduled` messages (FTT-CAN synchronous) go out in their own ECs, never at once
+    when their producer finishes: they wait for their slot as any message with its own period does."""
     lo, hi = 0, 0  # type: int, int | None
     refresh: int | None = None  # how often the data reaching this step is renewed
     delivery: tuple[int, int | None] | None = None
@@ -94,7 +100,7 @@ def unsynchronised(
                 msg = m.messages[ref]
                 d = chained[ref]
                 wait = 0
-                if msg.kind == "periodic" and i and not _sent_by_producer(m, msg, prev):
+                if msg.kind == "periodic" and i and (ref in scheduled or not _sent_by_producer(m, msg, prev)):
                     wait = _sampling(message_period(msg), refresh)
                 outs.append((lo + d.best_ns, _add(_add(hi, wait), d.worst_ns)))
                 periods.append(message_period(msg) or 0)
