@@ -592,6 +592,8 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
         )
         if co_bus is not None:
             sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained, acc.task_ns)
+    lo: int
+    hi: int | None
     if sync:
         lo, hi = sync[0]
     elif ftt_bus is not None:  # free-running steps around FTT-CAN windows: the windows' own delivery times
