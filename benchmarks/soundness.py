@@ -117,7 +117,11 @@ def ftt_spec(draw: st.DrawFn) -> dict[str, Any]:
                 "name": "bus",
                 "protocol": "ftt-can",
                 "bitrate": draw(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
-                "ftt": {"ec": f"{ec_ms} ms", "tm_size": draw(st.integers(1, 8))},
+                "ftt": {
+                    "ec": f"{ec_ms} ms",
+                    "tm_size": draw(st.integers(1, 8)),
+                    "windows": draw(st.sampled_from(["async-first", "sync-first"])),
+                },
             }
         ],
         "nodes": [{"name": "master", "role": "master", "buses": ["bus"]}]

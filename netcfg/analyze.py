@@ -432,6 +432,7 @@ def analyze_ftt(
         "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
         "lsw_us": us(sched.lsw_ns),
         "master": bus.ftt.master,
+        "windows": "sync-first" if sched.sync_first else "async-first",
         "macro_cycle_ec": sched.macro_cycle,
         "srt": [srt_row(e) for e in entries],
         "worst_ec": {

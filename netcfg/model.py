@@ -143,6 +143,7 @@ class FttBus:
     lsw_ns: int  # the spec's LSW, by default EC - TM (the whole EC after the trigger message)
     tm_id: int
     master: str
+    sync_first: bool = False  # the synchronous window follows the trigger message (default: it closes the EC)
 
 
 @dataclass(frozen=True)

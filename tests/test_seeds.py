@@ -250,3 +250,22 @@ def test_treadmill_checks() -> None:
     assert report["ok"]
     lan = bus(report, "lan")
     assert lan["utilization"] == pytest.approx(0.0672)
+
+
+def test_cambada_window_layouts_against_table_3(tmp_path: Path) -> None:
+    """Table 3 (FTT-CAN): Motion 26.7-27.7 ms (velocity vector sent -> set-point received at a motor), Odometry
+    21.6-21.7 ms (encoder read -> position received at the gateway). With the paper's layout (asynchronous window
+    first, the synchronous one closing the EC) Motion's delivery lies within 1 ms of its row and Odometry does not:
+    its position messages close EC 4 (~24.6 ms after the read at EC 0's trigger). With `windows: sync-first` the
+    position messages follow EC 4's trigger message and Odometry lies within 1 ms of its row, but Motion's set-point
+    then arrives 25.46 ms after the velocity window opens, 1.24 ms short of 26.7 ms. No single layout fits both."""
+    flows = {f["name"]: f for f in check(SPECS / "cambada.yaml")["flows"]}
+    motion, odometry = flows["motion"]["synchronised"], flows["odometry"]["synchronised"]
+    assert motion["delivery_min_us"] >= 26_700 - 1_000 and motion["delivery_max_us"] <= 27_700 + 1_000
+    assert odometry["latency_max_us"] > 21_700 + 1_000
+    data = load_spec("cambada.yaml")
+    data["buses"][0]["ftt"]["windows"] = "sync-first"
+    flows = {f["name"]: f for f in check_data(tmp_path, data)["flows"]}
+    motion, odometry = flows["motion"]["synchronised"], flows["odometry"]["synchronised"]
+    assert odometry["latency_min_us"] >= 21_600 - 1_000 and odometry["latency_max_us"] <= 21_700 + 1_000
+    assert motion["delivery_min_us"] < 26_700 - 1_000

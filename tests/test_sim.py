@@ -21,6 +21,7 @@ from typing import Any
 import can
 import cantools
 import pytest
+import yaml
 from conftest import ROOT, cli
 
 from netcfg import runtime
@@ -512,3 +513,19 @@ def test_histograms_are_written_for_flows_and_analysed_messages(tmp_path: Path) 
     assert len([n for n in names if n.startswith("msg_")]) == 17
     for p in written:
         assert Path(p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+
+def test_cambada_sync_first_odometry_matches_table_3(tmp_path: Path) -> None:
+    """With the synchronous window right after the trigger message, Odometry (Table 3: 21.6-21.7 ms, encoder read
+    to position received) is simulated within 1 ms of the paper, and every flow stays inside its analysed range."""
+    spec = yaml.safe_load((ROOT / "specs" / "cambada.yaml").read_text(encoding="utf-8"))
+    spec["buses"][0]["ftt"]["windows"] = "sync-first"
+    path = tmp_path / "cambada.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    proc = cli("simulate", str(path), "--duration", "3s", "--format", "json")
+    doc = json.loads(proc.stdout)
+    assert proc.returncode == 0, proc.stderr
+    odo = flow(doc, "odometry")["latency_us"]
+    assert odo["min"] >= 21_600 - 1_000 and odo["max"] <= 21_700 + 1_000
+    assert all(f["within_analysis"] for f in doc["flows"])

@@ -99,6 +99,7 @@ def _ftt(m: model.Model, b: model.Bus) -> dict[str, Any] | None:
         "lsw_ns": sched.lsw_ns,  # the default (EC - TM) filled in, as the analysis used it
         "master": b.ftt.master,
         "macro_cycle_ec": sched.macro_cycle,
+        "windows": "sync-first" if sched.sync_first else "async-first",
         "srt": [
             {
                 "ftt_id": e.ftt_id,

@@ -324,6 +324,7 @@ class FttParams:
     macro_cycle_ec: int
     srt: tuple[SrtEntry, ...]
     schedule: tuple[EcSlot, ...]  # one per EC of the macro-cycle
+    sync_first: bool = False  # the synchronous window right after the TM (default: it closes the EC)
 
     def slot(self, ec: int) -> EcSlot:
         """The EC-schedule of elementary cycle ec (counted from the first, wrapping over the macro-cycle)."""
@@ -331,7 +332,15 @@ class FttParams:
 
     def window_start(self, ec: int) -> int:
         """Start of EC ec's synchronous window, from the EC start (as netcfg.timing.ftt.Schedule.window_start)."""
+        if self.sync_first:
+            return self.tm_ns
         return self.ec_ns - self.slot(ec).sync_ns
+
+    def async_window(self, ec: int) -> tuple[int, int]:
+        """EC ec's asynchronous window, from the EC start: (start, end by which a frame must be done)."""
+        if self.sync_first:
+            return self.tm_ns + self.slot(ec).sync_ns, self.ec_ns
+        return 0, self.window_start(ec)
 
 
 @dataclass(frozen=True)
@@ -720,6 +729,7 @@ def _ftt(d: dict[str, Any]) -> FttParams:
             )
             for s in d["schedule"]
         ),
+        sync_first=d.get("windows", "async-first") == "sync-first",
     )
 
 

@@ -178,6 +178,12 @@ class FttParams(SpecModel):
         0x100, ge=0, description="CAN id of a synchronous message without an explicit id = this + its FTT id"
     )
     master: Name | None = Field(None, description="node that sends the trigger message (default: role master)")
+    windows: Literal["async-first", "sync-first"] = Field(
+        "async-first",
+        description="order of the windows after the trigger message: the asynchronous window first and the "
+        "synchronous one closing the EC (the default, as the FTT-CAN papers describe it), or the synchronous "
+        "window right after the trigger message",
+    )
 
 
 class CanopenParams(SpecModel):

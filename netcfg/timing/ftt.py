@@ -4,9 +4,10 @@ Following Almeida, Pedreiras and Fonseca, "The FTT-CAN protocol: why and how", I
 Industrial Electronics 49(6), 2002, and the CAMBADA paper (seed 002, section 5.1): the master starts every
 elementary cycle (EC) with the trigger message (TM), whose EC-schedule has one bit per synchronous id due in
 that EC (messages and task triggers). The asynchronous window follows the TM; the synchronous window closes
-the EC, its length the worst-case transmission time of the messages due, bounded by LSW. An asynchronous
-frame is started only if it can finish before the synchronous window, so up to one maximum asynchronous frame
-of inserted idle time precedes it (Almeida and Fonseca, "Analysis of a simple model for non-preemptive
+the EC, its length the worst-case transmission time of the messages due, bounded by LSW (the bus field
+`windows: sync-first` swaps them: the synchronous window right after the TM, the asynchronous one closing the
+EC). An asynchronous frame is started only if it can finish before the next window, so up to one maximum
+asynchronous frame of inserted idle time precedes it (Almeida and Fonseca, "Analysis of a simple model for non-preemptive
 blocking-free scheduling", ECRTS 2001).
 
 Asynchronous messages are analysed as in Pedreiras and Almeida, "Combining event-triggered and time-triggered
@@ -71,6 +72,7 @@ class Schedule:
     lsw_ns: int
     entries: tuple[SrtEntry, ...]
     slots: tuple[EcSlot, ...]  # one per EC of the macro-cycle
+    sync_first: bool = False  # the synchronous window right after the TM, the asynchronous one closing the EC
 
     @property
     def macro_cycle(self) -> int:
@@ -78,7 +80,13 @@ class Schedule:
 
     def window_start(self, ec: int) -> int:
         """Start of EC ec's synchronous window, from the EC start."""
+        if self.sync_first:
+            return self.tm_ns
         return self.ec_ns - self.slots[ec % self.macro_cycle].sync_ns
+
+    def async_start(self, ec: int) -> int:
+        """Start of EC ec's asynchronous window, from the EC start: after the TM, or after the synchronous window."""
+        return self.tm_ns + (self.slots[ec % self.macro_cycle].sync_ns if self.sync_first else 0)
 
     def completion(self, name: str, ec: int, frame_ns: dict[str, tuple[int, int]]) -> tuple[int, int]:
         """(best, worst) end of message `name`'s frame in EC ec, from the EC start. frame_ns gives each
@@ -182,7 +190,7 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
         slots.append(
             EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
         )
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots))
+    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
 
 
 def envelope_schedule(bus: model.Bus, entries: list[SrtEntry]) -> Schedule:
@@ -220,7 +228,7 @@ def envelope_schedule(bus: model.Bus, entries: list[SrtEntry]) -> Schedule:
         slots.append(
             EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
         )
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots))
+    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
 
 
 def ec_schedule_mask(slot: EcSlot) -> int:
@@ -307,13 +315,13 @@ def _async_worst(sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[Asy
 def _time_to_serve(sched: Schedule, supply: list[int], start: int, demand: int) -> int:
     """Time, from the end of EC start's usable asynchronous window, until `demand` ns of asynchronous
     service have been given in the following ECs' windows."""
-    ec, tm, n = sched.ec_ns, sched.tm_ns, sched.macro_cycle
-    origin = start * ec + tm + supply[start]  # just too late to start in this EC's window
+    ec, n = sched.ec_ns, sched.macro_cycle
+    origin = start * ec + sched.async_start(start) + supply[start]  # just too late to start in this EC's window
     k = start + 1
     left = demand
     while True:
         cap = supply[k % n]
         if left <= cap:
-            return k * ec + tm + left - origin
+            return k * ec + sched.async_start(k) + left - origin
         left -= cap
         k += 1
