@@ -421,6 +421,7 @@ def analyze_ftt(
             row["window"] = "async"
         set_verdict(row, wcrt, msg.deadline_ns)
         row["wcrt_plain_can_us"] = us(acc.plain[msg.name].worst_ns)
+        row["wcrt_plain_can_ns"] = acc.plain[msg.name].worst_ns  # exact, for runtime.json
         acc.chained[msg.name] = flows.Delivery(frame_ns[msg.name][0], wcrt)
     worst = max(sched.slots, key=lambda s: (s.sync_ns, -s.index))
     worst_fast = max(fastest.slots, key=lambda s: (s.sync_ns, -s.index))

@@ -87,7 +87,7 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
             res.lost[src.name] = can.dropped.get(src.index, 0)
             res.retransmissions[src.name] = can.retries.get(src.index, 0)
             res.unsent_at_end += pending.get(src.index, 0)
-            _bounds(res, src.name, known.get(src.name))
+            _bounds(res, src.name, known.get(src.name), sc.opts.mode == "unsync")
         res.error_frames += can.error_frames
     for name, n in sc.lost.items():  # losses no bus saw (a crashed task's Ethernet sends)
         res.lost[name] = res.lost.get(name, 0) + n
@@ -97,7 +97,7 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
             for name, release, end in records():
                 res.response[name] = np.asarray(end, dtype=np.int64) - np.asarray(release, dtype=np.int64)
                 res.sent[name] = len(res.response[name])
-                _bounds(res, name, known.get(name))
+                _bounds(res, name, known.get(name), sc.opts.mode == "unsync")
                 res.frames += len(res.response[name])
             for name, n in getattr(driver, "lost_by_message", dict)().items():
                 res.lost[name] = res.lost.get(name, 0) + n
@@ -115,11 +115,11 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
     return res
 
 
-def _bounds(res: RunResult, name: str, m: Message | None) -> None:
-    """A message's deadline and analysed worst case; None for frames the configuration does not list (the TM, a
-    babbler's frames)."""
+def _bounds(res: RunResult, name: str, m: Message | None, unsync: bool = False) -> None:
+    """A message's deadline and analysed worst case (free-running CAN's when the run is unsynchronised); None for
+    frames the configuration does not list (the TM, a babbler's frames)."""
     res.deadline[name] = m.deadline_ns if m else None
-    res.wcrt[name] = m.wcrt_ns if m else None
+    res.wcrt[name] = (m.wcrt_unsync_ns if unsync and m.wcrt_unsync_ns is not None else m.wcrt_ns) if m else None
 
 
 def summary(res: RunResult) -> dict[str, Any]:

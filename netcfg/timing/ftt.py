@@ -7,8 +7,8 @@ that EC (messages and task triggers). The asynchronous window follows the TM; th
 the EC, its length the worst-case transmission time of the messages due, bounded by LSW (the bus field
 `windows: sync-first` swaps them: the synchronous window right after the TM, the asynchronous one closing the
 EC). An asynchronous frame is started only if it can finish before the next window, so up to one maximum
-asynchronous frame of inserted idle time precedes it (Almeida and Fonseca, "Analysis of a simple model for non-preemptive
-blocking-free scheduling", ECRTS 2001).
+asynchronous frame of inserted idle time precedes it (Almeida and Fonseca, "Analysis of a simple model for
+non-preemptive blocking-free scheduling", ECRTS 2001).
 
 Asynchronous messages are analysed as in Pedreiras and Almeida, "Combining event-triggered and time-triggered
 traffic in FTT-CAN: analysis of the asynchronous messaging system", WFCS 2000: a message released just after
