@@ -38,8 +38,36 @@ def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
             buses.append(analyze_ethernet(m, bus, diags, acc))
         else:
             buses.append(analyze_can(m, bus, diags, acc))
+    for row, bus in zip(buses, m.buses.values()):
+        row["assumes"] = assumptions(bus)
     nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
     return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
+
+
+def assumptions(bus: model.Bus) -> list[str]:
+    """What the bounds of this bus rest on, in the user's terms (the README explains each)."""
+    if bus.protocol == "ethernet-udp":
+        return [
+            "full-duplex links; store-and-forward switches with FIFO egress queues that never drop, each switch's "
+            "latency as given",
+            "each message released at most once per period (or rate) with at most its jitter; upstream queueing "
+            "adds to the jitter seen downstream",
+            "no frame loss and no other traffic than the spec's",
+        ]
+    out = [
+        "every node queues its frames by priority (no FIFO transmit buffer, no priority inversion in the "
+        "controller); worst-case bit stuffing; no bus errors or retransmissions",
+        "periodic messages released at most once per (fastest) period, sporadic ones at most once per minimum "
+        "inter-arrival time, each at most its jitter late",
+    ]
+    if bus.ftt is not None:
+        out += [
+            "the master keeps an exact EC grid; triggered tasks start when the trigger message ends; synchronous "
+            "messages are queued at their window's start and go out in identifier order",
+            "inside a period_range the master may use any period, keeping the message's init EC",
+            "an asynchronous frame starts only if it ends before the next window (inserted idle time)",
+        ]
+    return out
 
 
 def activation(m: model.Model, task: model.Task, acc: _Analysis) -> tuple[int | None, int | None]:
