@@ -269,3 +269,11 @@ def test_cambada_window_layouts_against_table_3(tmp_path: Path) -> None:
     motion, odometry = flows["motion"]["synchronised"], flows["odometry"]["synchronised"]
     assert odometry["latency_min_us"] >= 21_600 - 1_000 and odometry["latency_max_us"] <= 21_700 + 1_000
     assert motion["delivery_min_us"] < 26_700 - 1_000
+
+
+def test_cambada_plain_can_bounds_contain_table_3() -> None:
+    """Table 3 (CAN, unsynchronised): Motion measured 38.8-64.4 ms, Odometry 12-21 ms. A sound analysis of the
+    same robot on plain CAN must contain both measured ranges."""
+    flows = {f["name"]: f["unsynchronised"] for f in check(SPECS / "cambada.yaml")["flows"]}
+    for name, (lo, hi) in {"motion": (38_800, 64_400), "odometry": (12_000, 21_000)}.items():
+        assert flows[name]["latency_min_us"] <= lo and hi <= flows[name]["latency_max_us"], name
