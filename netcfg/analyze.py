@@ -95,7 +95,8 @@ def analyze_node(m: model.Model, node: model.Node, acc: _Analysis, diags: Collec
             unbounded_input.add(task.name)
         tasks.append(cpu.CpuTask(task.name, task.wcet_ns, interval, jitter or 0, task.priority))
     load_ = cpu.utilisation(tasks)
-    if cpu.overloaded(tasks):
+    overloaded = cpu.overloaded(tasks)
+    if overloaded:
         diags.add(
             "cpu-overload",
             f"node '{node.name}' needs {load_:.1%} of its processor for its tasks ({load_ - 1:.1%} too much): "
@@ -103,6 +104,14 @@ def analyze_node(m: model.Model, node: model.Node, acc: _Analysis, diags: Collec
             m.source.at(node.path),
         )
     response = cpu.analyse(tasks, node.scheduling)
+    for t in tasks:
+        if response[t.name] is None and not overloaded and t.name not in unbounded_input:
+            diags.add(
+                "task-unbounded",
+                f"task '{node.name}.{t.name}' has no bounded response time: the tasks at its priority and above "
+                "fill the processor (exactly 100 % with jitter or blocking); shorten a WCET or lower a rate",
+                m.source.at(node.tasks[t.name].path),
+            )
     rows = []
     for rank, t in enumerate(cpu.priority_order(tasks)):
         r = None if t.name in unbounded_input else response[t.name]

@@ -48,3 +48,33 @@ def test_given_priorities_override_rate_monotonic(tmp_path: Path) -> None:
     }
     node = check_data(tmp_path, spec)["nodes"][0]
     assert [(t["name"], t["wcrt_us"]) for t in node["tasks"]] == [("slow", 3000), ("fast", 4000)]
+
+
+def test_exactly_full_processor_with_jitter_has_no_bound(tmp_path: Path) -> None:
+    """ecu runs 5 ms every 10 ms and 5 ms on each arrival of a 10 ms message: exactly 100 %, not over. The
+    message arrives with jitter J > 0 (its response varies), so the level-i demand 5 ceil((t + J)/10) +
+    5 ceil(t/10) ms exceeds t for every t: the second task has no bounded response, said at its position."""
+    spec = {
+        "system": "cpu",
+        "buses": [{"name": "can0", "protocol": "can", "bitrate": "500 kbit/s"}],
+        "nodes": [
+            {
+                "name": "ecu",
+                "buses": ["can0"],
+                "tasks": [
+                    {"name": "ctrl", "period": "10 ms", "wcet": "5 ms"},
+                    {"name": "rx", "on_message": "m", "wcet": "5 ms"},
+                ],
+            },
+            {"name": "b", "buses": ["can0"]},
+            {"name": "c", "buses": ["can0"]},
+        ],
+        "messages": [
+            {"name": "m", "id": 2, "producer": "b", "consumers": ["ecu"], "size": 8, "period": "10 ms"},
+            {"name": "n", "id": 1, "producer": "c", "consumers": ["b"], "size": 8, "period": "10 ms"},
+        ],
+    }
+    report = check_data(tmp_path, spec)
+    assert [e["code"] for e in report["errors"]] == ["task-unbounded"]
+    assert "ecu.rx" in report["errors"][0]["message"]
+    assert [t["wcrt_us"] for t in report["nodes"][0]["tasks"]] == [5000, None]
