@@ -1,12 +1,13 @@
 """Soundness: random specs of every protocol, analysed, then simulated; no simulated figure may leave its bound.
 
 Each spec is drawn by a hypothesis strategy (random periods, period ranges, offsets, sizes, jitters, priorities,
-identifiers, tasks and flows) over plain CAN, FTT-CAN and switched Ethernet. Specs that `check` refuses are
+identifiers, tasks and flows) over plain CAN, FTT-CAN, switched Ethernet and CANopen (SYNC, synchronous TPDOs
+every n-th SYNC, RxPDOs; flows through the CANopen master are not drawn). Specs that `check` refuses are
 skipped (they promise nothing). Every accepted spec is simulated twice: once with random clock phases and drift,
 once at the critical instant (every clock at 0, no drift), and every message and flow must stay inside its
 analysed range. The tightness of a bound is the worst simulated figure over the bound.
 
-    .venv/bin/python benchmarks/soundness.py --specs 10000          # the long run; prints the tightness
+    .venv/bin/python benchmarks/soundness.py --specs 2500           # 10,000 specs; prints the tightness
     .venv/bin/python benchmarks/soundness.py --specs 200 --protocol ftt-can
 
 tests/test_soundness.py runs the same check on a bounded number of specs in CI.
@@ -34,7 +35,7 @@ from netcfg.sim.montecarlo import run_once
 from netcfg.sim.results import summary
 from netcfg.sim.scenario import SimOptions
 
-PROTOCOLS = ("can", "ftt-can", "ethernet-udp")
+PROTOCOLS = ("can", "ftt-can", "ethernet-udp", "canopen")
 US = 1_000
 
 
@@ -178,6 +179,48 @@ def ethernet_spec(draw: st.DrawFn) -> dict[str, Any]:
     return spec
 
 
+@st.composite
+def canopen_spec(draw: st.DrawFn) -> dict[str, Any]:
+    """CANopen: a master and 1-6 EPOS4 drives; SYNC period, synchronous TPDOs (every n-th SYNC), periodic RxPDOs
+    with jitter, an optional sporadic message from the master."""
+    period_ms = draw(st.integers(2, 40))
+    drives = _names("d", draw(st.integers(1, 6)))
+    messages: list[dict[str, Any]] = []
+    for d in drives:
+        messages.append(
+            {
+                "name": f"{d}_cmd",
+                "producer": "master",
+                "consumers": [d],
+                "period": f"{period_ms * draw(st.integers(1, 3))} ms",
+                "pdo": {"rpdo": 1, "transmission": 255, "map": [0x60FF]},
+            }
+        )
+        for k in range(1, draw(st.integers(1, 2)) + 1):
+            messages.append(
+                {
+                    "name": f"{d}_tx{k}",
+                    "producer": d,
+                    "consumers": ["master"],
+                    "pdo": {"tpdo": k, "transmission": draw(st.integers(1, 3)), "map": [[0x6064, 0x606C][k - 1]]},
+                }
+            )
+    return {
+        "system": "random_canopen",
+        "buses": [
+            {
+                "name": "can0",
+                "protocol": "canopen",
+                "bitrate": draw(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
+                "canopen": {"sync_period": f"{period_ms} ms"},
+            }
+        ],
+        "nodes": [{"name": "master", "role": "master", "node_id": 127, "buses": ["can0"]}]
+        + [{"name": d, "node_id": i + 1, "device": "epos4", "buses": ["can0"]} for i, d in enumerate(drives)],
+        "messages": messages,
+    }
+
+
 def _us(text: str, ec_us: int) -> int:
     value, unit = text.split()
     return int(value) * {"us": 1, "ms": 1000, "EC": ec_us}[unit]
@@ -242,7 +285,7 @@ def _add_flows(draw: st.DrawFn, spec: dict[str, Any], ftt_ids: int | None = None
             node["scheduling"] = "non-preemptive"
 
 
-STRATEGIES = {"can": can_spec(), "ftt-can": ftt_spec(), "ethernet-udp": ethernet_spec()}
+STRATEGIES = {"can": can_spec(), "ftt-can": ftt_spec(), "ethernet-udp": ethernet_spec(), "canopen": canopen_spec()}
 
 
 @dataclass
