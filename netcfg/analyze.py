@@ -447,7 +447,8 @@ def analyze_ftt(
         ftt.AsyncFrame(msg.name, msg.id, frame_ns[msg.name][1], msg.interval_ns, msg.jitter_ns, msg.extended)
         for msg in async_msgs
     ]
-    async_worst = ftt.async_response_times(envelope, async_frames)
+    limited: set[str] = set()
+    async_worst = ftt.async_response_times(envelope, async_frames, limited)
     for row, msg in zip(rows, bus.messages):
         if msg.window == "sync":
             wcrt = sync_worst.get(msg.name)
@@ -456,6 +457,8 @@ def analyze_ftt(
         else:
             wcrt = async_worst.get(msg.name)
             row["window"] = "async"
+            if msg.name in limited:
+                row["unbounded"] = "iterations"
         set_verdict(row, wcrt, msg.deadline_ns)
         row["wcrt_plain_can_us"] = us(acc.plain[msg.name].worst_ns)
         row["wcrt_plain_can_ns"] = acc.plain[msg.name].worst_ns  # exact, for runtime.json

@@ -252,12 +252,14 @@ class AsyncFrame:
 MAX_ASYNC_STEPS = 20_000  # fixed-point steps per asynchronous message before it is reported unbounded
 
 
-def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str, int | None]:
+def async_response_times(
+    sched: Schedule, frames: list[AsyncFrame], limited: set[str] | None = None
+) -> dict[str, int | None]:
     """Worst-case response of each asynchronous message over all ECs of the (envelope) schedule; None when
     unbounded: the level-m load, the message's own included, reaches the asynchronous supply, or the bound needs
     more than MAX_ASYNC_STEPS steps. As on plain CAN (Davis et al. 2007), every instance q of m in the level-m busy
     period is examined: w(q) = serve(B + (q + 1) C_m + sum over hp of ceil((w + J_k) / T_k) C_k),
-    R(q) = J_m + w(q) - q T_m."""
+    R(q) = J_m + w(q) - q T_m. Messages stopped by the step limit are added to `limited`."""
     if not frames:
         return {}
     idle = max(f.c_ns for f in frames)  # inserted idle time before each synchronous window
@@ -276,6 +278,8 @@ def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str,
             out[f.name] = None
             continue
         out[f.name] = _async_worst(sched, supply, f, ordered[:i], blocking)
+        if out[f.name] is None and limited is not None:
+            limited.add(f.name)  # the load fits: only the step limit stopped the analysis
     return out
 
 
