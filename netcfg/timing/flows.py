@@ -135,9 +135,14 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
         return False
     for ref in prev.refs:
         task = m.task(ref)
-        if task.node == msg.producer and task_period(m, task) in (msg.period_ns, message_period(msg)):
+        if task.node == msg.producer and _same_rate(m, task, msg):
             return True
     return False
+
+
+def _same_rate(m: model.Model, task: model.Task, msg: model.Message) -> bool:
+    """A task runs at a message's rate: its period is the message's nominal, fastest or slowest one."""
+    return task_period(m, task) in {msg.period_ns, msg.interval_ns, message_period(msg)}
 
 
 def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
@@ -153,8 +158,7 @@ def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
                 continue
             for ref in prev.refs:
                 task = m.task(ref)
-                same_rate = task_period(m, task) in (msg.period_ns, msg.interval_ns)
-                if task.node == msg.producer and (same_rate or msg.kind == "sporadic"):
+                if task.node == msg.producer and (_same_rate(m, task, msg) or msg.kind == "sporadic"):
                     out.add(ref)
     return tuple(sorted(out))
 
