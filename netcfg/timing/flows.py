@@ -122,11 +122,18 @@ def unsynchronised(
     return (lo, hi), delivery
 
 
+CLOCK_TOLERANCE_PPM = 100  # node clocks run within +-100 ppm of nominal (crystals; the simulator draws +-50 ppm)
+
+
 def _sampling(consumer_period: int | None, refresh: int | None) -> int:
     """Worst sampling delay of a free-running consumer: up to one of its periods, and never more than the
-    input's renewal period (a slower consumer always reads data renewed within that period: its age counts)."""
+    input's renewal period (a slower consumer always reads data renewed within that period: its age counts).
+    Both periods run on a node's own clock, so in real time they may be CLOCK_TOLERANCE_PPM longer."""
     candidates = [p for p in (consumer_period, refresh) if p]
-    return min(candidates) if candidates else 0
+    if not candidates:
+        return 0
+    wait = min(candidates)
+    return wait + -(-wait * CLOCK_TOLERANCE_PPM // 1_000_000)
 
 
 def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> bool:
