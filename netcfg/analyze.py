@@ -11,7 +11,7 @@ from typing import Any
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_rta, canopen_sync, ethernet, flows, ftt, load
+from netcfg.timing import can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
 
@@ -27,6 +27,7 @@ class _Analysis:
         self.plain: dict[str, flows.Delivery] = {}  # the same bus as plain, unsynchronised CAN
         self.ftt: dict[str, flows.FttTimes] = {}
         self.canopen: dict[str, flows.SyncTimes] = {}
+        self.task_ns: dict[str, int | None] = {}  # node.task -> worst-case response time on its processor
 
 
 def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
@@ -37,7 +38,96 @@ def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
             buses.append(analyze_ethernet(m, bus, diags, acc))
         else:
             buses.append(analyze_can(m, bus, diags, acc))
-    return {"buses": buses, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
+    for row, bus in zip(buses, m.buses.values()):
+        row["assumes"] = assumptions(bus)
+    nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
+    return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
+
+
+def assumptions(bus: model.Bus) -> list[str]:
+    """What the bounds of this bus rest on, in the user's terms (the README explains each)."""
+    if bus.protocol == "ethernet-udp":
+        return [
+            "full-duplex links; store-and-forward switches with FIFO egress queues that never drop, each switch's "
+            "latency as given",
+            "each message released at most once per period (or rate) with at most its jitter; upstream queueing "
+            "adds to the jitter seen downstream",
+            "no frame loss and no other traffic than the spec's",
+        ]
+    out = [
+        "every node queues its frames by priority (no FIFO transmit buffer, no priority inversion in the "
+        "controller); worst-case bit stuffing; no bus errors or retransmissions",
+        "periodic messages released at most once per (fastest) period, sporadic ones at most once per minimum "
+        "inter-arrival time, each at most its jitter late",
+    ]
+    if bus.ftt is not None:
+        out += [
+            "the master keeps an exact EC grid; triggered tasks start when the trigger message ends; synchronous "
+            "messages are queued at their window's start and go out in identifier order",
+            "inside a period_range the master may use any period, keeping the message's init EC",
+            "an asynchronous frame starts only if it ends before the next window (inserted idle time)",
+        ]
+    return out
+
+
+def activation(m: model.Model, task: model.Task, acc: _Analysis) -> tuple[int | None, int | None]:
+    """(shortest interval, jitter) of a task's activations; jitter None when its message has no bound."""
+    if task.on_message is not None:
+        d = acc.chained.get(task.on_message)
+        if d is None or d.worst_ns is None:
+            return m.messages[task.on_message].interval_ns, None
+        return m.messages[task.on_message].interval_ns, d.worst_ns - d.best_ns
+    if task.trigger is not None:
+        return m.triggers[task.trigger].interval_ns, 0
+    if task.sync_bus is not None and task.sync_bus in acc.canopen:
+        sync = acc.canopen[task.sync_bus].sync  # the SYNC frame may be held up by arbitration
+        return task.period_ns, None if sync.worst_ns is None else sync.worst_ns - sync.best_ns
+    return task.period_ns, 0
+
+
+def analyze_node(m: model.Model, node: model.Node, acc: _Analysis, diags: Collector) -> dict[str, Any]:
+    """Response time of each task on the node's processor; a node above 100 % is an error."""
+    tasks = []
+    unbounded_input = set()
+    for task in node.tasks.values():
+        interval, jitter = activation(m, task, acc)
+        if jitter is None:
+            unbounded_input.add(task.name)
+        tasks.append(cpu.CpuTask(task.name, task.wcet_ns, interval, jitter or 0, task.priority))
+    load_ = cpu.utilisation(tasks)
+    overloaded = cpu.overloaded(tasks)
+    if overloaded:
+        diags.add(
+            "cpu-overload",
+            f"node '{node.name}' needs {load_:.1%} of its processor for its tasks ({load_ - 1:.1%} too much): "
+            "shorten their execution times or lengthen their periods",
+            m.source.at(node.path),
+        )
+    response = cpu.analyse(tasks, node.scheduling)
+    for t in tasks:
+        if response[t.name] is None and not overloaded and t.name not in unbounded_input:
+            diags.add(
+                "task-unbounded",
+                f"task '{node.name}.{t.name}' has no bounded response time: the tasks at its priority and above "
+                "fill the processor (exactly 100 % with jitter or blocking); shorten a WCET or lower a rate",
+                m.source.at(node.tasks[t.name].path),
+            )
+    rows = []
+    for rank, t in enumerate(cpu.priority_order(tasks)):
+        r = None if t.name in unbounded_input else response[t.name]
+        # flows time a task from its actual activation, whose lateness they already count: R - J
+        acc.task_ns[f"{node.name}.{t.name}"] = None if r is None else r - t.j_ns
+        rows.append(
+            {
+                "name": t.name,
+                "priority": rank,
+                "wcet_us": us(t.c_ns),
+                "interval_us": us(t.t_ns),
+                "jitter_us": us(t.j_ns),
+                "wcrt_us": us(r),
+            }
+        )
+    return {"name": node.name, "scheduling": node.scheduling, "utilization": round(load_, 6), "tasks": rows}
 
 
 def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
@@ -78,7 +168,13 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
     for row in rows:
         if row["schedulable"] is False:
             msg = by_name[row["name"]]
-            if row["wcrt_us"] is None:
+            if row["wcrt_us"] is None and row.get("unbounded") == "iterations":
+                text = (
+                    f"message '{msg.name}' has no worst-case response time within {can_rta.MAX_ITERATIONS:,} "
+                    "steps of the analysis: the traffic at its priority is so close to 100% of the capacity that "
+                    "its busy period is too long to follow"
+                )
+            elif row["wcrt_us"] is None:
                 text = (
                     f"message '{msg.name}' has no bounded worst-case response time: the traffic at its "
                     "priority or on its path reaches 100% of the capacity"
@@ -129,6 +225,14 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     if bus.ftt is not None:
         out["ftt"] = analyze_ftt(m, bus, rows, frame_ns, diags, acc)
         out["utilization_with_tm"] = round(worst + out["ftt"]["tm_overhead"], 6)
+        tm_ns, ec_ns = bus_tm_and_ec(bus)
+        if load.can_bus_overloaded(bus, timings, worst + tm_ns / ec_ns, extra=(tm_ns, ec_ns)):
+            diags.add(
+                "overload",
+                f"bus '{bus.name}' is loaded at {worst + tm_ns / ec_ns:.1%} in the worst case with its trigger "
+                "message, over its capacity: slow some messages down, lengthen the EC or raise the bit rate",
+                m.source.at(bus.path),
+            )
     else:
         for row, msg in zip(rows, bus.messages):
             r = plain[msg.name]
@@ -136,10 +240,12 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             row["blocking_us"] = us(r.blocking_ns)
             row["busy_period_us"] = us(r.busy_period_ns)
             row["instances"] = r.instances
+            if r.limit:
+                row["unbounded"] = r.limit
             acc.chained[msg.name] = acc.plain[msg.name]
     if bus.canopen is not None:
         out["sync"] = analyze_sync(m, bus, frame_ns, diags, acc)
-    if worst > 1:
+    if bus.ftt is None and load.can_bus_overloaded(bus, timings, worst):
         diags.add(
             "overload",
             f"bus '{bus.name}' is loaded at {worst:.1%} in the worst case, "
@@ -148,6 +254,12 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
         )
     report_deadlines(m, bus, rows, diags)
     return out
+
+
+def bus_tm_and_ec(bus: model.Bus) -> tuple[int, int]:
+    """FTT-CAN: the trigger message's worst-case time and the EC, in ns."""
+    assert bus.ftt is not None
+    return ftt.tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate), bus.ftt.ec_ns
 
 
 def analyze_sync(
@@ -291,6 +403,7 @@ def analyze_ftt(
     try:
         sched = ftt.build_schedule(bus, entries)
         fastest = ftt.build_schedule(bus, entries, fastest=True)
+        envelope = ftt.envelope_schedule(bus, entries)
     except ftt.MacroCycleTooLong as exc:
         periods = sorted({e.period_ec for e in entries} | {e.fastest_period_ec for e in entries})
         diags.add(
@@ -311,7 +424,7 @@ def analyze_ftt(
         }
     bus.ftt_schedule = sched
     acc.ftt[bus.name] = flows.FttTimes(sched, frame_ns, {e.name: (e.period_ec, e.init_ec) for e in entries})
-    for label, s in (("", sched), (" at the fastest periods of period_range", fastest)):
+    for label, s in (("", sched), (" at some periods inside period_range", envelope)):
         for slot in s.slots:
             if slot.sync_ns > s.lsw_ns:
                 diags.add(
@@ -334,7 +447,8 @@ def analyze_ftt(
         ftt.AsyncFrame(msg.name, msg.id, frame_ns[msg.name][1], msg.interval_ns, msg.jitter_ns, msg.extended)
         for msg in async_msgs
     ]
-    async_worst = ftt.async_response_times(sched, async_frames)
+    limited: set[str] = set()
+    async_worst = ftt.async_response_times(envelope, async_frames, limited)
     for row, msg in zip(rows, bus.messages):
         if msg.window == "sync":
             wcrt = sync_worst.get(msg.name)
@@ -343,8 +457,11 @@ def analyze_ftt(
         else:
             wcrt = async_worst.get(msg.name)
             row["window"] = "async"
+            if msg.name in limited:
+                row["unbounded"] = "iterations"
         set_verdict(row, wcrt, msg.deadline_ns)
         row["wcrt_plain_can_us"] = us(acc.plain[msg.name].worst_ns)
+        row["wcrt_plain_can_ns"] = acc.plain[msg.name].worst_ns  # exact, for runtime.json
         acc.chained[msg.name] = flows.Delivery(frame_ns[msg.name][0], wcrt)
     worst = max(sched.slots, key=lambda s: (s.sync_ns, -s.index))
     worst_fast = max(fastest.slots, key=lambda s: (s.sync_ns, -s.index))
@@ -356,6 +473,7 @@ def analyze_ftt(
         "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
         "lsw_us": us(sched.lsw_ns),
         "master": bus.ftt.master,
+        "windows": "sync-first" if sched.sync_first else "async-first",
         "macro_cycle_ec": sched.macro_cycle,
         "srt": [srt_row(e) for e in entries],
         "worst_ec": {
@@ -485,14 +603,14 @@ def _later(a: ethernet.PathDelay, b: ethernet.PathDelay) -> bool:
 
 
 def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collector) -> dict[str, Any]:
-    unsync, delivery = flows.unsynchronised(m, flow, acc.plain)
+    unsync, delivery = flows.unsynchronised(m, flow, acc.plain, acc.task_ns)
     sync = None
     ftt_bus = next(
         (m.messages[r].bus for s in flow.steps if s.kind == "message" for r in s.refs if m.messages[r].bus in acc.ftt),
         None,
     )
     if ftt_bus is not None:
-        sync = flows.synchronised(m, flow, acc.ftt[ftt_bus], acc.chained)
+        sync = flows.synchronised(m, flow, acc.ftt[ftt_bus], acc.chained, acc.task_ns)
     else:
         co_bus = next(
             (
@@ -515,8 +633,16 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
             None,
         )
         if co_bus is not None:
-            sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained)
-    lo, hi = sync[0] if sync else unsync
+            sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained, acc.task_ns)
+    lo: int
+    hi: int | None
+    if sync:
+        lo, hi = sync[0]
+    elif ftt_bus is not None:  # free-running steps around FTT-CAN windows: the windows' own delivery times
+        scheduled = frozenset(acc.ftt[ftt_bus].entries)
+        lo, hi = flows.unsynchronised(m, flow, acc.chained, acc.task_ns, scheduled)[0]
+    else:
+        lo, hi = unsync
     out: dict[str, Any] = {
         "name": flow.name,
         "mode": "synchronised" if sync else "unsynchronised",

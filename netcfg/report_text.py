@@ -91,6 +91,9 @@ def render(report: dict[str, Any]) -> str:
                 f"(window {num(s['window_us'])} us, read window {num(s['read_window_us'])} us)"
             )
             out.append(f"  master: {master_loop_text(s['master'])}")
+        if bus.get("assumes"):
+            out.append("  the bounds assume:")
+            out.extend(f"    - {a}" for a in bus["assumes"])
         if "links" in bus:
             out.append(
                 f"  minimum frame {num(bus['min_frame_us'])} us, f_max {bus['f_max_hz'] / 1000:.2f} kHz per link"
@@ -107,6 +110,19 @@ def render(report: dict[str, Any]) -> str:
                 for ll in bus["links"]
             ]
             out.extend(table(["link", "senders", "kHz", "f_max/n kHz", "load", "ok"], rows, "lrrrrl"))
+    if report.get("nodes"):
+        out.append("")
+        out.append("processors (worst-case response of each task from its nominal release, jitter included, us):")
+        rows = [
+            [
+                n["name"],
+                n["scheduling"],
+                f"{n['utilization']:.1%}",
+                ", ".join(f"{t['name']} {num(t['wcrt_us'], false='-')}" for t in n["tasks"]),
+            ]
+            for n in report["nodes"]
+        ]
+        out.extend(table(["node", "scheduling", "load", "tasks by priority"], rows, "llrl"))
     if report["flows"]:
         out.append("")
         out.append("flows (latency from the first activation to the last use, us):")

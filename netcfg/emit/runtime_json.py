@@ -43,6 +43,7 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
 
 def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
     wcrt = _report_wcrt(report)
+    plain = _report_wcrt(report, "wcrt_plain_can_ns")
     flow_rows = {f["name"]: f for f in report.get("flows", [])}
     files = canopen_dcf.file_names(m)
     return {
@@ -53,15 +54,20 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
         "spec_sha256": hashlib.sha256(Path(m.file).read_bytes()).hexdigest(),
         "buses": [_bus(m, b) for b in m.buses.values()],
         "nodes": [_node(m, n, files) for n in m.nodes.values()],
-        "messages": [_message(m, msg, wcrt.get(msg.name)) for b in m.buses.values() for msg in b.messages],
+        "messages": [
+            _message(m, msg, wcrt.get(msg.name), plain.get(msg.name, wcrt.get(msg.name)))
+            for b in m.buses.values()
+            for msg in b.messages
+        ],
         "triggers": [_trigger(t) for t in m.triggers.values()],
         "flows": [_flow(f, flow_rows.get(f.name)) for f in m.flows.values()],
     }
 
 
-def _report_wcrt(report: dict[str, Any]) -> dict[str, int | None]:
-    """The analysed worst-case response times in integer ns."""
-    return {row["name"]: row.get("wcrt_ns") for b in report.get("buses", []) for row in b.get("messages", [])}
+def _report_wcrt(report: dict[str, Any], key: str = "wcrt_ns") -> dict[str, int | None]:
+    """The analysed worst-case response times in integer ns (`key`: another exact bound of the rows)."""
+    rows = (row for b in report.get("buses", []) for row in b.get("messages", []))
+    return {row["name"]: row.get(key) for row in rows if key in row}
 
 
 def _bus(m: model.Model, b: model.Bus) -> dict[str, Any]:
@@ -103,6 +109,7 @@ def _ftt(m: model.Model, b: model.Bus) -> dict[str, Any] | None:
         "lsw_ns": sched.lsw_ns,  # the default (EC - TM) filled in, as the analysis used it
         "master": b.ftt.master,
         "macro_cycle_ec": sched.macro_cycle,
+        "windows": "sync-first" if sched.sync_first else "async-first",
         "srt": [
             {
                 "ftt_id": e.ftt_id,
@@ -203,7 +210,7 @@ def _sdo_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
     ]
 
 
-def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None) -> dict[str, Any]:
+def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None, wcrt_unsync_ns: int | None) -> dict[str, Any]:
     return {
         "name": msg.name,
         "bus": msg.bus,
@@ -226,6 +233,7 @@ def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None) -> dict[st
         "signals": [_signal(s) for s in msg.signals],
         "implicit": msg.implicit,
         "wcrt_ns": wcrt_ns,  # the analysis' bound, for a simulator or master to compare against
+        "wcrt_unsync_ns": wcrt_unsync_ns,  # the bound with the bus run as free-running CAN
         "sent_by": list(flows.sending_tasks(m, msg)),  # tasks that send it as they finish; else it runs free
     }
 

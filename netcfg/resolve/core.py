@@ -34,6 +34,7 @@ class Resolver:
         self.smap = smap
         self.d = diags
         self.spec_dir = spec_dir
+        self.slowest: dict[Path, int] = {}  # period_range's slowest period, by the message's or trigger's path
         self.model = model.Model(
             system=spec.system,
             description=spec.description,
@@ -100,6 +101,7 @@ class Resolver:
         for k, v in enumerate((lo, hi)):
             if ec and v % ec:
                 self.err("ec-multiple", f"{format_ns(v)} is not a whole number of ECs ({format_ns(ec)})", (*rpath, k))
+        self.slowest[path] = hi
         return lo
 
     def ec_of(self, bus_names: Iterable[str]) -> int | None:
@@ -233,6 +235,7 @@ class Resolver:
                 path=path,
                 tx_delay_ns=self.ns(n.tx_delay, (*path, "tx_delay"), None) or 0,
                 rx_delay_ns=self.ns(n.rx_delay, (*path, "rx_delay"), None) or 0,
+                scheduling=n.scheduling,
             )
 
     def resolve_task(self, node: str, t: schema.Task, path: Path, ec: int | None) -> model.Task:
@@ -275,6 +278,7 @@ class Resolver:
             on_message=t.on_message,
             path=path,
             sync_bus=sync_bus,
+            priority=t.priority,
         )
 
     # -- messages ------------------------------------------------------------------------------------------
@@ -402,6 +406,7 @@ class Resolver:
             kind=kind,
             period_ns=period,
             interval_ns=interval,
+            slowest_ns=self.slowest.get(path),
             offset_ns=offset,
             offset_auto=offset_auto,
             deadline_ns=deadline,

@@ -63,7 +63,12 @@ class FttProtocol(CanProtocol):
             self.r.err("unknown-node", f"FTT-CAN master '{master}' is not a node on bus '{b.name}'", (*fpath, "master"))
             return
         bus.ftt = model.FttBus(
-            ec_ns=ec, tm_size=f.tm_size, lsw_ns=ec - tm_ns if lsw is None else lsw, tm_id=f.tm_id, master=master
+            ec_ns=ec,
+            tm_size=f.tm_size,
+            lsw_ns=ec - tm_ns if lsw is None else lsw,
+            tm_id=f.tm_id,
+            master=master,
+            sync_first=f.windows == "sync-first",
         )
 
     def resolve_items(self) -> None:
@@ -215,6 +220,7 @@ class FttProtocol(CanProtocol):
                 ftt_id=t.ftt_id,
                 period_ns=period,
                 interval_ns=interval,
+                slowest_ns=self.r.slowest.get(path),
                 offset_ns=offset,
                 offset_auto=t.offset == "auto",
                 tasks=tuple(t.tasks),

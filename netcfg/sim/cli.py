@@ -196,6 +196,9 @@ def simulate_command(args: argparse.Namespace) -> int:
         print(json.dumps(doc_out, indent=2))
     else:
         print(text(doc_out))
+    if not res.error_model:  # one line per measured range outside its analysed one
+        for violation in doc_out["violations"]:
+            print(f"netcfg: outside the analysis: {violation}", file=sys.stderr)
     bad = (
         doc_out["deadline_misses"]
         or doc_out["lost"]

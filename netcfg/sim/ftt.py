@@ -70,10 +70,10 @@ class FttMaster:
         """Earliest start >= t at which an asynchronous frame of this duration ends before a synchronous window."""
         k = self.ec_of(t)
         for _ in range(2 * self.ftt.macro_cycle_ec + 2):
+            opens, closes = self.ftt.async_window(k)
             start = self.ec_start(k)
-            window = start + self.ftt.window_start(k)
-            s = max(t, start)
-            if s + dur <= window:
+            s = max(t, start + opens)
+            if s + dur <= start + closes:
                 return s
             k += 1
         return NEVER  # never fits: longer than every asynchronous window
@@ -114,7 +114,7 @@ class FttMaster:
 
     def _on_tm(self, end: int, _src: int, _release: int, data: bytes | None) -> None:
         k = self.ec_of(end)
-        if self.ec_start(k) + self.ftt.window_start(k) < end:
+        if not self.ftt.sync_first and self.ec_start(k) + self.ftt.window_start(k) < end:
             k -= 1  # cannot happen with a schedulable table; keep the EC the TM was sent for
         self._got_tm = k
         slot = self.ftt.slot(k)
@@ -124,7 +124,7 @@ class FttMaster:
                 self.sc.run_task(task, end + node.rx_delay_ns)
         if slot.messages:
             window = self.ec_start(k) + self.ftt.window_start(k)
-            self.sc.sim.at(window, self._sync_window, slot.messages)
+            self.sc.sim.at(max(window, end), self._sync_window, slot.messages)
 
     def _sync_window(self, messages: tuple[str, ...]) -> None:
         for name in messages:

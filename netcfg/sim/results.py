@@ -87,7 +87,7 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
             res.lost[src.name] = can.dropped.get(src.index, 0)
             res.retransmissions[src.name] = can.retries.get(src.index, 0)
             res.unsent_at_end += pending.get(src.index, 0)
-            _bounds(res, src.name, known.get(src.name))
+            _bounds(res, src.name, known.get(src.name), sc.opts.mode == "unsync")
         res.error_frames += can.error_frames
     for name, n in sc.lost.items():  # losses no bus saw (a crashed task's Ethernet sends)
         res.lost[name] = res.lost.get(name, 0) + n
@@ -97,7 +97,7 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
             for name, release, end in records():
                 res.response[name] = np.asarray(end, dtype=np.int64) - np.asarray(release, dtype=np.int64)
                 res.sent[name] = len(res.response[name])
-                _bounds(res, name, known.get(name))
+                _bounds(res, name, known.get(name), sc.opts.mode == "unsync")
                 res.frames += len(res.response[name])
             for name, n in getattr(driver, "lost_by_message", dict)().items():
                 res.lost[name] = res.lost.get(name, 0) + n
@@ -115,18 +115,19 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
     return res
 
 
-def _bounds(res: RunResult, name: str, m: Message | None) -> None:
-    """A message's deadline and analysed worst case; None for frames the configuration does not list (the TM, a
-    babbler's frames)."""
+def _bounds(res: RunResult, name: str, m: Message | None, unsync: bool = False) -> None:
+    """A message's deadline and analysed worst case (free-running CAN's when the run is unsynchronised); None for
+    frames the configuration does not list (the TM, a babbler's frames)."""
     res.deadline[name] = m.deadline_ns if m else None
-    res.wcrt[name] = m.wcrt_ns if m else None
+    res.wcrt[name] = (m.wcrt_unsync_ns if unsync and m.wcrt_unsync_ns is not None else m.wcrt_ns) if m else None
 
 
 def summary(res: RunResult) -> dict[str, Any]:
     """The JSON document of `netcfg simulate --format json`."""
     messages = []
     misses = 0
-    exceeded = []
+    exceeded = []  # messages and flows whose measured range leaves the analysed one
+    violations = []  # one line each
     for name in res.response:
         r = res.response[name]
         d = res.deadline.get(name)
@@ -134,8 +135,9 @@ def summary(res: RunResult) -> dict[str, Any]:
         late = int((r > d).sum()) if d is not None and len(r) else 0
         misses += late
         over = bool(len(r) and w is not None and int(r.max()) > w)
-        if over:
+        if over and w is not None:
             exceeded.append(name)
+            violations.append(f"message {name}: took up to {int(r.max()) / 1000:g} us, analysed {w / 1000:g} us")
         messages.append(
             {
                 "name": name,
@@ -155,6 +157,12 @@ def summary(res: RunResult) -> dict[str, Any]:
         within = None
         if len(lat) and lo is not None and hi is not None:
             within = bool(lo <= int(lat.min()) and int(lat.max()) <= hi)
+            if not within:
+                exceeded.append(name)
+                violations.append(
+                    f"flow {name}: measured {int(lat.min()) / 1000:g}-{int(lat.max()) / 1000:g} us, "
+                    f"analysed {lo / 1000:g}-{hi / 1000:g} us"
+                )
         flows.append(
             {
                 "name": name,
@@ -179,6 +187,7 @@ def summary(res: RunResult) -> dict[str, Any]:
         "error_frames": res.error_frames,
         "unsent_at_end": res.unsent_at_end,
         "exceeds_analysis": exceeded,
+        "violations": violations,
         "analysis_has_error_model": False,
         "protocols": res.protocols if res.runs == 1 else {k: v[:1] for k, v in res.protocols.items()},
     }
@@ -238,6 +247,8 @@ def text(doc: dict[str, Any]) -> str:
         lines += ["", *_protocol_text(bus, reports[0])]
     for finding in doc.get("findings", []):
         lines += ["", f"  finding: {finding}"]
+    if doc.get("violations"):
+        lines += ["", "  outside the analysis:", *(f"    {v}" for v in doc["violations"])]
     if doc.get("note"):
         lines.append("")
         lines.append("  " + doc["note"])

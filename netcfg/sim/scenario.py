@@ -79,14 +79,15 @@ class Scenario:
         self.task_runs: dict[str, list[tuple[int, int]]] = {}
         self.sends: dict[str, list[str]] = {}  # task -> messages it sends as it finishes
         self._last_send: dict[str, int] = {}  # sporadic message -> when its task last sent it
-        # node clocks: a random phase within the node's longest period, a drift within +-drift_ppm
+        # node clocks: a random phase within the node's shortest period (within a longer one, a node with an hourly
+        # message would stay silent for most runs), a drift within +-drift_ppm
         self.clock: dict[str, NodeClock] = {}
         # time is the masters' time: an FTT-CAN master or a CANopen SYNC producer starts at 0 and does not drift
         masters = {b.ftt.master for b in cfg.buses if b.ftt} | {b.canopen.sync_producer for b in cfg.buses if b.canopen}
         for node in cfg.nodes:
             periods = [m.interval_ns or 0 for m in cfg.messages if m.producer == node.name]
             periods += [t.period_ns or 0 for t in node.tasks]
-            span = max(periods, default=0)
+            span = min((p for p in periods if p > 0), default=0)
             phase = int(rng.integers(0, span)) if span > 0 and opts.random_phase else 0
             drift = int(rng.uniform(-opts.drift_ppm, opts.drift_ppm) * 1000)
             if node.name in masters and opts.mode != "unsync":

@@ -178,6 +178,12 @@ class FttParams(SpecModel):
         0x100, ge=0, description="CAN id of a synchronous message without an explicit id = this + its FTT id"
     )
     master: Name | None = Field(None, description="node that sends the trigger message (default: role master)")
+    windows: Literal["async-first", "sync-first"] = Field(
+        "async-first",
+        description="order of the windows after the trigger message: the asynchronous window first and the "
+        "synchronous one closing the EC (the default, as the FTT-CAN papers describe it), or the synchronous "
+        "window right after the trigger message",
+    )
 
 
 class CanopenParams(SpecModel):
@@ -239,6 +245,12 @@ class Task(SpecModel):
     sync: Bool = Field(False, description="CANopen: the task runs on every SYNC of its bus, `offset` after it")
     wcet: DurationField = Field(description="worst-case execution time")
     bcet: DurationField | None = Field(None, description="best-case execution time (default: the WCET)")
+    priority: Int | None = Field(
+        None,
+        ge=0,
+        description="priority on its node's processor, 0 the highest (default: rate-monotonic, the shortest "
+        "activation interval first, ties in list order; tasks with a priority go before those without)",
+    )
     description: str | None = None
 
 
@@ -259,6 +271,11 @@ class Node(SpecModel):
     tx_delay: DurationField | None = Field(None, description="Ethernet: sender processing Tpre (seed 001, eq. 6.3)")
     rx_delay: DurationField | None = Field(None, description="Ethernet: receiver processing Tpost")
     tasks: list[Task] = Field(default_factory=list)
+    scheduling: Literal["preemptive", "non-preemptive"] = Field(
+        "preemptive",
+        description="how the node's processor runs its tasks: fixed-priority preemptive (default) or "
+        "fixed-priority non-preemptive; the analysis bounds each task's response time under it",
+    )
     description: str | None = None
 
 

@@ -11,7 +11,12 @@ queuing jitter J_m, and bit time tau:
   queuing delay    w_m(q) = B_m + q*C_m + sum over k in hp(m) of ceil((w_m(q) + J_k + tau) / T_k) * C_k (eq. 12)
   response time    R_m(q) = J_m + w_m(q) - q*T_m + C_m,   R_m = max over q in 0..Q_m-1           (eq. 13, 14)
 
-When the utilisation of hp(m) + m reaches 1 the busy period never ends and R_m is unbounded (None).
+The arithmetic is exact: times are integer nanoseconds and the utilisation test is decided with fractions
+(a float sum of ten loads of 0.1 is 0.9999999999999999). When the utilisation of hp(m) + m exceeds 1 the busy
+period never ends and R_m is unbounded (None). At exactly 1 it ends only if the traffic repeats without
+blocking or jitter: then the busy period is at most the hyperperiod L, which one evaluation of eq. 10 at L
+decides. A busy period that needs more than MAX_ITERATIONS fixed-point steps (utilisation a hair under 1)
+is reported as such (`limit == "iterations"`) rather than computed for minutes.
 Priorities follow the arbitration field: a lower base identifier wins; at an equal 11-bit base, a standard
 frame beats an extended one (its RTR/IDE bits are dominant where the extended frame sends SRR/IDE recessive).
 
@@ -24,13 +29,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from math import lcm
+from typing import Literal
 
 import numpy as np
 
 from netcfg.timing.frames import arbitration_key
+from netcfg.timing.load import compare_to_capacity
 
 ONE_SHOT = 1 << 60  # "period" of an on-demand message: it interferes at most once per busy period
-MAX_INSTANCES = 1_000_000
+MAX_ITERATIONS = 20_000  # fixed-point steps per message (busy period and every instance together)
+
+# why a response time is None: the load reaches the capacity, or the bound needs more than MAX_ITERATIONS
+Limit = Literal["load", "iterations"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +67,7 @@ class Response:
     busy_period_ns: int | None
     instances: int  # Q_m
     worst_instance: int  # the q that gave R_m
+    limit: Limit | None = None  # set when wcrt_ns is None
 
     def schedulable(self, deadline_ns: int | None) -> bool | None:
         if deadline_ns is None:
@@ -74,7 +86,8 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
     t = np.array([f.t_ns or ONE_SHOT for f in fs], dtype=np.int64)
     j = np.array([f.j_ns for f in fs], dtype=np.int64)
     prefix_c = np.concatenate(([0], np.cumsum(c)))  # prefix_c[i] = sum of C over hp(i)
-    utilisation = np.cumsum(np.where(t < ONE_SHOT, c / t, 0.0))  # utilisation of hp(i) + i
+    periodic = t < ONE_SHOT
+    utilisation = np.cumsum(np.where(periodic, c / t, 0.0))  # utilisation of hp(i) + i, approximately
     blocking = np.concatenate((np.maximum.accumulate(c[::-1])[::-1][1:], [0]))  # max C over lp(i)
     slack_order = np.argsort(t - j, kind="stable")  # "short" messages first
     slack_sorted = (t - j)[slack_order]
@@ -90,36 +103,59 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
             return 0
         return int(((-(-(x + j[ks]) // t[ks])) - 1) @ c[ks])
 
+    def demand(x: int, upto: int) -> int:
+        """Eq. 10's right-hand side without blocking: sum over k < upto of ceil((x + J_k) / T_k) * C_k."""
+        return int(prefix_c[upto]) + extra(x, upto)
+
     out: dict[str, Response] = {}
     for i, f in enumerate(fs):
         b = int(blocking[i])
-        if utilisation[i] >= 1.0:
-            out[f.name] = Response(f.name, None, b, None, 0, 0)
+        hp_loads = ((int(ck), int(tk)) for ck, tk, p in zip(c[: i + 1], t[: i + 1], periodic[: i + 1]) if p)
+        full = compare_to_capacity(float(utilisation[i]), hp_loads)
+        if full > 0 or (full == 0 and not _ends_at_full_load(b, c[: i + 1], t[: i + 1], j[: i + 1], periodic[: i + 1])):
+            out[f.name] = Response(f.name, None, b, None, 0, 0, "load")
             continue
         # level-i busy period (eq. 10), starting from a lower bound of its least fixed point
+        steps = 0
         busy = b + int(prefix_c[i + 1])
-        while True:
-            nxt = b + int(prefix_c[i + 1]) + extra(busy, i + 1)
+        while steps < MAX_ITERATIONS:
+            nxt = b + demand(busy, i + 1)
+            steps += 1
             if nxt == busy:
                 break
             busy = nxt
-        q_count = max(1, -(-(busy + int(j[i])) // int(t[i])))
-        if q_count > MAX_INSTANCES:
-            out[f.name] = Response(f.name, None, b, busy, q_count, 0)
+        else:
+            out[f.name] = Response(f.name, None, b, None, 0, 0, "iterations")
             continue
+        q_count = max(1, -(-(busy + int(j[i])) // int(t[i])))
         worst, worst_q, w = -1, 0, 0
         for q in range(q_count):
             w = max(w, b + q * int(c[i]) + int(prefix_c[i]))
-            while True:  # eq. 12
-                nxt = b + q * int(c[i]) + int(prefix_c[i]) + extra(w + tau_ns, i)
+            while steps < MAX_ITERATIONS:  # eq. 12
+                nxt = b + q * int(c[i]) + demand(w + tau_ns, i)
+                steps += 1
                 if nxt == w:
                     break
                 w = nxt
+            else:
+                break
             r = int(j[i]) + w - q * int(t[i]) + int(c[i])
             if r > worst:
                 worst, worst_q = r, q
+        if steps >= MAX_ITERATIONS:
+            out[f.name] = Response(f.name, None, b, busy, q_count, 0, "iterations")
+            continue
         out[f.name] = Response(f.name, worst, b, busy, q_count, worst_q)
     return out
+
+
+def _ends_at_full_load(b: int, c: np.ndarray, t: np.ndarray, j: np.ndarray, periodic: np.ndarray) -> bool:
+    """At a utilisation of exactly 1, eq. 10 has a fixed point iff it has one at or below the hyperperiod L:
+    its right-hand side is at least t + B + (jitter and one-shot terms) everywhere, and equals L at L when those
+    are 0; the iteration from below then reaches it. Python integers: L may not fit in 64 bits."""
+    hyper = lcm(*(int(tk) for tk, p in zip(t, periodic) if p))
+    need = b + sum(-(-(hyper + int(jk)) // int(tk)) * int(ck) for ck, tk, jk in zip(c, t, j))
+    return need <= hyper
 
 
 def tindell_1994(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, int | None]:

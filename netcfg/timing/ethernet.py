@@ -8,7 +8,11 @@ sum(f_i * Tframe_i) < 1 (with n equal minimum-size frames it is exactly n * f_tr
 Delay budget, eq. 6.3:  Tdelay = Tpre + Twait + Tframe + Tprop + Tswitch + Tpost. With store-and-forward
 switches the frame is serialised again on every hop, so Tframe counts once per link; Tswitch = Tmux + Tqueue,
 and Tqueue on a FIFO egress port is bounded by the port's level busy period: the frames of every flow on that
-port that can arrive together, w = sum_i ceil(w / T_i) * C_i, minus the frame's own transmission.
+port that can arrive together, w = sum_i ceil((w + J_i) / T_i) * C_i, minus the frame's own transmission.
+J_i is flow i's arrival jitter at that port: its release jitter plus the queueing it may meet on the hops
+before (0 at best, the wait bound at worst), so frames bunched by an upstream switch count as they arrive
+(holistic analysis, Tindell and Clark 1994). Waits and jitters depend on each other; they are iterated from
+zero jitter until nothing changes (they only grow), at most MAX_ROUNDS times.
 """
 
 from __future__ import annotations
@@ -113,8 +117,20 @@ def analyse(bus: model.Bus, nodes: dict[str, model.Node]) -> tuple[list[LinkLoad
             ll.frames_per_s += rate
             ll.utilization += rate * frame_ns[msg.name] / 1e9
     by_name = {m.name: m for m in bus.messages}
-    for ll in links.values():
-        ll.busy_period_ns = fifo_busy_period([(frame_ns[n], by_name[n].interval_ns) for n in ll.messages])
+    # arrival jitter of each message at each link of its route, grown with the upstream waits until stable
+    jitter = {(m.name, hop): m.jitter_ns for m in bus.messages for hop in _hops(msg_routes[m.name])}
+    for _ in range(MAX_ROUNDS):
+        for hop, ll in links.items():
+            ll.busy_period_ns = fifo_busy_period(
+                [(frame_ns[n], by_name[n].interval_ns, jitter[(n, hop)]) for n in ll.messages]
+            )
+        grown = _jitters(bus.messages, msg_routes, links, frame_ns)
+        if grown is None or grown == jitter:
+            break
+        jitter = grown
+    else:
+        for ll in links.values():  # still growing: no bound
+            ll.busy_period_ns = None
     delays = []
     for msg in bus.messages:
         own = frame_ns[msg.name]
@@ -141,14 +157,45 @@ def analyse(bus: model.Bus, nodes: dict[str, model.Node]) -> tuple[list[LinkLoad
     return [links[k] for k in sorted(links)], delays
 
 
-def fifo_busy_period(flows: list[tuple[int, int | None]]) -> int | None:
-    """Longest busy period of a FIFO port fed by flows (C, T); None when the port is overloaded."""
-    periodic = [(c, t) for c, t in flows if t]
-    if sum(c / t for c, t in periodic) >= 1:
+MAX_ROUNDS = 1_000  # rounds of the jitter propagation
+MAX_STEPS = 20_000  # fixed-point steps of one busy period
+
+
+def _hops(route: dict[str, tuple[Link, ...]]) -> set[Link]:
+    return {hop for hops in route.values() for hop in hops}
+
+
+def _jitters(
+    messages: list[model.Message],
+    msg_routes: dict[str, dict[str, tuple[Link, ...]]],
+    links: dict[Link, LinkLoad],
+    frame_ns: dict[str, int],
+) -> dict[tuple[str, Link], int] | None:
+    """Each message's jitter at each hop: its release jitter plus the worst waits on the hops before (None when
+    some wait is unbounded)."""
+    out: dict[tuple[str, Link], int] = {}
+    for m in messages:
+        for hops in msg_routes[m.name].values():
+            late = m.jitter_ns
+            for hop in hops:
+                out[(m.name, hop)] = max(out.get((m.name, hop), 0), late)
+                busy = links[hop].busy_period_ns
+                if busy is None:
+                    return None
+                late += busy - frame_ns[m.name]
+    return out
+
+
+def fifo_busy_period(flows: list[tuple[int, int | None, int]]) -> int | None:
+    """Longest busy period of a FIFO port fed by flows (C, T, J); None when the port is overloaded (exactly: at
+    100 % a busy period can only end without jitter, which the step limit then finds too)."""
+    periodic = [(c, t, j) for c, t, j in flows if t]
+    if load.compare_to_capacity(sum(c / t for c, t, _ in periodic), [(c, t) for c, t, _ in periodic]) > 0:
         return None
-    w = sum(c for c, _ in flows)
-    while True:
-        nxt = sum(c * -(-w // t) for c, t in periodic) + sum(c for c, t in flows if not t)
+    w = sum(c for c, _, _ in flows)
+    for _ in range(MAX_STEPS):
+        nxt = sum(c * -(-(w + j) // t) for c, t, j in periodic) + sum(c for c, t, _ in flows if not t)
         if nxt == w:
             return w
         w = nxt
+    return None

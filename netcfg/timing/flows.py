@@ -52,17 +52,41 @@ def _add(a: int | None, b: int | None) -> int | None:
     return None if a is None or b is None else a + b
 
 
+TaskTimes = dict[str, int | None]  # node.task -> worst-case response time on its processor (None: unbounded)
+
+
+def task_response(task: model.Task, task_ns: TaskTimes | None) -> int | None:
+    """From a task's activation to its end: its response time on its processor (its WCET when not analysed)."""
+    if task_ns is None or task.ref not in task_ns:
+        return task.wcet_ns
+    return task_ns[task.ref]
+
+
 def task_period(m: model.Model, task: model.Task) -> int | None:
+    """How long a free-running task may take to come round again: the slowest admissible activation period."""
     if task.on_message is not None:
         return 0
     if task.trigger is not None:
-        return m.triggers[task.trigger].interval_ns
+        trigger = m.triggers[task.trigger]
+        return trigger.slowest_ns or trigger.period_ns
     return task.period_ns
 
 
+def message_period(msg: model.Message) -> int | None:
+    """How long a periodic message may take to be sent again: the slowest period of a period_range, else its period
+    (a sporadic message: its minimum inter-arrival time, all that is known)."""
+    return msg.slowest_ns or msg.period_ns or msg.interval_ns
+
+
 def unsynchronised(
-    m: model.Model, flow: model.Flow, chained: dict[str, Delivery]
+    m: model.Model,
+    flow: model.Flow,
+    chained: dict[str, Delivery],
+    task_ns: TaskTimes | None = None,
+    scheduled: frozenset[str] = frozenset(),
 ) -> tuple[tuple[int, int | None], tuple[int, int | None] | None]:
+    """Free-running steps. `scheduled` messages (FTT-CAN synchronous) go out in their own ECs, never at once
+    when their producer finishes: they wait for their slot as any message with its own period does."""
     lo, hi = 0, 0  # type: int, int | None
     refresh: int | None = None  # how often the data reaching this step is renewed
     delivery: tuple[int, int | None] | None = None
@@ -76,16 +100,17 @@ def unsynchronised(
                 msg = m.messages[ref]
                 d = chained[ref]
                 wait = 0
-                if msg.kind == "periodic" and i and not _sent_by_producer(m, msg, prev):
-                    wait = _sampling(msg.interval_ns, refresh)
+                if msg.kind == "periodic" and i and (ref in scheduled or not _sent_by_producer(m, msg, prev)):
+                    wait = _sampling(message_period(msg), refresh)
                 outs.append((lo + d.best_ns, _add(_add(hi, wait), d.worst_ns)))
-                periods.append(msg.interval_ns or 0)
+                periods.append(message_period(msg) or 0)
             else:
                 task = m.task(ref)
                 period = task_period(m, task)
                 wait = _sampling(period, refresh) if i and task.on_message is None else 0
                 start_hi = _add(hi, wait)
-                outs.append((lo, start_hi) if last else (lo + task.bcet_ns, _add(start_hi, task.wcet_ns)))
+                end_hi = _add(start_hi, task_response(task, task_ns))
+                outs.append((lo, start_hi) if last else (lo + task.bcet_ns, end_hi))
                 periods.append(period or 0)
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
@@ -97,11 +122,18 @@ def unsynchronised(
     return (lo, hi), delivery
 
 
+CLOCK_TOLERANCE_PPM = 100  # node clocks run within +-100 ppm of nominal (crystals; the simulator draws +-50 ppm)
+
+
 def _sampling(consumer_period: int | None, refresh: int | None) -> int:
     """Worst sampling delay of a free-running consumer: up to one of its periods, and never more than the
-    input's renewal period (a slower consumer always reads data renewed within that period: its age counts)."""
+    input's renewal period (a slower consumer always reads data renewed within that period: its age counts).
+    Both periods run on a node's own clock, so in real time they may be CLOCK_TOLERANCE_PPM longer."""
     candidates = [p for p in (consumer_period, refresh) if p]
-    return min(candidates) if candidates else 0
+    if not candidates:
+        return 0
+    wait = min(candidates)
+    return wait + -(-wait * CLOCK_TOLERANCE_PPM // 1_000_000)
 
 
 def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> bool:
@@ -110,9 +142,14 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
         return False
     for ref in prev.refs:
         task = m.task(ref)
-        if task.node == msg.producer and task_period(m, task) in (msg.period_ns, msg.interval_ns):
+        if task.node == msg.producer and _same_rate(m, task, msg):
             return True
     return False
+
+
+def _same_rate(m: model.Model, task: model.Task, msg: model.Message) -> bool:
+    """A task runs at a message's rate: its period is the message's nominal, fastest or slowest one."""
+    return task_period(m, task) in {msg.period_ns, msg.interval_ns, message_period(msg)}
 
 
 def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
@@ -128,14 +165,13 @@ def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
                 continue
             for ref in prev.refs:
                 task = m.task(ref)
-                same_rate = task_period(m, task) in (msg.period_ns, msg.interval_ns)
-                if task.node == msg.producer and (same_rate or msg.kind == "sporadic"):
+                if task.node == msg.producer and (_same_rate(m, task, msg) or msg.kind == "sporadic"):
                     out.add(ref)
     return tuple(sorted(out))
 
 
 def synchronised(
-    m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery]
+    m: model.Model, flow: model.Flow, ftt: FttTimes, chained: dict[str, Delivery], task_ns: TaskTimes | None = None
 ) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
     """Latency range over every start instance in the macro-cycle; None when some step is not time-triggered."""
     s = ftt.schedule
@@ -169,7 +205,7 @@ def synchronised(
         for ref in step.refs:
             if step.kind == "task":
                 task = m.task(ref)
-                if task.trigger is None and task.on_message is None:
+                if (task.trigger is None and task.on_message is None) or task_response(task, task_ns) is None:
                     return None
             elif ref not in chained:
                 return None
@@ -213,7 +249,8 @@ def synchronised(
                         a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
                     else:  # started by a message
                         a_lo, a_hi = lo, hi
-                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + task.wcet_ns))
+                    busy = task_response(task, task_ns) or 0  # bounded: checked above
+                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
             if step.kind == "message":
                 got = (lo, hi)
@@ -261,7 +298,12 @@ class SyncTimes:
 
 
 def synchronised_canopen(
-    m: model.Model, flow: model.Flow, bus: str, st: SyncTimes, chained: dict[str, Delivery]
+    m: model.Model,
+    flow: model.Flow,
+    bus: str,
+    st: SyncTimes,
+    chained: dict[str, Delivery],
+    task_ns: TaskTimes | None = None,
 ) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
     """SYNC-driven CANopen (seed 000): SYNC tasks run a fixed offset after each SYNC, synchronous TPDOs sample at
     SYNC and are done by the cycle's completion; other messages go out when their producer has the data.
@@ -306,7 +348,7 @@ def synchronised_canopen(
         for ref in step.refs:
             if step.kind == "task":
                 task = m.task(ref)
-                if task.sync_bus != bus and task.on_message is None:
+                if (task.sync_bus != bus and task.on_message is None) or task_response(task, task_ns) is None:
                     return None
             elif ref not in st.every and (chained.get(ref) is None or chained[ref].worst_ns is None):
                 return None
@@ -348,7 +390,8 @@ def synchronised_canopen(
                         a_hi = on_sync(1, activation(task), hi, True)[1]
                     else:  # started by a message
                         a_lo, a_hi = lo, hi
-                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + task.wcet_ns))
+                    busy = task_response(task, task_ns) or 0  # bounded: checked above
+                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
             if step.kind == "message":
                 got = (lo, hi)

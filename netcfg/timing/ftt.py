@@ -4,10 +4,11 @@ Following Almeida, Pedreiras and Fonseca, "The FTT-CAN protocol: why and how", I
 Industrial Electronics 49(6), 2002, and the CAMBADA paper (seed 002, section 5.1): the master starts every
 elementary cycle (EC) with the trigger message (TM), whose EC-schedule has one bit per synchronous id due in
 that EC (messages and task triggers). The asynchronous window follows the TM; the synchronous window closes
-the EC, its length the worst-case transmission time of the messages due, bounded by LSW. An asynchronous
-frame is started only if it can finish before the synchronous window, so up to one maximum asynchronous frame
-of inserted idle time precedes it (Almeida and Fonseca, "Analysis of a simple model for non-preemptive
-blocking-free scheduling", ECRTS 2001).
+the EC, its length the worst-case transmission time of the messages due, bounded by LSW (the bus field
+`windows: sync-first` swaps them: the synchronous window right after the TM, the asynchronous one closing the
+EC). An asynchronous frame is started only if it can finish before the next window, so up to one maximum
+asynchronous frame of inserted idle time precedes it (Almeida and Fonseca, "Analysis of a simple model for
+non-preemptive blocking-free scheduling", ECRTS 2001).
 
 Asynchronous messages are analysed as in Pedreiras and Almeida, "Combining event-triggered and time-triggered
 traffic in FTT-CAN: analysis of the asynchronous messaging system", WFCS 2000: a message released just after
@@ -19,6 +20,7 @@ W(t) = C_m + max lower-priority C + sum over hp of ceil((t + J_k) / T_k) * C_k.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 from math import lcm
 
 from netcfg import model
@@ -41,10 +43,16 @@ class SrtEntry:
     fastest_period_ec: int
     init_ec: int  # first EC in which it is due (Table 2's "init time")
     deadline_ns: int | None
+    slowest_period_ec: int = 0  # period_range's slowest period; 0: the nominal period (no range)
 
     def due(self, ec: int, period: int | None = None) -> bool:
         p = period or self.period_ec
         return (ec - self.init_ec) % p == 0
+
+    @property
+    def admissible_periods(self) -> range:
+        """Every period the master may give it: the whole period_range, in ECs."""
+        return range(self.fastest_period_ec, max(self.slowest_period_ec, self.period_ec) + 1)
 
 
 @dataclass(frozen=True)
@@ -64,6 +72,7 @@ class Schedule:
     lsw_ns: int
     entries: tuple[SrtEntry, ...]
     slots: tuple[EcSlot, ...]  # one per EC of the macro-cycle
+    sync_first: bool = False  # the synchronous window right after the TM, the asynchronous one closing the EC
 
     @property
     def macro_cycle(self) -> int:
@@ -71,7 +80,13 @@ class Schedule:
 
     def window_start(self, ec: int) -> int:
         """Start of EC ec's synchronous window, from the EC start."""
+        if self.sync_first:
+            return self.tm_ns
         return self.ec_ns - self.slots[ec % self.macro_cycle].sync_ns
+
+    def async_start(self, ec: int) -> int:
+        """Start of EC ec's asynchronous window, from the EC start: after the TM, or after the synchronous window."""
+        return self.tm_ns + (self.slots[ec % self.macro_cycle].sync_ns if self.sync_first else 0)
 
     def completion(self, name: str, ec: int, frame_ns: dict[str, tuple[int, int]]) -> tuple[int, int]:
         """(best, worst) end of message `name`'s frame in EC ec, from the EC start. frame_ns gives each
@@ -129,6 +144,7 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
                 fastest_period_ec=(m.interval_ns or m.period_ns) // ec,
                 init_ec=(m.offset_ns or 0) // ec,
                 deadline_ns=m.deadline_ns,
+                slowest_period_ec=(m.slowest_ns or 0) // ec,
             )
         )
     for t in triggers:
@@ -148,6 +164,7 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
                 fastest_period_ec=t.interval_ns // ec,
                 init_ec=(t.offset_ns or 0) // ec,
                 deadline_ns=None,
+                slowest_period_ec=(t.slowest_ns or 0) // ec,
             )
         )
     return sorted(out, key=lambda e: e.ftt_id)
@@ -173,7 +190,45 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
         slots.append(
             EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
         )
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots))
+    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
+
+
+def envelope_schedule(bus: model.Bus, entries: list[SrtEntry]) -> Schedule:
+    """Every message that may be due in an EC at some admissible periods: each message of a period_range may run
+    at any period of it (the master keeps its init EC), so EC k may carry it if some admissible period divides
+    k - init. Its slots bound the synchronous window (LSW check) and the asynchronous supply of any EC whatever
+    periods the master picks; without ranges it is the nominal schedule. When the pattern's length exceeds
+    MAX_MACRO_CYCLE, a message with a range is taken as due in every EC (sound, more pessimistic)."""
+    assert bus.ftt is not None
+    ec = bus.ftt.ec_ns
+    tm = tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
+    lengths = [lcm(*e.admissible_periods) for e in entries]
+    horizon = macro_cycle(lengths)
+    coarse = horizon > MAX_MACRO_CYCLE
+    if coarse:
+        horizon = macro_cycle([e.period_ec for e in entries if len(e.admissible_periods) == 1])
+        if horizon > MAX_MACRO_CYCLE:
+            raise MacroCycleTooLong(horizon)
+
+    def may_be_due(e: SrtEntry, k: int) -> bool:
+        periods = e.admissible_periods
+        if coarse and len(periods) > 1:
+            return True
+        return any((k - e.init_ec) % p == 0 for p in periods)
+
+    by_can_id = sorted(
+        (e for e in entries if e.kind == "message"), key=lambda e: arbitration_key(e.can_id or 0, e.extended)
+    )
+    slots = []
+    for k in range(horizon):
+        msgs = [e for e in by_can_id if may_be_due(e, k)]
+        trigs = [e for e in entries if e.kind == "trigger" and may_be_due(e, k)]
+        sync = sum(e.c_ns for e in msgs)
+        due = sorted(e.ftt_id for e in (*msgs, *trigs))
+        slots.append(
+            EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
+        )
+    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
 
 
 def ec_schedule_mask(slot: EcSlot) -> int:
@@ -194,8 +249,17 @@ class AsyncFrame:
     extended: bool = False
 
 
-def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str, int | None]:
-    """Worst-case response of each asynchronous message over all ECs of the macro-cycle (None: unbounded)."""
+MAX_ASYNC_STEPS = 20_000  # fixed-point steps per asynchronous message before it is reported unbounded
+
+
+def async_response_times(
+    sched: Schedule, frames: list[AsyncFrame], limited: set[str] | None = None
+) -> dict[str, int | None]:
+    """Worst-case response of each asynchronous message over all ECs of the (envelope) schedule; None when
+    unbounded: the level-m load, the message's own included, reaches the asynchronous supply, or the bound needs
+    more than MAX_ASYNC_STEPS steps. As on plain CAN (Davis et al. 2007), every instance q of m in the level-m busy
+    period is examined: w(q) = serve(B + (q + 1) C_m + sum over hp of ceil((w + J_k) / T_k) C_k),
+    R(q) = J_m + w(q) - q T_m. Messages stopped by the step limit are added to `limited`."""
     if not frames:
         return {}
     idle = max(f.c_ns for f in frames)  # inserted idle time before each synchronous window
@@ -203,39 +267,65 @@ def async_response_times(sched: Schedule, frames: list[AsyncFrame]) -> dict[str,
     cycle_supply = sum(supply)
     if cycle_supply == 0:
         return {f.name: None for f in frames}
+    cycle_ns = sched.ec_ns * sched.macro_cycle
     ordered = sorted(frames, key=lambda f: arbitration_key(f.can_id, f.extended))
     out: dict[str, int | None] = {}
     for i, f in enumerate(ordered):
-        hp = ordered[:i]
+        level = ordered[: i + 1]
         blocking = max((g.c_ns for g in ordered[i + 1 :]), default=0)
-        rate = sum(g.c_ns / g.t_ns for g in hp if g.t_ns) * sched.ec_ns * sched.macro_cycle
-        if rate >= cycle_supply:
+        # exact: the level-m demand per macro-cycle against what the windows serve in one
+        if sum((Fraction(g.c_ns * cycle_ns, g.t_ns) for g in level if g.t_ns), Fraction(0)) >= cycle_supply:
             out[f.name] = None
             continue
-        worst = 0
-        for start in range(sched.macro_cycle):
-            t = 0
-            while True:
-                demand = f.c_ns + blocking + sum(g.c_ns * (-(-(t + g.j_ns) // g.t_ns) if g.t_ns else 1) for g in hp)
-                served = _time_to_serve(sched, supply, start, demand)
-                if served <= t:
-                    break
-                t = served
-            worst = max(worst, t + f.j_ns)
-        out[f.name] = worst
+        out[f.name] = _async_worst(sched, supply, f, ordered[:i], blocking)
+        if out[f.name] is None and limited is not None:
+            limited.add(f.name)  # the load fits: only the step limit stopped the analysis
     return out
+
+
+def _async_worst(sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[AsyncFrame], blocking: int) -> int | None:
+    def hp_demand(t: int) -> int:
+        return sum(g.c_ns * (-(-(t + g.j_ns) // g.t_ns) if g.t_ns else 1) for g in hp)
+
+    steps = 0
+    worst = 0
+    for start in range(sched.macro_cycle):
+        # level-m busy period from this start: until the windows have served everything released in it
+        busy = 0
+        while True:
+            own = f.c_ns * (-(-(busy + f.j_ns) // f.t_ns) if f.t_ns else 1)
+            served = _time_to_serve(sched, supply, start, blocking + max(own, f.c_ns) + hp_demand(busy))
+            steps += 1
+            if served <= busy:
+                break
+            if steps > MAX_ASYNC_STEPS:
+                return None
+            busy = served
+        instances = max(1, -(-(busy + f.j_ns) // f.t_ns)) if f.t_ns else 1
+        w = 0
+        for q in range(instances):
+            while True:
+                served = _time_to_serve(sched, supply, start, blocking + (q + 1) * f.c_ns + hp_demand(w))
+                steps += 1
+                if served <= w:
+                    break
+                if steps > MAX_ASYNC_STEPS:
+                    return None
+                w = served
+            worst = max(worst, f.j_ns + w - q * (f.t_ns or 0))
+    return worst
 
 
 def _time_to_serve(sched: Schedule, supply: list[int], start: int, demand: int) -> int:
     """Time, from the end of EC start's usable asynchronous window, until `demand` ns of asynchronous
     service have been given in the following ECs' windows."""
-    ec, tm, n = sched.ec_ns, sched.tm_ns, sched.macro_cycle
-    origin = start * ec + tm + supply[start]  # just too late to start in this EC's window
+    ec, n = sched.ec_ns, sched.macro_cycle
+    origin = start * ec + sched.async_start(start) + supply[start]  # just too late to start in this EC's window
     k = start + 1
     left = demand
     while True:
         cap = supply[k % n]
         if left <= cap:
-            return k * ec + tm + left - origin
+            return k * ec + sched.async_start(k) + left - origin
         left -= cap
         k += 1

@@ -6,6 +6,7 @@ time; on-demand messages (start-up, mode changes) are not part of the steady-sta
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Protocol
@@ -65,6 +66,20 @@ def rate_hz(msg: Rated) -> float:
     return 1e9 / msg.interval_ns
 
 
+EXACT_MARGIN = 1e-9  # float utilisations closer than this to 1 are decided again with fractions
+
+
+def compare_to_capacity(approx: float, loads: Iterable[tuple[int, int]]) -> int:
+    """Sign of (sum of C / T) - 1 over (C, T) pairs in integer time, decided exactly: the float sum `approx`
+    settles it unless it lies within EXACT_MARGIN of 1, where floats depend on the order of the terms."""
+    if approx < 1 - EXACT_MARGIN:
+        return -1
+    if approx > 1 + EXACT_MARGIN:
+        return 1
+    total = sum((Fraction(c, t) for c, t in loads), Fraction(0))
+    return (total > 1) - (total < 1)
+
+
 def can_bus_load(bus: model.Bus) -> tuple[dict[str, FrameTiming], float, float]:
     """-> (timing per message, worst-case utilisation, utilisation without stuff bits)."""
     timings = {m.name: frame_timing(m, bus.bitrate) for m in bus.messages}
@@ -75,3 +90,12 @@ def can_bus_load(bus: model.Bus) -> tuple[dict[str, FrameTiming], float, float]:
         if m.interval_ns and m.kind != "on-demand"
     )
     return timings, worst, nominal
+
+
+def can_bus_overloaded(
+    bus: model.Bus, timings: dict[str, FrameTiming], approx: float, extra: tuple[int, int] | None = None
+) -> bool:
+    """True when the worst-case load (plus an extra C / T such as FTT-CAN's trigger message) is above 100 %,
+    decided exactly (a load of exactly 1 fits)."""
+    loads = [(timings[m.name].tx_ns, m.interval_ns) for m in bus.messages if m.interval_ns and m.kind != "on-demand"]
+    return compare_to_capacity(approx, [*loads, *([extra] if extra else [])]) > 0

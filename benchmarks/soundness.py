@@ -1,0 +1,380 @@
+"""Soundness: random specs of every protocol, analysed, then simulated; no simulated figure may leave its bound.
+
+Each spec is drawn by a hypothesis strategy (random periods, period ranges, offsets, sizes, jitters, priorities,
+identifiers, tasks and flows) over plain CAN, FTT-CAN, switched Ethernet and CANopen (SYNC, synchronous TPDOs
+every n-th SYNC, RxPDOs; flows through the CANopen master are not drawn). Specs that `check` refuses are
+skipped (they promise nothing). Every accepted spec is simulated twice: once with random clock phases and drift,
+once at the critical instant (every clock at 0, no drift), and every message and flow must stay inside its
+analysed range. The tightness of a bound is the worst simulated figure over the bound.
+
+    .venv/bin/python benchmarks/soundness.py --specs 2500           # 10,000 specs; prints the tightness
+    .venv/bin/python benchmarks/soundness.py --specs 200 --protocol ftt-can
+
+tests/test_soundness.py runs the same check on a bounded number of specs in CI.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from itertools import pairwise
+from pathlib import Path
+from typing import Any
+
+import yaml
+from hypothesis import HealthCheck, Phase, given, seed, settings
+from hypothesis import strategies as st
+
+from netcfg import runtime
+from netcfg.check import analyse_spec
+from netcfg.emit.runtime_json import runtime_document
+from netcfg.sim.montecarlo import run_once
+from netcfg.sim.results import summary
+from netcfg.sim.scenario import SimOptions
+
+PROTOCOLS = ("can", "ftt-can", "ethernet-udp", "canopen")
+US = 1_000
+
+
+def _names(prefix: str, n: int) -> list[str]:
+    return [f"{prefix}{i}" for i in range(n)]
+
+
+@st.composite
+def can_spec(draw: st.DrawFn) -> dict[str, Any]:
+    """Plain CAN: 2-4 nodes, up to 10 messages (periodic with jitter, sporadic), a task chain per flow."""
+    bitrate = draw(st.sampled_from(["125 kbit/s", "250 kbit/s", "500 kbit/s", "1 Mbit/s"]))
+    nodes = _names("n", draw(st.integers(2, 4)))
+    count = draw(st.integers(1, 10))
+    ids = draw(st.lists(st.integers(1, 0x7FF), min_size=count, max_size=count, unique=True))
+    messages = []
+    for i, ident in enumerate(ids):
+        producer = draw(st.sampled_from(nodes))
+        consumer = draw(st.sampled_from([n for n in nodes if n != producer]))
+        msg: dict[str, Any] = {
+            "name": f"m{i}",
+            "id": ident,
+            "extended": draw(st.booleans()),
+            "producer": producer,
+            "consumers": [consumer],
+            "size": draw(st.integers(0, 8)),
+        }
+        if draw(st.integers(0, 4)) == 0:
+            msg["min_interarrival"] = f"{draw(st.integers(1_000, 100_000))} us"
+        else:
+            period = draw(st.integers(500, 100_000))
+            msg["period"] = f"{period} us"
+            jitter = draw(st.integers(0, period // 4))
+            if jitter:
+                msg["jitter"] = f"{jitter} us"
+        messages.append(msg)
+    spec = {
+        "system": "random_can",
+        "buses": [{"name": "can0", "protocol": "can", "bitrate": bitrate}],
+        "nodes": [{"name": n, "buses": ["can0"]} for n in nodes],
+        "messages": messages,
+    }
+    _add_flows(draw, spec)
+    return spec
+
+
+@st.composite
+def ftt_spec(draw: st.DrawFn) -> dict[str, Any]:
+    """FTT-CAN: synchronous messages with periods, ranges and offsets in ECs, asynchronous ones, triggers."""
+    ec_ms = draw(st.integers(2, 10))
+    nodes = ["master", *_names("n", draw(st.integers(2, 4)))]
+    count = draw(st.integers(1, 8))
+    messages = []
+    ftt_id = 1
+    for i in range(count):
+        producer = draw(st.sampled_from(nodes[1:]))
+        consumer = draw(st.sampled_from([n for n in nodes[1:] if n != producer]))
+        msg: dict[str, Any] = {
+            "name": f"m{i}",
+            "producer": producer,
+            "consumers": [consumer],
+            "size": draw(st.integers(0, 8)),
+        }
+        if draw(st.booleans()):
+            period = draw(st.integers(1, 6))
+            msg |= {"ftt_id": ftt_id, "period": f"{period} EC", "offset": f"{draw(st.integers(0, period - 1))} EC"}
+            ftt_id += 1
+            if draw(st.integers(0, 3)) == 0:
+                msg["period_range"] = [f"{draw(st.integers(1, period))} EC", f"{period + draw(st.integers(0, 2))} EC"]
+        else:
+            msg |= {"id": 0x200 + i, "window": "async"}
+            if draw(st.booleans()):
+                msg["min_interarrival"] = f"{draw(st.integers(2, 200))} ms"
+            else:
+                msg["period"] = f"{draw(st.integers(2, 200))} ms"
+        messages.append(msg)
+    spec: dict[str, Any] = {
+        "system": "random_ftt",
+        "buses": [
+            {
+                "name": "bus",
+                "protocol": "ftt-can",
+                "bitrate": draw(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
+                "ftt": {
+                    "ec": f"{ec_ms} ms",
+                    "tm_size": draw(st.integers(1, 8)),
+                    "windows": draw(st.sampled_from(["async-first", "sync-first"])),
+                },
+            }
+        ],
+        "nodes": [{"name": "master", "role": "master", "buses": ["bus"]}]
+        + [{"name": n, "buses": ["bus"]} for n in nodes[1:]],
+        "messages": messages,
+    }
+    _add_flows(draw, spec, ftt_ids=ftt_id, ec_us=ec_ms * 1000)
+    return spec
+
+
+@st.composite
+def ethernet_spec(draw: st.DrawFn) -> dict[str, Any]:
+    """Switched Ethernet: a chain of 1-3 switches, 3-6 hosts, periodic datagrams with jitter."""
+    hosts = _names("h", draw(st.integers(3, 6)))
+    switches = _names("sw", draw(st.integers(1, 3)))
+    ports: dict[str, list[dict[str, Any]]] = {s: [] for s in switches}
+    for a, b in pairwise(switches):
+        ports[a].append({"port": len(ports[a]) + 1, "to": b})
+    for i, h in enumerate(hosts):  # every switch gets a host first, the rest at random
+        s = switches[i] if i < len(switches) else draw(st.sampled_from(switches))
+        ports[s].append({"port": len(ports[s]) + 1, "to": h})
+    messages = []
+    for i in range(draw(st.integers(1, 8))):
+        producer = draw(st.sampled_from(hosts))
+        consumer = draw(st.sampled_from([h for h in hosts if h != producer]))
+        period = draw(st.integers(100, 20_000))
+        msg = {
+            "name": f"m{i}",
+            "id": i + 1,
+            "producer": producer,
+            "consumers": [consumer],
+            "size": draw(st.integers(1, 1400)),
+            "period": f"{period} us",
+            "udp": {"src_port": 5000 + i, "dst_port": 6000 + i},
+        }
+        jitter = draw(st.integers(0, period // 4))
+        if jitter:
+            msg["jitter"] = f"{jitter} us"
+        messages.append(msg)
+    spec = {
+        "system": "random_eth",
+        "buses": [
+            {
+                "name": "lan",
+                "protocol": "ethernet-udp",
+                "bitrate": "100 Mbit/s",
+                "ethernet": {"switches": [{"name": s, "ports": ports[s]} for s in switches]},
+            }
+        ],
+        "nodes": [{"name": h, "ip": f"10.0.0.{i + 1}", "buses": ["lan"]} for i, h in enumerate(hosts)],
+        "messages": messages,
+    }
+    _add_flows(draw, spec)
+    return spec
+
+
+@st.composite
+def canopen_spec(draw: st.DrawFn) -> dict[str, Any]:
+    """CANopen: a master and 1-6 EPOS4 drives; SYNC period, synchronous TPDOs (every n-th SYNC), periodic RxPDOs
+    with jitter, an optional sporadic message from the master."""
+    period_ms = draw(st.integers(2, 40))
+    drives = _names("d", draw(st.integers(1, 6)))
+    messages: list[dict[str, Any]] = []
+    for d in drives:
+        messages.append(
+            {
+                "name": f"{d}_cmd",
+                "producer": "master",
+                "consumers": [d],
+                "period": f"{period_ms * draw(st.integers(1, 3))} ms",
+                "pdo": {"rpdo": 1, "transmission": 255, "map": [0x60FF]},
+            }
+        )
+        for k in range(1, draw(st.integers(1, 2)) + 1):
+            messages.append(
+                {
+                    "name": f"{d}_tx{k}",
+                    "producer": d,
+                    "consumers": ["master"],
+                    "pdo": {"tpdo": k, "transmission": draw(st.integers(1, 3)), "map": [[0x6064, 0x606C][k - 1]]},
+                }
+            )
+    return {
+        "system": "random_canopen",
+        "buses": [
+            {
+                "name": "can0",
+                "protocol": "canopen",
+                "bitrate": draw(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
+                "canopen": {"sync_period": f"{period_ms} ms"},
+            }
+        ],
+        "nodes": [{"name": "master", "role": "master", "node_id": 127, "buses": ["can0"]}]
+        + [{"name": d, "node_id": i + 1, "device": "epos4", "buses": ["can0"]} for i, d in enumerate(drives)],
+        "messages": messages,
+    }
+
+
+def _us(text: str, ec_us: int) -> int:
+    value, unit = text.split()
+    return int(value) * {"us": 1, "ms": 1000, "EC": ec_us}[unit]
+
+
+def _add_flows(draw: st.DrawFn, spec: dict[str, Any], ftt_ids: int | None = None, ec_us: int = 0) -> None:
+    """Tasks around some messages, and a flow producer task -> message -> consumer task for each.
+    FTT-CAN synchronous messages get triggered tasks (a trigger per task pair), others periodic or
+    message-driven ones; every task has a random WCET and priority."""
+    nodes = {n["name"]: n for n in spec["nodes"]}
+    triggers = []
+    flows = []
+    for msg in spec["messages"]:
+        if "period" not in msg or draw(st.booleans()):
+            continue
+        i = len(flows)
+        producer, consumer = nodes[msg["producer"]], nodes[msg["consumers"][0]]
+        most = max(2, _us(msg["period"], ec_us) // 4)  # WCETs up to a quarter of the message's period
+        wcet = draw(st.integers(1, most))
+        send: dict[str, Any] = {"name": f"send{i}", "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 2)} us"}
+        use: dict[str, Any] = {"name": f"use{i}", "wcet": f"{draw(st.integers(1, most))} us"}
+        if draw(st.booleans()):
+            send["priority"] = draw(st.integers(0, 5))
+        if ftt_ids is not None and "ftt_id" in msg:
+            # the producer's task is triggered every period of the message, in the EC of its offset
+            triggers.append(
+                {
+                    "name": f"t_send{i}",
+                    "ftt_id": ftt_ids + 2 * i,
+                    "bus": "bus",
+                    "period": msg["period"],
+                    "offset": msg["offset"],
+                    "tasks": [f"{producer['name']}.send{i}"],
+                }
+            )
+            triggers.append(
+                {
+                    "name": f"t_use{i}",
+                    "ftt_id": ftt_ids + 2 * i + 1,
+                    "bus": "bus",
+                    "period": f"{draw(st.integers(1, 8))} EC",
+                    "tasks": [f"{consumer['name']}.use{i}"],
+                }
+            )
+        else:
+            send["period"] = msg["period"]
+            if draw(st.booleans()):
+                use["on_message"] = msg["name"]
+            else:
+                use["period"] = f"{draw(st.integers(1, 50))} ms"
+        producer.setdefault("tasks", []).append(send)
+        consumer.setdefault("tasks", []).append(use)
+        flows.append(
+            {"name": f"f{i}", "chain": [f"{producer['name']}.send{i}", msg["name"], f"{consumer['name']}.use{i}"]}
+        )
+    if triggers:
+        spec["triggers"] = triggers
+    if flows:
+        spec["flows"] = flows
+    if draw(st.booleans()):
+        for node in spec["nodes"]:
+            node["scheduling"] = "non-preemptive"
+
+
+STRATEGIES = {"can": can_spec(), "ftt-can": ftt_spec(), "ethernet-udp": ethernet_spec(), "canopen": canopen_spec()}
+
+
+@dataclass
+class Outcome:
+    accepted: bool  # check had no errors: the analysis promises something
+    violations: list[str] = field(default_factory=list)
+    tightness: dict[str, float] = field(default_factory=dict)  # message or flow -> worst simulated / bound
+
+
+def check_spec(spec: dict[str, Any], seed: int, duration_ns: int) -> Outcome:
+    """Analyse the spec; when accepted, simulate it with random phases and at the critical instant."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "spec.yaml"
+        path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+        model, report = analyse_spec(path)
+        if model is None or report["errors"]:
+            return Outcome(False)
+        doc = json.loads(json.dumps(runtime_document(model, report)))
+    cfg = runtime.parse(doc, "random")
+    out = Outcome(True)
+    runs = {
+        "random phases": SimOptions(duration_ns=duration_ns, seed=seed),
+        "critical instant": SimOptions(duration_ns=duration_ns, seed=seed, random_phase=False, drift_ppm=0.0),
+    }
+    if any(b.get("protocol") == "ftt-can" for b in spec["buses"]):  # the same bus as free-running CAN
+        runs["unsynchronised"] = SimOptions(duration_ns=duration_ns, seed=seed, mode="unsync")
+    for label, opts in runs.items():
+        _, res = run_once(cfg, opts)
+        result = summary(res)
+        out.violations += [f"{label}: {v}" for v in result["violations"]]
+        if result["deadline_misses"]:
+            out.violations.append(f"{result['deadline_misses']} deadline misses in a schedulable spec")
+        for m in result["messages"]:
+            if m["wcrt_us"] and m["response_us"]:
+                ratio = m["response_us"]["max"] / m["wcrt_us"]
+                out.tightness[m["name"]] = max(out.tightness.get(m["name"], 0.0), ratio)
+        for f in result["flows"]:
+            if f["analysis_us"] and f["latency_us"] and f["analysis_us"]["max"]:
+                ratio = f["latency_us"]["max"] / f["analysis_us"]["max"]
+                out.tightness["flow " + f["name"]] = max(out.tightness.get("flow " + f["name"], 0.0), ratio)
+    return out
+
+
+def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> int:
+    """Check `specs` random specs of one protocol; print the tally and the tightness. -> specs with a violation."""
+    tally = {"specs": 0, "accepted": 0, "failures": 0}
+    ratios: list[float] = []
+
+    @seed(seed_value)
+    @settings(
+        max_examples=specs,
+        database=None,
+        deadline=None,
+        phases=[Phase.generate],
+        suppress_health_check=list(HealthCheck),
+    )
+    @given(STRATEGIES[protocol])
+    def run(spec: dict[str, Any]) -> None:
+        out = check_spec(spec, tally["specs"], duration_ms * 1_000_000)
+        tally["specs"] += 1
+        tally["accepted"] += out.accepted
+        ratios.extend(out.tightness.values())
+        if out.violations:
+            tally["failures"] += 1
+            print(f"{protocol} spec {tally['specs']}: " + "; ".join(out.violations), file=sys.stderr)
+            print(yaml.safe_dump(spec, sort_keys=False), file=sys.stderr)
+
+    run()
+    ratios.sort()
+    mid = ratios[len(ratios) // 2] if ratios else 0.0
+    print(
+        f"{protocol}: {tally['specs']} specs, {tally['accepted']} accepted by check, {tally['failures']} with a "
+        f"simulated figure outside its bound; tightness (worst simulated / bound) over {len(ratios)} messages "
+        f"and flows: median {mid:.3f}, max {max(ratios, default=0.0):.3f}",
+        flush=True,
+    )
+    return tally["failures"]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--specs", type=int, default=1000, help="random specs per protocol")
+    parser.add_argument("--protocol", choices=PROTOCOLS, action="append", help="default: all")
+    parser.add_argument("--duration-ms", type=int, default=500, help="simulated time per run")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    bad = sum(sweep(p, args.specs, args.duration_ms, args.seed) for p in args.protocol or PROTOCOLS)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
