@@ -262,6 +262,11 @@ class Node(SpecModel):
     description: str | None = None
 
 
+class Mux(SpecModel):
+    signal: Name = Field(description="the multiplexer signal of the same message")
+    values: list[Int] = Field(min_length=1, description="its raw values for which this signal is present")
+
+
 class Signal(SpecModel):
     name: Name
     bits: Int = Field(ge=1, le=64)
@@ -269,8 +274,15 @@ class Signal(SpecModel):
         None,
         ge=0,
         le=511,
-        description="position of its least significant bit (little-endian); default: right after the previous signal",
+        description="little-endian: position of its least significant bit, default right after the previous "
+        "signal; big-endian: position of its most significant bit (DBC numbering: bit k is bit k % 8 of byte "
+        "k // 8), required",
     )
+    byte_order: Literal["little_endian", "big_endian"] = Field(
+        "little_endian", description="little_endian (Intel, DBC @1) or big_endian (Motorola, DBC @0)"
+    )
+    mux: Mux | None = Field(None, description="multiplexed: present only when another signal holds given values")
+    enum: dict[Int, str] | None = Field(None, description="value names by raw value (DBC VAL_); C enums")
     signed: Bool = False
     float: Bool = Field(False, description="IEEE 754 float (bits 32 or 64)")
     scale: Annotated[Float, AfterValidator(_non_zero)] = 1.0
