@@ -8,8 +8,9 @@ little-endian signals read the payload as one little-endian word from their leas
 big-endian (Motorola) ones run down from their most significant bit in DBC numbering; integers are
 unsigned or two's complement, floats IEEE 754, physical = raw * scale + offset, min/max bound the physical
 value. Multiplexed signals are packed and unpacked only when their multiplexers select them; value names
-become C enums (or #defines for values beyond an int). A message given only as a size is one unsigned field `<message>_raw` spanning the payload, as in the
-runtime and the DBC files (payloads over 8 bytes stay raw bytes).
+become C enums (or #defines for values beyond an int). A message given only as a size is one unsigned
+field `<message>_raw` spanning the payload, as in the runtime and the DBC files (payloads over 8 bytes stay raw
+bytes).
 
 Python only prepares the view below: which bytes each signal touches and with which shift, the bounds a
 value must meet; the C text is all in the template. Identifiers are the spec's names (already checked to be
