@@ -592,7 +592,8 @@ class _Importer:
         note = f"BO_ {dbc_id} {msg.name} ({frame}){line}, {senders}\n{timing.note}"
         if at is not None:
             for key in ((), ("name",), ("id",), ("size",), ("producer",)):
-                self.positions[("messages", self.index, *key)] = at
+                item: DataPath = ("messages", self.index, *key)
+                self.positions[item] = at
         self.comments[("messages", self.index)] = note + (f"\n{receivers_note}" if receivers_note else "")
         self.index += 1
         return out
