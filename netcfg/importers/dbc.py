@@ -372,10 +372,13 @@ class _Importer:
 
     def message_attribute(self, db: Database, msg: Message, name: str, zero: bool = False) -> float | None:
         """A time attribute of a message (ms: GenMsgDelayTime ...): its BA_ value, else the definition's
-        default; None when absent or not positive. A value beyond MAX_TIME_MS is an error at its line."""
+        default; None when absent or not positive. zero: netcfg's exact attributes, only the message's own BA_
+        value, 0 included. A value beyond MAX_TIME_MS is an error at its line."""
         value: Any = None
         if msg.dbc is not None and name in msg.dbc.attributes:
             value = msg.dbc.attributes[name].value
+        elif zero:  # netcfg's exact attributes count only where a message gives them
+            return None
         elif db.dbc is not None and name in db.dbc.attribute_definitions:
             value = db.dbc.attribute_definitions[name].default_value
         if value is None or isinstance(value, bool):
