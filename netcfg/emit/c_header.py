@@ -122,7 +122,8 @@ def _present(sig: model.Signal, by_name: dict[str, model.Signal]) -> str | None:
         switch = by_name[sig.mux]
         mask = (1 << switch.bits) - 1
         values = sorted({v & mask for v in sig.mux_values})
-        terms.append("(" + " || ".join(f"raw_{switch.name} == UINT64_C({v})" for v in values) + ")")
+        term = " || ".join(f"raw_{switch.name} == UINT64_C({v})" for v in values)
+        terms.append(f"({term})" if len(values) > 1 else term)
         sig = switch
     return " && ".join(terms) if terms else None
 

@@ -493,6 +493,8 @@ class _Importer:
         names.reserve(PLACEHOLDER_RECEIVER)
         out: dict[str, _Node] = {}
         for node in db.nodes:
+            if node.name == "Vector__XXX":  # "no node", even where BU_ lists it
+                continue
             at = self.lines.nodes.get(node.name)
             name, why = names.claim(node.name)
             line = f", line {at[0]}" if at else ""

@@ -155,6 +155,16 @@ def _non_zero(value: float) -> float:
 Int = Annotated[int, Strict()]
 Float = Annotated[float, BeforeValidator(_no_bool), AfterValidator(_finite)]
 Bool = Annotated[bool, Strict()]
+
+
+def _int_key(value: object) -> object:
+    """Mapping keys reach the model as text (YAML's `0:`, JSON's "0"): whole numbers only, no booleans."""
+    if isinstance(value, str) and re.fullmatch(r"-?[0-9]{1,20}", value.strip()):
+        return int(value)
+    return value
+
+
+IntKey = Annotated[int, BeforeValidator(_int_key), Strict()]
 # "node.task" references to tasks; flows and triggers use them.
 TaskRef = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$")]
 ObjectRef = Annotated[
@@ -282,7 +292,7 @@ class Signal(SpecModel):
         "little_endian", description="little_endian (Intel, DBC @1) or big_endian (Motorola, DBC @0)"
     )
     mux: Mux | None = Field(None, description="multiplexed: present only when another signal holds given values")
-    enum: dict[Int, str] | None = Field(None, description="value names by raw value (DBC VAL_); C enums")
+    enum: dict[IntKey, str] | None = Field(None, description="value names by raw value (DBC VAL_); C enums")
     signed: Bool = False
     float: Bool = Field(False, description="IEEE 754 float (bits 32 or 64)")
     scale: Annotated[Float, AfterValidator(_non_zero)] = 1.0
