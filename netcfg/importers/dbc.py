@@ -706,16 +706,17 @@ class _Importer:
                 self.add(
                     "dbc-name", f"signal '{s.name}' of message '{msg.name}': {why}; imported as '{name}'", at, "warning"
                 )
-        problem = self.layout_problem(msg, ordered)
-        if problem is not None:
-            s, text = problem
+        dropped = self.layout_drops(msg, ordered)
+        for gone, why in dropped.items():
             self.add(
                 "dbc-signal-layout",
-                f"signal '{s.name}' of message '{msg.name}' {text} (cantools only tolerates this); the message "
-                "keeps only its size, without signals",
-                self.lines.signals.get((dbc_id, s.name)) or self.message_at(msg),
+                f"signal '{gone}' of message '{msg.name}' {why} (cantools only tolerates this); left out of the "
+                "message's signals",
+                self.lines.signals.get((dbc_id, gone)) or self.message_at(msg),
                 "warning",
             )
+        ordered = [s for s in ordered if s.name not in dropped]
+        if not ordered:
             return None
         out: list[dict[str, Any]] = []
         bit = 0
@@ -734,22 +735,25 @@ class _Importer:
                 bit = s.start + s.length
         return out
 
-    def layout_problem(self, msg: Message, signals: list[Signal]) -> tuple[Signal, str] | None:
-        """What netcfg cannot lay out: a signal reaching outside the frame, overlapping another one that can
-        be in the same frame, a float of other than 32 or 64 bits, a multiplexer that is not a signal."""
+    def layout_drops(self, msg: Message, signals: list[Signal]) -> dict[str, str]:
+        """The signals netcfg cannot lay out, with the reason: reaching outside the frame, a float of other than
+        32 or 64 bits, a multiplexer that is not a signal, or overlapping a signal that can be in the same
+        frame. Of overlapping signals the narrower ones are kept (a wide one is often a group of the others)."""
         names = {s.name: s for s in signals}
-        masks: list[int] = []
+        drops: dict[str, str] = {}
+        masks: dict[str, int] = {}
         for s in signals:
-            if s.is_float and s.length not in (32, 64):
-                return s, f"is a float of {s.length} bits (IEEE 754 floats have 32 or 64)"
-            if s.multiplexer_signal is not None and s.multiplexer_signal not in names:
-                return s, f"is multiplexed by '{s.multiplexer_signal}', which is not a signal of the message"
             big = s.byte_order != "little_endian"
-            if big and s.length > s.start % 8 + 1 + 8 * (MAX_FRAME_BYTES - 1 - s.start // 8):
-                return s, "runs past the end of the largest frame"
-            if last_byte(s.start, s.length, big) >= msg.length:
-                return s, f"reaches outside the frame of {msg.length} bytes"
-            masks.append(sum(op.mask << (8 * op.index) for op in byte_ops(s.start, s.length, big)))
+            if s.is_float and s.length not in (32, 64):
+                drops[s.name] = f"is a float of {s.length} bits (IEEE 754 floats have 32 or 64)"
+            elif s.multiplexer_signal is not None and s.multiplexer_signal not in names:
+                drops[s.name] = f"is multiplexed by '{s.multiplexer_signal}', which is not a signal of the message"
+            elif big and s.length > s.start % 8 + 1 + 8 * (MAX_FRAME_BYTES - 1 - s.start // 8):
+                drops[s.name] = "runs past the end of the largest frame"
+            elif last_byte(s.start, s.length, big) >= msg.length:
+                drops[s.name] = f"reaches outside the frame of {msg.length} bytes"
+            else:
+                masks[s.name] = sum(op.mask << (8 * op.index) for op in byte_ops(s.start, s.length, big))
 
         def conditions(s: Signal) -> dict[str, set[int]]:
             out: dict[str, set[int]] = {}
@@ -760,14 +764,31 @@ class _Importer:
                 s = names[s.multiplexer_signal]
             return out
 
-        conds = [conditions(s) for s in signals]
-        for b, sb in enumerate(signals):
-            for a in range(b):
-                if masks[a] & masks[b] and not any(
-                    m in conds[b] and not (v & conds[b][m]) for m, v in conds[a].items()
-                ):
-                    return sb, f"overlaps signal '{signals[a].name}'"
-        return None
+        kept: list[Signal] = []
+        for s in sorted((s for s in signals if s.name in masks), key=lambda s: (s.length, s.start, s.name)):
+            cond = conditions(s)
+            clash = next(
+                (
+                    k
+                    for k in kept
+                    if masks[k.name] & masks[s.name]
+                    and not any(m in cond and not (v & cond[m]) for m, v in conditions(k).items())
+                ),
+                None,
+            )
+            if clash is None:
+                kept.append(s)
+            else:
+                drops[s.name] = f"overlaps signal '{clash.name}'"
+        # a signal multiplexed by a left-out multiplexer cannot be placed either
+        changed = True
+        while changed:
+            changed = False
+            for s in signals:
+                if s.name not in drops and s.multiplexer_signal in drops:
+                    drops[s.name] = f"is multiplexed by '{s.multiplexer_signal}', which is left out"
+                    changed = True
+        return drops
 
     def signal_note(self, s: Signal, dbc_id: int) -> str:
         """Where the signal is, and what the spec has no place for: its DBC comment and value names (VAL_)."""
