@@ -7,9 +7,9 @@ receivers, multiplexing (M / mN, SG_MUL_VAL_ for extended multiplexing) and valu
 
 Timing, as attributes of the message (BA_ ... BO_):
     GenMsgSendType        ENUM Cyclic (periodic), Spontaneous (sporadic), NoMsgSendType (on-demand)
-    GenMsgCycleTime       INT ms, rounded: the period (Vector's interaction layer and most tools read it)
-    GenMsgDelayTime       INT ms, rounded down: a sporadic message's minimum inter-arrival time
-    GenMsgStartDelayTime  INT ms, rounded: a periodic message's offset
+    GenMsgCycleTime       INT ms, half up, at least 1: the period (Vector's interaction layer and most tools read it)
+    GenMsgDelayTime       INT ms, rounded down, at least 1: a sporadic message's minimum inter-arrival time
+    GenMsgStartDelayTime  INT ms, half up: a periodic message's offset
     NetcfgPeriod, NetcfgMinInterarrival, NetcfgOffset, NetcfgJitter, NetcfgDeadline
                           FLOAT ms, exact (whole nanoseconds): what the Gen* attributes round, and the release
                           jitter and deadline, which they cannot say. netcfg's DBC importer reads them first,
@@ -96,10 +96,15 @@ def sanitise(text: str) -> str:
     return text.encode(ENCODING, errors="replace").decode(ENCODING)
 
 
+def _whole_ms(ns: int) -> int:
+    """Whole milliseconds, half up, in exact integer arithmetic (2.5 ms -> 3)."""
+    return (ns + 500_000) // 1_000_000
+
+
 def _cycle_ms(period_ns: int | None) -> int | None:
     if period_ns is None:
         return None
-    return max(1, round(period_ns / 1_000_000))
+    return max(1, _whole_ms(period_ns))
 
 
 def _ms(ns: int) -> float:
@@ -116,7 +121,7 @@ def _timing(msg: model.Message) -> DbcSpecifics:
     if msg.kind == "periodic" and msg.period_ns is not None:
         attrs["NetcfgPeriod"] = DbcAttribute(_ms(msg.period_ns), _EXACT_MS["NetcfgPeriod"])
         if offset_ns:
-            attrs["GenMsgStartDelayTime"] = DbcAttribute(round(offset_ns / 1e6), _INT_MS["GenMsgStartDelayTime"])
+            attrs["GenMsgStartDelayTime"] = DbcAttribute(_whole_ms(offset_ns), _INT_MS["GenMsgStartDelayTime"])
     elif msg.kind == "sporadic" and msg.interval_ns is not None:
         gap = max(1, msg.interval_ns // 1_000_000)
         attrs["GenMsgDelayTime"] = DbcAttribute(gap, _INT_MS["GenMsgDelayTime"])
