@@ -457,3 +457,51 @@ def test_signal_notes_and_start_bits(tmp_path: Path) -> None:
     assert signals[0]["enum"] == {0: "P", 1: "R"}
     note = comments[("messages", 0, "signals", 0)]
     assert "selected gear" in note
+
+
+# --- import: file.dbc on a bus of a YAML spec ------------------------------------------------------------------
+
+
+IMPORTING_SPEC = """system: plant
+buses:
+  - {name: body, protocol: can, bitrate: 500 kbit/s, import: vehicle.dbc}
+nodes:
+  - name: Dash
+    buses: [body]
+    tasks:
+      - {name: show, period: 20 ms, wcet: 1 ms}
+messages:
+  - {name: EngineStatus, deadline: 4 ms}
+  - {name: Sporadic, min_interarrival: 30 ms, deadline: 10 ms}
+"""
+
+
+def test_a_yaml_bus_imports_a_dbc_and_the_spec_adds_to_it(tmp_path: Path) -> None:
+    """hard_cases.dbc joins bus 'body': its nine messages and nodes, the spec's bit rate, the spec's deadline
+    for EngineStatus (the DBC's 10 ms period stays) and its own timing for Sporadic (30 ms, replacing the DBC's
+    20 ms); the spec's node Dash keeps its task. The DBC's warnings name the DBC's lines."""
+    from conftest import ROOT
+
+    (tmp_path / "vehicle.dbc").write_bytes((ROOT / "tests/data/dbc/hard_cases.dbc").read_bytes())
+    (tmp_path / "plant.yaml").write_text(IMPORTING_SPEC, encoding="utf-8")
+    rc, report = check_json("plant.yaml", cwd=tmp_path)
+    assert rc == 0, report["errors"]
+    bus = report["buses"][0]
+    assert bus["bitrate"] == 500_000 and len(bus["messages"]) == 9
+    by_name = {m["name"]: m for m in bus["messages"]}
+    assert (by_name["EngineStatus"]["period_us"], by_name["EngineStatus"]["deadline_us"]) == (10_000, 4_000)
+    assert (by_name["Sporadic"]["interval_us"], by_name["Sporadic"]["deadline_us"]) == (30_000, 10_000)
+    assert {w["file"] for w in report["warnings"]} == {"vehicle.dbc"}
+    proc = cli("build", "plant.yaml", "-o", "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    db = cantools.database.load_file(str(tmp_path / "out/dbc/body.dbc"))
+    assert isinstance(db, cdb.Database) and len(db.messages) == 9
+    assert db.get_message_by_name("EngineStatus").get_signal_by_name("Rpm").byte_order == "big_endian"
+
+
+def test_an_import_that_cannot_be_read_is_an_error_at_the_import_line(tmp_path: Path) -> None:
+    (tmp_path / "plant.yaml").write_text(IMPORTING_SPEC, encoding="utf-8")
+    rc, report = check_json("plant.yaml", cwd=tmp_path)
+    assert rc == 1
+    (error,) = report["errors"]
+    assert (error["code"], error["line"]) == ("import", 3) and "vehicle.dbc" in error["message"]

@@ -70,6 +70,7 @@ from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as DataPath
 from netcfg.runtime.codec import byte_ops, int_range, last_byte
 from netcfg.spec.schema import safe_name
+from netcfg.spec.source import SourceMap
 from netcfg.spec.units import format_ns
 
 ENCODING = "cp1252"  # what cantools.database.load_file and DBC tools read by default
@@ -874,3 +875,63 @@ def import_dbc(path: Path, options: ImportOptions, diags: Collector) -> Imported
     """The spec a user would write for this DBC, with comments saying where each item came from; None (with
     errors in diags) when it cannot be mapped. OSError propagates (the CLI reports it as an I/O problem)."""
     return import_dbc_located(path, options, diags)[0]
+
+
+# keys that say when a message is sent: a spec message that gives one replaces all of the DBC's
+_TIMING_KEYS = ("period", "rate", "period_range", "min_interarrival", "type", "offset")
+
+
+def merge_bus_imports(data: dict[str, Any], smap: SourceMap, base: Path, diags: Collector) -> dict[str, Any]:
+    """`import: file.dbc` on a bus of a YAML spec: the DBC's nodes and messages join that bus.
+
+    A node of the DBC that the spec declares keeps the spec's entry (the bus is added to its buses); a message
+    of the spec with the name of a DBC message adds its keys to the DBC's (a deadline, jitter, ...) and, when it
+    says when the message is sent, its timing replaces the DBC's. The spec's own bus entry (bitrate ...) wins.
+    Errors in the DBC name the DBC's file and line; a missing file names the spec's `import` line."""
+    data = dict(data)
+    buses = list(data.get("buses") or [])
+    nodes = [dict(n) if isinstance(n, dict) else n for n in data.get("nodes") or []]
+    messages = [dict(m) if isinstance(m, dict) else m for m in data.get("messages") or []]
+    for i, bus in enumerate(buses):
+        if not isinstance(bus, dict) or "import" not in bus:
+            continue
+        at = ("buses", i, "import")
+        bus = dict(bus)
+        source = bus.pop("import")
+        buses[i] = bus
+        name = bus.get("name")
+        if not isinstance(source, str) or not source.lower().endswith(".dbc"):
+            diags.add("import", "'import' names a DBC file, e.g. import: vehicle.dbc", smap.at(at))
+            continue
+        if bus.get("protocol") not in ("can", "canopen", "ftt-can") or not isinstance(name, str):
+            diags.add("import", "a DBC describes a CAN bus: import it on a bus with protocol can", smap.at(at))
+            continue
+        path = base / source
+        try:
+            got = import_dbc(path, ImportOptions(bitrate=1), diags)  # the spec's bus gives the bit rate
+        except OSError as exc:
+            diags.add("import", f"cannot read {source}: {exc.strerror or exc}", smap.at(at))
+            continue
+        if got is None:
+            continue
+        dbc = got[0]
+        declared = {n.get("name", "").lower(): n for n in nodes if isinstance(n, dict)}
+        for node in dbc["nodes"]:
+            mine = declared.get(node["name"].lower())
+            if mine is None:
+                nodes.append({**node, "buses": [name]})
+            elif isinstance(mine.get("buses"), list) and name not in mine["buses"]:
+                mine["buses"] = [*mine["buses"], name]
+        by_name = {m.get("name"): k for k, m in enumerate(messages) if isinstance(m, dict)}
+        for imported in dbc["messages"]:
+            imported = {**imported, "bus": name}
+            k = by_name.get(imported["name"])
+            if k is None:
+                messages.append(imported)
+                continue
+            ours = messages[k]
+            if any(key in ours for key in _TIMING_KEYS):
+                imported = {key: v for key, v in imported.items() if key not in _TIMING_KEYS}
+            messages[k] = {**imported, **ours}
+    data["buses"], data["nodes"], data["messages"] = buses, nodes, messages
+    return data

@@ -239,6 +239,12 @@ class Bus(SpecModel):
     canopen: CanopenParams | None = None
     ethernet: EthernetParams | None = None
     description: str | None = None
+    import_: str | None = Field(
+        None,
+        alias="import",
+        description="a DBC file (path relative to the spec) whose nodes and messages join this CAN bus; a spec "
+        "message of the same name adds to or overrides the DBC's (e.g. a deadline), the bus's bitrate wins",
+    )
 
 
 class Task(SpecModel):
