@@ -4,6 +4,8 @@ One DBC describes one classical CAN bus. The mapping, item by item (every DBC it
 or with --lenient a warning naming it; nothing is dropped silently):
 
 - system: the file stem made a safe name. Bus: `protocol: can`, named from the DBName attribute (else 'can0').
+- bus type: the database attribute `BusType`, when given, must be CAN (or CAN FD: its FD frames are refused
+  one by one); another (LIN, FlexRay) is an error.
 - bit rate: --bitrate wins; else the database attribute `Baudrate`, else `BusSpeed` (a BA_ value, else the
   BA_DEF_DEF_ default when it is not 0). Every DBC we found in public repositories (cantools' writer, CANdb++
   style files, generator scripts; BusSpeed too) gives bit/s (`BA_ "Baudrate" 500000;`); a value of at most
@@ -461,6 +463,14 @@ class _Importer:
                 )
         else:
             self.comments[("buses", 0)] = "one classical CAN bus; the DBC has no DBName attribute, so it is 'can0'"
+        bus_type = self.db_attribute(db, "BusType")
+        if bus_type is not None and not str(bus_type[0]).strip().upper().startswith("CAN"):
+            self.add(
+                "dbc-bus-type",
+                f"the DBC describes a {str(bus_type[0]).strip()} bus ({bus_type[1]}); netcfg analyses CAN buses",
+                self.lines.attributes.get("BusType"),
+            )
+            return None
         rate = self.bitrate(db)
         if rate is not None:
             bus["bitrate"] = bitrate_text(rate[0])
