@@ -230,7 +230,7 @@ def bitrate_text(bps: int) -> str:
 
 def _number(value: float) -> float | int:
     """Integral floats as ints: the spec reads the same, and the YAML says '1' rather than '1.0'."""
-    return int(value) if isinstance(value, float) and value.is_integer() and abs(value) < 2**53 else value
+    return int(value) if isinstance(value, float) and abs(value) < 2**53 and value.is_integer() else value
 
 
 class _Importer:

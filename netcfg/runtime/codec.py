@@ -20,6 +20,7 @@ import math
 import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 
 Number = int | float
 
@@ -45,6 +46,7 @@ class ByteOp:
     mask: int
 
 
+@lru_cache(maxsize=4096)  # a pure function of three small integers, asked for every signal and frame
 def byte_ops(start_bit: int, bits: int, big_endian: bool = False) -> tuple[ByteOp, ...]:
     """Where each byte's share of the signal goes (see the module docstring for the two numberings)."""
     ops: list[ByteOp] = []
