@@ -25,7 +25,8 @@ def main(argv: list[str] | None = None) -> int:
     p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC")
     p_check.add_argument("--format", choices=("text", "json"), default="text")
     p_check.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k or '500 kbit/s'")
-    p_check.add_argument("--lenient", action="store_true", help="DBC input: unmappable items are warnings")
+    p_check.add_argument("--lenient", action="store_true",
+                         help="DBC input: accepted; what cannot be mapped is a warning anyway (see --default-period)")
     p_check.add_argument("--default-period", type=_duration_ns, metavar="T",
                          help="DBC input: analyse messages that give no cycle time as periodic every T, e.g. 100ms")
     p_check.add_argument("--werror", action="append", default=[], metavar="CODE",

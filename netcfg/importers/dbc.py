@@ -1,7 +1,8 @@
 """DBC (Vector CANdb++) -> netcfg spec data, read through cantools.
 
-One DBC describes one classical CAN bus. The mapping, item by item (every DBC item not mapped is an error,
-or with --lenient a warning naming it; nothing is dropped silently):
+One DBC describes one classical CAN bus. The mapping, item by item (what cannot be mapped is a warning naming
+it, or an error where no analysis is possible, such as a CAN FD frame; nothing is dropped silently; --lenient
+is accepted but no DBC item needs it any more):
 
 - system: the file stem made a safe name. Bus: `protocol: can`, named from the DBName attribute (else 'can0').
 - bus type: the database attribute `BusType`, when given, must be CAN (or CAN FD: its FD frames are refused
@@ -251,13 +252,6 @@ class _Importer:
 
     def add(self, code: str, text: str, at: tuple[int, int] | int | None, severity: Severity = "error") -> None:
         self.diags.add(code, text, self.pos(at), severity)  # the position names the file
-
-    def unmappable(self, code: str, text: str, at: tuple[int, int] | int | None, lenient_outcome: str) -> None:
-        """An error, or with --lenient a warning saying what was done instead."""
-        if self.options.lenient:
-            self.add(code, f"{text}; {lenient_outcome} (--lenient)", at, "warning")
-        else:
-            self.add(code, f"{text}; fix the DBC, or import with --lenient ({lenient_outcome})", at)
 
     def message_at(self, msg: Message) -> tuple[int, int] | None:
         dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
@@ -567,7 +561,7 @@ class _Importer:
                 "warning",
             )
             producer, others = self.placeholder(nodes), []
-        # Vector__XXX among receivers means "no node"; it never stands for the --lenient placeholder
+        # Vector__XXX among receivers means "no node"; it never stands for the placeholder sender
         receivers = {nodes[r].name for s in msg.signals for r in s.receivers if r in nodes and r != "Vector__XXX"}
         # node order, not signal order: the same set always gives the same list
         consumers = [n.name for n in nodes.values() if n.name in receivers and n.name != producer]
