@@ -550,3 +550,37 @@ def test_the_simulator_carries_the_imported_frames(tmp_path: Path) -> None:
             continue
         assert values == theirs, (ours.name, values, theirs)
     assert {"EngineStatus", "Diagnostics", "ExtMux", "FloatData", "DoubleData"} <= seen
+
+
+TOLERATED = """BU_: A B
+BO_ 256 M: 8 A
+ SG_ s : 0|8@1+ (1,0) [0|255] "" B
+ SG_ s : 8|8@1+ (1,0) [0|255] "" B
+BO_ 257 N: 8 A
+ SG_ x : 0|8@1+ (0,0) [0|255] "" B
+ SG_ y : 8|8@1- (1,0) [0|100] "" B
+ SG_ z : 16|8@1+ (1,0) [10|0] "" B
+ SG_ w : 20|8@1+ (1,0) [0|255] "" B
+VAL_ 257 y 300 "big" -5 "neg" ;
+"""
+
+
+def test_what_cantools_only_tolerates_is_a_warning_naming_message_and_signal(tmp_path: Path) -> None:
+    """cantools (strict=False) loads each of these; netcfg checks the file, and says per signal what it did:
+    a second signal of the same name, a scale of 0, a range with min above max, a value name for a value 8
+    signed bits cannot hold (300), and a signal overlapping another (w on z's bits 20..23)."""
+    path = tmp_path / "odd.dbc"
+    path.write_text(TOLERATED, encoding="cp1252")
+    assert cantools.database.load_file(str(path), strict=False) is not None
+    rc, report = check_json(str(path), "--bitrate", "500k", cwd=tmp_path)
+    assert rc == 0, report["errors"]
+    got = {(w["code"], w["message"].split("'")[1], w["message"].split("'")[3]) for w in report["warnings"]}
+    assert got >= {
+        ("dbc-signal-layout", "s", "M"),
+        ("dbc-signal-layout", "x", "N"),
+        ("dbc-signal-range", "z", "N"),
+        ("dbc-signal-enum", "y", "N"),
+        ("dbc-signal-layout", "w", "N"),
+    }
+    lines = {w["message"].split("'")[1]: w["line"] for w in report["warnings"] if w["code"] != "dbc-not-analysed"}
+    assert (lines["x"], lines["y"], lines["z"]) == (6, 7, 8)

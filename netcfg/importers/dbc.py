@@ -701,7 +701,20 @@ class _Importer:
         if not msg.signals:
             return None
         names = _Names(f"signal of {msg.name}", "sig", "_sig")
-        ordered = sorted(msg.signals, key=lambda s: (s.start, s.name))
+        ordered, seen = [], set()
+        for s in msg.signals:  # a second signal of the same name: cantools keeps both, nothing can tell them apart
+            if s.name in seen:
+                self.add(
+                    "dbc-signal-layout",
+                    f"signal '{s.name}' of message '{msg.name}' appears twice (cantools only tolerates this); the "
+                    "second is left out of the message's signals",
+                    self.message_at(msg),
+                    "warning",
+                )
+                continue
+            seen.add(s.name)
+            ordered.append(s)
+        ordered.sort(key=lambda s: (s.start, s.name))
         safe: dict[str, str] = {}
         for s in ordered:  # the DBC's own names first: a filler never takes one of them
             name, why = names.claim(s.name)
@@ -731,7 +744,7 @@ class _Importer:
             at = self.lines.signals.get((dbc_id, s.name))
             if at:
                 self.positions[("messages", index, "signals", k)] = at
-            sig = self.signal(safe[s.name], s, safe)
+            sig = self.signal(safe[s.name], s, safe, msg.name, at)
             big = s.byte_order != "little_endian"
             if big or s.start != bit:  # not right after the previous one: the signal keeps its DBC start bit
                 sig = {"name": sig.pop("name"), "start_bit": s.start, **sig}
@@ -749,7 +762,9 @@ class _Importer:
         masks: dict[str, int] = {}
         for s in signals:
             big = s.byte_order != "little_endian"
-            if s.is_float and s.length not in (32, 64):
+            if s.conversion.scale == 0:
+                drops[s.name] = "has a scale of 0 (every raw value would mean the offset)"
+            elif s.is_float and s.length not in (32, 64):
                 drops[s.name] = f"is a float of {s.length} bits (IEEE 754 floats have 32 or 64)"
             elif s.multiplexer_signal is not None and s.multiplexer_signal not in names:
                 drops[s.name] = f"is multiplexed by '{s.multiplexer_signal}', which is not a signal of the message"
@@ -803,7 +818,9 @@ class _Importer:
             note += ": " + " ".join(s.comment.split())
         return note
 
-    def signal(self, name: str, s: Signal, safe: dict[str, str]) -> dict[str, Any]:
+    def signal(
+        self, name: str, s: Signal, safe: dict[str, str], message: str = "", at: tuple[int, int] | None = None
+    ) -> dict[str, Any]:
         out: dict[str, Any] = {"name": name, "bits": s.length}
         if s.byte_order != "little_endian":
             out["byte_order"] = "big_endian"
@@ -816,10 +833,19 @@ class _Importer:
             out["scale"] = _number(float(scale))
         if offset != 0:
             out["offset"] = _number(float(offset))
-        if s.minimum is not None:
-            out["min"] = _number(float(s.minimum))
-        if s.maximum is not None:
-            out["max"] = _number(float(s.maximum))
+        low, high = s.minimum, s.maximum
+        if low is not None and high is not None and low > high:
+            self.add(
+                "dbc-signal-range",
+                f"signal '{s.name}' of message '{message}': its range [{low}|{high}] has min above max (cantools "
+                "only tolerates this); imported without a range",
+                at,
+                "warning",
+            )
+            low = high = None
+        for key, bound in (("min", low), ("max", high)):
+            if bound is not None and math.isfinite(float(bound)):
+                out[key] = _number(float(bound))
         if s.unit:
             out["unit"] = s.unit
         if s.multiplexer_signal is not None:
@@ -830,9 +856,9 @@ class _Importer:
             if len(fits) < len(s.choices):
                 self.add(
                     "dbc-signal-enum",
-                    f"signal '{s.name}': {len(s.choices) - len(fits)} of its value names (VAL_) are for values "
-                    f"that {s.length} bits cannot hold ({lo}..{hi}); left out",
-                    None,
+                    f"signal '{s.name}' of message '{message}': {len(s.choices) - len(fits)} of its value names "
+                    f"(VAL_) are for values that {s.length} bits cannot hold ({lo}..{hi}); left out",
+                    at,
                     "warning",
                 )
             if fits:
