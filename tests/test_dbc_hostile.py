@@ -100,3 +100,14 @@ def test_an_endless_file_is_refused_before_it_is_read_whole(tmp_path: Path) -> N
         f.truncate(MAX_BYTES + 1)  # sparse: no disk space used
     proc = cli("check", str(big), "--bitrate", "500k", cwd=tmp_path)
     assert proc.returncode == 1 and f"{big}:1:1: error:" in proc.stderr
+
+
+def test_a_text_where_a_numeric_attribute_belongs_is_an_error_at_its_value(tmp_path: Path) -> None:
+    """GenMsgCycleTime is INT (its BA_DEF_), the value "10ms" is text: cantools fails with a bare decimal
+    error; netcfg names the attribute, the line (17) and the column of the value (31)."""
+    path = tmp_path / "text.dbc"
+    path.write_text(BASE.replace("BO_ 256 10;", 'BO_ 256 "10ms";'), encoding="cp1252")
+    proc = cli("check", str(path), cwd=tmp_path)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    errors = [x for x in proc.stderr.splitlines() if ": error: " in x]
+    assert errors[0].startswith(f"{path}:17:31: error: attribute GenMsgCycleTime is INT"), proc.stderr

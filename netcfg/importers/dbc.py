@@ -109,8 +109,16 @@ _LONG_NUMBER = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
 _EXPONENT = re.compile(rf"(?<![A-Za-z0-9_.])\d+\.?\d*[eE]\+?(\d{{1,{MAX_DIGITS}}})")  # a float literal's exponent
 MAX_EXPONENT = 308  # a double's largest decimal exponent
 _SG_GEOMETRY = re.compile(r"^[ \t]*SG_[ \t]+\w+[^:]*:[ \t]*(\d+)[ \t]*\|[ \t]*(\d+)[ \t]*@")
+_BA_DEF_NUMBER = re.compile(r'^[ \t]*BA_DEF_[ \t]+(?:(?:BU_|BO_|SG_|EV_)[ \t]+)?"(\w+)"[ \t]+(INT|HEX|FLOAT)\b')
+_BA_VALUE = re.compile(
+    r'^[ \t]*BA_[ \t]+"(\w+)"[ \t]+(?:BU_[ \t]+\w+[ \t]+|BO_[ \t]+\d+[ \t]+|SG_[ \t]+\d+[ \t]+\w+[ \t]+|'
+    r"EV_[ \t]+\w+[ \t]+)?(.*?)[ \t]*;"
+)
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 _BO_LENGTH = re.compile(r"^[ \t]*BO_[ \t]+\d+[ \t]+\w+[ \t]*:[ \t]*(\d+)")
 _WORD = re.compile(r"[A-Za-z0-9_]+")
+_VAL_ENTRY = re.compile(r"VAL_ (\d{1,20}) (\w+)")
+_VAL = re.compile(r"^[ \t]*VAL_[ \t]+(\d{1,20})[ \t]+(\w+)")
 _IN_MESSAGE = re.compile(r"in message '?([A-Za-z0-9_]+)'?")
 
 # GenMsgSendType values seen in DBCs in the wild, lower-cased without punctuation (see send_kind)
@@ -129,6 +137,7 @@ class _Lines:
         self.nodes: dict[str, tuple[int, int]] = {}
         self.attributes: dict[str, int] = {}
         self.message_attributes: dict[tuple[str, int], int] = {}  # (attribute, DBC frame id) -> line
+        self.value_tables: dict[tuple[int, str], tuple[int, int]] = {}  # VAL_ (DBC frame id, signal) -> position
         current: int | None = None
         for number, line in enumerate(text.splitlines(), start=1):
             if (m := _BO.match(line)) and len(m.group(1)) <= MAX_DIGITS:
@@ -143,6 +152,9 @@ class _Lines:
                     self.nodes.setdefault(w.group(0), (number, m.start(1) + w.start() + 1))
             elif m := _BA_DB.match(line):
                 self.attributes.setdefault(m.group(1), number)
+            elif m := _VAL.match(line):
+                self.value_tables.setdefault((int(m.group(1)), m.group(2)), (number, m.start(2) + 1))
+                current = None
             elif m := _BA_BO.match(line):
                 if len(m.group(2)) <= MAX_DIGITS:
                     self.message_attributes.setdefault((m.group(1), int(m.group(2))), number)
@@ -265,8 +277,19 @@ class _Importer:
     def prescan(self) -> bool:
         """What cantools would choke on or spend unbounded time over, as errors at their line; False if any."""
         ok = True
-        for number, line in enumerate(self.text.splitlines(), start=1):
+        lines = self.text.splitlines()
+        numeric = {m.group(1): m.group(2) for line in lines if (m := _BA_DEF_NUMBER.match(line))}
+        for number, line in enumerate(lines, start=1):
             if not _STATEMENT.match(line):
+                continue
+            if (m := _BA_VALUE.match(line)) and m.group(1) in numeric and not _NUMBER.match(m.group(2)):
+                self.add(
+                    "dbc-attribute",
+                    f"attribute {m.group(1)} is {numeric[m.group(1)]} (BA_DEF_), but its value here is "
+                    f"{m.group(2)[:40]}, not a number; fix the value",
+                    (number, m.start(2) + 1),
+                )
+                ok = False
                 continue
             huge = next((e for e in _EXPONENT.finditer(line) if int(e.group(1)) > MAX_EXPONENT), None)
             if huge is not None:
@@ -350,8 +373,13 @@ class _Importer:
             )
             self.add("dbc-parse", f"{what} at column {column}{hint}", at)
             return
+        text = " ".join(text.split())  # one line, as every diagnostic
         if m := _IN_MESSAGE.search(text):
             at = self.lines.message_names.get(m.group(1))
+        elif m := _VAL_ENTRY.search(text):  # "unused VAL_ entries in DBC: VAL_ 568 UI_mapSpeedLimit"
+            at = self.lines.value_tables.get((int(m.group(1)), m.group(2)))
+        if len(text) > 300:
+            text = text[:300] + " ..."
         self.add("dbc-parse", f"cantools cannot read this DBC: {text}; fix the DBC", at)
 
     def db_attribute(self, db: Database, name: str) -> tuple[Any, str] | None:
@@ -380,13 +408,20 @@ class _Importer:
             value = db.dbc.attribute_definitions[name].default_value
         if value is None or isinstance(value, bool):
             return None
+        dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
+        line = self.lines.message_attributes.get((name, dbc_id))
         try:
             number = float(Decimal(str(value)))  # exact for huge integers (float() of one overflows)
         except (ArithmeticError, ValueError):
+            if str(value).strip():  # a text where a time belongs: say so rather than act as if it were absent
+                self.add(
+                    "dbc-attribute",
+                    f"{name} '{value}' of message '{msg.name}' is not a number of ms; ignored",
+                    (line, 1) if line else self.message_at(msg),
+                    "warning",
+                )
             return None
         if math.isnan(number) or number > MAX_TIME_MS:
-            dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
-            line = self.lines.message_attributes.get((name, dbc_id))
             text = str(value) if len(str(value)) <= 20 else f"{str(value)[:12]}... ({len(str(value))} digits)"
             self.add(
                 "dbc-range",
