@@ -318,3 +318,24 @@ def test_codec_places_any_signal_as_cantools(case: tuple[CanMessage, Field, int]
     data = encode([f], 8, {"s": raw})
     assert data == msg.encode({"s": raw}, scaling=False)
     assert decode([f], data) == {"s": raw}
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_the_imported_spec_checks_as_the_dbc_does(tmp_path: Path, name: str) -> None:
+    """`netcfg import dbc` writes YAML (value names, multiplexing and byte order included) whose model is the
+    DBC's own, signal for signal, with the same response times."""
+    from netcfg.diagnostics import Collector
+    from netcfg.importers import write_spec
+    from netcfg.importers.dbc import import_dbc
+
+    model, report, db = analysed(name)
+    got = import_dbc(CORPUS / name, options_for(db), Collector())
+    assert got is not None
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(write_spec(*got), encoding="utf-8")
+    again, again_report = analyse_spec(spec)
+    assert again is not None and again_report["ok"], again_report["errors"]
+    for m in model.messages.values():
+        assert again.messages[m.name].signals == m.signals, m.name
+    wcrt = [[(m["name"], m["wcrt_us"]) for m in b["messages"]] for b in report["buses"]]
+    assert [[(m["name"], m["wcrt_us"]) for m in b["messages"]] for b in again_report["buses"]] == wcrt
