@@ -290,6 +290,7 @@ class NodeView:
     triggers: tuple[TriggerView, ...]
     messages: tuple[MessageView, ...]
     peers: tuple[PeerView, ...]  # other nodes this one exchanges UDP datagrams with
+    big_endian: bool = False  # some payload has a big-endian (Motorola) signal: the header says how they sit
 
 
 def _description(obj: model.Described) -> str | None:
@@ -391,6 +392,7 @@ def node_view(m: model.Model, node: model.Node) -> NodeView | None:
         triggers=tuple(triggers),
         messages=tuple(messages),
         peers=tuple(sorted(peers.values(), key=lambda p: p.name)),
+        big_endian=any(sig.big_endian for msg in messages for sig in msg.signals),
     )
 
 
