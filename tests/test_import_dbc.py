@@ -584,3 +584,15 @@ def test_what_cantools_only_tolerates_is_a_warning_naming_message_and_signal(tmp
     }
     lines = {w["message"].split("'")[1]: w["line"] for w in report["warnings"] if w["code"] != "dbc-not-analysed"}
     assert (lines["x"], lines["y"], lines["z"]) == (6, 7, 8)
+
+
+@pytest.mark.parametrize("target", ['"a\\0b.dbc"', "folder.dbc", "notes.txt"])
+def test_an_import_that_is_not_a_readable_dbc_is_an_error_at_the_import_line(tmp_path: Path, target: str) -> None:
+    """A NUL byte in the path, a folder, a file that is not a DBC: each one error at the spec's `import`."""
+    (tmp_path / "folder.dbc").mkdir()
+    (tmp_path / "notes.txt").write_text("hello", encoding="utf-8")
+    spec = f"system: p\nbuses:\n  - {{name: body, protocol: can, bitrate: 500 kbit/s, import: {target}}}\n"
+    (tmp_path / "p.yaml").write_text(spec, encoding="utf-8")
+    rc, report = check_json("p.yaml", cwd=tmp_path)
+    assert rc == 1
+    assert [(e["code"], e["line"]) for e in report["errors"]] == [("import", 3)]

@@ -974,8 +974,8 @@ def merge_bus_imports(data: dict[str, Any], smap: SourceMap, base: Path, diags: 
         path = base / source
         try:
             got = import_dbc(path, ImportOptions(bitrate=1), diags)  # the spec's bus gives the bit rate
-        except OSError as exc:
-            diags.add("import", f"cannot read {source}: {exc.strerror or exc}", smap.at(at))
+        except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+            diags.add("import", f"cannot read {source!r}: {getattr(exc, 'strerror', None) or exc}", smap.at(at))
             continue
         if got is None:
             continue
