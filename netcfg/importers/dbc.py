@@ -644,13 +644,13 @@ class _Importer:
         return out
 
     def timing(self, db: Database, msg: Message, at: tuple[int, int] | None) -> _Timing:
-        timing = self.send_timing(db, msg, at)
         exact = {key: self.message_attribute(db, msg, name, zero=True) for key, name in _EXACT.items()}
         if exact["period"] is not None or exact["min_interarrival"] is not None:
-            # netcfg's own attributes: the spec's timing, exactly (written by netcfg.emit.dbc)
+            # netcfg's own attributes: the spec's timing, exactly (written by netcfg.emit.dbc); the rounded
+            # Gen* attributes beside them are for other tools
             key = "period" if exact["period"] is not None else "min_interarrival"
             timing = _Timing({key: _ms_exact(exact[key] or 0)}, f"{_EXACT[key]} {_ms_exact(exact[key] or 0)}")
-        elif "period" in timing.data:
+        elif "period" in (timing := self.send_timing(db, msg, at)).data:
             start = self.message_attribute(db, msg, "GenMsgStartDelayTime")
             if start is not None:
                 timing.data["offset"] = ms_text(start)
