@@ -158,13 +158,11 @@ def present(fields: Iterable[Field], values: Mapping[str, Number | str] | None =
         if switch is None:
             return False
         raw = raw_of(switch)
-        return raw is not None and _signed_raw(switch, raw) in f.mux_values
+        # compared as bit patterns: a signed multiplexer's value may be listed as -1 or as 255 (C does the same)
+        mask = (1 << switch.bits) - 1
+        return raw is not None and (raw & mask) in {v & mask for v in f.mux_values}
 
     return [f for f in fields if is_present(f)]
-
-
-def _signed_raw(f: Field, raw: int) -> int:
-    return raw - (1 << f.bits) if f.signed and raw >> (f.bits - 1) else raw
 
 
 def _place(f: Field, raw: int) -> int:
