@@ -173,7 +173,7 @@ def _signal(
         start=f.start_bit,  # DBC's start bit is ours: the least (Intel) or most (Motorola) significant bit
         length=f.bits,
         byte_order="big_endian" if f.big_endian else "little_endian",
-        is_signed=f.signed,
+        is_signed=f.signed or f.is_float,  # an IEEE float carries its sign: DBC tools write floats as signed
         conversion=BaseConversion.factory(scale=f.scale, offset=f.offset, choices=choices, is_float=f.is_float),
         is_multiplexer=is_multiplexer,
         multiplexer_ids=list(f.mux_values) if f.mux is not None else None,
