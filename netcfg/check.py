@@ -29,12 +29,12 @@ def load_model(path: Path, diags: Collector, options: ImportOptions | None = Non
 
 
 def load_dbc(path: Path, diags: Collector, options: ImportOptions) -> Model | None:
-    from netcfg.importers.dbc import import_dbc
+    from netcfg.importers.dbc import import_dbc_located
 
-    imported = import_dbc(path, options, diags)
+    imported, positions = import_dbc_located(path, options, diags)
     if imported is None or diags.errors:
         return None
-    smap = SourceMap(str(path))  # errors found later name the item; the DBC has no positions to give
+    smap = SourceMap.from_positions(str(path), positions)  # errors found later point into the DBC
     try:
         spec = Spec.model_validate(imported[0])
     except ValidationError as exc:
@@ -60,3 +60,14 @@ def analyse_spec(path: Path, options: ImportOptions | None = None) -> tuple[Mode
 
 def check(path: Path, options: ImportOptions | None = None) -> dict[str, Any]:
     return analyse_spec(path, options)[1]
+
+
+def promote_warnings(report: dict[str, Any], codes: frozenset[str]) -> dict[str, Any]:
+    """`--werror CODE`: warnings with one of these codes count as errors (e.g. dbc-no-receiver in CI)."""
+    promoted = [w for w in report["warnings"] if w["code"] in codes]
+    if not promoted:
+        return report
+    report["warnings"] = [w for w in report["warnings"] if w["code"] not in codes]
+    report["errors"] = report["errors"] + promoted
+    report["ok"] = False
+    return report

@@ -25,7 +25,12 @@ def main(argv: list[str] | None = None) -> int:
     p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC")
     p_check.add_argument("--format", choices=("text", "json"), default="text")
     p_check.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k or '500 kbit/s'")
-    p_check.add_argument("--lenient", action="store_true", help="DBC input: unmappable items are warnings")
+    p_check.add_argument("--lenient", action="store_true",
+                         help="DBC input: accepted; what cannot be mapped is a warning anyway (see --default-period)")
+    p_check.add_argument("--default-period", type=_duration_ns, metavar="T",
+                         help="DBC input: analyse messages that give no cycle time as periodic every T, e.g. 100ms")
+    p_check.add_argument("--werror", action="append", default=[], metavar="CODE",
+                         help="treat warnings with this code as errors (repeatable), e.g. dbc-no-receiver")
     p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
     p_build.add_argument("spec", type=Path, metavar="SPEC")
     p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
@@ -35,6 +40,8 @@ def main(argv: list[str] | None = None) -> int:
     p_import.add_argument("-o", "--output", type=Path, required=True, metavar="SPEC", help="the spec to write")
     p_import.add_argument("--bitrate", type=_bitrate, help="the bus bit rate (wins over the file's)")
     p_import.add_argument("--lenient", action="store_true", help="what cannot be mapped is a warning, not an error")
+    p_import.add_argument("--default-period", type=_duration_ns, metavar="T",
+                          help="DBC: messages that give no cycle time are periodic every T, e.g. 100ms")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
     p_sim = sub.add_parser("simulate", help="run the runtime configuration in the discrete-event simulator")
     p_sim.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
@@ -65,9 +72,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
-            return cmd_check(args.specs, args.format, ImportOptions(args.bitrate, args.lenient))
+            options = ImportOptions(args.bitrate, args.lenient, default_period_ns=args.default_period)
+            return cmd_check(args.specs, args.format, options, frozenset(args.werror))
         if args.command == "import":
-            options = ImportOptions(args.bitrate, args.lenient, args.output)
+            options = ImportOptions(args.bitrate, args.lenient, args.output, args.default_period)
             return cmd_import(args.kind, args.source, args.output, options)
         if args.command == "build":
             return cmd_build(args.spec, args.output)
@@ -124,6 +132,19 @@ def _bitrate(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not a bit rate ({exc}); write 500k, 1M or '500 kbit/s'") from exc
 
 
+def _duration_ns(text: str) -> int:
+    """'100ms', '100 ms', '2.5 ms' -> ns (the spec's duration grammar), positive."""
+    from netcfg.spec.units import parse_duration
+
+    try:
+        ns = parse_duration(text).ns
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+    if not ns:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a positive duration; write e.g. 100ms")
+    return ns
+
+
 def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) -> int:
     from netcfg.diagnostics import Collector, sort_diagnostics
     from netcfg.importers import write_spec
@@ -173,14 +194,16 @@ def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) ->
     return 0
 
 
-def cmd_check(paths: list[Path], fmt: str, options: ImportOptions | None = None) -> int:
-    from netcfg.check import check
+def cmd_check(
+    paths: list[Path], fmt: str, options: ImportOptions | None = None, werror: frozenset[str] = frozenset()
+) -> int:
+    from netcfg.check import check, promote_warnings
     from netcfg.report_text import render
 
     reports: list[dict[str, Any]] = []
     for path in paths:
         try:
-            reports.append(check(path, options))
+            reports.append(promote_warnings(check(path, options), werror))
         except OSError as exc:
             print(f"netcfg: {_io_problem(exc, 'read', path)}", file=sys.stderr)
             return 2

@@ -79,7 +79,8 @@ class Pdo:
 
 @dataclass(frozen=True)
 class Signal:
-    """A field of a payload: little-endian (Intel) bit numbering, start_bit = its least significant bit."""
+    """A field of a payload, laid out as netcfg.runtime.codec says: little-endian (Intel) by default, start_bit
+    its least significant bit; big-endian (Motorola): start_bit its most significant bit."""
 
     name: str
     start_bit: int
@@ -91,6 +92,11 @@ class Signal:
     minimum: float | None = None
     maximum: float | None = None
     unit: str | None = None
+    big_endian: bool = False  # Motorola: start_bit is the most significant bit (netcfg.runtime.codec)
+    mux: str | None = None  # present only when this multiplexer signal ...
+    mux_values: tuple[int, ...] = ()  # ... holds one of these raw values
+    choices: tuple[tuple[int, str], ...] = ()  # value names (DBC VAL_), by raw value
+    is_multiplexer: bool = False  # another signal of the message names this one as its mux
 
 
 @dataclass

@@ -35,7 +35,7 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "sync_start_on_event_tpdo.yaml": (16, "sync-start", "synchronous TPDOs"),
     "signal_scale_zero.yaml": (15, "value-error", "scale of 0"),
     "name_cpp_keyword.yaml": (15, "value-error", "C or C++ keyword"),
-    "signal_overlap.yaml": (16, "signal-overlap", "inside the previous signal"),
+    "signal_overlap.yaml": (16, "signal-overlap", "overlaps signal 'a'"),
     "sync_task_not_on_canopen.yaml": (10, "task-sync", "exactly one CANopen bus"),
     "name_taken_by_sync.yaml": (12, "duplicate-name", "taken by the SYNC of bus can0"),
     "canopen_master_overruns_cycle.yaml": (13, "master-cycle", "ends up to 2.5 ms after SYNC"),

@@ -183,3 +183,85 @@ def test_comments_cannot_break_the_dbc_syntax() -> None:
     """A DBC string is delimited by double quotes and has no portable escape: quotes become apostrophes,
     backslashes slashes, line breaks spaces; characters outside the file's code page (cp1252) become '?'."""
     assert sanitise('say "hi"\\\nnow  \u2603 °C') == "say 'hi'/ now ? °C"
+
+
+ROUND_TRIP_SPEC = """
+system: roundtrip
+buses:
+  - {name: body, protocol: can, bitrate: 1 Mbit/s}
+nodes:
+  - {name: ecu, buses: [body]}
+  - {name: dash, buses: [body]}
+messages:
+  - name: status
+    producer: ecu
+    consumers: [dash]
+    id: 0x100
+    period: 10 ms
+    offset: 2500 us
+    jitter: 150 us
+    deadline: 8 ms
+    signals:
+      - {name: rpm, start_bit: 7, bits: 16, byte_order: big_endian, scale: 0.25, min: 0, max: 16383.75}
+      - {name: mode, start_bit: 16, bits: 2, enum: {0: "off", 1: eco, 2: sport}}
+      - {name: page, start_bit: 24, bits: 8}
+      - {name: volts, start_bit: 32, bits: 16, mux: {signal: page, values: [0]}, scale: 0.001}
+      - {name: count, start_bit: 32, bits: 32, mux: {signal: page, values: [1, 2]}}
+  - name: fast
+    producer: ecu
+    consumers: [dash]
+    id: 0x050
+    period: 666667 ns
+    size: 2
+  - name: button
+    producer: dash
+    consumers: [ecu]
+    id: 0x200
+    min_interarrival: 20 ms
+    deadline: 5 ms
+    jitter: 1 ms
+    signals: [{name: pressed, bits: 1}]
+  - name: setup
+    producer: dash
+    consumers: [ecu]
+    id: 0x300
+    type: on-demand
+    size: 8
+"""
+
+
+def test_spec_to_dbc_to_spec_keeps_every_timing_field_and_signal(tmp_path: Path) -> None:
+    """The spec above (written by hand: periodic with offset, jitter and deadline, a sub-millisecond period that
+    GenMsgCycleTime's whole ms cannot say, sporadic with deadline and jitter, on-demand; Motorola, enum and
+    multiplexed signals) is built, its DBC imported back, and the model of that DBC has the same timing and
+    the same signal layout, message by message."""
+    from netcfg.check import load_dbc as check_dbc
+    from netcfg.check import load_model
+    from netcfg.diagnostics import Collector
+    from netcfg.importers import ImportOptions
+
+    spec = tmp_path / "roundtrip.yaml"
+    spec.write_text(ROUND_TRIP_SPEC, encoding="utf-8")
+    original = load_model(spec, Collector())
+    assert original is not None
+    out = build_into(spec, tmp_path / "out")
+    diags = Collector()
+    back = check_dbc(out / "dbc" / "body.dbc", diags, ImportOptions())
+    assert back is not None and not diags.errors, diags.errors
+    for m in original.messages.values():
+        got = back.messages[m.name]
+        timing = ("kind", "period_ns", "interval_ns", "offset_ns", "deadline_ns", "jitter_ns", "id", "size")
+        assert {k: getattr(got, k) for k in timing} == {k: getattr(m, k) for k in timing}, m.name
+        if m.signals:  # the importer lists them in start-bit order
+            assert sorted(got.signals, key=lambda s: s.name) == sorted(m.signals, key=lambda s: s.name), m.name
+    # what other tools read: the rounded Gen* attributes and the send type
+    db = load_dbc(out, "body")
+    status, fast, button, setup = (db.get_message_by_name(n) for n in ("status", "fast", "button", "setup"))
+    assert (status.send_type, status.cycle_time, status.dbc.attributes["GenMsgStartDelayTime"].value) == (
+        "Cyclic",
+        10,
+        3,  # 2.5 ms in whole ms, half up (netcfg.emit.dbc's docstring)
+    )
+    assert (fast.send_type, fast.cycle_time) == ("Cyclic", 1)  # 0.666667 ms rounds to 1 ms in a whole-ms field
+    assert (button.send_type, button.dbc.attributes["GenMsgDelayTime"].value) == ("Spontaneous", 20)
+    assert setup.send_type == "NoMsgSendType"

@@ -104,5 +104,17 @@ def render(template: str, **context: Any) -> bytes:
 def field_of(sig: Signal) -> Field:
     """The codec field of a model signal (the runtime and the C headers share this layout)."""
     return Field(
-        sig.name, sig.start_bit, sig.bits, sig.signed, sig.is_float, sig.scale, sig.offset, sig.minimum, sig.maximum
+        sig.name,
+        sig.start_bit,
+        sig.bits,
+        sig.signed,
+        sig.is_float,
+        sig.scale,
+        sig.offset,
+        sig.minimum,
+        sig.maximum,
+        sig.big_endian,
+        sig.mux,
+        sig.mux_values,
+        sig.choices,
     )

@@ -4,10 +4,13 @@ the trigger message, so each gets one).
 The header (templates/node.h.j2) holds the node's constants, its buses' timing, the FTT-CAN triggers that
 activate its tasks, and for every message it sends or receives: identifier, size, timing, and a struct of the
 signals with `static inline` pack/unpack functions. The layout is netcfg.runtime.codec's, byte for byte:
-the payload is one little-endian word, a signal's start_bit is its least significant bit, integers are
+little-endian signals read the payload as one little-endian word from their least significant bit,
+big-endian (Motorola) ones run down from their most significant bit in DBC numbering; integers are
 unsigned or two's complement, floats IEEE 754, physical = raw * scale + offset, min/max bound the physical
-value. A message given only as a size is one unsigned field `<message>_raw` spanning the payload, as in the
-runtime and the DBC files (payloads over 8 bytes stay raw bytes).
+value. Multiplexed signals are packed and unpacked only when their multiplexers select them; value names
+become C enums (or #defines for values beyond an int). A message given only as a size is one unsigned
+field `<message>_raw` spanning the payload, as in the runtime and the DBC files (payloads over 8 bytes stay raw
+bytes).
 
 Python only prepares the view below: which bytes each signal touches and with which shift, the bounds a
 value must meet; the C text is all in the template. Identifiers are the spec's names (already checked to be
@@ -19,12 +22,13 @@ TRIG_<trigger>_*.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
 from netcfg import model
 from netcfg.emit import render
-from netcfg.runtime import raw_signal_name
+from netcfg.runtime import codec, raw_signal_name
 
 # integer widths a C99 <stdint.h> always has on our targets
 _WIDTHS = (8, 16, 32, 64)
@@ -62,6 +66,23 @@ class SignalView:
     q_hi: str
     unit: str | None
     raw_only: bool  # the `<message>_raw` field of a message given only as a size
+    big_endian: bool = False
+    be_ops: tuple[codec.ByteOp, ...] = ()  # big-endian: the byte parts, masked (netcfg.runtime.codec.byte_ops)
+    end_bit: int = 0  # one past the highest payload bit it needs (whole bytes for big-endian)
+    present: str | None = None  # multiplexed: the C condition on the multiplexers' raw values
+    mux_note: str | None = None  # ... in words, for the struct's comment
+    is_multiplexer: bool = False
+    mux_depth: int = 0  # multiplexers are packed and unpacked before the signals they select
+    enum_type: str | None = None  # `enum msg_<message>_<signal>` when it has value names
+    enum: tuple[EnumItem, ...] = ()
+
+
+@dataclass(frozen=True)
+class EnumItem:
+    ident: str  # MSG_<MESSAGE>_<SIGNAL>_<VALUE NAME>
+    value: int
+    in_int: bool  # a C enum constant must fit an int; others become #defines
+    name: str  # the DBC's value name, for the comment
 
 
 def _double(x: float) -> str:
@@ -79,8 +100,51 @@ def _ops(start: int, bits: int) -> tuple[ByteOp, ...]:
     return tuple(ByteOp(k, 8 * k - start) for k in range(start // 8, (start + bits - 1) // 8 + 1))
 
 
-def signal_view(sig: model.Signal, raw_only: bool = False) -> SignalView:
+def _enum(message: str, sig: model.Signal, taken: set[str]) -> tuple[EnumItem, ...]:
+    """C names for the signal's value names: MSG_<MESSAGE>_<SIGNAL>_<NAME>, letters, digits and single '_'."""
+    items = []
+    for raw, text in sig.choices:
+        word = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]", "_", text)).strip("_").upper() or f"VALUE_{raw}"
+        base = f"MSG_{message.upper()}_{sig.name.upper()}_{word}".replace("__", "_")
+        ident, n = base, 2
+        while ident in taken:
+            ident, n = f"{base}_{n}", n + 1
+        taken.add(ident)
+        items.append(EnumItem(ident, raw, -(2**31) <= raw < 2**31, text))
+    return tuple(items)
+
+
+def _present(sig: model.Signal, by_name: dict[str, model.Signal]) -> str | None:
+    """C condition under which a multiplexed signal is in the frame, on the multiplexers' raw_<name> values."""
+    terms, seen = [], set()
+    while sig.mux is not None and sig.mux in by_name and sig.mux not in seen:
+        seen.add(sig.mux)
+        switch = by_name[sig.mux]
+        mask = (1 << switch.bits) - 1
+        values = sorted({v & mask for v in sig.mux_values})
+        term = " || ".join(f"raw_{switch.name} == UINT64_C({v})" for v in values)
+        terms.append(f"({term})" if len(values) > 1 else term)
+        sig = switch
+    return " && ".join(terms) if terms else None
+
+
+def _depth(sig: model.Signal, by_name: dict[str, model.Signal]) -> int:
+    depth, seen = 0, set()
+    while sig.mux is not None and sig.mux in by_name and sig.mux not in seen:
+        seen.add(sig.mux)
+        sig, depth = by_name[sig.mux], depth + 1
+    return depth
+
+
+def signal_view(
+    sig: model.Signal,
+    raw_only: bool = False,
+    message: str = "",
+    siblings: tuple[model.Signal, ...] = (),
+    taken: set[str] | None = None,
+) -> SignalView:
     is_integer = not sig.is_float and sig.scale == 1 and sig.offset == 0  # codec.Field.is_integer
+    by_name = {s.name: s for s in siblings}
     width = next(w for w in _WIDTHS if w >= sig.bits)
     if sig.signed:
         raw_lo, raw_hi = -(1 << (sig.bits - 1)), (1 << (sig.bits - 1)) - 1
@@ -134,6 +198,17 @@ def signal_view(sig: model.Signal, raw_only: bool = False) -> SignalView:
         q_hi=_double(raw_hi + 1),
         unit=sig.unit,
         raw_only=raw_only,
+        big_endian=sig.big_endian,
+        be_ops=codec.byte_ops(sig.start_bit, sig.bits, True) if sig.big_endian else (),
+        end_bit=8 * (codec.last_byte(sig.start_bit, sig.bits, True) + 1)
+        if sig.big_endian
+        else sig.start_bit + sig.bits,
+        present=_present(sig, by_name),
+        mux_note=f"{sig.mux} in {{{', '.join(map(str, sig.mux_values))}}}" if sig.mux is not None else None,
+        is_multiplexer=sig.is_multiplexer,
+        mux_depth=_depth(sig, by_name),
+        enum_type=f"msg_{message}_{sig.name}" if sig.choices else None,
+        enum=_enum(message, sig, taken if taken is not None else set()) if sig.choices else (),
     )
 
 
@@ -169,6 +244,7 @@ class MessageView:
     implicit: str | None
     signals: tuple[SignalView, ...]
     end_bit: int  # one past the last bit a signal uses
+    pack_order: tuple[SignalView, ...]  # multiplexers before the signals they select
     description: str | None
 
 
@@ -214,6 +290,7 @@ class NodeView:
     triggers: tuple[TriggerView, ...]
     messages: tuple[MessageView, ...]
     peers: tuple[PeerView, ...]  # other nodes this one exchanges UDP datagrams with
+    big_endian: bool = False  # some payload has a big-endian (Motorola) signal: the header says how they sit
 
 
 def _description(obj: model.Described) -> str | None:
@@ -239,7 +316,8 @@ def _ftt_entries(m: model.Model, bus: model.Bus) -> dict[str, FttView]:
 
 def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[str, FttView]) -> MessageView:
     if msg.signals:
-        sigs = tuple(signal_view(s) for s in msg.signals)
+        taken: set[str] = set()
+        sigs = tuple(signal_view(s, False, msg.name, msg.signals, taken) for s in msg.signals)
     elif 0 < msg.size <= 8:
         sigs = (signal_view(model.Signal(raw_signal_name(msg.name), 0, 8 * msg.size, False), raw_only=True),)
     else:
@@ -269,7 +347,8 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
         pdo=pdo,
         implicit=msg.implicit,
         signals=sigs,
-        end_bit=max((s.start_bit + s.bits for s in sigs), default=0),
+        end_bit=max((s.end_bit for s in sigs), default=0),
+        pack_order=tuple(sorted(sigs, key=lambda s: s.mux_depth)),
         description=_description(msg),
     )
 
@@ -313,6 +392,7 @@ def node_view(m: model.Model, node: model.Node) -> NodeView | None:
         triggers=tuple(triggers),
         messages=tuple(messages),
         peers=tuple(sorted(peers.values(), key=lambda p: p.name)),
+        big_endian=any(sig.big_endian for msg in messages for sig in msg.signals),
     )
 
 

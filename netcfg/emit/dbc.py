@@ -1,11 +1,22 @@
 """dbc/<bus>.dbc for every CAN bus (can, canopen, ftt-can), written by cantools from its database model.
 
 What goes in: the bus's nodes; every frame on it (the spec's messages, the implicit SYNC and heartbeats, and on
-FTT-CAN the master's trigger message) with its identifier, length, sender and, for periodic ones, the cycle
-time (GenMsgCycleTime, integer ms, rounded); the signals with their little-endian layout, sign, IEEE float
-type, scale, offset, range, unit and receivers. A message given only as a size gets one unsigned signal
-spanning its payload, `<message>_raw` (netcfg.runtime reads and writes it under the same name), so a bus
-monitor still shows its bytes. Comments say what netcfg knows of each frame (PDO slot, FTT id, implicit role).
+FTT-CAN the master's trigger message) with its identifier, length, sender and timing; the signals with their
+byte order (Intel @1 / Motorola @0), sign, IEEE float type (SIG_VALTYPE_), scale, offset, range, unit,
+receivers, multiplexing (M / mN, SG_MUL_VAL_ for extended multiplexing) and value names (VAL_).
+
+Timing, as attributes of the message (BA_ ... BO_):
+    GenMsgSendType        ENUM Cyclic (periodic), Spontaneous (sporadic), NoMsgSendType (on-demand)
+    GenMsgCycleTime       INT ms, half up, at least 1: the period (Vector's interaction layer and most tools read it)
+    GenMsgDelayTime       INT ms, rounded down, at least 1: a sporadic message's minimum inter-arrival time
+    GenMsgStartDelayTime  INT ms, half up: a periodic message's offset
+    NetcfgPeriod, NetcfgMinInterarrival, NetcfgOffset, NetcfgJitter, NetcfgDeadline
+                          FLOAT ms, exact (whole nanoseconds): what the Gen* attributes round, and the release
+                          jitter and deadline, which they cannot say. netcfg's DBC importer reads them first,
+                          so spec -> DBC -> spec keeps every timing field.
+A message given only as a size gets one unsigned signal spanning its payload, `<message>_raw` (netcfg.runtime
+reads and writes it under the same name), so a bus monitor still shows its bytes. Comments say what netcfg knows
+of each frame (PDO slot, FTT id, implicit role).
 
 cantools keeps lists in the order it is given them; messages are sorted by identifier and nodes keep the
 spec's order, so the output is byte-identical across builds.
@@ -21,6 +32,7 @@ from cantools.database.can.formats.dbc import DbcSpecifics
 from cantools.database.can.formats.dbc.dbc_attribute import DbcAttribute
 from cantools.database.can.formats.dbc.dbc_attribute_definition import DbcAttributeDefinition
 from cantools.database.conversion import BaseConversion
+from cantools.database.namedsignalvalue import NamedSignalValue
 
 from netcfg import model
 from netcfg.emit import field_of
@@ -40,6 +52,20 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     return files
 
 
+SEND_TYPES = ["Cyclic", "Spontaneous", "NoMsgSendType"]  # GenMsgSendType's values, in enum order
+_SEND_TYPE = DbcAttributeDefinition(
+    "GenMsgSendType", default_value="NoMsgSendType", kind="BO_", type_name="ENUM", choices=SEND_TYPES
+)
+_INT_MS = {
+    name: DbcAttributeDefinition(name, default_value=0, kind="BO_", type_name="INT", minimum=0, maximum=2**31 - 1)
+    for name in ("GenMsgDelayTime", "GenMsgStartDelayTime")
+}
+_EXACT_MS = {
+    name: DbcAttributeDefinition(name, default_value=0, kind="BO_", type_name="FLOAT", minimum=0, maximum=2**31 - 1)
+    for name in ("NetcfgPeriod", "NetcfgMinInterarrival", "NetcfgOffset", "NetcfgJitter", "NetcfgDeadline")
+}
+
+
 def database(m: model.Model, bus: model.Bus) -> cdb.Database:
     messages = [_message(m, msg) for msg in bus.messages]
     tm = _trigger_message(m, bus)
@@ -51,7 +77,7 @@ def database(m: model.Model, bus: model.Bus) -> cdb.Database:
     db_name = DbcAttributeDefinition("DBName", default_value="", type_name="STRING")
     specifics = DbcSpecifics(
         attributes=OrderedDict(DBName=DbcAttribute(bus.name, db_name)),
-        attribute_definitions=OrderedDict(DBName=db_name),
+        attribute_definitions=OrderedDict(DBName=db_name, GenMsgSendType=_SEND_TYPE, **_INT_MS, **_EXACT_MS),
     )
     return cdb.Database(
         messages=messages,
@@ -70,16 +96,52 @@ def sanitise(text: str) -> str:
     return text.encode(ENCODING, errors="replace").decode(ENCODING)
 
 
+def _whole_ms(ns: int) -> int:
+    """Whole milliseconds, half up, in exact integer arithmetic (2.5 ms -> 3)."""
+    return (ns + 500_000) // 1_000_000
+
+
 def _cycle_ms(period_ns: int | None) -> int | None:
     if period_ns is None:
         return None
-    return max(1, round(period_ns / 1_000_000))
+    return max(1, _whole_ms(period_ns))
+
+
+def _ms(ns: int) -> float:
+    return ns / 1_000_000  # a double holds every whole-ns duration below 2^53 ns exactly enough to round back
+
+
+def _timing(msg: model.Message) -> DbcSpecifics:
+    """The message's timing attributes (see the module docstring)."""
+    attrs: OrderedDict[str, DbcAttribute] = OrderedDict()
+    kind = {"periodic": 0, "sporadic": 1}.get(msg.kind, 2)
+    attrs["GenMsgSendType"] = DbcAttribute(kind, _SEND_TYPE)
+    # an offset is a CAN message's phase inside its period (FTT-CAN's count across the macro-cycle: left out)
+    offset_ns = msg.offset_ns if msg.period_ns is not None and (msg.offset_ns or 0) < msg.period_ns else None
+    if msg.kind == "periodic" and msg.period_ns is not None:
+        attrs["NetcfgPeriod"] = DbcAttribute(_ms(msg.period_ns), _EXACT_MS["NetcfgPeriod"])
+        if offset_ns:
+            attrs["GenMsgStartDelayTime"] = DbcAttribute(_whole_ms(offset_ns), _INT_MS["GenMsgStartDelayTime"])
+    elif msg.kind == "sporadic" and msg.interval_ns is not None:
+        gap = max(1, msg.interval_ns // 1_000_000)
+        attrs["GenMsgDelayTime"] = DbcAttribute(gap, _INT_MS["GenMsgDelayTime"])
+        attrs["NetcfgMinInterarrival"] = DbcAttribute(_ms(msg.interval_ns), _EXACT_MS["NetcfgMinInterarrival"])
+    if offset_ns is not None and msg.kind == "periodic":
+        attrs["NetcfgOffset"] = DbcAttribute(_ms(offset_ns), _EXACT_MS["NetcfgOffset"])
+    if msg.jitter_ns:
+        attrs["NetcfgJitter"] = DbcAttribute(_ms(msg.jitter_ns), _EXACT_MS["NetcfgJitter"])
+    if msg.deadline_ns is not None:
+        attrs["NetcfgDeadline"] = DbcAttribute(_ms(msg.deadline_ns), _EXACT_MS["NetcfgDeadline"])
+    return DbcSpecifics(attributes=attrs)
 
 
 def _message(m: model.Model, msg: model.Message) -> cdb.Message:
     receivers = sorted(msg.consumers)
     if msg.signals:
-        signals = [_signal(field_of(s), s.unit, receivers, _entry_comment(msg, k)) for k, s in enumerate(msg.signals)]
+        signals = [
+            _signal(field_of(s), s.unit, receivers, _entry_comment(msg, k), s.is_multiplexer)
+            for k, s in enumerate(msg.signals)
+        ]
     elif msg.size:
         raw = Field(raw_signal_name(msg.name), 0, 8 * msg.size)
         signals = [_signal(raw, None, receivers, "the whole payload (the spec gives only a size)")]
@@ -96,17 +158,26 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
         is_extended_frame=msg.extended,
         bus_name=msg.bus,
         sort_signals=None,
+        dbc_specifics=_timing(msg),
     )
 
 
-def _signal(f: Field, unit: str | None, receivers: list[str], comment: str | None) -> cdb.Signal:
+def _signal(
+    f: Field, unit: str | None, receivers: list[str], comment: str | None, is_multiplexer: bool = False
+) -> cdb.Signal:
+    choices: OrderedDict[int, str | NamedSignalValue] | None = (
+        OrderedDict((raw, sanitise(name)) for raw, name in f.choices) if f.choices else None
+    )
     return cdb.Signal(
         name=f.name,
-        start=f.start_bit,  # little-endian: DBC's start bit is the least significant bit, as ours
+        start=f.start_bit,  # DBC's start bit is ours: the least (Intel) or most (Motorola) significant bit
         length=f.bits,
-        byte_order="little_endian",
-        is_signed=f.signed,
-        conversion=BaseConversion.factory(scale=f.scale, offset=f.offset, is_float=f.is_float),
+        byte_order="big_endian" if f.big_endian else "little_endian",
+        is_signed=f.signed or f.is_float,  # an IEEE float carries its sign: DBC tools write floats as signed
+        conversion=BaseConversion.factory(scale=f.scale, offset=f.offset, choices=choices, is_float=f.is_float),
+        is_multiplexer=is_multiplexer,
+        multiplexer_ids=list(f.mux_values) if f.mux is not None else None,
+        multiplexer_signal=f.mux,
         minimum=f.minimum,
         maximum=f.maximum,
         unit=sanitise(unit) if unit else None,

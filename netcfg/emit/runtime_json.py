@@ -270,6 +270,10 @@ def _signal(s: model.Signal) -> dict[str, Any]:
         "min": None if s.minimum is None else float(s.minimum),
         "max": None if s.maximum is None else float(s.maximum),
         "unit": s.unit,
+        # written only when used, so that runtime configurations without them stay as they were
+        **({"byte_order": "big_endian"} if s.big_endian else {}),
+        **({"mux": s.mux, "mux_values": list(s.mux_values)} if s.mux is not None else {}),
+        **({"enum": [[raw, name] for raw, name in s.choices]} if s.choices else {}),
     }
 
 

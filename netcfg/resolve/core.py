@@ -365,7 +365,7 @@ class Resolver:
             if pdo is not None:
                 self.err("wrong-section", "give either a PDO map or signals, not both", (*path, "signals"))
             signals = self.layout_signals(m.signals, (*path, "signals"))
-            sig_size = math.ceil(max((s.start_bit + s.bits for s in signals), default=0) / 8)
+            sig_size = max((_last_byte(s) + 1 for s in signals), default=0)
             if size is not None and size < sig_size:
                 self.err("size", f"size {size} is too small for the signals ({sig_size} bytes)", (*path, "size"))
             size = max(size or 0, sig_size)
@@ -495,7 +495,12 @@ class Resolver:
         return kind, (period if kind == "periodic" else None), interval, offset, offset_auto, rate
 
     def layout_signals(self, sigs: list[schema.Signal], path: Path) -> tuple[model.Signal, ...]:
-        out, start, seen = [], 0, set()
+        from netcfg.runtime.codec import int_range  # the runtime package only when a spec has signals
+
+        out: list[model.Signal] = []
+        start, seen = 0, set()
+        names = {s.name for s in sigs}
+        switches = {s.mux.signal for s in sigs if s.mux is not None}
         for k, s in enumerate(sigs):
             if s.name in seen:
                 self.err("duplicate-name", f"signal '{s.name}' appears twice", (*path, k, "name"))
@@ -504,18 +509,86 @@ class Resolver:
                 self.err("signal-range", f"signal '{s.name}': min {s.min} is above max {s.max}", (*path, k))
             if s.float and s.bits not in (32, 64):
                 self.err("signal-float", f"signal '{s.name}': a float has 32 or 64 bits", (*path, k, "bits"))
-            if s.start_bit is not None:
-                if s.start_bit < start:
+            big = s.byte_order == "big_endian"
+            if big and s.start_bit is None:
+                self.err(
+                    "signal-start",
+                    f"signal '{s.name}' is big-endian: give its start_bit (its most significant bit, DBC numbering)",
+                    (*path, k),
+                )
+                continue
+            begin = start if s.start_bit is None else s.start_bit
+            if big and s.bits > begin % 8 + 1 + 8 * (63 - begin // 8):  # runs past the largest payload
+                self.err("signal-start", f"signal '{s.name}' runs past byte 63", (*path, k, "start_bit"))
+                continue
+            if s.mux is not None and (s.mux.signal not in names or s.mux.signal == s.name):
+                self.err(
+                    "signal-mux",
+                    f"signal '{s.name}' is multiplexed by '{s.mux.signal}', which is not another signal of the "
+                    "message",
+                    (*path, k, "mux", "signal"),
+                )
+            lo, hi = int_range(s.bits, s.signed)
+            for raw in s.enum or {}:
+                if not lo <= raw <= hi:
                     self.err(
-                        "signal-overlap",
-                        f"signal '{s.name}' starts at bit {s.start_bit}, inside the previous "
-                        f"signal (which ends before bit {start}); signals go in bit order",
-                        (*path, k, "start_bit"),
+                        "signal-enum",
+                        f"signal '{s.name}': value {raw} of its enum does not fit {s.bits} bits ({lo}..{hi})",
+                        (*path, k, "enum"),
                     )
-                start = max(start, s.start_bit)
-            out.append(model.Signal(s.name, start, s.bits, s.signed, s.float, s.scale, s.offset, s.min, s.max, s.unit))
-            start += s.bits
+            out.append(
+                model.Signal(
+                    s.name,
+                    begin,
+                    s.bits,
+                    s.signed,
+                    s.float,
+                    s.scale,
+                    s.offset,
+                    s.min,
+                    s.max,
+                    s.unit,
+                    big_endian=big,
+                    mux=s.mux.signal if s.mux is not None else None,
+                    mux_values=tuple(s.mux.values) if s.mux is not None else (),
+                    choices=tuple(sorted((s.enum or {}).items())),
+                    is_multiplexer=s.name in switches,
+                )
+            )
+            if not big:
+                start = begin + s.bits
+        self.check_signal_overlap(out, {s.name: k for k, s in enumerate(sigs)}, path)
         return tuple(out)
+
+    def check_signal_overlap(self, signals: list[model.Signal], index: dict[str, int], path: Path) -> None:
+        """Two signals may share bits only when no frame carries both (different values of one multiplexer)."""
+        from netcfg.runtime.codec import byte_ops
+
+        by_name = {s.name: s for s in signals}
+
+        def conditions(s: model.Signal) -> dict[str, set[int]]:
+            out: dict[str, set[int]] = {}
+            while s.mux is not None and s.mux not in out and s.mux in by_name:
+                out[s.mux] = set(s.mux_values)
+                s = by_name[s.mux]
+            return out
+
+        masks = [sum(op.mask << (8 * op.index) for op in byte_ops(s.start_bit, s.bits, s.big_endian)) for s in signals]
+        conds = [conditions(s) for s in signals]
+        for b, sb in enumerate(signals):
+            for a in range(b):
+                if not masks[a] & masks[b]:
+                    continue
+                if any(m in conds[b] and not (v & conds[b][m]) for m, v in conds[a].items()):
+                    continue  # never in the same frame
+                sa = signals[a]
+                self.err(
+                    "signal-overlap",
+                    f"signal '{sb.name}' (start bit {sb.start_bit}, {sb.bits} bits) overlaps signal '{sa.name}' "
+                    f"(start bit {sa.start_bit}, {sa.bits} bits); move it to free bits",
+                    (*path, index[sb.name], "start_bit"),
+                )
+                break
 
     def claim_implicit_name(self, name: str, what: str) -> None:
         """Implicit messages appear under their own name in reports: no spec message may use it."""
@@ -566,3 +639,10 @@ def some_names(names: Iterable[str], limit: int = 8) -> str:
     items = sorted(names)
     more = f" (+{len(items) - limit} more)" if len(items) > limit else ""
     return (", ".join(items[:limit]) or "none") + more
+
+
+def _last_byte(s: model.Signal) -> int:
+    """The highest payload byte a signal touches (imported here: the runtime package only for signals)."""
+    from netcfg.runtime.codec import last_byte
+
+    return last_byte(s.start_bit, s.bits, s.big_endian)

@@ -109,7 +109,7 @@ def interpolation_period(period_ns: int) -> tuple[int, int] | None:
 
 @dataclass(frozen=True)
 class Signal(Field):
-    """A codec field (start_bit in little-endian (Intel) numbering: the least significant bit) with its unit."""
+    """A codec field with its unit (layout, byte order, multiplexing and value names: netcfg.runtime.codec)."""
 
     unit: str | None = None
 
@@ -182,9 +182,10 @@ class Message:
     def is_can(self) -> bool:
         return self.protocol in CAN_PROTOCOLS
 
-    def encode(self, **values: Number | bytes) -> bytes:
-        """Physical values -> payload (size bytes). Every field must be given; a raw field also takes bytes."""
-        plain: dict[str, Number] = {}
+    def encode(self, **values: Number | str | bytes) -> bytes:
+        """Physical values -> payload (size bytes). Every present field must be given (multiplexed ones: those
+        the multiplexers' values select); a value name (enum) stands for its value; a raw field takes bytes."""
+        plain: dict[str, Number | str] = {}
         for key, value in values.items():
             if isinstance(value, (bytes, bytearray)):
                 if self.signals or key != raw_signal_name(self.name) or len(value) != self.size:
@@ -203,7 +204,7 @@ class Message:
             raise CodecError(f"message '{self.name}' has {self.size} bytes of payload, got {len(data)}")
         return codec.decode(self.fields, bytes(data))
 
-    def to_can(self, **values: Number | bytes) -> can.Message:
+    def to_can(self, **values: Number | str | bytes) -> can.Message:
         if not self.is_can:
             raise TypeError(f"message '{self.name}' travels on {self.protocol} bus '{self.bus}'; use encode_udp()")
         import can  # only CAN masters need python-can
@@ -212,7 +213,7 @@ class Message:
             arbitration_id=self.id, is_extended_id=self.extended, dlc=self.size, data=self.encode(**values)
         )
 
-    def encode_udp(self, **values: Number | bytes) -> bytes:
+    def encode_udp(self, **values: Number | str | bytes) -> bytes:
         """The UDP datagram's payload: the 1-byte message id, then the data (seed 001, Table 6.1)."""
         if self.protocol != "ethernet-udp":
             raise TypeError(f"message '{self.name}' travels on {self.protocol} bus '{self.bus}'; use to_can()")
@@ -847,6 +848,10 @@ def _message(d: dict[str, Any], protocol: str) -> Message:
                 minimum=_opt_float(s["min"]),
                 maximum=_opt_float(s["max"]),
                 unit=s["unit"],
+                big_endian=s.get("byte_order", "little_endian") == "big_endian",
+                mux=s.get("mux"),
+                mux_values=tuple(int(v) for v in s.get("mux_values", ())),
+                choices=tuple((int(raw), str(name)) for raw, name in s.get("enum", ())),
             )
             for s in d["signals"]
         ),

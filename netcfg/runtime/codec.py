@@ -1,10 +1,17 @@
 """Payload codecs: the one definition of how a signal sits in a frame, shared by the Python runtime and, through
 the generated C headers, the microcontrollers.
 
-Layout: little-endian (Intel) bit numbering, as CANopen PDOs and DBC '@1' signals use. A payload of n bytes is
-read as one little-endian integer; a signal occupies `bits` bits starting at `start_bit`, its least significant
-bit. Integers are unsigned or two's complement; floats are IEEE 754 binary32/binary64. Physical values are
+Layout, as DBC files define it. Bit k of the payload is bit k % 8 of byte k // 8.
+- little-endian (Intel, DBC '@1', CANopen PDOs): the signal occupies `bits` consecutive bits from `start_bit`,
+  its least significant bit, upwards (a payload of n bytes read as one little-endian integer);
+- big-endian (Motorola, DBC '@0'): `start_bit` is the signal's most significant bit; the following bits run
+  down inside a byte and continue at bit 7 of the next byte (the DBC "sawtooth" numbering).
+Integers are unsigned or two's complement; floats are IEEE 754 binary32/binary64. Physical values are
 raw * scale + offset; min/max, when given, bound the physical value.
+
+Multiplexing (DBC 'M' / 'mN', also extended multiplexing): a field with `mux` set is present only when the
+field named by `mux` holds one of `mux_values` and is itself present. encode() takes exactly the present
+fields; decode() returns exactly them. Value names (DBC VAL_) are accepted by encode() in place of the number.
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ import math
 import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 
 Number = int | float
 
@@ -29,6 +37,41 @@ def int_range(bits: int, signed: bool) -> tuple[int, int]:
 
 
 @dataclass(frozen=True)
+class ByteOp:
+    """The part of a signal that lies in byte `index`: the byte bits in `mask` hold raw bits from `shift` up
+    (byte bits = (raw >> shift) & mask for shift >= 0, (raw << -shift) & mask below). C headers emit the same."""
+
+    index: int
+    shift: int
+    mask: int
+
+
+@lru_cache(maxsize=4096)  # a pure function of three small integers, asked for every signal and frame
+def byte_ops(start_bit: int, bits: int, big_endian: bool = False) -> tuple[ByteOp, ...]:
+    """Where each byte's share of the signal goes (see the module docstring for the two numberings)."""
+    ops: list[ByteOp] = []
+    if not big_endian:
+        for k in range(start_bit // 8, (start_bit + bits - 1) // 8 + 1):
+            lo = max(start_bit, 8 * k) - 8 * k  # lowest byte bit used
+            hi = min(start_bit + bits, 8 * k + 8) - 8 * k  # one past the highest
+            ops.append(ByteOp(k, 8 * k - start_bit, ((1 << hi) - 1) & ~((1 << lo) - 1)))
+        return tuple(ops)
+    remaining, k, top = bits, start_bit // 8, start_bit % 8  # the MSB sits at bit `top` of byte k
+    while remaining > 0:
+        take = min(top + 1, remaining)  # bits top down to top - take + 1 of this byte
+        low = top - take + 1
+        remaining -= take
+        ops.append(ByteOp(k, remaining - low, ((1 << (top + 1)) - 1) & ~((1 << low) - 1)))
+        k, top = k + 1, 7
+    return tuple(ops)
+
+
+def last_byte(start_bit: int, bits: int, big_endian: bool = False) -> int:
+    """The highest payload byte the signal touches (the payload needs one more byte than this)."""
+    return max(op.index for op in byte_ops(start_bit, bits, big_endian))
+
+
+@dataclass(frozen=True)
 class Field:
     name: str
     start_bit: int
@@ -39,6 +82,14 @@ class Field:
     offset: float = 0.0
     minimum: float | None = None
     maximum: float | None = None
+    big_endian: bool = False
+    mux: str | None = None  # the multiplexer field this one depends on
+    mux_values: tuple[int, ...] = ()  # ... and the raw values of it for which this field is present
+    choices: tuple[tuple[int, str], ...] = ()  # value names (DBC VAL_): raw value -> name
+
+    @property
+    def ops(self) -> tuple[ByteOp, ...]:
+        return byte_ops(self.start_bit, self.bits, self.big_endian)
 
     @property
     def is_integer(self) -> bool:
@@ -48,7 +99,12 @@ class Field:
     def raw_range(self) -> tuple[int, int]:
         return int_range(self.bits, self.signed)
 
-    def to_raw(self, value: Number) -> int:
+    def to_raw(self, value: Number | str) -> int:
+        if isinstance(value, str):
+            named = [raw for raw, name in self.choices if name == value]
+            if not named:
+                raise CodecError(f"{self.name} = {value!r} is not one of its value names")
+            value = self.from_raw(named[0] & ((1 << self.bits) - 1))
         if isinstance(value, float) and not math.isfinite(value) and not self.is_float:
             raise CodecError(f"{self.name} = {value} is not a finite number")
         if (self.minimum is not None and value < self.minimum) or (self.maximum is not None and value > self.maximum):
@@ -78,9 +134,61 @@ class Field:
         return raw * self.scale + self.offset
 
 
-def encode(fields: Iterable[Field], size: int, values: Mapping[str, Number]) -> bytes:
-    """Pack named physical values into `size` bytes; every field must be given, and nothing else."""
+def present(fields: Iterable[Field], values: Mapping[str, Number | str] | None = None) -> list[Field]:
+    """The fields a frame carries: every plain field, and a multiplexed one when its multiplexer is present
+    and holds one of its values. `values` maps multiplexer names to their (physical or named) values."""
     fields = list(fields)
+    by_name = {f.name: f for f in fields}
+    raws: dict[str, int | None] = {}
+
+    def raw_of(f: Field) -> int | None:
+        if f.name not in raws:
+            raws[f.name] = None  # a cycle of multiplexers is never present
+            if values is not None and f.name in values and is_present(f):
+                try:
+                    raws[f.name] = f.to_raw(values[f.name])
+                except CodecError:
+                    raws[f.name] = None
+        return raws[f.name]
+
+    def is_present(f: Field) -> bool:
+        if f.mux is None:
+            return True
+        switch = by_name.get(f.mux)
+        if switch is None:
+            return False
+        raw = raw_of(switch)
+        # compared as bit patterns: a signed multiplexer's value may be listed as -1 or as 255 (C does the same)
+        mask = (1 << switch.bits) - 1
+        return raw is not None and (raw & mask) in {v & mask for v in f.mux_values}
+
+    return [f for f in fields if is_present(f)]
+
+
+def _place(f: Field, raw: int) -> int:
+    """The raw value's bits at their place in the payload word (payload byte k = bits 8k..8k+7)."""
+    if not f.big_endian:
+        return raw << f.start_bit
+    word = 0
+    for op in f.ops:
+        part = (raw >> op.shift) if op.shift >= 0 else (raw << -op.shift)
+        word |= (part & op.mask) << (8 * op.index)
+    return word
+
+
+def _take(f: Field, word: int) -> int:
+    if not f.big_endian:
+        return (word >> f.start_bit) & ((1 << f.bits) - 1)
+    raw = 0
+    for op in f.ops:
+        part = (word >> (8 * op.index)) & op.mask
+        raw |= (part << op.shift) if op.shift >= 0 else (part >> -op.shift)
+    return raw
+
+
+def encode(fields: Iterable[Field], size: int, values: Mapping[str, Number | str]) -> bytes:
+    """Pack named physical values into `size` bytes; every present field must be given, and nothing else."""
+    fields = present(fields, values)
     names = {f.name for f in fields}
     unknown = set(values) - names
     missing = names - set(values)
@@ -88,10 +196,15 @@ def encode(fields: Iterable[Field], size: int, values: Mapping[str, Number]) -> 
         raise CodecError(f"unknown fields {sorted(unknown)}, missing fields {sorted(missing)}")
     word = 0
     for f in fields:
-        word |= f.to_raw(values[f.name]) << f.start_bit
+        word |= _place(f, f.to_raw(values[f.name]))
     return word.to_bytes(size, "little")
 
 
 def decode(fields: Iterable[Field], payload: bytes) -> dict[str, Number]:
+    """The present fields' physical values (multiplexed fields: those the payload's multiplexers select)."""
     word = int.from_bytes(payload, "little")
-    return {f.name: f.from_raw((word >> f.start_bit) & ((1 << f.bits) - 1)) for f in fields}
+    fields = list(fields)
+    if not any(f.mux for f in fields):
+        return {f.name: f.from_raw(_take(f, word)) for f in fields}
+    raw_values = {f.name: f.from_raw(_take(f, word)) for f in fields}
+    return {f.name: raw_values[f.name] for f in present(fields, raw_values)}

@@ -34,6 +34,12 @@ def read_spec(path: Path, diags: Collector, display_name: str | None = None) -> 
     if not isinstance(data, dict):
         diags.add("not-a-mapping", "a spec is a mapping with keys system, buses, nodes, messages...", smap.at(()))
         return None, smap
+    if isinstance(data.get("buses"), list) and any(isinstance(b, dict) and "import" in b for b in data["buses"]):
+        from netcfg.importers.dbc import merge_bus_imports
+
+        data = merge_bus_imports(data, smap, path.parent, diags)
+        if diags.errors:
+            return None, smap
     try:
         return Spec.model_validate(data), smap
     except ValidationError as exc:

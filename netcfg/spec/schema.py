@@ -155,6 +155,16 @@ def _non_zero(value: float) -> float:
 Int = Annotated[int, Strict()]
 Float = Annotated[float, BeforeValidator(_no_bool), AfterValidator(_finite)]
 Bool = Annotated[bool, Strict()]
+
+
+def _int_key(value: object) -> object:
+    """Mapping keys reach the model as text (YAML's `0:`, JSON's "0"): whole numbers only, no booleans."""
+    if isinstance(value, str) and re.fullmatch(r"-?[0-9]{1,20}", value.strip()):
+        return int(value)
+    return value
+
+
+IntKey = Annotated[int, BeforeValidator(_int_key), Strict()]
 # "node.task" references to tasks; flows and triggers use them.
 TaskRef = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$")]
 ObjectRef = Annotated[
@@ -235,6 +245,12 @@ class Bus(SpecModel):
     canopen: CanopenParams | None = None
     ethernet: EthernetParams | None = None
     description: str | None = None
+    import_: str | None = Field(
+        None,
+        alias="import",
+        description="a DBC file (path relative to the spec) whose nodes and messages join this CAN bus; a spec "
+        "message of the same name adds to or overrides the DBC's (e.g. a deadline), the bus's bitrate wins",
+    )
 
 
 class Task(SpecModel):
@@ -279,6 +295,11 @@ class Node(SpecModel):
     description: str | None = None
 
 
+class Mux(SpecModel):
+    signal: Name = Field(description="the multiplexer signal of the same message")
+    values: list[Int] = Field(min_length=1, description="its raw values for which this signal is present")
+
+
 class Signal(SpecModel):
     name: Name
     bits: Int = Field(ge=1, le=64)
@@ -286,8 +307,15 @@ class Signal(SpecModel):
         None,
         ge=0,
         le=511,
-        description="position of its least significant bit (little-endian); default: right after the previous signal",
+        description="little-endian: position of its least significant bit, default right after the previous "
+        "signal; big-endian: position of its most significant bit (DBC numbering: bit k is bit k % 8 of byte "
+        "k // 8), required",
     )
+    byte_order: Literal["little_endian", "big_endian"] = Field(
+        "little_endian", description="little_endian (Intel, DBC @1) or big_endian (Motorola, DBC @0)"
+    )
+    mux: Mux | None = Field(None, description="multiplexed: present only when another signal holds given values")
+    enum: dict[IntKey, str] | None = Field(None, description="value names by raw value (DBC VAL_); C enums")
     signed: Bool = False
     float: Bool = Field(False, description="IEEE 754 float (bits 32 or 64)")
     scale: Annotated[Float, AfterValidator(_non_zero)] = 1.0

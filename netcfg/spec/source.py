@@ -43,6 +43,14 @@ class SourceMap:
         self._values: dict[Path, yaml.Mark] = {}
         self._keys: dict[Path, yaml.Mark] = {}
 
+    @classmethod
+    def from_positions(cls, file: str, positions: dict[Path, tuple[int, int]]) -> SourceMap:
+        """A map of another format's positions ((line, column), 1-based), e.g. of the DBC a spec came from."""
+        smap = cls(file)
+        for path, (line, column) in positions.items():
+            smap.record(path, yaml.Mark(file, 0, line - 1, column - 1, None, 0))
+        return smap
+
     def record(self, path: Path, value: yaml.Mark, key: yaml.Mark | None = None) -> None:
         self._values[path] = value
         if key is not None:
