@@ -55,8 +55,8 @@ def text(null: bool = False, optional: bool = False) -> F:
     return F("str", null=null, optional=optional)
 
 
-def enum(*choices: Any, null: bool = False) -> F:
-    return F("enum", null=null, choices=choices)
+def enum(*choices: Any, null: bool = False, optional: bool = False) -> F:
+    return F("enum", null=null, optional=optional, choices=choices)
 
 
 def lst(item: F, null: bool = False, optional: bool = False, hi: int = 1_000_000) -> F:
@@ -92,6 +92,7 @@ MESSAGE = obj(
     jitter_ns=ns(), rate_hz=lst(i(1, 10**18), null=True, hi=2), window=enum("sync", "async", null=True),
     ftt_id=i(0, 10**6, null=True), udp=obj(null=True, src_port=i(0, U16), dst_port=i(0, U16)), pdo=PDO,
     signals=lst(SIGNAL, hi=8 * 1472), implicit=text(null=True), wcrt_ns=ns(null=True),
+    wcrt_unsync_ns=ns(null=True, optional=True),
     sent_by=lst(name(), null=True, optional=True),
 )
 TASK = obj(
@@ -114,7 +115,7 @@ CANOPEN = obj(
 )
 FTT = obj(
     null=True, ec_ns=ns(1), tm_size=i(0, 8), tm_id=i(0, MAX_ID[29]), tm_ns=ns(), lsw_ns=ns(), master=name(),
-    macro_cycle_ec=i(1, 1_000_000),
+    macro_cycle_ec=i(1, 1_000_000), windows=enum("async-first", "sync-first", optional=True),
     srt=lst(obj(ftt_id=i(0, 10**6), name=name(), kind=enum("message", "trigger"), targets=lst(name()),
                 period_ec=i(1, 1_000_000), fastest_period_ec=i(1, 1_000_000), init_ec=i(0, 1_000_000))),
     schedule=lst(obj(ec=i(0, 1_000_000), ids=lst(i(0, 10**6)), messages=lst(name()), triggers=lst(name()),
