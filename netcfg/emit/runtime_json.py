@@ -52,7 +52,7 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
         "system": m.system,
         # lets a master refuse a runtime.json built from another revision of the spec
         "spec_sha256": hashlib.sha256(Path(m.file).read_bytes()).hexdigest(),
-        "buses": [_bus(m, b) for b in m.buses.values()],
+        "buses": [_bus(m, b, _sync_completion(report, b.name)) for b in m.buses.values()],
         "nodes": [_node(m, n, files) for n in m.nodes.values()],
         "messages": [
             _message(m, msg, wcrt.get(msg.name), plain.get(msg.name, wcrt.get(msg.name)))
@@ -70,14 +70,26 @@ def _report_wcrt(report: dict[str, Any], key: str = "wcrt_ns") -> dict[str, int 
     return {row["name"]: row.get(key) for row in rows if key in row}
 
 
-def _bus(m: model.Model, b: model.Bus) -> dict[str, Any]:
+def _sync_completion(report: dict[str, Any], bus: str) -> int | None:
+    """The analysed worst case from SYNC to the last synchronous TPDO's end (the SYNC-cycle analysis), in ns."""
+    for row in report.get("buses", []):
+        if row.get("name") == bus and row.get("sync"):
+            us = row["sync"].get("worst_completion_us")  # the report's microseconds, to 3 decimals: whole ns
+            return None if us is None else round(us * 1000)
+    return None
+
+
+def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) -> dict[str, Any]:
+    canopen = _canopen(b.canopen)
+    if canopen is not None:
+        canopen["sync_completion_ns"] = sync_completion_ns  # the bound a master's read time is held against
     return {
         "name": b.name,
         "protocol": b.protocol,
         "bitrate": b.bitrate,
         "id_bits": b.id_bits,
         "nodes": list(b.nodes),
-        "canopen": _canopen(b.canopen),
+        "canopen": canopen,
         "ftt": _ftt(m, b),
         "ethernet": {"switches": [_switch(s) for s in b.switches]} if b.protocol == "ethernet-udp" else None,
     }

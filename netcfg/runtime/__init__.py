@@ -13,11 +13,12 @@ written through one unsigned field `<message>_raw` spanning its payload, the sam
 
 Version 1 has grown without changing the meaning of any key, so it is still version 1: nodes gained `identity`,
 `eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
-`safe_stop`, CANopen buses `sync_overflow`, PDOs `cob_id`, flows `unsync_latency_min_ns` and
-`unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`. A file written before
-them still loads: their fields are then None (`sdo_init` None means "not stated", () means "nothing to write";
-`sent_by` None: no task sends the message as it finishes, it runs free; no `windows` means the asynchronous window
-first), and a master falls back to what it did without them.
+`eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
+`safe_stop`, CANopen buses `sync_overflow` and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns`
+and `unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`. A file written
+before them still loads: their fields are then None (`sdo_init` None means "not stated", () means "nothing to
+write"; `sent_by` None: no task sends the message as it finishes, it runs free; no `windows` means the asynchronous
+window first), and a master falls back to what it did without them.
 """
 
 from __future__ import annotations
@@ -297,6 +298,7 @@ class CanopenParams:
     sync_id: int
     master_jitter_ns: int = 0  # how late the producer's SYNC and SYNC task may come; 0 in files written before it
     sync_overflow: int = 0  # CiA 301 0x1019: 0 no counter, else SYNC carries a counter 1..sync_overflow
+    sync_completion_ns: int | None = None  # analysed worst case: SYNC queued -> last synchronous TPDO received
 
     def collect_window_ns(self) -> int:
         """How long after SYNC a master collects the synchronous TPDOs: its read window; without one the synchronous
@@ -717,6 +719,7 @@ def _bus(d: dict[str, Any]) -> Bus:
             co["sync_id"],
             co.get("master_jitter_ns", 0),
             co.get("sync_overflow", 0),
+            co.get("sync_completion_ns"),
         ),
         ftt=None if ft is None else _ftt(ft),
         ethernet=None
