@@ -305,6 +305,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     try:
         return run_command(args)
+    except KeyboardInterrupt:  # before the cycle's own handler was armed (set-up): what was started is stopped
+        print(f"netcfg: {args.source}: interrupted; started nodes were brought to their safe state", file=sys.stderr)
+        return 1
     except OSError as exc:
         print(f"netcfg: {_io_problem(exc, 'run', args.source)}", file=sys.stderr)
         return 2

@@ -354,8 +354,12 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             "window_us": round(1e6 * run.read_window_s, 3),
             "max_us": round(1e6 * max(complete), 3) if complete else None,
             "mean_us": round(1e6 * sum(complete) / len(complete), 3) if complete else None,
-            # a cycle whose due TPDOs were not all in when the read window closed
-            "overruns": sum(1 for rec in run.records if rec.missing),
+            # a cycle whose due TPDOs were not all in when the read window closed, from nodes still in service
+            "overruns": sum(
+                1
+                for rec in run.records
+                if any(not outcome.out_of_service(run.producers[m], rec.sync_sent) for m in rec.missing)
+            ),
             "beyond_analysis": sum(
                 1
                 for rec in run.records

@@ -288,8 +288,10 @@ def test_identity_and_pdo_counts_from_a_vendor_eds(tmp_path: Path) -> None:
         node = cfg.node(name)
         assert node.identity == rt.NodeIdentity(EPOS4_VENDOR, EPOS4_50_5_PRODUCT, EPOS4_50_5_REVISION), name
         assert (node.rpdo_count, node.tpdo_count) == (rx, tx)
-        # the EDS's own data types for 0x60C2
+        # the spec's heartbeat (0x1017, UNSIGNED16 = 0x0006 in CiA 301 table 44), then the EDS's own data types
+        # for 0x60C2; maxon's EDS has no 0x1007 or 0x1019 to write
         assert [(w.index, w.sub, w.data_type) for w in node.sdo_init or ()] == [
+            (0x1017, 0, 0x0006),
             (0x60C2, 1, UNSIGNED8),
             (0x60C2, 2, INTEGER8),
         ]

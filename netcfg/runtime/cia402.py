@@ -92,7 +92,6 @@ def _command(controlword: int) -> str | None:
 _TRANSITIONS: dict[tuple[str, str], tuple[str, int]] = {
     (SWITCH_ON_DISABLED, "shutdown"): (READY, 2),
     (READY, "switch on"): (SWITCHED_ON, 3),
-    (READY, "enable operation"): (OPERATION_ENABLED, 3),  # "switch on + enable operation": 3, then 4 at once
     (SWITCHED_ON, "enable operation"): (OPERATION_ENABLED, 4),
     (OPERATION_ENABLED, "switch on"): (SWITCHED_ON, 5),  # disable operation
     (SWITCHED_ON, "shutdown"): (READY, 6),
@@ -143,6 +142,8 @@ class PowerStateMachine:
                 self._go(15, SWITCH_ON_DISABLED)
             return self.state
         command = _command(cw)
+        if self.state == READY and command == "enable operation":  # "switch on + enable operation": 3, then 4
+            self._go(3, SWITCHED_ON)
         step = _TRANSITIONS.get((self.state, command)) if command else None
         if step is not None:
             self._go(step[1], step[0])

@@ -153,6 +153,13 @@ class Outcome:
     started: bool = False
     sync_completion_ns: int | None = None
     bad_emcy: int = 0
+    t0: float = 0.0  # clock time the cycle phase began: the origin of every *_s time above
+
+    def out_of_service(self, node: str, t: float) -> bool:
+        """The master had stopped the node, or found it lost, by clock time t."""
+        n = self.nodes[node]
+        marks = [m for m in (n.stopped_at_s, n.lost_at_s) if m is not None]
+        return bool(marks) and t - self.t0 >= min(marks)
 
 
 class _Operation:
@@ -274,7 +281,7 @@ class _Operation:
             on_frame=supervisor.feed,
             after_cycle=self._after_cycle,
         )
-        self.first = self.clock.now()
+        self.first = self.out.t0 = self.clock.now()
         supervisor.start(self.first)
         self.out.run = master.run(cycles)
         self.out.bad_emcy = supervisor.bad_emcy

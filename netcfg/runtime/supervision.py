@@ -154,7 +154,8 @@ class Supervisor:
             if w.timeout_s is None or w.lost_at is not None:
                 continue
             since = w.last_heartbeat if w.last_heartbeat is not None else self.started
-            if since is None or t - since <= w.timeout_s:
+            # compared in whole nanoseconds: 0.4 - 0.1 s in floats is a hair over 0.3 s
+            if since is None or round((t - since) * 1e9) <= round(w.timeout_s * 1e9):
                 continue
             w.lost_at, w.silent_for_s = t, t - since
             what = "no heartbeat" if w.last_heartbeat is not None else "no heartbeat since supervision began"
