@@ -363,7 +363,10 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             "beyond_analysis": sum(
                 1
                 for rec in run.records
-                if outcome.sync_completion_ns is not None and rec.read_s * 1e9 > outcome.sync_completion_ns
+                if rec.due
+                and not rec.missing
+                and outcome.sync_completion_ns is not None
+                and round(rec.read_s * 1e9) > outcome.sync_completion_ns
             ),
         }
         spans = [rec.period_s for rec in run.records]
@@ -415,7 +418,8 @@ def result_text(outcome: Any, doc: dict[str, Any]) -> str:
         bound = "not analysed" if r["analysed_bound_us"] is None else f"{r['analysed_bound_us'] / 1e3:.3f} ms"
         lines.append(
             f"read (SYNC -> last TPDO): mean {r['mean_us'] / 1e3:.3f} ms, max {r['max_us'] / 1e3:.3f} ms; analysed "
-            f"bound {bound}, read window {r['window_us'] / 1e3:.3f} ms; window overruns {r['overruns']}"
+            f"bound {bound} (cycles beyond it: {r['beyond_analysis']}), read window {r['window_us'] / 1e3:.3f} ms; "
+            f"window overruns {r['overruns']}"
         )
     if c["min_us"] is not None:
         lines.append(

@@ -11,9 +11,10 @@ Sources of the numbers:
   register, 5 manufacturer bytes), error code classes (0x2xxx "Current"); consumer heartbeat time entries (0x1016:
   node id in bits 16-23, time in ms in bits 0-15); the SYNC counter (0x1019): the first SYNC carries 1, each
   following one 1 more, and the one after the overflow value carries 1 again.
-- specs/allex2.yaml: six drives (node ids 1-6), SYNC every 20 ms, heartbeat 100 ms, master's consumer time 300 ms,
-  on_loss: stop_node, default on_emcy: stop_all, safe_stop: quick_stop; EMCY code 0x2310 is `netcfg run`'s default
-  for --emcy (CiA 402's "continuous over-current").
+- specs/allex2.yaml: six drives (node ids 1-6), SYNC every 20 ms, heartbeat 100 ms, master's consumer time 300 ms
+  (the default 3 x, Lely dcfgen's heartbeat_multiplier default of 3.0), on_loss: stop_node, default on_emcy:
+  stop_all, safe_stop: quick_stop; EMCY code 0x2310 is `netcfg run`'s default for --emcy (CiA 402's "continuous
+  over-current").
 """
 
 from __future__ import annotations
@@ -269,7 +270,7 @@ def test_runtime_json_and_dcf_carry_the_supervision(cfg: rt.RuntimeConfig) -> No
 def test_sync_counter_and_supervision_settings_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
     bad = text.replace("read_window: 10 ms", "read_window: 10 ms\n      sync_counter: 1", 1).replace(
-        "heartbeat_timeout: 300 ms", "heartbeat_timeout: 100 ms", 1
+        "heartbeat: 100 ms", "heartbeat: 100 ms\n    heartbeat_timeout: 100 ms", 1
     )
     spec = tmp_path / "bad.yaml"
     spec.write_text(bad, encoding="utf-8")

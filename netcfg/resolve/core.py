@@ -226,7 +226,7 @@ class Resolver:
                 )
                 hb_timeout = None
             if hb and hb_timeout is None:
-                hb_timeout = -(-3 * hb // 2_000_000) * 1_000_000  # 1.5 x, rounded up to whole ms
+                hb_timeout = 3 * hb  # Lely dcfgen's default heartbeat_multiplier (3.0): two heartbeats may be lost
             if n.ip is not None and any(int(p) > 255 for p in n.ip.split(".")):
                 self.err("ip", f"'{n.ip}' is not an IPv4 address", (*path, "ip"))
             ec = self.ec_of(n.buses)

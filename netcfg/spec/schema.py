@@ -290,7 +290,7 @@ class Node(SpecModel):
     heartbeat_timeout: DurationField | None = Field(
         None,
         description="CANopen: how long the master waits for this node's heartbeat before it reports the node lost "
-        "(its consumer heartbeat time, 0x1016); default 1.5 x the producer time, the margin for queueing delay",
+        "(its consumer heartbeat time, 0x1016); default 3 x the producer time, as Lely's dcfgen (heartbeat_multiplier)",
     )
     on_loss: Literal["stop_all", "stop_node", "continue"] = Field(
         "stop_all",
