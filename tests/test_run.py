@@ -467,3 +467,11 @@ def test_run_usage_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) ->
     assert main(["run", runtime_json, "--simulated-drives", "--kill", "knee_r"]) == 2
     assert main(["run", runtime_json, "--simulated-drives", "--log", str(tmp_path / "x.txt")]) == 2
     assert not (tmp_path / "x.txt").exists()
+
+
+def test_text_output_has_no_live_view_when_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> None:
+    """Under pytest stdout is no terminal: the status line (carriage returns) stays off, the summary is plain."""
+    assert main(["run", str(GENERATED / "runtime.json"), "--simulated-drives", "--cycles", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "\r" not in out and out.splitlines()[-1] == "ok"
+    assert "CANopen set-up of bus can0: 6/6 nodes ok" in out and "5 cycles on can0, ended by cycles" in out

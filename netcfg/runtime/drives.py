@@ -248,6 +248,7 @@ class SimulatedDrive:
             self._show_state()
         self.killed = False
         self.emcy_sent: list[tuple[int, int, bytes]] = []
+        self._ending: list[threading.Thread] = []  # heartbeat threads told to stop, not yet joined
 
     # --- object dictionary access ----------------------------------------------------------------------------
 
@@ -352,7 +353,23 @@ class SimulatedDrive:
     def kill(self) -> None:
         """The drive drops off the bus (power lost, cable cut): no heartbeat, no answers, nothing sent."""
         self.killed = self.silent = True
+        self._stop_heartbeat()
+
+    def _stop_heartbeat(self) -> None:
+        """Stop the heartbeat canopen sends from a python-can cyclic-send thread; the thread ends within one
+        period, join_threads() waits for it."""
+        task = getattr(self.node.nmt, "_send_task", None)
         self.node.nmt.stop_heartbeat()
+        thread = getattr(getattr(task, "_task", None), "thread", None)
+        if isinstance(thread, threading.Thread):
+            self._ending.append(thread)
+
+    def join_threads(self, timeout: float = 2.0) -> None:
+        """Wait for the heartbeat threads stopped so far (so a test or a program leaves none behind)."""
+        for thread in self._ending:
+            if thread is not threading.current_thread():
+                thread.join(timeout)
+        self._ending.clear()
 
     # --- the PDO configuration ---------------------------------------------------------------------------------
 
@@ -457,15 +474,18 @@ class SimulatedDrive:
         if listen:
             self._notifier = can.Notifier(bus, [self.on_frame], timeout=0.05)
 
-    def detach(self) -> None:
-        """Stop serving the bus (the bus itself stays open: its owner shuts it down)."""
+    def detach(self, join: bool = True) -> None:
+        """Stop serving the bus (the bus itself stays open: its owner shuts it down). join=False leaves the wait
+        for the heartbeat thread to join_threads(), so a bench stops its drives' threads all at once."""
         if self._notifier is not None:
             self._notifier.stop(timeout=2.0)
             self._notifier = None
         if self._scheduler is not None and self._own_scheduler:
             self._scheduler.close()
         self._scheduler = None
-        self.node.nmt.stop_heartbeat()
+        self._stop_heartbeat()
+        if join:
+            self.join_threads()
         if self.network is not None:
             del self.network[self.node.id]  # type: ignore[arg-type]  # a LocalNode's id is always set
             self.network = None
@@ -683,7 +703,9 @@ class DriveBench:
             self.scheduler.close()
             self.scheduler = None
         for drive in self.drives.values():
-            drive.detach()
+            drive.detach(join=False)
+        for drive in self.drives.values():
+            drive.join_threads()
         for bus in self._buses:
             bus.shutdown()
         self._buses.clear()
