@@ -101,8 +101,10 @@ def _config(source: Path) -> Iterator[Any]:
     if source.suffix == ".json":
         yield runtime.load(source)
         return
+    import importlib
+
     from netcfg.check import analyse_spec
-    from netcfg.emit import emit_all
+    from netcfg.emit import EMITTERS, check_relative
 
     model, report = analyse_spec(source)
     for d in report["errors"]:
@@ -112,10 +114,13 @@ def _config(source: Path) -> Iterator[Any]:
         yield None
         return
     with tempfile.TemporaryDirectory(prefix="netcfg-run-") as tmp:
-        for rel, data in emit_all(model, report).items():
-            path = Path(tmp) / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(data)
+        for name in ("runtime", "canopen"):  # what a master and the simulated drives read; no report, no plots
+            module, _, func = EMITTERS[name].partition(":")
+            for rel, data in getattr(importlib.import_module(module), func)(model, report).items():
+                check_relative(rel)
+                path = Path(tmp) / rel
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(data)
         yield runtime.load(Path(tmp) / "runtime.json")
 
 
