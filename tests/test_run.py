@@ -280,7 +280,7 @@ def test_sync_counter_and_supervision_settings_are_checked(tmp_path: Path, capsy
     assert main(["check", str(spec)]) == 1
     err = capsys.readouterr().err
     assert f"{spec}:23:21: error: sync_counter 1 is no SYNC counter overflow value" in err
-    assert "heartbeat_timeout (the master's consumer time, 0x1016) is whole milliseconds and longer" in err
+    assert "heartbeat_timeout (the master's consumer time, 0x1016) is whole milliseconds, at most 65535 ms" in err
 
 
 # --- the whole run ------------------------------------------------------------------------------------------------
@@ -504,3 +504,30 @@ def test_emcy_with_stop_node_and_loss_with_continue(cfg: rt.RuntimeConfig, chann
     assert out.nodes["knee_r"].stopped_at_s is None and out.nodes["knee_r"].state == "LOST"
     for name in ("knee_l", "ankle_l", "hip_r", "ankle_r"):
         assert out.run.complete_samples(name) == 30, name
+
+
+def test_heartbeat_timeout_and_sync_counter_survive_the_bus_yml_round_trip(tmp_path: Path) -> None:
+    """Lely's dcfgen makes the master's consumer time int(heartbeat_producer x heartbeat_multiplier) ms, default 3.0:
+    a 250 ms timeout for a 100 ms heartbeat is written as multiplier 2.5 (100 x 2.5 = 250) and read back as 250 ms;
+    the default 300 ms needs no key."""
+    import yaml
+
+    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
+    marker = "  - name: knee_r\n"
+    head, tail = text.split(marker, 1)
+    tail = tail.replace("heartbeat: 100 ms\n", "heartbeat: 100 ms\n    heartbeat_timeout: 250 ms\n", 1)
+    head = head.replace("read_window: 10 ms", "read_window: 10 ms\n      sync_counter: 12", 1)
+    spec = tmp_path / "allex2.yaml"
+    spec.write_text(head + marker + tail, encoding="utf-8")
+    assert main(["build", str(spec), "-o", str(tmp_path / "out")]) == 0
+    bus_yml = (tmp_path / "out" / "canopen" / "bus.yml").read_text(encoding="utf-8")
+    assert bus_yml.count("heartbeat_multiplier") == 1 and "heartbeat_multiplier: 2.5\n" in bus_yml
+    assert "  sync_overflow: 12\n" in bus_yml  # CiA 301 0x1019 as dcfgen's master.sync_overflow
+    assert (
+        main(["import", "bus-yml", str(tmp_path / "out" / "canopen" / "bus.yml"), "-o", str(tmp_path / "back.yaml")])
+        == 0
+    )
+    back = yaml.safe_load((tmp_path / "back.yaml").read_text(encoding="utf-8"))
+    assert back["buses"][0]["canopen"]["sync_counter"] == 12
+    nodes = {n["name"]: n for n in back["nodes"]}
+    assert nodes["knee_r"]["heartbeat_timeout"] == "250 ms" and "heartbeat_timeout" not in nodes["knee_l"]
