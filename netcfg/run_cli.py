@@ -345,6 +345,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             "emcy": node.emcy,
             "set_up": node.setup_ok,
             "set_up_error": node.setup_error,
+            "cia402": node.cia402_over,  # how the master drove its power state machine: "SDO", "PDO" or null
             "enable_path": node.enable_path,
             "stopped_at_s": None if node.stopped_at_s is None else round(node.stopped_at_s, 6),
             "safe_state": node.safe_state,

@@ -51,6 +51,7 @@ from netcfg.runtime.cia402 import (
     SWITCH_ON_DISABLED,
     SWITCHED_ON,
     Cia402Error,
+    PdoEnabler,
     PowerStateMachine,
     enable_operation,
     safe_stop,
@@ -531,3 +532,54 @@ def test_heartbeat_timeout_and_sync_counter_survive_the_bus_yml_round_trip(tmp_p
     assert back["buses"][0]["canopen"]["sync_counter"] == 12
     nodes = {n["name"]: n for n in back["nodes"]}
     assert nodes["knee_r"]["heartbeat_timeout"] == "250 ms" and "heartbeat_timeout" not in nodes["knee_l"]
+
+
+def test_pdo_enabler_walks_a_drive_one_transition_per_cycle() -> None:
+    """Each cycle: the statusword of the last TPDO in, the controlword of this RxPDO out (CiA 402 transitions 2, 3,
+    4; from FAULT bit 7 low, then high: 15)."""
+    for start, path in (
+        (SWITCH_ON_DISABLED, [SWITCH_ON_DISABLED, READY, SWITCHED_ON, OPERATION_ENABLED]),
+        (FAULT, [FAULT, SWITCH_ON_DISABLED, READY, SWITCHED_ON, OPERATION_ENABLED]),
+    ):
+        psm, enabler = PowerStateMachine(state=start), PdoEnabler("drive", timeout_cycles=3)
+        for _ in range(8):
+            psm.controlword(enabler.step(psm.statusword))
+        assert enabler.enabled and enabler.path == path and enabler.error is None
+    stuck, enabler = PowerStateMachine(state=SWITCH_ON_DISABLED), PdoEnabler("drive", timeout_cycles=3)
+    for _ in range(6):
+        enabler.step(stuck.statusword)  # the drive never sees the commands
+    assert enabler.error is not None and "still SWITCH ON DISABLED (statusword 0x0240) 4 cycles after" in enabler.error
+
+
+def test_a_drive_with_mapped_controlword_and_statusword_is_enabled_through_its_pdos(
+    tmp_path: Path, channel: str
+) -> None:
+    """hip_l's RxPDO1 carries 0x60FF and the controlword, its TPDO2 0x6077, 0x30D1:2 and the statusword (16 + 32 +
+    16 = 64 bits): the master enables it in the first cycles over those PDOs, the others over SDO; every cycle
+    still delivers its samples, and the statusword shows OPERATION ENABLED in the last one."""
+    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
+    text = text.replace(
+        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x60B1]}",
+        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x6040]}",
+        1,
+    )
+    text = text.replace(
+        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2"]}',
+        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2", 0x6041]}',
+        1,
+    )
+    spec = tmp_path / "pdo402.yaml"
+    spec.write_text(text, encoding="utf-8")
+    assert main(["build", str(spec), "-o", str(tmp_path / "out")]) == 0
+    cfg = rt.load(tmp_path / "out" / "runtime.json")
+    with DriveBench(cfg, channel=channel) as bench, BusLog(can.Bus(interface="virtual", channel=channel), None) as bus:
+        out = operate(cfg, bus, Plan(cycles=12))
+        history = bench["hip_l"].power.history if bench["hip_l"].power else []
+    hip_l = out.nodes["hip_l"]
+    assert hip_l.cia402_over == "PDO" and {out.nodes[n].cia402_over for n in JOINTS[1:]} == {"SDO"}
+    assert hip_l.enable_path == [SWITCH_ON_DISABLED, READY, SWITCHED_ON, OPERATION_ENABLED]
+    assert hip_l.state == OPERATION_ENABLED and hip_l.errors == []
+    assert [n for n, _ in history] == [1, 2, 3, 4, 11]  # up over the RxPDO, the quick stop over SDO at the end
+    assert out.run is not None and all(out.run.complete_samples(n) == 12 for n in JOINTS)
+    last = out.run.records[-1].values["hip_l_effort"]
+    assert cia402.state_of(int(last["statusword"])) == OPERATION_ENABLED

@@ -253,3 +253,50 @@ def safe_stop(
         raise ValueError(f"safe stop {how!r}: write quick_stop or disable_operation")
     write(CW_QUICK_STOP)
     return _wait_for(name, read, (QUICK_STOP_ACTIVE, SWITCH_ON_DISABLED), "quick stop", timeout_s, poll_s)[0]
+
+
+class PdoEnabler:
+    """The master's walk to OPERATION ENABLED through PDOs, one step per SYNC cycle: fed the statusword the drive's
+    TPDO brought in the last cycle, it gives the controlword the RxPDO carries in this one (fault reset on a rising
+    edge of bit 7 over two cycles, then shutdown, switch on, enable operation). A state that does not move on within
+    `timeout_cycles` of its command sets `error`; `path` lists the states seen, `state` the latest."""
+
+    def __init__(self, name: str, timeout_cycles: int) -> None:
+        self.name, self.timeout_cycles = name, max(1, timeout_cycles)
+        self.path: list[str] = []
+        self.state: str | None = None
+        self.error: str | None = None
+        self.controlword = CW_DISABLE_VOLTAGE  # what the RxPDO carries until the drive's state is known
+        self._since = 0  # cycles the current state has lasted
+        self._reset_armed = False
+
+    @property
+    def enabled(self) -> bool:
+        return self.state == OPERATION_ENABLED
+
+    def step(self, statusword: int | None) -> int:
+        if statusword is None or self.error is not None:
+            return self.controlword  # no sample yet (or given up): the last command stays
+        state = state_of(statusword)
+        if state != self.state:
+            self.state, self._since = state, 0
+            self.path.append(state or f"undefined 0x{statusword:04X}")
+        else:
+            self._since += 1
+        if state == OPERATION_ENABLED:
+            self.controlword = CW_ENABLE
+            return self.controlword
+        if self._since > self.timeout_cycles:
+            self.error = (
+                f"{self.name}: still {state or 'in an undefined state'} (statusword 0x{statusword:04X}) "
+                f"{self._since} cycles after controlword 0x{self.controlword:04X} over its RxPDO. Check the drive's "
+                "power stage supply, its enable input and its error history (0x1003)."
+            )
+            return self.controlword
+        if state == FAULT:
+            # bit 7 must rise: one cycle without it, the next with it
+            self.controlword = CW_FAULT_RESET if self._reset_armed else CW_DISABLE_VOLTAGE
+            self._reset_armed = not self._reset_armed
+        elif state in _TOWARD_ENABLED:
+            self.controlword = _TOWARD_ENABLED[state][0]
+        return self.controlword

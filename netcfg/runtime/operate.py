@@ -6,7 +6,10 @@
 1. Set-up (`configure_network`): identity, PDOs, start-up SDO writes (heartbeat, synchronous window, SYNC counter,
    interpolation period), read back. Nothing starts when a node failed, unless `allow_missing`: then the others run.
 2. Start: NMT start of every node set up, then each CiA 402 drive (one that has a statusword 0x6041) through the
-   power state machine to OPERATION ENABLED over SDO (netcfg.runtime.cia402), with a timeout per transition.
+   power state machine to OPERATION ENABLED (netcfg.runtime.cia402), with a timeout per transition: over SDO
+   before the cycle, or, for a drive whose controlword is mapped into a periodic RxPDO of the master and whose
+   statusword into a synchronous TPDO it collects, through those PDOs in the first cycles (one transition per
+   cycle); such a drive's statusword also shows its state in every cycle.
 3. Cycle: MasterCycle (seed 000's Figure 7) at the spec's SYNC period, with a Supervisor fed every frame the cycle
    does not take (heartbeats, EMCY) and checked after each cycle. A lost node or an EMCY does what the node's
    `on_loss`/`on_emcy` says: `stop_all` ends the cycle; `stop_node` sends that node NMT PRE-OPERATIONAL at once (it
@@ -38,14 +41,16 @@ from netcfg.runtime.canopen_master import (
     CycleRecord,
     MasterCycle,
     MasterRun,
+    Samples,
     SetupReport,
     canopen_bus,
     canopen_slaves,
     configure_network,
 )
 from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START
-from netcfg.runtime.cia402 import CONTROLWORD, STATUSWORD, Cia402Error, enable_operation, safe_stop
+from netcfg.runtime.cia402 import CONTROLWORD, STATUSWORD, Cia402Error, PdoEnabler, enable_operation, safe_stop
 from netcfg.runtime.clock import Clock, SystemClock
+from netcfg.runtime.codec import Number
 from netcfg.runtime.supervision import Event, Supervisor
 
 __all__ = ["BusLog", "NodeOutcome", "Outcome", "Plan", "operate"]
@@ -130,6 +135,7 @@ class NodeOutcome:
     setup_error: str | None = None
     started: bool = False
     cia402: bool = False
+    cia402_over: str | None = None  # "SDO", or "PDO" when its controlword and statusword are mapped
     state: str = "NOT STARTED"  # the drive's state as the master last knew it while running
     enable_path: list[str] = field(default_factory=list)  # CiA 402 states passed through on the way up
     safe_state: str | None = None  # the state after the safe stop
@@ -175,6 +181,8 @@ class _Operation:
         )
         self.stop_requested: str | None = None
         self.supervisor: Supervisor | None = None
+        self.pdo_drives = self._pdo_mapped()  # node -> (RxPDO, controlword field, TPDO, statusword field)
+        self.enablers: dict[str, PdoEnabler] = {}
         self.first: float | None = None
         self.drills = sorted(plan.drills, key=lambda d: d[0])
 
@@ -194,6 +202,23 @@ class _Operation:
         remote.sdo.RESPONSE_TIMEOUT = self.plan.sdo_timeout_s
         network.add_node(remote)
         return remote
+
+    def _pdo_mapped(self) -> dict[str, tuple[str, str, str, str]]:
+        """Drives whose controlword (0x6040) a periodic RxPDO of the master carries and whose statusword (0x6041) a
+        synchronous TPDO the master collects carries."""
+        control: dict[str, tuple[str, str]] = {}
+        status: dict[str, tuple[str, str]] = {}
+        for m in self.cfg.messages_on(self.co_bus.name):
+            if m.pdo is None:
+                continue
+            for e in m.pdo.entries:
+                if (e.index, e.sub) == (CONTROLWORD, 0) and m.pdo.kind == "rpdo" and m.kind == "periodic":
+                    control.setdefault(m.pdo.node, (m.name, e.name))
+                elif (
+                    (e.index, e.sub) == (STATUSWORD, 0) and m.pdo.kind == "tpdo" and m.pdo.transmission in range(1, 241)
+                ):
+                    status.setdefault(m.pdo.node, (m.name, e.name))
+        return {n: (*control[n], *status[n]) for n in control if n in status}
 
     def _nmt(self, command: int, node_id: int) -> None:
         try:
@@ -248,6 +273,10 @@ class _Operation:
                     failed.append(n.name)
                     continue
                 node.cia402 = True
+                if n.name in self.pdo_drives:
+                    node.cia402_over = "PDO"  # enabled by the first cycles (cycle())
+                    continue
+                node.cia402_over = "SDO"
                 try:
                     node.enable_path = enable_operation(
                         n.name,
@@ -272,12 +301,16 @@ class _Operation:
             return
         supervisor = self.supervisor = Supervisor(self.cfg, self.co_bus, running)
         cycles = self.plan.cycles if self.plan.cycles is not None else 2**62
+        period_ns = self.co_bus.canopen.sync_period_ns if self.co_bus.canopen else 1
+        timeout_cycles = -(-round(self.plan.transition_timeout_s * 1e9) // period_ns)
+        self.enablers = {n: PdoEnabler(n, timeout_cycles) for n in running if self.out.nodes[n].cia402_over == "PDO"}
         master = MasterCycle(
             self.cfg,
             self.bus,
             self.clock,
             bus_name=self.co_bus.name,
             nodes=running,
+            commands=self._commands if self.enablers else None,
             on_frame=supervisor.feed,
             after_cycle=self._after_cycle,
         )
@@ -294,6 +327,15 @@ class _Operation:
                 node.lost_silent_ms = 1e3 * w.silent_for_s
                 node.state = "LOST"
 
+    def _commands(self, cycle: int, samples: Samples) -> dict[str, dict[str, Number]]:
+        """The controlwords of the PDO-mapped drives, from the statuswords of the last cycle."""
+        out: dict[str, dict[str, Number]] = {}
+        for name, enabler in self.enablers.items():
+            rpdo, cw_field, tpdo, sw_field = self.pdo_drives[name]
+            sw = samples.get(tpdo, {}).get(sw_field)
+            out[rpdo] = {cw_field: enabler.step(None if sw is None else int(sw))}
+        return out
+
     def _after_cycle(self, record: CycleRecord) -> bool:
         assert self.supervisor is not None and self.first is not None
         now = self.clock.now()
@@ -309,6 +351,16 @@ class _Operation:
             event = self.supervisor.events[len(self.out.events)]
             self.out.events.append((event.time - self.first, event))
             self._react(event, event.time - self.first)
+        for name, enabler in self.enablers.items():
+            node = self.out.nodes[name]
+            node.enable_path = list(enabler.path)
+            if node.lost_at_s is None and node.stopped_at_s is None and enabler.state is not None:
+                node.state = enabler.state  # the statusword of this cycle's TPDO
+            if enabler.error is not None and enabler.error not in node.errors:
+                node.errors.append(enabler.error)
+                node.state = "ENABLE FAILED"
+                if self.stop_requested is None:
+                    self.stop_requested = f"enable failed: {name}"
         if self.plan.on_cycle is not None:
             self.plan.on_cycle(record, self.out)
         return self.stop_requested is None
