@@ -583,3 +583,27 @@ def test_a_drive_with_mapped_controlword_and_statusword_is_enabled_through_its_p
     assert out.run is not None and all(out.run.complete_samples(n) == 12 for n in JOINTS)
     last = out.run.records[-1].values["hip_l_effort"]
     assert cia402.state_of(int(last["statusword"])) == OPERATION_ENABLED
+
+
+def test_live_view_rewrites_one_status_line() -> None:
+    """Every 5th cycle one line, started with a carriage return: cycle, period, read time, each node's state and
+    its missing samples; close() blanks it."""
+    import io
+    from types import SimpleNamespace
+
+    from netcfg.run_cli import _LiveView
+
+    out = io.StringIO()
+    view = _LiveView(out, 10, {"knee_r_state": "knee_r"})
+    nodes = {
+        "hip_l": SimpleNamespace(name="hip_l", state=OPERATION_ENABLED),
+        "knee_r": SimpleNamespace(name="knee_r", state="LOST"),
+    }
+    for i in range(6):
+        record = SimpleNamespace(index=i, period_s=0.02, read_s=0.0015, missing=("knee_r_state",) if i else ())
+        view.update(record, SimpleNamespace(nodes=nodes))
+    lines = out.getvalue().split("\r")[1:]
+    assert lines[0].startswith("cycle 1/10  T 20.000 ms  read  1.500 ms  hip_l:OE knee_r:LOST")
+    assert lines[1].startswith("cycle 6/10") and "knee_r:LOST/5" in lines[1]
+    view.close()
+    assert out.getvalue().endswith("\r")
