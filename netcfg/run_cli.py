@@ -352,7 +352,13 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             "errors": node.errors,
         }
     read: dict[str, Any] = {"analysed_bound_us": None, "window_us": None, "max_us": None, "overruns": 0}
-    periods: dict[str, Any] = {"period_us": None, "min_us": None, "max_us": None, "overruns": 0}
+    periods: dict[str, Any] = {
+        "period_us": None,
+        "min_us": None,
+        "max_us": None,
+        "analysed_jitter_us": 0,
+        "overruns": 0,
+    }
     if run is not None:
         complete = [rec.read_s for rec in run.records if rec.due and not rec.missing]
         read = {
@@ -380,8 +386,13 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             "period_us": round(1e6 * run.period_s, 3),
             "min_us": round(1e6 * min(spans), 3) if spans else None,
             "max_us": round(1e6 * max(spans), 3) if spans else None,
-            # an iteration whose work took longer than the period (eq. (1)'s waiting time negative)
-            "overruns": sum(1 for rec in run.records if rec.waiting_s < 0),
+            "analysed_jitter_us": outcome.master_jitter_ns / 1e3,
+            # a cycle longer than T + the master's analysed wake-up latency: its SYNC came later than analysed
+            "overruns": sum(
+                1
+                for rec in run.records
+                if round(rec.period_s * 1e9) > round(run.period_s * 1e9) + outcome.master_jitter_ns
+            ),
         }
     started = [n for n in by_node.values() if outcome.nodes[n["name"]].started]
     ok = (
@@ -430,7 +441,7 @@ def result_text(outcome: Any, doc: dict[str, Any]) -> str:
     if c["min_us"] is not None:
         lines.append(
             f"period {c['period_us'] / 1e3:.3f} ms: min {c['min_us'] / 1e3:.3f} ms, max {c['max_us'] / 1e3:.3f} ms; "
-            f"overruns {c['overruns']}"
+            f"longer than T + the analysed {c['analysed_jitter_us']:g} us jitter: {c['overruns']}"
         )
     lines.append(f"{'node':10} {'state':20} {'samples':>7} {'missing':>7}  supervision")
     for n in doc["nodes"]:

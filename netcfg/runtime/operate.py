@@ -158,6 +158,7 @@ class Outcome:
     ended_by: str = "cycles"  # cycles | stop_all:<node> | stop() | set-up
     started: bool = False
     sync_completion_ns: int | None = None
+    master_jitter_ns: int = 0  # the analysed bound of how late the master's SYNC may come
     bad_emcy: int = 0
     t0: float = 0.0  # clock time the cycle phase began: the origin of every *_s time above
 
@@ -178,6 +179,7 @@ class _Operation:
             self.co_bus.name,
             {n.name: NodeOutcome(n.name, n.node_id or 0) for n in self.slaves},
             sync_completion_ns=self.co_bus.canopen.sync_completion_ns,
+            master_jitter_ns=self.co_bus.canopen.master_jitter_ns,
         )
         self.stop_requested: str | None = None
         self.supervisor: Supervisor | None = None
