@@ -156,6 +156,9 @@ def run_command(args: argparse.Namespace) -> int:
     if args.log is not None and args.log.suffix.lower() not in LOG_SUFFIXES:
         print(f"netcfg: --log {args.log}: the log formats are {', '.join(LOG_SUFFIXES)}", file=sys.stderr)
         return 2
+    if not args.source.is_file():
+        print(f"netcfg: cannot read {args.source}: no such file", file=sys.stderr)
+        return 2
     try:
         with _config(args.source) as cfg:
             if cfg is None:
@@ -188,7 +191,8 @@ def _run(
     try:
         co_bus = canopen_bus(cfg, args.bus)
     except (ValueError, KeyError) as exc:
-        print(f"netcfg: {exc}", file=sys.stderr)
+        text = str(exc).replace("with bus_name", "with --bus NAME")
+        print(f"netcfg: {args.source}: {text}; `netcfg run` drives a CANopen bus", file=sys.stderr)
         return 2
     assert co_bus.canopen is not None
     slaves = {n.name for n in canopen_slaves(cfg, co_bus)}

@@ -471,6 +471,9 @@ def test_run_usage_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) ->
     assert main(["run", runtime_json, "--simulated-drives", "--kill", "knee_r"]) == 2
     assert main(["run", runtime_json, "--simulated-drives", "--log", str(tmp_path / "x.txt")]) == 2
     assert not (tmp_path / "x.txt").exists()
+    assert main(["run", str(tmp_path / "none.json"), "--simulated-drives"]) == 2
+    assert main(["run", str(ROOT / "specs" / "cambada.yaml"), "--simulated-drives"]) == 2
+    assert "has 0 CANopen buses (none); say which one with --bus NAME" in capsys.readouterr().err
 
 
 def test_text_output_has_no_live_view_when_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> None:
