@@ -17,6 +17,7 @@ demo: $(BIN)/.installed
 	$(BIN)/netcfg check specs/cambada.yaml specs/allex2.yaml specs/ntua_sahr.yaml
 	$(BIN)/netcfg build specs/allex2.yaml -o build/allex2
 	$(BIN)/netcfg simulate build/allex2/runtime.json --duration 8s --log build/allex2/sim.log
+	$(BIN)/netcfg run build/allex2/runtime.json --interface virtual --simulated-drives --cycles 100
 
 test: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks

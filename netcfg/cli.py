@@ -1,4 +1,4 @@
-"""Command line: netcfg check | build | import | simulate | schema.
+"""Command line: netcfg check | build | import | simulate | run | schema.
 
 Exit codes: 0 ok, 1 spec errors or not schedulable (simulate: a miss, a loss or a result beyond the analysis),
 2 usage or I/O problems.
@@ -69,6 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     p_sim.add_argument("--fault", action="append", default=[], metavar="FAULT",
                        help="inject a fault (repeatable): ber=1e-6, bit-error@12ms, crash:NODE@2s, "
                        "babble:NODE@1s..2s, lose:MESSAGE@100ms, master-fail@2s")
+    from netcfg.run_cli import add_parser as add_run_parser
+
+    add_run_parser(sub)
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
@@ -83,6 +86,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_schema()
         if args.command == "simulate":
             return cmd_simulate(args)
+        if args.command == "run":
+            return cmd_run(args)
     except BrokenPipeError:  # e.g. `netcfg check x | head`
         return 0
     return 2  # pragma: no cover - argparse rejects unknown commands
@@ -293,6 +298,28 @@ def _io_problem(exc: OSError, verb: str, path: Path) -> str:
         return str(exc)
     where = f" ({exc.filename})" if exc.filename and str(exc.filename) != str(path) else ""
     return f"cannot {verb} {path}: {exc.strerror or exc}{where}"
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from netcfg.run_cli import run_command
+
+    try:
+        return run_command(args)
+    except KeyboardInterrupt:  # before the cycle's own handler was armed (set-up): what was started is stopped
+        print(f"netcfg: {args.source}: interrupted; started nodes were brought to their safe state", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"netcfg: {_io_problem(exc, 'run', args.source)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug in netcfg; the safe stop has run (operate's finally)
+        if os.environ.get("NETCFG_DEBUG"):
+            raise
+        print(
+            f"netcfg: internal error while running {args.source}: {type(exc).__name__}: {exc}\n"
+            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
+            file=sys.stderr,
+        )
+        return 2
 
 
 def cmd_schema() -> int:

@@ -54,6 +54,10 @@ class Node:
     path: Path
     description: str | None = None
     scheduling: Literal["preemptive", "non-preemptive"] = "preemptive"  # fixed-priority, of its tasks
+    heartbeat_timeout_ns: int | None = None  # the master's consumer time for this node's heartbeat
+    on_loss: str = "stop_all"  # stop_all | stop_node | continue
+    on_emcy: str = "stop_all"
+    safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
 
 
 @dataclass(frozen=True)
@@ -160,6 +164,7 @@ class CanopenBus:
     sync_producer: str
     sync_id: int
     master_jitter_ns: int = 0  # how late the producer's SYNC and its SYNC task may come (its wake-up latency)
+    sync_overflow: int = 0  # CiA 301 0x1019: 0 no counter in SYNC, else 2..240
 
 
 @dataclass(frozen=True)

@@ -140,7 +140,8 @@ def test_master_configures_six_drives_and_runs_400_cycles(
             assert setup.started
             assert setup.identity is not None and setup.identity[0] == 0x000000FB  # checked against node.identity
             assert setup.interpolation == (20, -3)  # CiA 402 0x60C2 for the 20 ms SYNC period
-            assert setup.start_up == ((0x60C2, 1, 20), (0x60C2, 2, -3))  # node.sdo_init, read back
+            # node.sdo_init, read back: the 100 ms heartbeat (0x1017), then 0x60C2
+            assert setup.start_up == ((0x1017, 0, 100), (0x60C2, 1, 20), (0x60C2, 2, -3))
             assert bench[joint].value(0x60C2, 1) == 20 and bench[joint].value(0x60C2, 2) == -3
             want = pdo_config(cfg, joint)
             # the master's own read-back
@@ -536,7 +537,7 @@ def test_master_writes_what_runtime_json_states(channel: str, master_bus: can.Bu
     data = json.loads((GENERATED / "runtime.json").read_text(encoding="utf-8"))
     for node in data["nodes"]:
         if node["name"] == "hip_l":
-            node["sdo_init"][0]["value"] = 10
+            next(w for w in node["sdo_init"] if w["index"] == 0x60C2 and w["sub"] == 1)["value"] = 10
     for msg in data["messages"]:
         if msg["name"] == "hip_l_state":
             msg["pdo"]["cob_id"] = 0x181
@@ -546,7 +547,7 @@ def test_master_writes_what_runtime_json_states(channel: str, master_bus: can.Bu
         assert report.ok, str(report)
         assert bench["hip_l"].value(0x60C2, 1) == 10
     setup = report.node("hip_l")
-    assert setup.interpolation == (10, -3) and setup.start_up == ((0x60C2, 1, 10), (0x60C2, 2, -3))
+    assert setup.interpolation == (10, -3) and setup.start_up == ((0x1017, 0, 100), (0x60C2, 1, 10), (0x60C2, 2, -3))
     assert {(p.kind, p.number): p.cob_id for p in setup.pdos}[("tpdo", 1)] == 0x181
 
 

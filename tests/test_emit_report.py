@@ -127,17 +127,17 @@ def test_cambada_message_rows(seeds: dict[str, Any]) -> None:
 
 
 def test_allex2_report_has_the_sync_cycle(seeds: dict[str, Any]) -> None:
-    """Seed 000: 12 TxPDOs within the 10 ms read window; hand calculation (test_seeds): the last is done 2950 us
-    after SYNC, 10,000 - 2,950 = 7,050 us before the windows close and 20,000 - 2,950 = 17,050 us before the
-    next SYNC."""
+    """Seed 000: 12 TxPDOs within the 10 ms read window; hand calculation (test_seeds, with the drives'
+    heartbeats): the last is done 3340 us after SYNC, 10,000 - 3,340 = 6,660 us before the windows close and
+    20,000 - 3,340 = 16,660 us before the next SYNC."""
     md = markdown(seeds["allex2"][2])
     assert "Up to 12 synchronous TPDOs answer one SYNC" in md
-    assert "the last of them is done **2,950 us after SYNC**" in md
-    assert "- within the master's read window of 10,000 us, 7,050 us to spare" in md
-    assert "- within the synchronous window (0x1007) of 10,000 us, 7,050 us to spare" in md
-    assert "- within the communication cycle (0x1006) of 20,000 us, 17,050 us to spare" in md
+    assert "the last of them is done **3,340 us after SYNC**" in md
+    assert "- within the master's read window of 10,000 us, 6,660 us to spare" in md
+    assert "- within the synchronous window (0x1007) of 10,000 us, 6,660 us to spare" in md
+    assert "- within the communication cycle (0x1006) of 20,000 us, 16,660 us to spare" in md
     cycles = table(md, "cycle")
-    assert cycles[1] == ["0", "12", "2,950", "10,000", "7,050", "ok"]
+    assert cycles[1] == ["0", "12", "3,340", "10,000", "6,660", "ok"]
     assert "![SYNC cycle of bus can0](report/can0_sync_cycle.png)" in md
     msgs = table(md, "message")
     assert row(msgs, "hip_l_interp")["period / min. gap (us)"] == "on demand"  # RxPDO2: start and stop only

@@ -288,8 +288,10 @@ def test_identity_and_pdo_counts_from_a_vendor_eds(tmp_path: Path) -> None:
         node = cfg.node(name)
         assert node.identity == rt.NodeIdentity(EPOS4_VENDOR, EPOS4_50_5_PRODUCT, EPOS4_50_5_REVISION), name
         assert (node.rpdo_count, node.tpdo_count) == (rx, tx)
-        # the EDS's own data types for 0x60C2
+        # the spec's heartbeat (0x1017, UNSIGNED16 = 0x0006 in CiA 301 table 44), then the EDS's own data types
+        # for 0x60C2; maxon's EDS has no 0x1007 or 0x1019 to write
         assert [(w.index, w.sub, w.data_type) for w in node.sdo_init or ()] == [
+            (0x1017, 0, 0x0006),
             (0x60C2, 1, UNSIGNED8),
             (0x60C2, 2, INTEGER8),
         ]
@@ -336,8 +338,14 @@ def test_non_canopen_nodes_have_no_device_facts(built: dict[str, Path]) -> None:
 
 def test_sdo_init_sets_the_cia402_interpolation_period_to_the_sync_period(allex2: rt.RuntimeConfig) -> None:
     """allex2.yaml: SYNC every 20 ms. CiA 402 0x60C2: 20 * 10^-3 s = 20 ms, sub 1 UNSIGNED8, sub 2 INTEGER8.
-    Nothing else: the spec cannot state the modes of operation (0x6060)."""
-    want = (rt.SdoWrite(0x60C2, 1, UNSIGNED8, 20), rt.SdoWrite(0x60C2, 2, INTEGER8, -3))
+    Before it the heartbeat the spec gives each drive, 100 ms into 0x1017 (UNSIGNED16, 0x0006 in CiA 301 table 44;
+    the built-in EPOS4 profile has no 0x1007 or 0x1019 to write). Nothing else: the spec cannot state the modes of
+    operation (0x6060)."""
+    want = (
+        rt.SdoWrite(0x1017, 0, 0x0006, 100),
+        rt.SdoWrite(0x60C2, 1, UNSIGNED8, 20),
+        rt.SdoWrite(0x60C2, 2, INTEGER8, -3),
+    )
     for name in DRIVES:
         assert allex2.node(name).sdo_init == want, name
     assert allex2.node("master").sdo_init == ()
@@ -357,7 +365,7 @@ def test_sdo_init_follows_the_sync_period_unit(tmp_path: Path) -> None:
         report, target, _ = build(spec, tmp_path / period.replace(" ", ""))
         assert target is not None, report["errors"]
         writes = rt.load(target / "runtime.json").node("hip_l").sdo_init
-        assert writes is not None and tuple(w.value for w in writes) == value, period
+        assert writes is not None and tuple(w.value for w in writes if w.index == 0x60C2) == value, period
 
 
 def test_pdo_cob_id_has_the_cia301_bits_and_equals_the_dcf(allex2: rt.RuntimeConfig, built: dict[str, Path]) -> None:

@@ -125,14 +125,20 @@ def test_cambada_lsw_too_short_is_reported(tmp_path: Path) -> None:
 def test_allex2_load_per_sync_cycle() -> None:
     """Hand calculation (issue 2): per 20 ms cycle, SYNC (0 B: 55 bits), six RxPDO1 of 8 B (135 bits) and twelve
     TxPDOs of 8 B and 6 B (135 + 115 bits): 55 + 6 x 135 + 6 x (135 + 115) = 2365 bits in 20 ms at 1 Mbit/s =
-    0.118. RxPDO2 (interpolation time) goes out only at start and stop and is no part of the cycle."""
+    0.118. RxPDO2 (interpolation time) goes out only at start and stop and is no part of the cycle. The six drives'
+    heartbeats (1 B: 55 + 10 = 65 bits each, every 100 ms, as specs/allex2.yaml sets them) add 390 bits per 100 ms:
+    0.118 + 0.0039 = 0.122."""
     report = check(SPECS / "allex2.yaml")
     assert report["ok"], report["errors"]
     can0 = bus(report, "can0")
-    cyclic = [m for m in can0["messages"] if m["kind"] != "on-demand"]
+    cyclic = [m for m in can0["messages"] if m["kind"] != "on-demand" and m["period_us"] == 20_000]
     assert len(cyclic) == 19  # 18 PDO frames + SYNC
     assert sum(m["frame_bits_worst"] for m in cyclic) == 2365
-    assert can0["utilization"] == pytest.approx(2365 / 20_000)
+    heartbeats = [m for m in can0["messages"] if m["name"].endswith("_heartbeat")]
+    assert [(m["id"], m["frame_bits_worst"], m["period_us"]) for m in heartbeats] == [
+        (0x700 + n, 65, 100_000) for n in range(1, 7)  # CiA 301: heartbeat COB-ID 0x700 + node id
+    ]
+    assert can0["utilization"] == pytest.approx(2365 / 20_000 + 390 / 100_000)
     assert message(can0, "hip_l_state")["id"] == 0x180 + 1  # CiA 301 default TPDO1 COB-ID
     assert message(can0, "ankle_r_cmd")["id"] == 0x200 + 6  # CiA 301 default RPDO1 COB-ID
 
@@ -140,19 +146,20 @@ def test_allex2_load_per_sync_cycle() -> None:
 def test_allex2_synchronous_tpdos_fit_the_read_window() -> None:
     """The 12 TxPDOs must arrive within the master's 10 ms read window (section 4.4.2). Worst case, hand calculation:
     a frame on the bus when SYNC is queued (135 bits), SYNC (55), 12 TxPDOs (6 x 135 + 6 x 115 = 1500), the six
-    RxPDO1 written in the cycle (810) and the six on-demand RxPDO2 (6 x 75 = 450): 2950 bits = 2950 us."""
+    RxPDO1 written in the cycle (810), the six on-demand RxPDO2 (6 x 75 = 450) and the six heartbeats (6 x 65 = 390):
+    3340 bits = 3340 us."""
     sync = bus(check(SPECS / "allex2.yaml"), "can0")["sync"]
     assert sync["max_tpdos_per_cycle"] == 12
-    assert sync["worst_completion_us"] == 2950.0
+    assert sync["worst_completion_us"] == 3340.0
     assert sync["read_window_us"] == 10_000.0
 
 
 def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_path: Path) -> None:
-    """With a 4 ms cycle and 2.5 ms windows, the 2950 us above (every frame counted once, as 2950 < 4000) no
-    longer fit: 450 us too late. The load, 2365 bits per 4 ms = 0.59, is still fine. And the master cannot keep
-    the cycle either: its control step starts 2500 us after SYNC, up to 13 us late (master_jitter), and writes for
-    up to 8557.3 us (Table 5): done 11,070.3 us after SYNC, long after the next SYNC is due at 4000 us. Its
-    processor is over its capacity too: that task (WCET 8557.3 us, every 4 ms) needs 214 %."""
+    """With a 4 ms cycle and 2.5 ms windows, the 3340 us above (every frame counted once, as 3340 < 4000) no
+    longer fit: 840 us too late. The load, 2365 bits per 4 ms + 390 per 100 ms = 0.60, is still fine. And the
+    master cannot keep the cycle either: its control step starts 2500 us after SYNC, up to 13 us late
+    (master_jitter), and writes for up to 8557.3 us (Table 5): done 11,070.3 us after SYNC, long after the next SYNC
+    is due at 4000 us. Its processor is over its capacity too: that task (WCET 8557.3 us, every 4 ms) needs 214 %."""
     data = load_spec("allex2.yaml")
     data["buses"][0]["canopen"].update(sync_period="4 ms", sync_window="2500 us", read_window="2500 us")
     data["nodes"][0]["tasks"][0]["offset"] = "2500 us"  # the master's control step follows the read window
@@ -166,7 +173,7 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     assert sorted(e["code"] for e in report["errors"]) == ["cpu-overload", "master-cycle", "sync-cycle"]
     assert any("needs 213.9% of its processor" in e["message"] for e in report["errors"])
     err = next(e for e in report["errors"] if e["code"] == "sync-cycle")
-    assert "SYNC cycle 0" in err["message"] and "2950 us after SYNC, 450 us too late" in err["message"]
+    assert "SYNC cycle 0" in err["message"] and "3340 us after SYNC, 840 us too late" in err["message"]
     assert err["file"] == str(path) and err["line"] >= 1
     master = next(e for e in report["errors"] if e["code"] == "master-cycle")
     assert "ends up to 11.0703 ms after SYNC" in master["message"], master["message"]

@@ -4,7 +4,7 @@ One file per CANopen bus: canopen/bus.yml, or canopen/<bus>.bus.yml when the sys
 dcfgen's own layout (options, master, one mapping per slave), which dcfgen reads directly and ros2_canopen's
 `generate_dcf` CMake macro too; its `cogen_dcf` macro wants the slaves under `nodes:` instead.
 
-- master: node_id, baudrate (kbit/s), sync_period and sync_window (us), heartbeat_producer (ms).
+- master: node_id, baudrate (kbit/s), sync_period and sync_window (us), sync_overflow, heartbeat_producer (ms).
 - every other node with a node id: `dcf` = the EDS netcfg generates next to this file (canopen_dcf's folders: a node
   on several CANopen buses has canopen/<bus>/<node>.eds), node_id, heartbeat_producer, and every PDO slot the device
   has: the configured ones with enabled, cob_id ('auto' when it is the CiA 301 default, else the number, bit 29 for
@@ -24,6 +24,7 @@ checked spec name and every value a number, so the template never needs YAML quo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,6 +67,7 @@ class SlaveView:
     heartbeat: int | None
     rpdo: tuple[PdoView, ...]
     tpdo: tuple[PdoView, ...]
+    heartbeat_multiplier: str | None = None  # only when the consumer time is not dcfgen's default 3 x
 
 
 @dataclass(frozen=True)
@@ -78,6 +80,7 @@ class BusView:
     sync_period: int
     sync_window: int | None
     slaves: tuple[SlaveView, ...]
+    sync_overflow: int | None = None  # CiA 301 0x1019, when SYNC carries a counter
 
 
 def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
@@ -130,6 +133,7 @@ def _bus_view(model: Model, bus: Bus, buses: list[Bus]) -> BusView | None:
         baudrate=bus.bitrate // 1000,
         sync_period=co.sync_period_ns // 1000,
         sync_window=co.sync_window_ns // 1000 if co.sync_window_ns is not None else None,
+        sync_overflow=co.sync_overflow or None,
         slaves=slaves,
     )
 
@@ -187,7 +191,24 @@ def _slave_view(model: Model, bus: Bus, node: Node, buses: list[Bus], master: No
         heartbeat=_ms(node.heartbeat_ns),
         rpdo=pdos["rpdo"],
         tpdo=pdos["tpdo"],
+        heartbeat_multiplier=_heartbeat_multiplier(node),
     )
+
+
+DCFGEN_HEARTBEAT_MULTIPLIER = 3  # dcfgen's default: the master's consumer time = 3 x the slave's producer time
+
+
+def _heartbeat_multiplier(node: Node) -> str | None:
+    """The factor dcfgen turns the slave's heartbeat_producer into the master's consumer time with (it keeps the
+    integer part of producer x factor, in ms): written when the spec's heartbeat_timeout is not the default, as the
+    shortest decimal that gives back exactly that many ms."""
+    producer, timeout = _ms(node.heartbeat_ns), _ms(node.heartbeat_timeout_ns)
+    if not producer or timeout is None or timeout == DCFGEN_HEARTBEAT_MULTIPLIER * producer:
+        return None
+    factor = timeout / producer
+    while int(producer * factor) < timeout:  # a float a hair below the quotient would lose a millisecond
+        factor = math.nextafter(factor, math.inf)
+    return repr(factor)
 
 
 def _pdo_view(node: Node, m: Message, sync_ns: int) -> PdoView:

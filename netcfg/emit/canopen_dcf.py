@@ -63,6 +63,7 @@ NAMES = {
     0x1016: "Consumer heartbeat time",
     0x1017: "Producer heartbeat time",
     0x1018: "Identity object",
+    0x1019: "Synchronous counter overflow value",
     0x1029: "Error behavior object",
 }
 # CiA 301 7.5.2: default values relative to the node id, which an EDS import through canopen loses ($NODEID+...)
@@ -236,7 +237,8 @@ def _device_view(model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: 
     co = bus.canopen
     sync = co.sync_id | (SYNC_PRODUCER if co.sync_producer == node.name else 0)
     window = co.sync_window_ns // 1000 if co.sync_window_ns is not None else None
-    for index, value in ((0x1005, sync), (0x1006, co.sync_period_ns // 1000), (0x1007, window)):
+    overflow = co.sync_overflow or None
+    for index, value in ((0x1005, sync), (0x1006, co.sync_period_ns // 1000), (0x1007, window), (0x1019, overflow)):
         var = od[index].subs.get(0) if index in od else None
         if var is not None and value is not None and var.access in WRITABLE:
             var.configure(value)
@@ -343,6 +345,23 @@ def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
     heartbeat = _var(od, 0x1017, NAMES[0x1017], U16, "rw", 0)
     if node.heartbeat_ns is not None:
         heartbeat.configure(node.heartbeat_ns // 1_000_000)
+    # consumer heartbeat times (CiA 301 7.5.2.18): one entry per supervised slave, node id in bits 16-23, ms below
+    supervised = [
+        slave
+        for name in bus.nodes
+        if (slave := model.nodes[name]).heartbeat_timeout_ns is not None
+        and slave.node_id is not None
+        and name != node.name
+    ]
+    if supervised:
+        consumer = od[0x1016] = _Obj(name=NAMES[0x1016], object_type=ARRAY)
+        consumer.subs[0] = _Var("Highest sub-index supported", U8, "const", default=len(supervised))
+        for sub, slave in enumerate(sorted(supervised, key=lambda n: n.node_id or 0), 1):
+            assert slave.node_id is not None and slave.heartbeat_timeout_ns is not None
+            entry = consumer.subs[sub] = _Var(f"Consumer heartbeat time {sub}", U32, "rw", default=0)
+            entry.configure(slave.node_id << 16 | slave.heartbeat_timeout_ns // 1_000_000)
+    if co.sync_overflow:
+        _var(od, 0x1019, NAMES[0x1019], U8, "rw", 0).configure(co.sync_overflow)
     identity = od[0x1018] = _Obj(name=NAMES[0x1018], object_type=RECORD)
     identity.subs[0] = _Var("Highest sub-index supported", U8, "ro", default=4)
     for sub, name in enumerate(("Vendor-ID", "Product code", "Revision number", "Serial number"), 1):

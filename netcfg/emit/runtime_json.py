@@ -52,7 +52,7 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
         "system": m.system,
         # lets a master refuse a runtime.json built from another revision of the spec
         "spec_sha256": hashlib.sha256(Path(m.file).read_bytes()).hexdigest(),
-        "buses": [_bus(m, b) for b in m.buses.values()],
+        "buses": [_bus(m, b, _sync_completion(report, b.name)) for b in m.buses.values()],
         "nodes": [_node(m, n, files) for n in m.nodes.values()],
         "messages": [
             _message(m, msg, wcrt.get(msg.name), plain.get(msg.name, wcrt.get(msg.name)))
@@ -70,14 +70,26 @@ def _report_wcrt(report: dict[str, Any], key: str = "wcrt_ns") -> dict[str, int 
     return {row["name"]: row.get(key) for row in rows if key in row}
 
 
-def _bus(m: model.Model, b: model.Bus) -> dict[str, Any]:
+def _sync_completion(report: dict[str, Any], bus: str) -> int | None:
+    """The analysed worst case from SYNC to the last synchronous TPDO's end (the SYNC-cycle analysis), in ns."""
+    for row in report.get("buses", []):
+        if row.get("name") == bus and row.get("sync"):
+            us = row["sync"].get("worst_completion_us")  # the report's microseconds, to 3 decimals: whole ns
+            return None if us is None else round(us * 1000)
+    return None
+
+
+def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) -> dict[str, Any]:
+    canopen = _canopen(b.canopen)
+    if canopen is not None:
+        canopen["sync_completion_ns"] = sync_completion_ns  # the bound a master's read time is held against
     return {
         "name": b.name,
         "protocol": b.protocol,
         "bitrate": b.bitrate,
         "id_bits": b.id_bits,
         "nodes": list(b.nodes),
-        "canopen": _canopen(b.canopen),
+        "canopen": canopen,
         "ftt": _ftt(m, b),
         "ethernet": {"switches": [_switch(s) for s in b.switches]} if b.protocol == "ethernet-udp" else None,
     }
@@ -93,6 +105,7 @@ def _canopen(co: model.CanopenBus | None) -> dict[str, Any] | None:
         "sync_producer": co.sync_producer,
         "sync_id": co.sync_id,
         "master_jitter_ns": co.master_jitter_ns,
+        "sync_overflow": co.sync_overflow,
     }
 
 
@@ -158,6 +171,10 @@ def _node(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[str, 
         "ip": n.ip,
         "device": n.device.name if n.device is not None else None,
         "heartbeat_ns": n.heartbeat_ns,
+        "heartbeat_timeout_ns": n.heartbeat_timeout_ns,
+        "on_loss": n.on_loss,
+        "on_emcy": n.on_emcy,
+        "safe_stop": n.safe_stop,
         "tx_delay_ns": n.tx_delay_ns,
         "rx_delay_ns": n.rx_delay_ns,
         "tasks": [
@@ -185,7 +202,34 @@ def _node(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[str, 
 
 
 def _sdo_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
-    """Start-up SDO writes the model determines. Only one so far: a CiA 402 drive interpolates its set-points over
+    """Start-up SDO writes the model determines: the communication objects the spec sets (below), then the CiA 402
+    interpolation time period (_interpolation_init)."""
+    return _communication_init(m, n) + _interpolation_init(m, n)
+
+
+def _communication_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
+    """CiA 301 objects the spec sets and the device lets a master write: the producer heartbeat time (0x1017, ms),
+    the synchronous window (0x1007, us) and the SYNC counter overflow value (0x1019) of the node's CANopen bus.
+    A device without the object (or with it read-only) is left as it is: its DCF says the same."""
+    dev = n.device
+    if dev is None:
+        return []
+    buses = [co for b in n.buses if (co := m.buses[b].canopen) is not None]
+    co = buses[0] if len(buses) == 1 else None
+    wanted = [(0x1017, None if n.heartbeat_ns is None else n.heartbeat_ns // 1_000_000)]
+    if co is not None:
+        wanted.append((0x1007, None if co.sync_window_ns is None else co.sync_window_ns // 1000))
+        wanted.append((0x1019, co.sync_overflow or None))
+    out = []
+    for index, value in wanted:
+        entry = dev.lookup(index, 0)
+        if value is not None and entry is not None and entry.writable:
+            out.append({"index": index, "sub": 0, "data_type": entry.data_type, "value": value})
+    return out
+
+
+def _interpolation_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
+    """A CiA 402 drive interpolates its set-points over
     the interpolation time period 0x60C2 (CiA 402 / IEC 61800-7-201: period = sub 1 value * 10^(sub 2 index) s),
     which in the cyclic synchronous modes is the SYNC period that delivers them (CiA 402, cyclic synchronous
     position/velocity/torque modes). The spec cannot state the modes of operation, so 0x6060 is never written here.

@@ -13,10 +13,12 @@ Mapping (spec <- bus.yml):
   the stem is the generic 'bus' (ros2_canopen's config/<name>/bus.yml), made a safe name. One CANopen bus
   (`can0` unless the header names it); bitrate from master.baudrate in kbit/s (Lely's default 1000; --bitrate wins);
   SYNC period and window from master.sync_period / sync_window in us (0 = none; netcfg needs a SYNC period);
-  sync_overflow > 1 -> sync_counter. A master node (role master, named `master`) with master.node_id and
-  master.heartbeat_producer (ms).
+  sync_overflow > 1 -> sync_counter (the same overflow value). A master node (role master, named `master`) with
+  master.node_id and master.heartbeat_producer (ms).
 - every slave: a node with node_id (else the DCF's [DeviceComissioning] NodeID, else skipped with a warning, as
-  dcfgen skips it), heartbeat_producer (ms) and `device: {eds: <dcf>}`. `dcf` is read relative to the bus.yml's
+  dcfgen skips it), heartbeat_producer (ms), heartbeat_multiplier (its own or options', when the master's
+  consumer time int(producer x multiplier) ms is not netcfg's default 3 x: heartbeat_timeout) and
+  `device: {eds: <dcf>}`. `dcf` is read relative to the bus.yml's
   folder (dcfgen runs there in ros2_canopen's CMake macros); `@BUS_CONFIG_PATH@` is replaced by that folder, as
   those macros replace it by '.'; other @VAR@ placeholders are errors. The importer does not know where the spec
   will be written unless told (`netcfg import -o` tells it): paths are then relative to the spec, else absolute
@@ -88,10 +90,10 @@ MASTER_KEPT = frozenset(
         "stop_all_nodes boot_time"
     ).split()
 )
-SLAVE_MAPPED = {"dcf", "node_id", "heartbeat_producer", "rpdo", "tpdo", "sdo"}
+SLAVE_MAPPED = {"dcf", "node_id", "heartbeat_producer", "heartbeat_multiplier", "rpdo", "tpdo", "sdo"}
 SLAVE_KEPT = frozenset(
     (
-        "dcf_path revision_number serial_number heartbeat_multiplier heartbeat_consumer error_behavior boot "
+        "dcf_path revision_number serial_number heartbeat_consumer error_behavior boot "
         "mandatory reset_communication software_file software_version configuration_file "
         "restore_configuration"
     ).split()
@@ -273,6 +275,7 @@ class BusYmlImporter:
         self.name = path.name
         self.folder = path.parent
         self.options = options
+        self.heartbeat_multiplier: Val | None = None  # options.heartbeat_multiplier, for every slave
         self.d = diags
         self.smap = SourceMap(self.file)
         self.lines: list[str] = []
@@ -424,7 +427,9 @@ class BusYmlImporter:
         if "options" in top:
             opts = self.mapping(top["options"], "options")
             if opts is not None:
-                self.keys(self.sub(opts, ("options",)), OPTIONS_KEYS, set(), "options", [])
+                given = self.sub(opts, ("options",))
+                self.keys(given, OPTIONS_KEYS, set(), "options", [])
+                self.heartbeat_multiplier = given.get("heartbeat_multiplier")
         out: dict[str, tuple[BusPath, dict[str, Val]]] = {}
         if not self.ros:  # Lely dcfgen: every other top-level key is a slave
             for key, val in top.items():
@@ -516,7 +521,7 @@ class BusYmlImporter:
             canopen["sync_producer"] = header["sync_producer"]
         overflow = master.get("sync_overflow")
         if overflow is not None and (o := self.integer(overflow, "master.sync_overflow", 0, 240)) and o > 1:
-            canopen["sync_counter"] = True  # CiA 301 0x1019: 2..240 make SYNC carry a counter byte
+            canopen["sync_counter"] = o  # CiA 301 0x1019: 2..240 make SYNC carry a counter byte up to o
             self.link((*path, "canopen", "sync_counter"), overflow.path)
         if options is not None and isinstance(options.value, dict) and options.value:
             shown = ", ".join(f"{k}: {v}" for k, v in options.value.items())
@@ -556,6 +561,21 @@ class BusYmlImporter:
         if ms:
             node["heartbeat"] = f"{ms} ms"
             self.link((*path, "heartbeat"), val.path)
+
+    def heartbeat_timeout(self, node: dict[str, Any], val: Val | None, path: SpecPath) -> None:
+        """dcfgen's heartbeat_multiplier (default 3.0): the master's consumer time for the slave is the integer part of
+        producer x multiplier, in ms; netcfg's default is the same 3 x, so only another factor is written."""
+        if val is None or "heartbeat" not in node:
+            return
+        factor = val.value
+        if isinstance(factor, bool) or not isinstance(factor, (int, float)) or not factor > 1:
+            self.err("bus-yml-value", f"heartbeat_multiplier must be a number above 1, not {factor!r}", val.path)
+            return
+        producer = int(str(node["heartbeat"]).split()[0])
+        timeout = int(producer * factor)
+        if timeout != 3 * producer:
+            node["heartbeat_timeout"] = f"{timeout} ms"
+            self.link((*path, "heartbeat_timeout"), val.path)
 
     # -- slaves --------------------------------------------------------------------------------------------------
     def slave(self, name: str, own: BusPath, cfg: dict[str, Val], bus: str) -> tuple[DeviceFile, int, str] | None:
@@ -609,6 +629,7 @@ class BusYmlImporter:
         self.link((*path, "device"), dcf.path)
         self.link((*path, "device", "eds"), dcf.path)
         self.heartbeat(node, cfg.get("heartbeat_producer"), path)
+        self.heartbeat_timeout(node, cfg.get("heartbeat_multiplier") or self.heartbeat_multiplier, path)
         lines.extend(self.sdos(name, cfg.get("sdo"), device))
         if kept:
             lines.append("kept from the bus.yml (netcfg does not use them): " + "; ".join(kept))

@@ -71,6 +71,15 @@ class CanopenProtocol(CanProtocol):
                 "unknown-node", f"SYNC producer '{producer}' is not a node on bus '{b.name}'", (*cpath, "sync_producer")
             )
             return
+        # CiA 301 0x1019: 0 (no counter) or an overflow value 2..240; `true` takes the largest
+        overflow = 240 if c.sync_counter is True else int(c.sync_counter)
+        if c.sync_counter is not False and not 2 <= overflow <= 240:
+            self.r.err(
+                "sync-counter",
+                f"sync_counter {c.sync_counter} is no SYNC counter overflow value (0x1019): write true or 2..240",
+                (*cpath, "sync_counter"),
+            )
+            overflow = 0
         bus.canopen = model.CanopenBus(
             sync_period_ns=period,
             sync_window_ns=window,
@@ -78,6 +87,7 @@ class CanopenProtocol(CanProtocol):
             sync_producer=producer,
             sync_id=c.sync_id,
             master_jitter_ns=self.r.ns(c.master_jitter, (*cpath, "master_jitter"), None) or 0,
+            sync_overflow=overflow,
         )
 
     def resolve_items(self) -> None:
@@ -175,8 +185,7 @@ class CanopenProtocol(CanProtocol):
             if bus.canopen is None:
                 continue
             co = bus.canopen
-            params = self.r.spec_buses[bus.name].canopen
-            size = 1 if params is not None and params.sync_counter else 0
+            size = 1 if co.sync_overflow else 0  # the counter byte
             others = tuple(n for n in bus.nodes if n != co.sync_producer)
             cpath: Path = (*bus.path, "canopen")
             sync = model.Message(

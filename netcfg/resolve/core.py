@@ -216,6 +216,20 @@ class Resolver:
                     "the heartbeat time (0x1017) is whole milliseconds, at most 65535 ms",
                     (*path, "heartbeat"),
                 )
+            hb_timeout = self.ns(n.heartbeat_timeout, (*path, "heartbeat_timeout"), None)
+            if hb_timeout is not None and (
+                hb is None or hb_timeout <= hb or hb_timeout % 1_000_000 or hb_timeout > 65_535_000_000
+            ):
+                self.err(
+                    "heartbeat",
+                    "heartbeat_timeout (the master's consumer time, 0x1016) is whole milliseconds, at most 65535 ms, "
+                    "and longer than the node's heartbeat producer time; give the node a 'heartbeat' first",
+                    (*path, "heartbeat_timeout"),
+                )
+                hb_timeout = None
+            if hb and hb_timeout is None:
+                # Lely dcfgen's default heartbeat_multiplier (3.0): two heartbeats may be lost; 0x1016 holds 16 bits
+                hb_timeout = min(3 * hb, 65_535_000_000)
             if n.ip is not None and any(int(p) > 255 for p in n.ip.split(".")):
                 self.err("ip", f"'{n.ip}' is not an IPv4 address", (*path, "ip"))
             ec = self.ec_of(n.buses)
@@ -230,6 +244,10 @@ class Resolver:
                 role=n.role,
                 device=device,
                 heartbeat_ns=hb or None,
+                heartbeat_timeout_ns=hb_timeout,
+                on_loss=n.on_loss,
+                on_emcy=n.on_emcy,
+                safe_stop=n.safe_stop,
                 ip=n.ip,
                 tasks=tasks,
                 path=path,

@@ -12,11 +12,13 @@ Times are integer nanoseconds ("_ns"), as in the file. A message without signals
 written through one unsigned field `<message>_raw` spanning its payload, the same name the DBC files use.
 
 Version 1 has grown without changing the meaning of any key, so it is still version 1: nodes gained `identity`,
-`eds`, `dcf`, `sdo_init`, `rpdo_count` and `tpdo_count`, PDOs `cob_id`, flows `unsync_latency_min_ns` and
-`unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`. A file written before
-them still loads: their fields are then None (`sdo_init` None means "not stated", () means "nothing to write";
-`sent_by` None: no task sends the message as it finishes, it runs free; no `windows` means the asynchronous window
-first), and a master falls back to what it did without them.
+`eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
+`eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
+`safe_stop`, CANopen buses `sync_overflow` and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns`
+and `unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`. A file written
+before them still loads: their fields are then None (`sdo_init` None means "not stated", () means "nothing to
+write"; `sent_by` None: no task sends the message as it finishes, it runs free; no `windows` means the asynchronous
+window first), and a master falls back to what it did without them.
 """
 
 from __future__ import annotations
@@ -256,6 +258,12 @@ class Node:
     sdo_init: tuple[SdoWrite, ...] | None = None  # start-up SDO writes, in order; () nothing to write
     rpdo_count: int | None = None  # PDO communication objects the device has (0x1400.., 0x1800..)
     tpdo_count: int | None = None
+    # supervision by a live master (`netcfg run`); a file written before these keys: no heartbeat consumer, every
+    # fault stops the run, drives quick-stopped
+    heartbeat_timeout_ns: int | None = None  # the master's consumer time for this node's heartbeat
+    on_loss: str = "stop_all"  # stop_all | stop_node | continue
+    on_emcy: str = "stop_all"
+    safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
 
     def task(self, name: str) -> Task:
         return _lookup({t.name: t for t in self.tasks}, name, f"task of node '{self.name}'")
@@ -289,6 +297,8 @@ class CanopenParams:
     sync_producer: str
     sync_id: int
     master_jitter_ns: int = 0  # how late the producer's SYNC and SYNC task may come; 0 in files written before it
+    sync_overflow: int = 0  # CiA 301 0x1019: 0 no counter, else SYNC carries a counter 1..sync_overflow
+    sync_completion_ns: int | None = None  # analysed worst case: SYNC queued -> last synchronous TPDO received
 
     def collect_window_ns(self) -> int:
         """How long after SYNC a master collects the synchronous TPDOs: its read window; without one the synchronous
@@ -708,6 +718,8 @@ def _bus(d: dict[str, Any]) -> Bus:
             co["sync_producer"],
             co["sync_id"],
             co.get("master_jitter_ns", 0),
+            co.get("sync_overflow", 0),
+            co.get("sync_completion_ns"),
         ),
         ftt=None if ft is None else _ftt(ft),
         ethernet=None
@@ -795,6 +807,10 @@ def _node(d: dict[str, Any]) -> Node:
         else tuple(SdoWrite(w["index"], w["sub"], w["data_type"], w["value"]) for w in d["sdo_init"]),
         rpdo_count=d.get("rpdo_count"),
         tpdo_count=d.get("tpdo_count"),
+        heartbeat_timeout_ns=d.get("heartbeat_timeout_ns"),
+        on_loss=d.get("on_loss", "stop_all"),
+        on_emcy=d.get("on_emcy", "stop_all"),
+        safe_stop=d.get("safe_stop", "quick_stop"),
     )
 
 

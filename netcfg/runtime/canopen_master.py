@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import gc
 from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 import can
 
@@ -59,8 +59,10 @@ from netcfg.runtime.codec import CodecError, Number
 
 __all__ = [
     "CommandFn",
+    "CycleHook",
     "CycleRecord",
     "CycleTiming",
+    "FrameHook",
     "Identity",
     "MasterCycle",
     "MasterRun",
@@ -77,6 +79,10 @@ __all__ = [
     "identity_from_runtime",
     "interpolation_period",
 ]
+
+
+FrameHook = Callable[[can.Message, float], object]  # a frame the cycle does not take, and the clock time it came
+CycleHook = Callable[[CycleRecord], bool | None]  # after each cycle; False ends the run there
 
 
 class MasterCycle:
@@ -106,7 +112,12 @@ class MasterCycle:
     paper's loop. The offset is never taken shorter than the read window: the master computes on complete samples.
 
     `timing` is a simulator's hook (None on real hardware, where time passes by itself): how long the computation
-    takes in virtual time, and how late each wait ends.
+    takes in virtual time, and how late each wait ends. `on_frame` sees every frame the cycle does not take itself
+    (heartbeats, EMCY, ...) with the clock's time, `after_cycle` each cycle's record (False ends the run there):
+    supervision and a live view hang on them.
+
+    With a SYNC counter on the bus (runtime.json's sync_overflow, CiA 301 0x1019) the SYNC carries one byte: 1 on
+    the first SYNC, one more on each, back to 1 after the overflow value.
     """
 
     def __init__(
@@ -125,8 +136,11 @@ class MasterCycle:
         pause_gc: bool = True,
         sync_lead_s: float | None = None,
         timing: CycleTiming | None = None,
+        on_frame: FrameHook | None = None,
+        after_cycle: CycleHook | None = None,
     ) -> None:
         self.cfg, self.bus, self.clock = cfg, bus, clock
+        self.on_frame, self.after_cycle = on_frame, after_cycle
         self.pause_gc = pause_gc
         self.timing = timing
         co_bus = canopen_bus(cfg, bus_name)
@@ -153,6 +167,7 @@ class MasterCycle:
         self.sync_frame = can.Message(
             arbitration_id=sync[0].id if sync else params.sync_id, is_extended_id=False, dlc=0, data=b""
         )
+        self.sync_overflow = params.sync_overflow
         self.rpdos = tuple(
             m
             for m in on_bus
@@ -231,9 +246,15 @@ class MasterCycle:
                     late += 1
                 else:
                     other += 1
+                    if self.on_frame is not None:
+                        self.on_frame(stale, clock.now())
             # reading (orange): SYNC, then the due TxPDOs until all are in or the window is over
+            sync_frame = self.sync_frame
+            if self.sync_overflow:
+                counter = self.syncs % self.sync_overflow + 1
+                sync_frame = can.Message(arbitration_id=sync_frame.arbitration_id, is_extended_id=False, data=[counter])
             try:
-                bus.send(self.sync_frame)
+                bus.send(sync_frame)
             except can.CanError:
                 unsent[f"SYNC 0x{self.sync_frame.arbitration_id:X}"] += 1
             sync_sent = clock.now()
@@ -260,6 +281,8 @@ class MasterCycle:
                 )
                 if got is None:
                     other += 1
+                    if self.on_frame is not None:
+                        self.on_frame(frame, t)
                     continue
                 if got.name in arrivals:
                     duplicates[got.name] += 1
@@ -281,26 +304,27 @@ class MasterCycle:
             target = first + (i + 1) * self.period_s - self.k_s if self.drift_free else start + self.period_s - self.k_s
             self._sleep_until(target)
             end = clock.now()
-            records.append(
-                CycleRecord(
-                    index=i,
-                    sync_number=self.syncs,
-                    start=start,
-                    written=written,
-                    sync_sent=sync_sent,
-                    read_done=read_done,
-                    end=end,
-                    due=tuple(m.name for m in due),
-                    arrivals=arrivals,
-                    values=values,
-                    missing=missing,
-                    late=late,
-                    other=other,
-                    processing_s=processing,
-                    waiting_s=waiting,
-                )
+            record = CycleRecord(
+                index=i,
+                sync_number=self.syncs,
+                start=start,
+                written=written,
+                sync_sent=sync_sent,
+                read_done=read_done,
+                end=end,
+                due=tuple(m.name for m in due),
+                arrivals=arrivals,
+                values=values,
+                missing=missing,
+                late=late,
+                other=other,
+                processing_s=processing,
+                waiting_s=waiting,
             )
+            records.append(record)
             start = end
+            if self.after_cycle is not None and self.after_cycle(record) is False:
+                break
         return MasterRun(
             bus=self.bus_name,
             period_s=self.period_s,

@@ -9,7 +9,11 @@ server and an NMT slave; this module adds what a LocalNode does not do on its ow
 - it applies received RPDOs to its object dictionary (types 0-240 at the next SYNC, 254/255 at once);
 - it checks PDO writes the way CiA 301 devices do (mapping changed only while the PDO is disabled and sub-index 0 is 0,
   only mappable objects, at most 64 bits), so a master that skips a step fails here as it would on a drive;
-- optional faults for tests: wrong identity in 0x1018, never answering, aborting SDO writes to given objects;
+- a CiA 402 drive (one with a controlword 0x6040 and statusword 0x6041) runs the power state machine of
+  netcfg.runtime.cia402, commanded over SDO or an RPDO, shown in the statusword;
+- optional faults for tests: wrong identity in 0x1018, never answering, aborting SDO writes to given objects; and
+  at run time `kill()` (the drive drops off the bus: no heartbeat, no answers) and `emergency(code)` (an EMCY
+  frame and the CiA 402 fault reaction);
 - an optional processing delay before the TPDOs go out, and a model hook run at each SYNC. The delay does not hold
   up the thread that feeds the drive its frames: the TPDOs are sampled at the SYNC and handed to a scheduler thread
   that sends them `response_delay_s` later, so drives sharing a thread each answer that long after the SYNC, as
@@ -40,6 +44,7 @@ from netcfg import cia301
 from netcfg.cia301 import PDO_INVALID, RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP
 from netcfg.runtime import RuntimeConfig
 from netcfg.runtime.canopen_master import canopen_bus, canopen_slaves
+from netcfg.runtime.cia402 import CONTROLWORD, STATUSWORD, PowerStateMachine
 from netcfg.runtime.clock import Clock, SystemClock
 from netcfg.runtime.codec import int_range
 
@@ -236,6 +241,14 @@ class SimulatedDrive:
         if clear_pdos:
             self._clear_pdos()
         self.node.add_write_callback(self._on_sdo_write)
+        # a CiA 402 drive (controlword and statusword in its dictionary) runs the power state machine
+        self.power: PowerStateMachine | None = None
+        if self.has(CONTROLWORD) and self.has(STATUSWORD):
+            self.power = PowerStateMachine()
+            self._show_state()
+        self.killed = False
+        self.emcy_sent: list[tuple[int, int, bytes]] = []
+        self._ending: list[threading.Thread] = []  # heartbeat threads told to stop, not yet joined
 
     # --- object dictionary access ----------------------------------------------------------------------------
 
@@ -318,6 +331,46 @@ class SimulatedDrive:
         obj = self.node.object_dictionary[map_index]
         return max((s for s in obj if isinstance(s, int)), default=0) if isinstance(obj, (ODRecord, ODArray)) else 0
 
+    # --- CiA 402 and faults ---------------------------------------------------------------------------------------
+
+    def _show_state(self) -> None:
+        if self.power is not None:
+            self._store(STATUSWORD, 0, self.power.statusword.to_bytes(2, "little"))
+
+    def emergency(self, code: int, register: int = 0x01, vendor: bytes = b"") -> None:
+        """Raise an error as a drive does: the power state machine's fault reaction (CiA 402 transition 13), the
+        error register (0x1001) and an EMCY frame with `code`, `register` and up to 5 manufacturer bytes (CiA 301
+        7.2.7)."""
+        if self.power is not None:
+            self.power.fault()
+            self._show_state()
+        if self.has(0x1001):
+            self.set_value(0x1001, 0, register)
+        self.emcy_sent.append((code, register, bytes(vendor)))
+        if self.network is not None and not self.silent:
+            self.node.emcy.send(code, register, bytes(vendor))
+
+    def kill(self) -> None:
+        """The drive drops off the bus (power lost, cable cut): no heartbeat, no answers, nothing sent."""
+        self.killed = self.silent = True
+        self._stop_heartbeat()
+
+    def _stop_heartbeat(self) -> None:
+        """Stop the heartbeat canopen sends from a python-can cyclic-send thread; the thread ends within one
+        period, join_threads() waits for it."""
+        task = getattr(self.node.nmt, "_send_task", None)
+        self.node.nmt.stop_heartbeat()
+        thread = getattr(getattr(task, "_task", None), "thread", None)
+        if isinstance(thread, threading.Thread):
+            self._ending.append(thread)
+
+    def join_threads(self, timeout: float = 2.0) -> None:
+        """Wait for the heartbeat threads stopped so far (so a test or a program leaves none behind)."""
+        for thread in self._ending:
+            if thread is not threading.current_thread():
+                thread.join(timeout)
+        self._ending.clear()
+
     # --- the PDO configuration ---------------------------------------------------------------------------------
 
     def _slot(self, comm: int, mapping: int, n: int) -> _PdoSlot:
@@ -360,6 +413,9 @@ class SimulatedDrive:
         if self.strict_pdo_writes:
             self._check_pdo_write(index, subindex, od, data)
         self.sdo_writes.append((index, subindex))
+        if index == CONTROLWORD and self.power is not None:
+            self.power.controlword(int.from_bytes(data[:2], "little"))
+            self._show_state()
         if index == 0x1005 or index in cia301.PDO_PARAMETERS:
             self._dirty = True  # LocalNode stores the value after this callback; re-read it at the next frame
 
@@ -412,18 +468,24 @@ class SimulatedDrive:
         if not self.silent:
             self.node.nmt.send_command(0x81)  # reset node: the boot-up message (0x700 + id, 0x00)
             self.node.nmt.send_command(0x80)  # then PRE-OPERATIONAL, as CiA 301 devices boot
+        if self.power is not None:
+            self.power.tick()  # initialised: NOT READY TO SWITCH ON -> SWITCH ON DISABLED (CiA 402 transition 1)
+            self._show_state()
         if listen:
             self._notifier = can.Notifier(bus, [self.on_frame], timeout=0.05)
 
-    def detach(self) -> None:
-        """Stop serving the bus (the bus itself stays open: its owner shuts it down)."""
+    def detach(self, join: bool = True) -> None:
+        """Stop serving the bus (the bus itself stays open: its owner shuts it down). join=False leaves the wait
+        for the heartbeat thread to join_threads(), so a bench stops its drives' threads all at once."""
         if self._notifier is not None:
             self._notifier.stop(timeout=2.0)
             self._notifier = None
         if self._scheduler is not None and self._own_scheduler:
             self._scheduler.close()
         self._scheduler = None
-        self.node.nmt.stop_heartbeat()
+        self._stop_heartbeat()
+        if join:
+            self.join_threads()
         if self.network is not None:
             del self.network[self.node.id]  # type: ignore[arg-type]  # a LocalNode's id is always set
             self.network = None
@@ -469,6 +531,11 @@ class SimulatedDrive:
         for slot, payload in self._pending.values():
             self._apply(slot, payload)
         self._pending.clear()
+        if self.power is not None:
+            if self.has(CONTROLWORD) and self.power.last_controlword != (cw := self._int(CONTROLWORD, 0)):
+                self.power.controlword(cw)  # written by an RPDO
+            self.power.tick()  # its own transitions: a quick stop ends, a fault reaction becomes FAULT
+            self._show_state()
         if self.model is not None:
             self.model(self)
         answers: list[tuple[_PdoSlot, bytes]] = []
@@ -504,8 +571,8 @@ class SimulatedDrive:
 
     def _send(self, slot: _PdoSlot, payload: bytes) -> None:
         network, bus = self.network, self.bus
-        if network is None or bus is None:
-            return  # detached meanwhile (a delayed answer): the drive has left the bus
+        if network is None or bus is None or self.silent:
+            return  # detached or killed meanwhile (a delayed answer): the drive has left the bus
         with network.send_lock:
             bus.send(can.Message(arbitration_id=slot.can_id, is_extended_id=slot.extended, data=payload))
         self.tpdos_sent += 1
@@ -636,7 +703,9 @@ class DriveBench:
             self.scheduler.close()
             self.scheduler = None
         for drive in self.drives.values():
-            drive.detach()
+            drive.detach(join=False)
+        for drive in self.drives.values():
+            drive.join_threads()
         for bus in self._buses:
             bus.shutdown()
         self._buses.clear()

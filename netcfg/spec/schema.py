@@ -204,7 +204,11 @@ class CanopenParams(SpecModel):
     )
     sync_producer: Name | None = Field(None, description="node producing SYNC (default: the node with role master)")
     sync_id: Int = Field(0x80, ge=1, le=0x7FF, description="COB-ID of SYNC, object 0x1005")
-    sync_counter: Bool = Field(False, description="SYNC carries a 1-byte counter (CiA 301 0x1019)")
+    sync_counter: Bool | Int = Field(
+        False,
+        description="SYNC carries a 1-byte counter (CiA 301 0x1019, the counter overflow value): false (no counter), "
+        "true (overflow 240, the largest CiA 301 allows) or a number 2..240",
+    )
     master_jitter: DurationField = Field(
         default_factory=lambda: _ns(0),
         description="how late the SYNC producer's waits may end (its operating system's wake-up latency): each SYNC "
@@ -283,6 +287,24 @@ class Node(SpecModel):
         None, description="CANopen device profile: a built-in name (e.g. 'epos4') or {eds: file.eds}"
     )
     heartbeat: DurationField | None = Field(None, description="CANopen producer heartbeat time (0x1017)")
+    heartbeat_timeout: DurationField | None = Field(
+        None,
+        description="CANopen: how long the master waits for this node's heartbeat before it reports the node lost "
+        "(its consumer heartbeat time, 0x1016); default 3 x the producer time, as Lely's dcfgen (heartbeat_multiplier)",
+    )
+    on_loss: Literal["stop_all", "stop_node", "continue"] = Field(
+        "stop_all",
+        description="`netcfg run`: what the master does when this node's heartbeat stops: bring every drive to its "
+        "safe state and end the run, stop only this node, or report it and carry on",
+    )
+    on_emcy: Literal["stop_all", "stop_node", "continue"] = Field(
+        "stop_all", description="`netcfg run`: what the master does when this node sends an emergency (EMCY)"
+    )
+    safe_stop: Literal["quick_stop", "disable_operation"] = Field(
+        "quick_stop",
+        description="CiA 402 drive: the command that brings it to a safe state when a run ends or fails "
+        "(controlword 0x6040: quick stop, or disable operation)",
+    )
     ip: str | None = Field(None, pattern=r"^\d{1,3}(\.\d{1,3}){3}$")
     tx_delay: DurationField | None = Field(None, description="Ethernet: sender processing Tpre (seed 001, eq. 6.3)")
     rx_delay: DurationField | None = Field(None, description="Ethernet: receiver processing Tpost")

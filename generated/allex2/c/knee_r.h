@@ -266,4 +266,232 @@ static inline void msg_knee_r_effort_unpack(struct msg_knee_r_effort *v, const u
 }
 #endif
 
+/* ==== message hip_l_heartbeat on can0: hip_l -> master, knee_l, ankle_l, hip_r, knee_r, ankle_r; received here; heartbeat (implicit) */
+#ifndef NETCFG_ALLEX2_MSG_HIP_L_HEARTBEAT
+#define NETCFG_ALLEX2_MSG_HIP_L_HEARTBEAT
+#define MSG_HIP_L_HEARTBEAT_ID 0x701
+#define MSG_HIP_L_HEARTBEAT_EXTENDED 0 /* 1: 29-bit identifier */
+#define MSG_HIP_L_HEARTBEAT_SIZE 1
+#define MSG_HIP_L_HEARTBEAT_PERIOD_NS UINT32_C(100000000)
+#define MSG_HIP_L_HEARTBEAT_DEADLINE_NS UINT32_C(100000000)
+NETCFG_STATIC_ASSERT(MSG_HIP_L_HEARTBEAT_SIZE <= 8, msg_hip_l_heartbeat_fits_a_can_frame);
+NETCFG_STATIC_ASSERT(MSG_HIP_L_HEARTBEAT_SIZE * 8 >= 8, msg_hip_l_heartbeat_signals_fit);
+
+struct msg_hip_l_heartbeat {
+    uint8_t hip_l_heartbeat_raw; /* the whole payload as one little-endian word (the spec gives only a size) */
+};
+
+/* Writes *v into data; false, and data untouched, when a value is out of range. */
+static inline bool msg_hip_l_heartbeat_pack(uint8_t data[MSG_HIP_L_HEARTBEAT_SIZE], const struct msg_hip_l_heartbeat *v)
+{
+    uint64_t raw_hip_l_heartbeat_raw;
+
+    /* hip_l_heartbeat_raw: bits 0..7 */
+    raw_hip_l_heartbeat_raw = (uint64_t)v->hip_l_heartbeat_raw & UINT64_C(0xFF);
+    memset(data, 0, MSG_HIP_L_HEARTBEAT_SIZE);
+    data[0] = (uint8_t)(data[0] | raw_hip_l_heartbeat_raw);
+    return true;
+}
+
+static inline void msg_hip_l_heartbeat_unpack(struct msg_hip_l_heartbeat *v, const uint8_t data[MSG_HIP_L_HEARTBEAT_SIZE])
+{
+    uint64_t raw;
+
+    /* hip_l_heartbeat_raw */
+    raw = (uint64_t)data[0];
+    raw &= UINT64_C(0xFF);
+    v->hip_l_heartbeat_raw = (uint8_t)raw;
+}
+#endif
+
+/* ==== message knee_l_heartbeat on can0: knee_l -> master, hip_l, ankle_l, hip_r, knee_r, ankle_r; received here; heartbeat (implicit) */
+#ifndef NETCFG_ALLEX2_MSG_KNEE_L_HEARTBEAT
+#define NETCFG_ALLEX2_MSG_KNEE_L_HEARTBEAT
+#define MSG_KNEE_L_HEARTBEAT_ID 0x702
+#define MSG_KNEE_L_HEARTBEAT_EXTENDED 0 /* 1: 29-bit identifier */
+#define MSG_KNEE_L_HEARTBEAT_SIZE 1
+#define MSG_KNEE_L_HEARTBEAT_PERIOD_NS UINT32_C(100000000)
+#define MSG_KNEE_L_HEARTBEAT_DEADLINE_NS UINT32_C(100000000)
+NETCFG_STATIC_ASSERT(MSG_KNEE_L_HEARTBEAT_SIZE <= 8, msg_knee_l_heartbeat_fits_a_can_frame);
+NETCFG_STATIC_ASSERT(MSG_KNEE_L_HEARTBEAT_SIZE * 8 >= 8, msg_knee_l_heartbeat_signals_fit);
+
+struct msg_knee_l_heartbeat {
+    uint8_t knee_l_heartbeat_raw; /* the whole payload as one little-endian word (the spec gives only a size) */
+};
+
+/* Writes *v into data; false, and data untouched, when a value is out of range. */
+static inline bool msg_knee_l_heartbeat_pack(uint8_t data[MSG_KNEE_L_HEARTBEAT_SIZE], const struct msg_knee_l_heartbeat *v)
+{
+    uint64_t raw_knee_l_heartbeat_raw;
+
+    /* knee_l_heartbeat_raw: bits 0..7 */
+    raw_knee_l_heartbeat_raw = (uint64_t)v->knee_l_heartbeat_raw & UINT64_C(0xFF);
+    memset(data, 0, MSG_KNEE_L_HEARTBEAT_SIZE);
+    data[0] = (uint8_t)(data[0] | raw_knee_l_heartbeat_raw);
+    return true;
+}
+
+static inline void msg_knee_l_heartbeat_unpack(struct msg_knee_l_heartbeat *v, const uint8_t data[MSG_KNEE_L_HEARTBEAT_SIZE])
+{
+    uint64_t raw;
+
+    /* knee_l_heartbeat_raw */
+    raw = (uint64_t)data[0];
+    raw &= UINT64_C(0xFF);
+    v->knee_l_heartbeat_raw = (uint8_t)raw;
+}
+#endif
+
+/* ==== message ankle_l_heartbeat on can0: ankle_l -> master, hip_l, knee_l, hip_r, knee_r, ankle_r; received here; heartbeat (implicit) */
+#ifndef NETCFG_ALLEX2_MSG_ANKLE_L_HEARTBEAT
+#define NETCFG_ALLEX2_MSG_ANKLE_L_HEARTBEAT
+#define MSG_ANKLE_L_HEARTBEAT_ID 0x703
+#define MSG_ANKLE_L_HEARTBEAT_EXTENDED 0 /* 1: 29-bit identifier */
+#define MSG_ANKLE_L_HEARTBEAT_SIZE 1
+#define MSG_ANKLE_L_HEARTBEAT_PERIOD_NS UINT32_C(100000000)
+#define MSG_ANKLE_L_HEARTBEAT_DEADLINE_NS UINT32_C(100000000)
+NETCFG_STATIC_ASSERT(MSG_ANKLE_L_HEARTBEAT_SIZE <= 8, msg_ankle_l_heartbeat_fits_a_can_frame);
+NETCFG_STATIC_ASSERT(MSG_ANKLE_L_HEARTBEAT_SIZE * 8 >= 8, msg_ankle_l_heartbeat_signals_fit);
+
+struct msg_ankle_l_heartbeat {
+    uint8_t ankle_l_heartbeat_raw; /* the whole payload as one little-endian word (the spec gives only a size) */
+};
+
+/* Writes *v into data; false, and data untouched, when a value is out of range. */
+static inline bool msg_ankle_l_heartbeat_pack(uint8_t data[MSG_ANKLE_L_HEARTBEAT_SIZE], const struct msg_ankle_l_heartbeat *v)
+{
+    uint64_t raw_ankle_l_heartbeat_raw;
+
+    /* ankle_l_heartbeat_raw: bits 0..7 */
+    raw_ankle_l_heartbeat_raw = (uint64_t)v->ankle_l_heartbeat_raw & UINT64_C(0xFF);
+    memset(data, 0, MSG_ANKLE_L_HEARTBEAT_SIZE);
+    data[0] = (uint8_t)(data[0] | raw_ankle_l_heartbeat_raw);
+    return true;
+}
+
+static inline void msg_ankle_l_heartbeat_unpack(struct msg_ankle_l_heartbeat *v, const uint8_t data[MSG_ANKLE_L_HEARTBEAT_SIZE])
+{
+    uint64_t raw;
+
+    /* ankle_l_heartbeat_raw */
+    raw = (uint64_t)data[0];
+    raw &= UINT64_C(0xFF);
+    v->ankle_l_heartbeat_raw = (uint8_t)raw;
+}
+#endif
+
+/* ==== message hip_r_heartbeat on can0: hip_r -> master, hip_l, knee_l, ankle_l, knee_r, ankle_r; received here; heartbeat (implicit) */
+#ifndef NETCFG_ALLEX2_MSG_HIP_R_HEARTBEAT
+#define NETCFG_ALLEX2_MSG_HIP_R_HEARTBEAT
+#define MSG_HIP_R_HEARTBEAT_ID 0x704
+#define MSG_HIP_R_HEARTBEAT_EXTENDED 0 /* 1: 29-bit identifier */
+#define MSG_HIP_R_HEARTBEAT_SIZE 1
+#define MSG_HIP_R_HEARTBEAT_PERIOD_NS UINT32_C(100000000)
+#define MSG_HIP_R_HEARTBEAT_DEADLINE_NS UINT32_C(100000000)
+NETCFG_STATIC_ASSERT(MSG_HIP_R_HEARTBEAT_SIZE <= 8, msg_hip_r_heartbeat_fits_a_can_frame);
+NETCFG_STATIC_ASSERT(MSG_HIP_R_HEARTBEAT_SIZE * 8 >= 8, msg_hip_r_heartbeat_signals_fit);
+
+struct msg_hip_r_heartbeat {
+    uint8_t hip_r_heartbeat_raw; /* the whole payload as one little-endian word (the spec gives only a size) */
+};
+
+/* Writes *v into data; false, and data untouched, when a value is out of range. */
+static inline bool msg_hip_r_heartbeat_pack(uint8_t data[MSG_HIP_R_HEARTBEAT_SIZE], const struct msg_hip_r_heartbeat *v)
+{
+    uint64_t raw_hip_r_heartbeat_raw;
+
+    /* hip_r_heartbeat_raw: bits 0..7 */
+    raw_hip_r_heartbeat_raw = (uint64_t)v->hip_r_heartbeat_raw & UINT64_C(0xFF);
+    memset(data, 0, MSG_HIP_R_HEARTBEAT_SIZE);
+    data[0] = (uint8_t)(data[0] | raw_hip_r_heartbeat_raw);
+    return true;
+}
+
+static inline void msg_hip_r_heartbeat_unpack(struct msg_hip_r_heartbeat *v, const uint8_t data[MSG_HIP_R_HEARTBEAT_SIZE])
+{
+    uint64_t raw;
+
+    /* hip_r_heartbeat_raw */
+    raw = (uint64_t)data[0];
+    raw &= UINT64_C(0xFF);
+    v->hip_r_heartbeat_raw = (uint8_t)raw;
+}
+#endif
+
+/* ==== message knee_r_heartbeat on can0: knee_r -> master, hip_l, knee_l, ankle_l, hip_r, ankle_r; sent here; heartbeat (implicit) */
+#ifndef NETCFG_ALLEX2_MSG_KNEE_R_HEARTBEAT
+#define NETCFG_ALLEX2_MSG_KNEE_R_HEARTBEAT
+#define MSG_KNEE_R_HEARTBEAT_ID 0x705
+#define MSG_KNEE_R_HEARTBEAT_EXTENDED 0 /* 1: 29-bit identifier */
+#define MSG_KNEE_R_HEARTBEAT_SIZE 1
+#define MSG_KNEE_R_HEARTBEAT_PERIOD_NS UINT32_C(100000000)
+#define MSG_KNEE_R_HEARTBEAT_DEADLINE_NS UINT32_C(100000000)
+NETCFG_STATIC_ASSERT(MSG_KNEE_R_HEARTBEAT_SIZE <= 8, msg_knee_r_heartbeat_fits_a_can_frame);
+NETCFG_STATIC_ASSERT(MSG_KNEE_R_HEARTBEAT_SIZE * 8 >= 8, msg_knee_r_heartbeat_signals_fit);
+
+struct msg_knee_r_heartbeat {
+    uint8_t knee_r_heartbeat_raw; /* the whole payload as one little-endian word (the spec gives only a size) */
+};
+
+/* Writes *v into data; false, and data untouched, when a value is out of range. */
+static inline bool msg_knee_r_heartbeat_pack(uint8_t data[MSG_KNEE_R_HEARTBEAT_SIZE], const struct msg_knee_r_heartbeat *v)
+{
+    uint64_t raw_knee_r_heartbeat_raw;
+
+    /* knee_r_heartbeat_raw: bits 0..7 */
+    raw_knee_r_heartbeat_raw = (uint64_t)v->knee_r_heartbeat_raw & UINT64_C(0xFF);
+    memset(data, 0, MSG_KNEE_R_HEARTBEAT_SIZE);
+    data[0] = (uint8_t)(data[0] | raw_knee_r_heartbeat_raw);
+    return true;
+}
+
+static inline void msg_knee_r_heartbeat_unpack(struct msg_knee_r_heartbeat *v, const uint8_t data[MSG_KNEE_R_HEARTBEAT_SIZE])
+{
+    uint64_t raw;
+
+    /* knee_r_heartbeat_raw */
+    raw = (uint64_t)data[0];
+    raw &= UINT64_C(0xFF);
+    v->knee_r_heartbeat_raw = (uint8_t)raw;
+}
+#endif
+
+/* ==== message ankle_r_heartbeat on can0: ankle_r -> master, hip_l, knee_l, ankle_l, hip_r, knee_r; received here; heartbeat (implicit) */
+#ifndef NETCFG_ALLEX2_MSG_ANKLE_R_HEARTBEAT
+#define NETCFG_ALLEX2_MSG_ANKLE_R_HEARTBEAT
+#define MSG_ANKLE_R_HEARTBEAT_ID 0x706
+#define MSG_ANKLE_R_HEARTBEAT_EXTENDED 0 /* 1: 29-bit identifier */
+#define MSG_ANKLE_R_HEARTBEAT_SIZE 1
+#define MSG_ANKLE_R_HEARTBEAT_PERIOD_NS UINT32_C(100000000)
+#define MSG_ANKLE_R_HEARTBEAT_DEADLINE_NS UINT32_C(100000000)
+NETCFG_STATIC_ASSERT(MSG_ANKLE_R_HEARTBEAT_SIZE <= 8, msg_ankle_r_heartbeat_fits_a_can_frame);
+NETCFG_STATIC_ASSERT(MSG_ANKLE_R_HEARTBEAT_SIZE * 8 >= 8, msg_ankle_r_heartbeat_signals_fit);
+
+struct msg_ankle_r_heartbeat {
+    uint8_t ankle_r_heartbeat_raw; /* the whole payload as one little-endian word (the spec gives only a size) */
+};
+
+/* Writes *v into data; false, and data untouched, when a value is out of range. */
+static inline bool msg_ankle_r_heartbeat_pack(uint8_t data[MSG_ANKLE_R_HEARTBEAT_SIZE], const struct msg_ankle_r_heartbeat *v)
+{
+    uint64_t raw_ankle_r_heartbeat_raw;
+
+    /* ankle_r_heartbeat_raw: bits 0..7 */
+    raw_ankle_r_heartbeat_raw = (uint64_t)v->ankle_r_heartbeat_raw & UINT64_C(0xFF);
+    memset(data, 0, MSG_ANKLE_R_HEARTBEAT_SIZE);
+    data[0] = (uint8_t)(data[0] | raw_ankle_r_heartbeat_raw);
+    return true;
+}
+
+static inline void msg_ankle_r_heartbeat_unpack(struct msg_ankle_r_heartbeat *v, const uint8_t data[MSG_ANKLE_R_HEARTBEAT_SIZE])
+{
+    uint64_t raw;
+
+    /* ankle_r_heartbeat_raw */
+    raw = (uint64_t)data[0];
+    raw &= UINT64_C(0xFF);
+    v->ankle_r_heartbeat_raw = (uint8_t)raw;
+}
+#endif
+
 #endif /* NETCFG_ALLEX2_KNEE_R_H */
