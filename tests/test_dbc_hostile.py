@@ -17,7 +17,8 @@ from conftest import cli
 from netcfg.cli import main
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
-from netcfg.importers.dbc import MAX_BYTES, import_dbc
+from netcfg.importers.dbc import import_dbc
+from netcfg.inputs import MAX_BYTES, InputError
 
 BASE = """VERSION ""
 
@@ -87,21 +88,21 @@ def test_duplicate_identifier_is_placed_at_the_second_message(tmp_path: Path) ->
 
 
 def test_an_endless_file_is_refused_before_it_is_read_whole(tmp_path: Path) -> None:
-    """/dev/zero as a DBC: the reader stops after MAX_BYTES + 1 bytes and says so (exit 1, nothing written)."""
+    """/dev/zero as a DBC: the one input guard refuses a device before reading it and a file over the DBC size limit
+    before reading it whole; both are I/O problems (exit 2), nothing is written."""
     zero = Path("/dev/zero")
     if not zero.exists():
         pytest.skip("no /dev/zero here")
-    diags = Collector()
-    assert import_dbc(zero, ImportOptions(bitrate=500_000), diags) is None
-    assert [d.code for d in diags.errors] == ["dbc-too-large"]
+    with pytest.raises(InputError, match="not a regular file"):
+        import_dbc(zero, ImportOptions(bitrate=500_000), Collector())
     proc = cli("import", "dbc", str(zero), "-o", "out.yaml", cwd=tmp_path)
-    assert proc.returncode == 1 and "larger than" in proc.stderr and "Traceback" not in proc.stderr
+    assert proc.returncode == 2 and "not a regular file" in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "out.yaml").exists()
     big = tmp_path / "big.dbc"
     with big.open("wb") as f:
-        f.truncate(MAX_BYTES + 1)  # sparse: no disk space used
+        f.truncate(MAX_BYTES["DBC"] + 1)  # sparse: no disk space used
     proc = cli("check", str(big), "--bitrate", "500k", cwd=tmp_path)
-    assert proc.returncode == 1 and f"{big}:1:1: error:" in proc.stderr
+    assert proc.returncode == 2 and str(big) in proc.stderr and "at most" in proc.stderr, proc.stderr
 
 
 def test_a_text_where_a_numeric_attribute_belongs_is_an_error_at_its_value(tmp_path: Path) -> None:

@@ -13,10 +13,11 @@ is accepted but no DBC item needs it any more):
   1000 cannot be a CAN bit rate in bit/s, so it is read as kbit/s (with a warning).
   No bit rate at all is an error that says how to give one.
 - nodes: BU_ in file order, then every sender or receiver not declared there (a warning each).
-- the file is read through a size limit (MAX_BYTES) and checked line by line before cantools sees it: numbers
-  of absurd length and signals that no frame can hold (over 64 bits, starting beyond byte 63) are errors at
-  their line. cantools then reads it with strict=False, as most DBC tools do: what it only tolerates
-  (overlapping signals, signals outside their frame, ...) is a warning naming message and signal.
+- the file is read through the input guard (netcfg.inputs: size limit, regular files only) and checked line by
+  line before cantools sees it: numbers of absurd length and signals that no frame can hold (over 64 bits,
+  starting beyond byte 63) are errors at their line. cantools then reads it with strict=False, as most DBC tools
+  do: what it only tolerates (overlapping signals, signals outside their frame, ...) is a warning naming message
+  and signal.
 - messages, in file order: name, id, `extended: true` for 29-bit frames (and `id_bits: 29` on the bus when all
   frames are), size = the BO_ length, producer = first sender, consumers = the receivers of its signals.
   A message without sender (Vector__XXX) is sent by the placeholder node 'unassigned' (warning dbc-no-sender);
@@ -71,6 +72,7 @@ from cantools.database.can import Database, Message, Signal
 from netcfg.diagnostics import Collector, Position, Severity
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as DataPath
+from netcfg.inputs import read_input_bytes
 from netcfg.runtime.codec import byte_ops, int_range, last_byte
 from netcfg.spec.schema import safe_name
 from netcfg.spec.source import SourceMap
@@ -82,7 +84,6 @@ PLACEHOLDER_RECEIVER = "unassigned_receiver"  # receives a message of 'unassigne
 CAN_MAX_PAYLOAD = 8
 KBIT_LIMIT = 1000  # Baudrate/BusSpeed values up to this are kbit/s: no CAN bus runs at 1000 bit/s or less
 # the largest public DBC files are a few MB; anything far beyond is not a database (or /dev/zero)
-MAX_BYTES = 64 * 1024 * 1024
 MAX_DIGITS = 40  # a number longer than this in a DBC statement is no identifier, length or time
 MAX_SIGNAL_BITS = 64  # cantools' and every DBC tool's limit for one signal
 MAX_FRAME_BYTES = 64  # CAN FD's largest payload: no signal starts beyond it
@@ -912,19 +913,9 @@ Positions = dict[DataPath, tuple[int, int]]
 
 
 def read_dbc(path: Path, diags: Collector) -> str | None:
-    """The DBC's text, read through a size limit (an endless or huge input is refused before it is read whole);
-    None with an error in diags. OSError propagates."""
-    with open(path, "rb") as f:
-        data = f.read(MAX_BYTES + 1)
-    if len(data) > MAX_BYTES:
-        diags.add(
-            "dbc-too-large",
-            f"the file is larger than {MAX_BYTES // 2**20} MB (or endless): not a DBC netcfg reads; "
-            "give the database file itself",
-            Position(str(path), 1, 1),
-        )
-        return None
-    return data.decode(ENCODING, errors="replace")
+    """The DBC's text through the one input guard (netcfg.inputs: a regular file within the DBC size limit, refused
+    before it is read whole), decoded as DBC tools write it. InputError (an OSError) propagates: an I/O problem."""
+    return read_input_bytes(path, "DBC").decode(ENCODING, errors="replace")
 
 
 def import_dbc_located(path: Path, options: ImportOptions, diags: Collector) -> tuple[Imported | None, Positions]:
