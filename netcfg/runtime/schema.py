@@ -17,6 +17,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from netcfg.runtime.codec import byte_ops
+
 MAX_NS = 10**15  # the longest duration netcfg handles (netcfg.spec.units.MAX_DURATION_NS; a test ties the two)
 U8, U16, U32 = 0xFF, 0xFFFF, 0xFFFF_FFFF
 MAX_NAME_CHARS = 255
@@ -37,6 +39,7 @@ class F:
     choices: tuple[Any, ...] = ()
     item: F | None = None  # list items
     fields: Mapping[str, F] | None = None  # object fields
+    parts: tuple[F, ...] = ()  # a tuple: a list of exactly these
 
 
 def i(lo: int, hi: int, null: bool = False, optional: bool = False) -> F:
@@ -78,6 +81,10 @@ SIGNAL = obj(
     name=name(), start_bit=i(0, 8 * 1472 - 1), bits=i(1, 64), signed=BOOL, float=BOOL,
     scale=num(-BIG, BIG), offset=num(-BIG, BIG), min=num(-BIG, BIG, null=True), max=num(-BIG, BIG, null=True),
     unit=text(null=True),
+    # written only when used (netcfg.emit.runtime_json): Motorola byte order, multiplexing, value names
+    byte_order=F("enum", choices=("little_endian", "big_endian"), optional=True),
+    mux=name(optional=True), mux_values=lst(i(0, 2**64 - 1), optional=True),
+    enum=lst(F("tuple", parts=(i(-(2**63), 2**64 - 1), text())), optional=True),
 )
 PDO_ENTRY = obj(index=i(0x1000, U16), sub=i(0, U8), bits=i(1, 64), name=name(), data_type=i(1, U16))
 PDO = obj(
@@ -191,6 +198,12 @@ def _check(value: Any, f: F, where: str, out: list[str], strict: bool) -> None:
             assert f.item is not None
             for n, item in enumerate(value):
                 _check(item, f.item, f"{where}{_label(item, n)}", out, strict)
+    elif k == "tuple":
+        if not isinstance(value, list) or len(value) != len(f.parts):
+            out.append(f"{where}: must be a list of {len(f.parts)} items")
+        else:
+            for n, (item, part) in enumerate(zip(value, f.parts)):
+                _check(item, part, f"{where}[{n}]", out, strict)
     elif k == "obj":
         if not isinstance(value, dict):
             out.append(f"{where}: must be an object, not {type(value).__name__}")
@@ -240,7 +253,8 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
         if m["kind"] == "periodic" and m["period_ns"] is None:
             out.append(f"{where}: a periodic message needs period_ns")
         for s in m["signals"]:
-            if s["start_bit"] + s["bits"] > 8 * m["size"]:
+            touched = [op.index for op in byte_ops(s["start_bit"], s["bits"], s.get("byte_order") == "big_endian")]
+            if min(touched) < 0 or max(touched) >= m["size"]:
                 out.append(f"{where}: signal {s['name']!r} (bits {s['start_bit']}..{s['start_bit'] + s['bits'] - 1}) "
                            f"does not fit its {m['size']}-byte payload")
         if m["pdo"] is not None and sum(e["bits"] for e in m["pdo"]["entries"]) > 64:
