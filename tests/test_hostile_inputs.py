@@ -502,8 +502,9 @@ def test_19_a_negative_vendor_number_in_device_info_is_refused(tmp_path: Path,
 @pytest.mark.parametrize(
     ("damage", "text"),
     [(("[1018sub1]", "[1018sub" + "9" * 5000 + "]"), "outside CiA 301's ranges"),
-     (("DefaultValue=0x00020192", "DefaultValue=0x" + "9" * 5000), "more than any CANopen data type holds")],
-    ids=["5000-digit-sub-index", "5000-digit-value"],
+     (("DefaultValue=0x00020192", "DefaultValue=0x" + "9" * 5000), "more than any CANopen data type holds"),
+     (("DefaultValue=0x00020192", "DefaultValue=" + "9" * 5000), "more than 20 digits")],
+    ids=["5000-digit-sub-index", "5000-digit-hex-value", "5000-digit-decimal-value"],
 )
 def test_29_huge_numbers_in_an_eds_name_the_object(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                    damage: tuple[str, str], text: str) -> None:

@@ -21,6 +21,8 @@ from netcfg.inputs import InputError, read_input_text
 UNSIGNED32_MAX = 0xFFFF_FFFF
 MAX_MAPPED_OBJECTS = 64  # CiA 301 7.5.2.36: sub-index 0 of a PDO mapping parameter is 0..64
 IDENTITY = 0x1018
+_TEXT_TYPES = {0x09, 0x0A, 0x0B, 0x0F}  # VISIBLE_STRING, OCTET_STRING, UNICODE_STRING, DOMAIN: not numbers
+_LONG_NUMBER = re.compile(r"[0-9A-Fa-f]{21,}")  # 2^64 has 20 decimal digits, 16 hex ones
 IDENTITY_NAMES = {1: "Vendor-ID", 2: "Product code", 3: "Revision number", 4: "Serial number"}
 
 
@@ -106,6 +108,11 @@ def check_od(od: Any, text: str) -> None:
             raise EdsError(f"an object numbered {_shown(index, 4)} sub {_shown(sub, 2)} is outside CiA 301's ranges "
                            "(index 0x0000..0xFFFF, sub-index 0..255); fix the EDS")
         for what in ("default", "value"):
+            raw = getattr(var, f"{what}_raw", None)  # canopen keeps the text when it cannot convert it
+            numeric = getattr(var, "data_type", None) not in _TEXT_TYPES
+            if isinstance(raw, str) and numeric and _LONG_NUMBER.search(raw):
+                raise EdsError(f"{_where(text, index, sub)}: its {what} value has a number of more than 20 digits, "
+                               "more than any CANopen data type holds (64 bits); fix the EDS")
             value = getattr(var, what, None)
             if isinstance(value, int) and value.bit_length() > 64:
                 raise EdsError(f"{_where(text, index, sub)}: its {what} value is {_shown(value)}, more than any "

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from netcfg.runtime.codec import last_byte
+from netcfg.runtime.codec import byte_ops
 
 MAX_NS = 10**15  # the longest duration netcfg handles (netcfg.spec.units.MAX_DURATION_NS; a test ties the two)
 U8, U16, U32 = 0xFF, 0xFFFF, 0xFFFF_FFFF
@@ -39,7 +39,7 @@ class F:
     choices: tuple[Any, ...] = ()
     item: F | None = None  # list items
     fields: Mapping[str, F] | None = None  # object fields
-    items: tuple[F, ...] = ()  # a fixed-length list of these (kind "tuple")
+    parts: tuple[F, ...] = ()  # a tuple: a list of exactly these
 
 
 def i(lo: int, hi: int, null: bool = False, optional: bool = False) -> F:
@@ -70,10 +70,6 @@ def obj(null: bool = False, optional: bool = False, **fields: F) -> F:
     return F("obj", null=null, optional=optional, fields=fields)
 
 
-def tup(*items: F) -> F:
-    return F("tuple", items=items)
-
-
 def num(lo: float, hi: float, null: bool = False) -> F:
     return F("float", lo, hi, null)
 
@@ -84,9 +80,11 @@ BIG = 1e300  # finite: scale, offset and limits of a signal may be anything a fl
 SIGNAL = obj(
     name=name(), start_bit=i(0, 8 * 1472 - 1), bits=i(1, 64), signed=BOOL, float=BOOL,
     scale=num(-BIG, BIG), offset=num(-BIG, BIG), min=num(-BIG, BIG, null=True), max=num(-BIG, BIG, null=True),
-    unit=text(null=True), byte_order=F("enum", choices=("big_endian", "little_endian"), optional=True),
-    mux=name(optional=True), mux_values=lst(i(-(2**63), 2**64 - 1), optional=True),
-    enum=lst(tup(i(-(2**63), 2**64 - 1), text()), optional=True),
+    unit=text(null=True),
+    # written only when used (netcfg.emit.runtime_json): Motorola byte order, multiplexing, value names
+    byte_order=F("enum", choices=("little_endian", "big_endian"), optional=True),
+    mux=name(optional=True), mux_values=lst(i(0, 2**64 - 1), optional=True),
+    enum=lst(F("tuple", parts=(i(-(2**63), 2**64 - 1), text())), optional=True),
 )
 PDO_ENTRY = obj(index=i(0x1000, U16), sub=i(0, U8), bits=i(1, 64), name=name(), data_type=i(1, U16))
 PDO = obj(
@@ -117,15 +115,10 @@ NODE = obj(
     rpdo_count=i(0, 512, null=True, optional=True), tpdo_count=i(0, 512, null=True, optional=True),
     sdo_init=lst(obj(index=i(0, U16), sub=i(0, U8), data_type=i(1, U16), value=i(-(2**63), 2**64 - 1)),
                  null=True, optional=True),
-    heartbeat_timeout_ns=ns(1, null=True, optional=True),
-    on_loss=enum("stop_all", "stop_node", "continue", optional=True),
-    on_emcy=enum("stop_all", "stop_node", "continue", optional=True),
-    safe_stop=enum("quick_stop", "disable_operation", optional=True),
 )
 CANOPEN = obj(
     null=True, sync_period_ns=ns(1), sync_window_ns=ns(null=True), read_window_ns=ns(null=True),
     sync_producer=name(null=True), sync_id=i(0, MAX_ID[29]), master_jitter_ns=ns(optional=True),
-    sync_overflow=i(0, 240, optional=True), sync_completion_ns=ns(null=True, optional=True),
 )
 FTT = obj(
     null=True, ec_ns=ns(1), tm_size=i(0, 8), tm_id=i(0, MAX_ID[29]), tm_ns=ns(), lsw_ns=ns(), master=name(),
@@ -206,11 +199,11 @@ def _check(value: Any, f: F, where: str, out: list[str], strict: bool) -> None:
             for n, item in enumerate(value):
                 _check(item, f.item, f"{where}{_label(item, n)}", out, strict)
     elif k == "tuple":
-        if not isinstance(value, list) or len(value) != len(f.items):
-            out.append(f"{where}: must be a list of {len(f.items)} items")
+        if not isinstance(value, list) or len(value) != len(f.parts):
+            out.append(f"{where}: must be a list of {len(f.parts)} items")
         else:
-            for n, (item, sub) in enumerate(zip(value, f.items)):
-                _check(item, sub, f"{where}[{n}]", out, strict)
+            for n, (item, part) in enumerate(zip(value, f.parts)):
+                _check(item, part, f"{where}[{n}]", out, strict)
     elif k == "obj":
         if not isinstance(value, dict):
             out.append(f"{where}: must be an object, not {type(value).__name__}")
@@ -260,10 +253,9 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
         if m["kind"] == "periodic" and m["period_ns"] is None:
             out.append(f"{where}: a periodic message needs period_ns")
         for s in m["signals"]:
-            big_endian = s.get("byte_order") == "big_endian"
-            if last_byte(s["start_bit"], s["bits"], big_endian) >= m["size"]:
-                order = "big-endian, " if big_endian else ""
-                out.append(f"{where}: signal {s['name']!r} ({order}start bit {s['start_bit']}, {s['bits']} bits) "
+            touched = [op.index for op in byte_ops(s["start_bit"], s["bits"], s.get("byte_order") == "big_endian")]
+            if min(touched) < 0 or max(touched) >= m["size"]:
+                out.append(f"{where}: signal {s['name']!r} (bits {s['start_bit']}..{s['start_bit'] + s['bits'] - 1}) "
                            f"does not fit its {m['size']}-byte payload")
         if m["pdo"] is not None and sum(e["bits"] for e in m["pdo"]["entries"]) > 64:
             out.append(f"{where}: its PDO maps more than 64 bits")
