@@ -113,12 +113,17 @@ NODE = obj(
                  revision=i(0, U32, null=True)),
     eds=text(null=True, optional=True), dcf=text(null=True, optional=True),
     rpdo_count=i(0, 512, null=True, optional=True), tpdo_count=i(0, 512, null=True, optional=True),
+    heartbeat_timeout_ns=ns(1, null=True, optional=True),
+    on_loss=F("enum", choices=("stop_all", "stop_node", "continue"), optional=True),
+    on_emcy=F("enum", choices=("stop_all", "stop_node", "continue"), optional=True),
+    safe_stop=F("enum", choices=("quick_stop", "disable_operation"), optional=True),
     sdo_init=lst(obj(index=i(0, U16), sub=i(0, U8), data_type=i(1, U16), value=i(-(2**63), 2**64 - 1)),
                  null=True, optional=True),
 )
 CANOPEN = obj(
     null=True, sync_period_ns=ns(1), sync_window_ns=ns(null=True), read_window_ns=ns(null=True),
     sync_producer=name(null=True), sync_id=i(0, MAX_ID[29]), master_jitter_ns=ns(optional=True),
+    sync_completion_ns=ns(null=True, optional=True), sync_overflow=i(0, 240, null=True, optional=True),
 )
 FTT = obj(
     null=True, ec_ns=ns(1), tm_size=i(0, 8), tm_id=i(0, MAX_ID[29]), tm_ns=ns(), lsw_ns=ns(), master=name(),
