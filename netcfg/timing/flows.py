@@ -263,7 +263,11 @@ Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (wo
 
 def _freshest(runs: list[Run], cycle_end: int) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
     """Data age: a use takes the freshest data, so of several starts that reach the same use only the last counts.
-    `runs` cover two cycles; only the starts of the first are measured (the second shows which start is last)."""
+    `runs` cover two cycles; only the starts of the first are measured (the second shows which start is last).
+    A start's fastest execution is used when the next start, also fast, reaches a later use (likewise the slowest);
+    each execution that is used counts for both ends of the range: a fast start whose slow twin is superseded is
+    still used, and may carry the flow's oldest data. (Executions between the fastest and the slowest, and a fast
+    start followed by a slow one, are not examined separately.)"""
     lat_lo: int | None = None
     lat_hi = 0
     del_lo: int | None = None
@@ -271,14 +275,13 @@ def _freshest(runs: list[Run], cycle_end: int) -> tuple[tuple[int, int], tuple[i
     for (start, lo, hi, got), nxt in pairwise(runs):
         if start >= cycle_end:
             break
-        if nxt[1] > lo:
-            lat_lo = lo - start if lat_lo is None else min(lat_lo, lo - start)
-            if got:
-                del_lo = got[0] - start if del_lo is None else min(del_lo, got[0] - start)
-        if nxt[2] > hi:
-            lat_hi = max(lat_hi, hi - start)
-            if got:
-                del_hi = max(del_hi, got[1] - start)
+        for end, later, delivered in ((lo, nxt[1], got[0] if got else None), (hi, nxt[2], got[1] if got else None)):
+            if later > end:
+                lat_lo = end - start if lat_lo is None else min(lat_lo, end - start)
+                lat_hi = max(lat_hi, end - start)
+                if delivered is not None:
+                    del_lo = delivered - start if del_lo is None else min(del_lo, delivered - start)
+                    del_hi = max(del_hi, delivered - start)
     if lat_lo is None:
         return None
     return (lat_lo, lat_hi), (None if del_lo is None else (del_lo, del_hi))
