@@ -28,10 +28,64 @@ class _Analysis:
         self.ftt: dict[str, flows.FttTimes] = {}
         self.canopen: dict[str, flows.SyncTimes] = {}
         self.task_ns: dict[str, int | None] = {}  # node.task -> worst-case response time on its processor
+        self.task_wcrt: dict[str, int | None] = {}  # the same from the task's nominal release (jitter included)
+        self.extra_jitter: dict[str, int] = {}  # message -> release jitter its sending task's response adds
+
+    def jitter(self, msg: model.Message) -> int:
+        """A message's release jitter: the spec's, plus its sending task's response-time variation."""
+        return msg.jitter_ns + self.extra_jitter.get(msg.name, 0)
+
+    def from_release(self, msg: model.Message, wcrt: int | None) -> int | None:
+        """A response time from the message's actual queueing (flows count the sending task's variation)."""
+        return None if wcrt is None else wcrt - self.extra_jitter.get(msg.name, 0)
+
+
+MAX_HOLISTIC_ROUNDS = 50  # rounds of the sender-jitter iteration between processors and buses
 
 
 def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
+    """Buses, processors and flows. A message that a task sends as it finishes is released with that task's
+    response-time variation as jitter, which in turn may delay tasks started by messages: the two are iterated
+    from zero jitter until nothing grows (holistic analysis, Tindell and Clark 1994); the last round reports."""
+    extra: dict[str, int] = {}
+    if any(_sent_by_task(m, msg) for msg in m.messages.values()):
+        for _ in range(MAX_HOLISTIC_ROUNDS):
+            acc = _Analysis()
+            acc.extra_jitter = extra
+            _analyze_once(m, Collector(), acc)
+            grown = sender_jitter(m, acc)
+            if grown == extra:
+                break
+            extra = grown
     acc = _Analysis()
+    acc.extra_jitter = extra
+    return _analyze_once(m, diags, acc)
+
+
+def _sent_by_task(m: model.Model, msg: model.Message) -> bool:
+    """Queued by a task as it finishes (not by an FTT-CAN schedule or a CANopen SYNC)."""
+    if msg.window == "sync" or msg.implicit or (msg.pdo is not None and 1 <= msg.pdo.transmission <= 240):
+        return False
+    return bool(flows.sending_tasks(m, msg))
+
+
+def sender_jitter(m: model.Model, acc: _Analysis) -> dict[str, int]:
+    """Each task-sent message's extra release jitter: its slowest sender's response minus its BCET."""
+    out = {}
+    for msg in m.messages.values():
+        if not _sent_by_task(m, msg):
+            continue
+        spread = 0
+        for ref in flows.sending_tasks(m, msg):
+            r = acc.task_wcrt.get(ref)
+            if r is not None:
+                spread = max(spread, r - m.task(ref).bcet_ns)
+        if spread:
+            out[msg.name] = spread
+    return out
+
+
+def _analyze_once(m: model.Model, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     buses = []
     for bus in m.buses.values():
         if bus.protocol == "ethernet-udp":
@@ -117,6 +171,7 @@ def analyze_node(m: model.Model, node: model.Node, acc: _Analysis, diags: Collec
         r = None if t.name in unbounded_input else response[t.name]
         # flows time a task from its actual activation, whose lateness they already count: R - J
         acc.task_ns[f"{node.name}.{t.name}"] = None if r is None else r - t.j_ns
+        acc.task_wcrt[f"{node.name}.{t.name}"] = r
         rows.append(
             {
                 "name": t.name,
@@ -189,7 +244,9 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
             )
 
 
-def rta_frames(msgs: list[model.Message], timings: dict[str, load.FrameTiming]) -> list[can_rta.CanFrame]:
+def rta_frames(
+    msgs: list[model.Message], timings: dict[str, load.FrameTiming], acc: _Analysis | None = None
+) -> list[can_rta.CanFrame]:
     """The messages as the response-time analysis sees them (worst-case frame times from the load)."""
     return [
         can_rta.CanFrame(
@@ -198,7 +255,7 @@ def rta_frames(msgs: list[model.Message], timings: dict[str, load.FrameTiming]) 
             msg.extended,
             timings[msg.name].tx_ns,
             msg.interval_ns,
-            msg.jitter_ns,
+            acc.jitter(msg) if acc else msg.jitter_ns,
             msg.deadline_ns,
         )
         for msg in msgs
@@ -211,9 +268,9 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     frame_ns = {name: (bits_to_ns(t.bits_nominal, bus.bitrate), t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
-    plain = can_rta.analyse(rta_frames(bus.messages, timings), tau)
+    plain = can_rta.analyse(rta_frames(bus.messages, timings, acc), tau)
     for msg in bus.messages:
-        acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], plain[msg.name].wcrt_ns)
+        acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
     out: dict[str, Any] = {
         "name": bus.name,
         "protocol": bus.protocol,
@@ -444,7 +501,7 @@ def analyze_ftt(
             sync_worst[name] = max(sync_worst.get(name, 0), end)
     async_msgs = [msg for msg in bus.messages if msg.window == "async"]
     async_frames = [
-        ftt.AsyncFrame(msg.name, msg.id, frame_ns[msg.name][1], msg.interval_ns, msg.jitter_ns, msg.extended)
+        ftt.AsyncFrame(msg.name, msg.id, frame_ns[msg.name][1], msg.interval_ns, acc.jitter(msg), msg.extended)
         for msg in async_msgs
     ]
     limited: set[str] = set()
@@ -462,7 +519,7 @@ def analyze_ftt(
         set_verdict(row, wcrt, msg.deadline_ns)
         row["wcrt_plain_can_us"] = us(acc.plain[msg.name].worst_ns)
         row["wcrt_plain_can_ns"] = acc.plain[msg.name].worst_ns  # exact, for runtime.json
-        acc.chained[msg.name] = flows.Delivery(frame_ns[msg.name][0], wcrt)
+        acc.chained[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, wcrt))
     worst = max(sched.slots, key=lambda s: (s.sync_ns, -s.index))
     worst_fast = max(fastest.slots, key=lambda s: (s.sync_ns, -s.index))
     tm_ns = sched.tm_ns
@@ -523,7 +580,7 @@ def srt_row(e: ftt.SrtEntry) -> dict[str, Any]:
 
 def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     timings = {msg.name: load.udp_timing(msg, bus.bitrate) for msg in bus.messages}
-    links, delays = ethernet.analyse(bus, m.nodes)
+    links, delays = ethernet.analyse(bus, m.nodes, acc.extra_jitter)
     f_max = ethernet.max_min_frame_rate(bus.bitrate)
     worst: dict[str, ethernet.PathDelay] = {}
     for d in delays:

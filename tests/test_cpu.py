@@ -78,3 +78,36 @@ def test_exactly_full_processor_with_jitter_has_no_bound(tmp_path: Path) -> None
     assert [e["code"] for e in report["errors"]] == ["task-unbounded"]
     assert "ecu.rx" in report["errors"][0]["message"]
     assert [t["wcrt_us"] for t in report["nodes"][0]["tasks"]] == [5000, None]
+
+
+def test_a_message_sent_by_a_task_inherits_its_response_variation(tmp_path: Path) -> None:
+    """n0.send (every 1 ms, 100..300 us, alone on its processor: R = 300 us) queues 'a' as it finishes, so 'a' is
+    released up to 300 - 100 = 200 us late. At 500 kbit/s an 8-byte frame takes 135 bits = 270 us (worst case):
+    R_a = J + B + C = 200 + 270 ('b' blocking) + 270 = 740 us (540 us without the jitter). The flow n0.send -> a ->
+    n1.use (started by 'a') takes at most 300 (send) + 540 (a, from its actual queueing) = 840 us."""
+    spec = {
+        "system": "holistic",
+        "buses": [{"name": "can0", "protocol": "can", "bitrate": "500 kbit/s"}],
+        "nodes": [
+            {
+                "name": "n0",
+                "buses": ["can0"],
+                "tasks": [{"name": "send", "period": "1 ms", "wcet": "300 us", "bcet": "100 us"}],
+            },
+            {
+                "name": "n1",
+                "buses": ["can0"],
+                "tasks": [{"name": "use", "on_message": "a", "wcet": "10 us"}],
+            },
+            {"name": "n2", "buses": ["can0"]},
+        ],
+        "messages": [
+            {"name": "a", "id": 0x10, "producer": "n0", "consumers": ["n1"], "size": 8, "period": "1 ms"},
+            {"name": "b", "id": 0x20, "producer": "n2", "consumers": ["n1"], "size": 8, "period": "1 ms"},
+        ],
+        "flows": [{"name": "f", "chain": ["n0.send", "a", "n1.use"]}],
+    }
+    report = check_data(tmp_path, spec)
+    a = next(m for m in report["buses"][0]["messages"] if m["name"] == "a")
+    assert a["wcrt_us"] == 740
+    assert report["flows"][0]["latency_max_us"] == 840

@@ -101,7 +101,11 @@ def max_min_frame_rate(bitrate: int) -> float:
     return bitrate / (8 * udp_frame_bytes(0))
 
 
-def analyse(bus: model.Bus, nodes: dict[str, model.Node]) -> tuple[list[LinkLoad], list[PathDelay]]:
+def analyse(
+    bus: model.Bus, nodes: dict[str, model.Node], extra_jitter: dict[str, int] | None = None
+) -> tuple[list[LinkLoad], list[PathDelay]]:
+    """Links and path delays; `extra_jitter` adds release jitter to messages (a sending task's variation)."""
+    extra = extra_jitter or {}
     graph, cables = topology(bus)
     switches = {s.name: s for s in bus.switches}
     frame_ns = {m.name: load.udp_timing(m, bus.bitrate).tx_ns for m in bus.messages}
@@ -118,13 +122,15 @@ def analyse(bus: model.Bus, nodes: dict[str, model.Node]) -> tuple[list[LinkLoad
             ll.utilization += rate * frame_ns[msg.name] / 1e9
     by_name = {m.name: m for m in bus.messages}
     # arrival jitter of each message at each link of its route, grown with the upstream waits until stable
-    jitter = {(m.name, hop): m.jitter_ns for m in bus.messages for hop in _hops(msg_routes[m.name])}
+    jitter = {
+        (m.name, hop): m.jitter_ns + extra.get(m.name, 0) for m in bus.messages for hop in _hops(msg_routes[m.name])
+    }
     for _ in range(MAX_ROUNDS):
         for hop, ll in links.items():
             ll.busy_period_ns = fifo_busy_period(
                 [(frame_ns[n], by_name[n].interval_ns, jitter[(n, hop)]) for n in ll.messages]
             )
-        grown = _jitters(bus.messages, msg_routes, links, frame_ns)
+        grown = _jitters(bus.messages, msg_routes, links, frame_ns, extra)
         if grown is None or grown == jitter:
             break
         jitter = grown
@@ -170,13 +176,14 @@ def _jitters(
     msg_routes: dict[str, dict[str, tuple[Link, ...]]],
     links: dict[Link, LinkLoad],
     frame_ns: dict[str, int],
+    extra: dict[str, int],
 ) -> dict[tuple[str, Link], int] | None:
     """Each message's jitter at each hop: its release jitter plus the worst waits on the hops before (None when
     some wait is unbounded)."""
     out: dict[tuple[str, Link], int] = {}
     for m in messages:
         for hops in msg_routes[m.name].values():
-            late = m.jitter_ns
+            late = m.jitter_ns + extra.get(m.name, 0)
             for hop in hops:
                 out[(m.name, hop)] = max(out.get((m.name, hop), 0), late)
                 busy = links[hop].busy_period_ns
