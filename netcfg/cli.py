@@ -1,4 +1,4 @@
-"""Command line: netcfg check | build | import | simulate | run | schema.
+"""Command line: netcfg check | build | import | simulate | run | verify | schema.
 
 Exit codes: 0 ok, 1 spec errors or not schedulable (simulate: a miss, a loss or a result beyond the analysis),
 2 usage or I/O problems.
@@ -70,8 +70,10 @@ def main(argv: list[str] | None = None) -> int:
                        help="inject a fault (repeatable): ber=1e-6, bit-error@12ms, crash:NODE@2s, "
                        "babble:NODE@1s..2s, lose:MESSAGE@100ms, master-fail@2s")
     from netcfg.run_cli import add_parser as add_run_parser
+    from netcfg.verify.cli import add_parser as add_verify_parser
 
     add_run_parser(sub)
+    add_verify_parser(sub)
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
@@ -88,6 +90,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_simulate(args)
         if args.command == "run":
             return cmd_run(args)
+        if args.command == "verify":
+            return cmd_verify(args)
     except BrokenPipeError:  # e.g. `netcfg check x | head`
         return 0
     return 2  # pragma: no cover - argparse rejects unknown commands
@@ -316,6 +320,27 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise
         print(
             f"netcfg: internal error while running {args.source}: {type(exc).__name__}: {exc}\n"
+            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
+            file=sys.stderr,
+        )
+        return 2
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    from netcfg.verify.cli import verify_command
+
+    try:
+        return verify_command(args)
+    except BrokenPipeError:
+        raise  # main's: `netcfg verify ... | head` is not an error
+    except OSError as exc:
+        print(f"netcfg: {_io_problem(exc, 'verify', args.log)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug in netcfg
+        if os.environ.get("NETCFG_DEBUG"):
+            raise
+        print(
+            f"netcfg: internal error while verifying {args.log}: {type(exc).__name__}: {exc}\n"
             "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
             file=sys.stderr,
         )

@@ -1,0 +1,689 @@
+"""The checker: CAN frames, in time order, held against a runtime configuration and its analysed bounds.
+
+One implementation for every source of frames: `netcfg verify` (a recorded log), `netcfg simulate --log` (the
+simulator's own trace) and a live master. Feed it Batches (netcfg.verify.frames) as they come; `report()` gives the
+JSON document of `netcfg verify --format json`. Memory is bounded by the configuration, not the log: per message a
+few running figures and fixed-bin histograms, per bus one number per load window, and at most MAX_VIOLATIONS
+violations in detail (all of them counted).
+
+What is a violation (each names the message, the log time and by how much):
+- `gap`: a periodic message skipped periods (an interval nearer to 2, 3, ... periods than to one); also at the end.
+- `late`: a response the log can measure exceeds the analysed worst case. On a CANopen bus a synchronous TPDO's
+  response is measured from the SYNC before it (the analysis' reference for it, netcfg.timing.canopen_sync).
+- `early`: a sporadic message came sooner after the previous one than its minimum inter-arrival time allows (less
+  the jitter the analysis grants it): the analysed load assumed no more.
+- `unknown_id`: an identifier the configuration does not have (one per identifier, with its count); CANopen service
+  identifiers (NMT, SYNC, TIME, EMCY, SDO, heartbeat, LSS) of the bus's nodes are known.
+- `never_seen`: a periodic or sporadic message with no frame in the log.
+- `size`: a frame whose payload length is not the message's size.
+- `range`: a decoded signal outside the limits the spec gives it (one per signal, with the count and worst value).
+- `load`: a load window carried more bits than the analysis allows in any window of that length.
+- `error_frames`: the log has error frames (the analysis has no error model).
+
+A periodic message's interval is compared with its period +- (analysed jitter + worst-case response - its
+transmission time) as well; being outside is a warning, not a violation, unless `strict`: a log does not show when a
+frame was queued, so a long interval is either a late frame or release jitter the spec does not declare.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from netcfg.runtime import Bus, Message, RuntimeConfig
+from netcfg.timing.frames import bits_to_ns, can_frame_bits
+from netcfg.timing.load import rate_hz
+from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch
+
+__all__ = ["MAX_VIOLATIONS", "Checker", "VerifyError"]
+
+MAX_VIOLATIONS = 1000  # kept in detail; more are counted
+HIST_BINS = 60
+DEFAULT_WINDOW_US = 100_000
+
+# CANopen services by function code (CiA 301, 7.3.3 predefined connection set): COB-ID = base + node id
+NMT_ID = 0x000
+TIME_ID = 0x100
+EMCY_BASE = 0x080
+TSDO_BASE = 0x580
+RSDO_BASE = 0x600
+HEARTBEAT_BASE = 0x700
+LSS_IDS = (0x7E4, 0x7E5)
+NMT_STATES = {0x00: "boot-up", 0x04: "stopped", 0x05: "operational", 0x7F: "pre-operational"}
+NMT_COMMANDS = {0x01: "start", 0x02: "stop", 0x80: "enter pre-operational", 0x81: "reset node", 0x82: "reset comm"}
+
+
+class VerifyError(ValueError):
+    """The configuration and the log cannot be matched (e.g. which bus a channel is); a usage problem."""
+
+
+@dataclass
+class _MessageState:
+    msg: Message
+    bus: int
+    period_us: float | None  # periodic: the period; sporadic: None
+    min_gap_us: float | None  # sporadic: the least admissible interval
+    slack_us: float  # analysed jitter + worst-case response - best transmission time
+    wcrt_us: float | None
+    response_ref: str | None  # "sync": response measured from the last SYNC of the bus
+    count: int = 0
+    last_t: int | None = None
+    first_t: int | None = None
+    iv_min: int | None = None
+    iv_max: int | None = None
+    iv_sum: int = 0
+    iv_n: int = 0
+    dev_max: int = 0  # largest |interval - period| outside gaps
+    missing: int = 0
+    resp_min: int | None = None
+    resp_max: int | None = None
+    resp_sum: int = 0
+    resp_n: int = 0
+    violations: int = 0
+    warnings: int = 0
+    period_hist: NDArray[np.int64] = field(default_factory=lambda: np.zeros(HIST_BINS + 2, np.int64))
+    resp_hist: NDArray[np.int64] = field(default_factory=lambda: np.zeros(HIST_BINS + 2, np.int64))
+    period_edges: NDArray[np.float64] | None = None
+    resp_edges: NDArray[np.float64] | None = None
+    range_out: dict[str, list[Any]] = field(default_factory=dict)  # signal -> [count, first_t, worst value]
+    bad_size: list[int] = field(default_factory=list)  # [count, first_t, length]
+    jitter_out: list[Any] | None = None  # intervals outside period +- slack: [count, first_t, worst, its t, its iv]
+
+
+class Checker:
+    """Feed Batches in time order; then report(). `channels` is the reader's channel-name list (grows as it
+    reads); `bus` names the configuration's bus every channel belongs to when the names are not bus names."""
+
+    def __init__(
+        self,
+        cfg: RuntimeConfig,
+        channels: list[str],
+        bus: str | None = None,
+        window_us: int = DEFAULT_WINDOW_US,
+        strict: bool = False,
+        utilization: dict[str, float] | None = None,
+    ) -> None:
+        self.cfg = cfg
+        self.channels = channels
+        self.strict = strict
+        self.window_us = window_us
+        self.buses: list[Bus] = [b for b in cfg.buses if b.is_can]
+        if not self.buses:
+            raise VerifyError(f"{cfg.system} has no CAN bus; verify checks CAN logs")
+        if bus is not None:
+            cfg.bus(bus)  # names close matches when unknown
+            if not cfg.bus(bus).is_can:
+                raise VerifyError(f"bus '{bus}' is {cfg.bus(bus).protocol}; verify checks CAN buses")
+        self.forced_bus = None if bus is None else [b.name for b in self.buses].index(bus)
+        self._channel_bus: list[int] = []
+        self.states: list[_MessageState] = []
+        keys: list[int] = []
+        for m in cfg.messages:
+            if not m.is_can:
+                continue
+            b = [x.name for x in self.buses].index(m.bus)
+            self.states.append(self._state(m, b))
+            keys.append(_key(b, m.id, m.extended))
+        order = np.argsort(np.array(keys, np.int64), kind="stable")
+        self._keys = np.array(keys, np.int64)[order]
+        self._key_state = order
+        self._sync_state = {
+            b: next(i for i, s in enumerate(self.states) if s.bus == b and s.msg.id == bus_.canopen.sync_id)
+            for b, bus_ in enumerate(self.buses)
+            if bus_.canopen is not None
+            and any(s.bus == b and s.msg.id == bus_.canopen.sync_id and not s.msg.extended for s in self.states)
+        }
+        self._last_sync: dict[int, int] = {}
+        self.frames = 0
+        self.error_frames = 0
+        self.first_t: int | None = None
+        self.last_t: int | None = None
+        self.window_bits: list[NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in self.buses]
+        self.unknown: dict[tuple[int, int, bool], list[int]] = {}  # (bus, id, extended) -> [count, first_t]
+        self.services: list[dict[str, Any]] = [_empty_services() for _ in self.buses]
+        self.violations: list[dict[str, Any]] = []
+        self.violation_count: dict[str, int] = {}
+        self.warnings: list[dict[str, Any]] = []
+        self.warning_count = 0
+        self.utilization = utilization or {}
+        # worst-case bits of a classical frame by [extended][payload bytes] (netcfg.timing.frames)
+        self._bits = np.array([[can_frame_bits(s, x, "worst") for s in range(9)] for x in (False, True)], np.int64)
+
+    # --- setup --------------------------------------------------------------------------------------------------
+
+    def _state(self, m: Message, bus: int) -> _MessageState:
+        bitrate = self.buses[bus].bitrate
+        best_tx_us = bits_to_ns(can_frame_bits(m.size, m.extended, "nominal"), bitrate) / 1000
+        wcrt_us = None if m.wcrt_ns is None else m.wcrt_ns / 1000
+        slack = m.jitter_ns / 1000 + max(0.0, (wcrt_us or 0.0) - best_tx_us)
+        period = None
+        min_gap = None
+        if m.kind == "periodic" and rate_hz(m) > 0:
+            period = 1e6 / rate_hz(m)
+        elif m.kind == "sporadic" and m.interval_ns:
+            min_gap = m.interval_ns / 1000
+        pdo = m.pdo
+        co = self.buses[bus].canopen
+        sync_tpdo = co is not None and pdo is not None and pdo.kind == "tpdo" and 1 <= pdo.transmission <= 240
+        st = _MessageState(m, bus, period, min_gap, slack, wcrt_us, "sync" if sync_tpdo else None)
+        if period is not None:
+            st.period_edges = np.linspace(0.0, 2.0 * period, HIST_BINS + 1)
+        elif min_gap is not None:
+            st.period_edges = np.linspace(0.0, 4.0 * min_gap, HIST_BINS + 1)
+        if st.response_ref is not None and wcrt_us is not None and co is not None:
+            top = max(2.0 * wcrt_us, (co.sync_window_ns or co.sync_period_ns) / 1000)
+            st.resp_edges = np.linspace(0.0, top, HIST_BINS + 1)
+        return st
+
+    def _buses_of(self, channel: NDArray[np.int32]) -> NDArray[np.int64]:
+        while len(self._channel_bus) < len(self.channels):
+            name = self.channels[len(self._channel_bus)]
+            self._channel_bus.append(self._bus_of_channel(name))
+        return np.array(self._channel_bus, np.int64)[channel] if len(channel) else np.empty(0, np.int64)
+
+    def _bus_of_channel(self, name: str) -> int:
+        if self.forced_bus is not None:
+            return self.forced_bus
+        names = [b.name for b in self.buses]
+        if name in names:
+            return names.index(name)
+        if len(self.buses) == 1:
+            return 0
+        raise VerifyError(
+            f"the log's channel {name!r} is none of the buses {', '.join(names)}; say which with --bus NAME"
+        )
+
+    # --- feeding ------------------------------------------------------------------------------------------------
+
+    def feed(self, batch: Batch) -> None:
+        n = len(batch)
+        if not n:
+            return
+        t = batch.t_us
+        if self.first_t is None:
+            self.first_t = int(t[0])
+        back = np.flatnonzero(np.diff(t) < 0)
+        if (self.last_t is not None and int(t[0]) < self.last_t) or len(back):
+            at = int(t[0]) if not len(back) else int(t[back[0] + 1])
+            raise VerifyError(
+                f"the log goes back in time at {at / 1e6:.6f} s (log time); verify needs frames in time order"
+            )
+        self.last_t = int(t[-1])
+        self.frames += n
+        err = (batch.flags & ERROR) != 0
+        if err.any():
+            self.error_frames += int(err.sum())
+            for t_err in t[err][:1]:
+                self._violation("error_frames", None, int(t_err), "an error frame: the analysis has no error model")
+        keep = ~err
+        bus = self._buses_of(batch.channel)
+        ext = (batch.flags & EXTENDED) != 0
+        self._load(t[keep], bus[keep], ext[keep], batch.length[keep])
+        key = _key_array(bus, batch.can_id, ext)
+        pos = np.searchsorted(self._keys, key)
+        pos_c = np.minimum(pos, max(len(self._keys) - 1, 0))
+        known = keep & (len(self._keys) > 0) & (self._keys[pos_c] == key if len(self._keys) else False)
+        state_idx = np.where(known, self._key_state[pos_c] if len(self._keys) else 0, -1)
+        fd_or_remote = (batch.flags & (FD | REMOTE)) != 0
+        # SYNC times first: a TPDO's response is measured from the SYNC before it
+        sync_times = {b: t[state_idx == s] for b, s in self._sync_state.items()}
+        unknown = keep & ~known
+        if unknown.any():
+            self._unknown(t[unknown], bus[unknown], batch.can_id[unknown], ext[unknown], batch.data[unknown])
+        order = np.argsort(state_idx, kind="stable")
+        sorted_idx = state_idx[order]
+        bounds = np.searchsorted(sorted_idx, np.arange(-1, len(self.states) + 1))
+        for s in np.flatnonzero(np.diff(bounds[1:])):
+            rows = order[bounds[s + 1] : bounds[s + 2]]
+            st = self.states[s]
+            self._message(st, t[rows], batch.length[rows], batch.data[rows], fd_or_remote[rows], sync_times)
+        for b, times in sync_times.items():
+            if len(times):
+                self._last_sync[b] = int(times[-1])
+
+    def _load(self, t: NDArray[np.int64], bus: NDArray[np.int64], ext: NDArray[np.bool_], length: Any) -> None:
+        if not len(t) or self.first_t is None:
+            return
+        bits = self._bits[ext.astype(np.int64), np.minimum(length, 8).astype(np.int64)]
+        window = (t - self.first_t) // self.window_us
+        for b in range(len(self.buses)):
+            sel = bus == b
+            if not sel.any():
+                continue
+            counts = np.bincount(window[sel], weights=bits[sel]).astype(np.int64)
+            acc = self.window_bits[b]
+            if len(counts) > len(acc):
+                acc = np.concatenate([acc, np.zeros(len(counts) - len(acc), np.int64)])
+            acc[: len(counts)] += counts
+            self.window_bits[b] = acc
+
+    def _message(
+        self,
+        st: _MessageState,
+        t: NDArray[np.int64],
+        length: NDArray[np.int16],
+        data: NDArray[np.uint8],
+        odd: NDArray[np.bool_],
+        sync_times: dict[int, NDArray[np.int64]],
+    ) -> None:
+        m = st.msg
+        if st.first_t is None:
+            st.first_t = int(t[0])
+        st.count += len(t)
+        # payload length
+        wrong = (length != m.size) | odd
+        if wrong.any():
+            if not st.bad_size:
+                st.bad_size = [0, int(t[wrong][0]), int(length[wrong][0])]
+            st.bad_size[0] += int(wrong.sum())
+        # intervals, the previous batch's last frame included
+        prev = np.concatenate([[st.last_t], t]) if st.last_t is not None else t
+        st.last_t = int(t[-1])
+        iv = np.diff(prev)
+        if len(iv):
+            st.iv_min = int(iv.min()) if st.iv_min is None else min(st.iv_min, int(iv.min()))
+            st.iv_max = int(iv.max()) if st.iv_max is None else max(st.iv_max, int(iv.max()))
+            st.iv_sum += int(iv.sum())
+            st.iv_n += len(iv)
+            if st.period_edges is not None:
+                st.period_hist += _hist(iv, st.period_edges)
+            ends = prev[1:]
+            if st.period_us is not None:
+                self._periodic(st, iv, ends)
+            elif st.min_gap_us is not None:
+                early = iv < st.min_gap_us - st.slack_us
+                for k in np.flatnonzero(early)[:MAX_VIOLATIONS]:
+                    self._violation(
+                        "early", st, int(ends[k]),
+                        f"{iv[k] / 1000:.3f} ms after the previous frame; the analysis assumes at least "
+                        f"{st.min_gap_us / 1000:.3f} ms (less {st.slack_us:.0f} us jitter), "
+                        f"{(st.min_gap_us - st.slack_us - iv[k]) :.0f} us sooner",
+                    )
+        # response from the SYNC before each frame
+        if st.response_ref == "sync" and st.bus in self._sync_state:
+            syncs = sync_times.get(st.bus, np.empty(0, np.int64))
+            last = self._last_sync.get(st.bus)
+            refs = np.concatenate([[last], syncs]) if last is not None else syncs
+            if len(refs):
+                at = np.searchsorted(refs, t, side="left") - 1
+                ok = at >= 0
+                resp = t[ok] - refs[at[ok]]
+                if len(resp):
+                    st.resp_min = int(resp.min()) if st.resp_min is None else min(st.resp_min, int(resp.min()))
+                    st.resp_max = int(resp.max()) if st.resp_max is None else max(st.resp_max, int(resp.max()))
+                    st.resp_sum += int(resp.sum())
+                    st.resp_n += len(resp)
+                    if st.resp_edges is not None:
+                        st.resp_hist += _hist(resp, st.resp_edges)
+                    if st.wcrt_us is not None:
+                        when = t[ok]
+                        for k in np.flatnonzero(resp > st.wcrt_us)[:MAX_VIOLATIONS]:
+                            self._violation(
+                                "late", st, int(when[k]),
+                                f"{resp[k]:.0f} us after SYNC; the analysed worst case is {st.wcrt_us:.0f} us, "
+                                f"{resp[k] - st.wcrt_us:.0f} us late",
+                            )
+        if m.signals and not wrong.all():
+            self._ranges(st, t[~wrong], data[~wrong])
+
+    def _periodic(self, st: _MessageState, iv: NDArray[np.int64], ends: NDArray[np.int64]) -> None:
+        period = st.period_us
+        assert period is not None
+        periods = np.floor(iv / period + 0.5).astype(np.int64)  # nearest whole number of periods
+        gaps = periods >= 2
+        for k in np.flatnonzero(gaps)[:MAX_VIOLATIONS]:
+            missing = int(periods[k] - 1)
+            st.missing += missing
+            self._violation(
+                "gap", st, int(ends[k]),
+                f"{missing} period{'s' if missing > 1 else ''} missing: {iv[k] / 1000:.3f} ms since the previous "
+                f"frame, period {period / 1000:g} ms",
+            )
+        if gaps.sum() > MAX_VIOLATIONS:
+            st.missing += int((periods[gaps] - 1)[MAX_VIOLATIONS:].sum())
+        dev = np.abs(iv[~gaps] - period)
+        if len(dev):
+            st.dev_max = max(st.dev_max, int(np.ceil(dev.max())))
+        if st.response_ref == "sync":  # a synchronous TPDO follows the SYNC: its response is the check
+            return
+        beyond = np.where(gaps, 0, np.abs(iv - period) - st.slack_us)
+        outside = beyond > 0
+        if outside.any():
+            k = int(np.argmax(beyond))
+            if st.jitter_out is None:
+                st.jitter_out = [0, int(ends[outside][0]), 0.0, 0, 0]
+            st.jitter_out[0] += int(outside.sum())
+            if beyond[k] > st.jitter_out[2]:
+                st.jitter_out[2:] = [float(beyond[k]), int(ends[k]), int(iv[k])]
+
+    def _ranges(self, st: _MessageState, t: NDArray[np.int64], data: NDArray[np.uint8]) -> None:
+        raw64 = np.ascontiguousarray(data).view("<u8").ravel()
+        for sig in st.msg.signals:
+            if sig.minimum is None and sig.maximum is None:
+                continue
+            raw = (raw64 >> np.uint64(sig.start_bit)) & np.uint64((1 << sig.bits) - 1 if sig.bits < 64 else ~0)
+            value: NDArray[np.float64]
+            if sig.is_float:
+                value = (raw.astype(np.uint32).view(np.float32) if sig.bits == 32 else raw.view(np.float64)).astype(
+                    np.float64
+                )
+            elif sig.signed:
+                sign = np.uint64(1 << (sig.bits - 1))
+                value = ((raw ^ sign).astype(np.int64) - np.int64(1 << (sig.bits - 1))).astype(np.float64)
+            else:
+                value = raw.astype(np.float64)
+            value = value * sig.scale + sig.offset
+            low = value < sig.minimum if sig.minimum is not None else np.zeros(len(value), bool)
+            high = value > sig.maximum if sig.maximum is not None else np.zeros(len(value), bool)
+            out = low | high
+            if out.any():
+                rec = st.range_out.setdefault(sig.name, [0, int(t[out][0]), None])
+                rec[0] += int(out.sum())
+                lo = float(value[low].min()) if low.any() else None
+                hi = float(value[high].max()) if high.any() else None
+                for v in (lo, hi):
+                    if v is not None and (rec[2] is None or _excess(sig, v) > _excess(sig, rec[2])):
+                        rec[2] = v
+
+    def _unknown(self, t: Any, bus: Any, can_id: Any, ext: Any, data: NDArray[np.uint8]) -> None:
+        for k in range(len(t)):
+            b, i, x = int(bus[k]), int(can_id[k]), bool(ext[k])
+            if not x and self.buses[b].canopen is not None and self._service(b, i, int(t[k]), data[k]):
+                continue
+            rec = self.unknown.get((b, i, x))
+            if rec is None:
+                self.unknown[(b, i, x)] = [1, int(t[k])]
+            else:
+                rec[0] += 1
+
+    def _service(self, b: int, can_id: int, t: int, data: NDArray[np.uint8]) -> bool:
+        """A CANopen service frame of one of the bus's nodes: noted, not unknown."""
+        nodes = {n.node_id: n.name for n in self.cfg.nodes if n.name in self.buses[b].nodes and n.node_id}
+        svc = self.services[b]
+        base, node_id = can_id & 0x780, can_id & 0x7F
+        if can_id == NMT_ID:
+            command, target = int(data[0]), int(data[1])
+            who = "all nodes" if target == 0 else nodes.get(target, f"node {target}")
+            _append(svc["nmt"], {"time_us": t, "command": NMT_COMMANDS.get(command, f"0x{command:02X}"), "node": who})
+            return True
+        if can_id == TIME_ID or can_id in LSS_IDS:
+            svc["other"] += 1
+            return True
+        name = nodes.get(node_id)
+        if name is None:
+            return False
+        if base == EMCY_BASE:
+            code = int(data[0]) | int(data[1]) << 8
+            _append(svc["emcy"], {"time_us": t, "node": name, "code": f"0x{code:04X}", "register": int(data[2])})
+            return True
+        if base == HEARTBEAT_BASE:
+            state = NMT_STATES.get(int(data[0]) & 0x7F, f"0x{int(data[0]):02X}")
+            beats = svc["heartbeats"].setdefault(name, {"count": 0, "state": None})
+            beats["count"] += 1
+            if beats["state"] != state:
+                _append(svc["states"], {"time_us": t, "node": name, "state": state})
+                beats["state"] = state
+            return True
+        if base in (TSDO_BASE, RSDO_BASE):
+            svc["sdo"] += 1
+            return True
+        return False
+
+    def _violation(self, kind: str, st: _MessageState | None, t: int, detail: str) -> None:
+        self.violation_count[kind] = self.violation_count.get(kind, 0) + 1
+        if st is not None:
+            st.violations += 1
+        if len(self.violations) < MAX_VIOLATIONS:
+            self.violations.append(
+                {"kind": kind, "message": None if st is None else st.msg.name, "time_us": t, "detail": detail}
+            )
+
+    def _warning(self, kind: str, st: _MessageState | None, t: int, detail: str) -> None:
+        self.warning_count += 1
+        if st is not None:
+            st.warnings += 1
+        if len(self.warnings) < MAX_VIOLATIONS:
+            self.warnings.append(
+                {"kind": kind, "message": None if st is None else st.msg.name, "time_us": t, "detail": detail}
+            )
+
+    # --- the result ---------------------------------------------------------------------------------------------
+
+    def finish(self) -> dict[str, Any]:
+        """End of the log: trailing gaps, messages never seen, aggregated findings; -> the report document."""
+        end = self.last_t
+        for st in self.states:
+            m = st.msg
+            if st.count == 0:
+                if m.kind in ("periodic", "sporadic"):
+                    self._violation("never_seen", st, end or 0, f"no frame with id {_id_text(m.id, m.extended)}")
+                continue
+            if st.period_us is not None and end is not None and st.last_t is not None:
+                trailing = int(np.floor((end - st.last_t) / st.period_us + 0.5)) - 1
+                if trailing >= 1:
+                    st.missing += trailing
+                    self._violation(
+                        "gap", st, end,
+                        f"{trailing} period{'s' if trailing > 1 else ''} missing at the end of the log: last frame "
+                        f"{(end - st.last_t) / 1000:.3f} ms before it, period {st.period_us / 1000:g} ms",
+                    )
+            if st.jitter_out is not None:
+                count, first, worst, worst_t, worst_iv = st.jitter_out
+                assert st.period_us is not None
+                detail = (
+                    f"{count} of {st.iv_n} intervals outside the analysed {st.period_us / 1000:g} ms +- "
+                    f"{st.slack_us:.0f} us (jitter + worst-case response - transmission time), from "
+                    f"{self._since(first) / 1e6:.6f} s; the worst {worst_iv / 1000:.3f} ms at "
+                    f"{self._since(worst_t) / 1e6:.6f} s, "
+                    f"{worst:.0f} us beyond"
+                )
+                (self._violation if self.strict else self._warning)("jitter", st, first, detail)
+            if st.bad_size:
+                count, first, length = st.bad_size
+                self._violation(
+                    "size", st, first,
+                    f"{count} frame(s) with {length} bytes (or CAN FD / remote); the message has {m.size}",
+                )
+            for name, (count, first, worst) in st.range_out.items():
+                sig = next(s for s in m.signals if s.name == name)
+                self._violation(
+                    "range", st, first,
+                    f"signal {name} outside [{_g(sig.minimum)}, {_g(sig.maximum)}] in {count} frame(s), "
+                    f"worst {worst:g}{' ' + sig.unit if sig.unit else ''}",
+                )
+        for (b, i, x), (count, first) in sorted(self.unknown.items(), key=lambda kv: (kv[1][1], kv[0])):
+            self._violation(
+                "unknown_id", None, first,
+                f"id {_id_text(i, x)} on bus {self.buses[b].name} is not in the configuration ({count} frame(s))",
+            )
+        buses = [self._bus_report(b) for b in range(len(self.buses))]
+        # times count from the log's first frame: formats differ in their origin (ASC starts at its first frame)
+        for item in [*self.violations, *self.warnings]:
+            item["time_us"] = self._since(item["time_us"])
+        for svc in self.services:
+            for item in [*svc["nmt"], *svc["emcy"], *svc["states"]]:
+                item["time_us"] = self._since(item["time_us"])
+        self.violations.sort(key=lambda v: (v["time_us"], v["kind"], v["message"] or ""))
+        messages = [self._message_report(st) for st in self.states]
+        return {
+            "system": self.cfg.system,
+            "frames": self.frames,
+            "error_frames": self.error_frames,
+            "start_us": self.first_t,
+            "duration_us": 0 if self.first_t is None or end is None else end - self.first_t,
+            "window_us": self.window_us,
+            "messages": messages,
+            "buses": buses,
+            "unknown_ids": [
+                {"bus": self.buses[b].name, "id": i, "extended": x, "count": c, "first_us": self._since(f)}
+                for (b, i, x), (c, f) in sorted(self.unknown.items())
+            ],
+            "never_seen": [st.msg.name for st in self.states if st.count == 0],
+            "violations": self.violations,
+            "violation_count": sum(self.violation_count.values()),
+            "violations_by_kind": dict(sorted(self.violation_count.items())),
+            "warnings": self.warnings,
+            "warning_count": self.warning_count,
+            "ok": not self.violation_count,
+        }
+
+    def _since(self, t: int) -> int:
+        return t - (self.first_t or 0)
+
+    def _message_report(self, st: _MessageState) -> dict[str, Any]:
+        m = st.msg
+        period = None
+        if st.iv_n:
+            assert st.iv_min is not None and st.iv_max is not None
+            period = {"min": st.iv_min, "mean": round(st.iv_sum / st.iv_n, 3), "max": st.iv_max}
+        response = None
+        if st.resp_n:
+            assert st.resp_min is not None and st.resp_max is not None
+            response = {"min": st.resp_min, "mean": round(st.resp_sum / st.resp_n, 3), "max": st.resp_max}
+        return {
+            "name": m.name,
+            "bus": m.bus,
+            "id": m.id,
+            "extended": m.extended,
+            "kind": m.kind,
+            "count": st.count,
+            "period_us": period,
+            "nominal_period_us": None if st.period_us is None else round(st.period_us, 3),
+            "jitter_us": st.dev_max if period is not None and st.period_us is not None else None,
+            "analysed_jitter_us": round(st.slack_us, 3) if st.period_us is not None and not st.response_ref else None,
+            "response_us": response,
+            "response_from": st.response_ref,
+            "wcrt_us": st.wcrt_us,
+            "missing": st.missing,
+            "within_analysis": None if st.count == 0 and m.kind == "on-demand" else st.violations == 0,
+            "warnings": st.warnings,
+            "histograms": {
+                "period": _hist_doc(st.period_hist, st.period_edges),
+                "response": _hist_doc(st.resp_hist, st.resp_edges),
+            },
+        }
+
+    def _bus_report(self, b: int) -> dict[str, Any]:
+        bus = self.buses[b]
+        bits = self.window_bits[b]
+        window_ns = self.window_us * 1000
+        load = [round(bits_to_ns(int(x), bus.bitrate) / window_ns, 6) for x in bits]
+        bound = self.window_bound(b)
+        analysed = self.utilization.get(bus.name, self._utilization(b))
+        for w, value in enumerate(load):
+            if w < len(load) - 1 and value > bound:  # the last window is cut short by the log's end
+                assert self.first_t is not None
+                self._violation(
+                    "load", None, self.first_t + (w + 1) * self.window_us,
+                    f"bus {bus.name}: load {value:.1%} in the {self.window_us / 1000:g} ms window ending here; the "
+                    f"analysis allows at most {bound:.1%} in any such window (utilisation {analysed:.1%})",
+                )
+        full = load[:-1] if len(load) > 1 else load
+        out: dict[str, Any] = {
+            "name": bus.name,
+            "protocol": bus.protocol,
+            "bitrate": bus.bitrate,
+            "utilization_analysed": round(analysed, 6),
+            "window_bound": round(bound, 6),
+            "load": {"min": min(full), "mean": round(sum(full) / len(full), 6), "max": max(full)} if full else None,
+            "load_per_window": load,
+        }
+        if bus.canopen is not None:
+            out["canopen"] = self._canopen_report(b)
+        return out
+
+    def _utilization(self, b: int) -> float:
+        """The analysis' worst-case utilisation of the bus from the runtime configuration (netcfg.timing)."""
+        bus = self.buses[b]
+        return sum(
+            bits_to_ns(can_frame_bits(st.msg.size, st.msg.extended, "worst"), bus.bitrate) * rate_hz(st.msg) / 1e9
+            for st in self.states
+            if st.bus == b and st.msg.kind != "on-demand"
+        )
+
+    def window_bound(self, b: int) -> float:
+        """The most a window of window_us can carry by the analysis: every periodic or sporadic message as often
+        as its period, jitter and response allow (ceil((W + slack) / T) frames), on-demand messages once."""
+        bus = self.buses[b]
+        total_ns = 0
+        for st in self.states:
+            if st.bus != b:
+                continue
+            tx = bits_to_ns(can_frame_bits(st.msg.size, st.msg.extended, "worst"), bus.bitrate)
+            gap = st.period_us if st.period_us is not None else st.min_gap_us
+            frames = 1 if not gap else int(np.ceil((self.window_us + st.slack_us) / gap))
+            total_ns += frames * tx
+        return total_ns / (self.window_us * 1000)
+
+    def _canopen_report(self, b: int) -> dict[str, Any]:
+        svc = self.services[b]
+        sync = None
+        if b in self._sync_state:
+            st = self.states[self._sync_state[b]]
+            sync = {"count": st.count, "period_us": self._message_report(st)["period_us"], "jitter_us": st.dev_max}
+        co = self.buses[b].canopen
+        assert co is not None
+        window = co.sync_window_ns
+        in_window = [
+            {"name": st.msg.name, "response_max_us": st.resp_max,
+             "inside_window": None if window is None or st.resp_max is None else st.resp_max * 1000 <= window}
+            for st in self.states
+            if st.bus == b and st.response_ref == "sync"
+        ]
+        return {
+            "sync": sync,
+            "sync_window_us": None if window is None else window / 1000,
+            "synchronous_pdos": in_window,
+            "heartbeats": svc["heartbeats"],
+            "nmt_states": svc["states"],
+            "nmt_commands": svc["nmt"],
+            "emcy": svc["emcy"],
+            "sdo_frames": svc["sdo"],
+            "other_service_frames": svc["other"],
+        }
+
+
+def _key(bus: int, can_id: int, extended: bool) -> int:
+    return (bus << 31) | (int(extended) << 30) | can_id
+
+
+def _key_array(bus: NDArray[np.int64], can_id: NDArray[np.int64], ext: NDArray[np.bool_]) -> NDArray[np.int64]:
+    return (bus.astype(np.int64) << 31) | (ext.astype(np.int64) << 30) | can_id
+
+
+def _hist(values: NDArray[Any], edges: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Counts per bin, with an underflow and an overflow bin at the ends."""
+    idx = np.searchsorted(edges, values, side="right")
+    return np.bincount(idx, minlength=len(edges) + 1).astype(np.int64)
+
+
+def _hist_doc(counts: NDArray[np.int64], edges: NDArray[np.float64] | None) -> dict[str, Any] | None:
+    if edges is None or not counts.any():
+        return None
+    return {"edges_us": [round(float(e), 3) for e in edges], "counts": [int(c) for c in counts]}
+
+
+def _empty_services() -> dict[str, Any]:
+    return {"nmt": [], "emcy": [], "heartbeats": {}, "states": [], "sdo": 0, "other": 0}
+
+
+def _append(items: list[dict[str, Any]], item: dict[str, Any]) -> None:
+    if len(items) < MAX_VIOLATIONS:
+        items.append(item)
+
+
+def _excess(sig: Any, v: float) -> float:
+    low = sig.minimum - v if sig.minimum is not None else 0.0
+    high = v - sig.maximum if sig.maximum is not None else 0.0
+    return max(low, high)
+
+
+def _g(x: float | None) -> str:
+    return "-" if x is None else f"{x:g}"
+
+
+def _id_text(can_id: int, extended: bool) -> str:
+    return f"0x{can_id:08X}" if extended else f"0x{can_id:03X}"
