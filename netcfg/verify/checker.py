@@ -7,7 +7,10 @@ few running figures and fixed-bin histograms, per bus one number per load window
 violations in detail (all of them counted).
 
 What is a violation (each names the message, the log time and by how much):
-- `gap`: a periodic message skipped periods (an interval nearer to 2, 3, ... periods than to one); also at the end.
+- `gap`: a periodic message skipped periods: an interval nearer to 2, 3, ... periods than to one (a log cannot
+  tell a frame later than half a period from a missing one); also at the end of the log.
+- `rate`: a periodic message came fewer times over its span than its period needs (less the clock tolerance), beyond
+  what the gaps explain: a sender running at a longer period.
 - `late`: a response the log can measure exceeds the analysed worst case. On a CANopen bus a synchronous TPDO's
   response is measured from the SYNC before it (the analysis' reference for it, netcfg.timing.canopen_sync).
 - `early`: a sporadic message came sooner after the previous one than its minimum inter-arrival time allows (less
@@ -35,7 +38,7 @@ from numpy.typing import NDArray
 
 from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
-from netcfg.timing.load import rate_hz
+from netcfg.timing.load import exact_rate, rate_hz
 from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch
 
 __all__ = ["MAX_VIOLATIONS", "Checker", "VerifyError"]
@@ -43,6 +46,9 @@ __all__ = ["MAX_VIOLATIONS", "Checker", "VerifyError"]
 MAX_VIOLATIONS = 1000  # kept in detail; more are counted
 HIST_BINS = 60
 DEFAULT_WINDOW_US = 100_000
+# how far a sender's clock may run slow against the recorder's: crystal oscillators are specified within about
+# +-100 ppm (the simulator's default drift bound is 50 ppm)
+DEFAULT_CLOCK_TOLERANCE_PPM = 100.0
 
 # CANopen services by function code (CiA 301, 7.3.3 predefined connection set): COB-ID = base + node id
 NMT_ID = 0x000
@@ -105,8 +111,10 @@ class Checker:
         window_us: int = DEFAULT_WINDOW_US,
         strict: bool = False,
         utilization: dict[str, float] | None = None,
+        clock_tolerance_ppm: float = DEFAULT_CLOCK_TOLERANCE_PPM,
     ) -> None:
         self.cfg = cfg
+        self.clock_tolerance = clock_tolerance_ppm / 1e6
         self.channels = channels
         self.strict = strict
         self.window_us = window_us
@@ -121,7 +129,8 @@ class Checker:
         self._channel_bus: list[int] = []
         self.states: list[_MessageState] = []
         keys: list[int] = []
-        for m in cfg.messages:
+        trigger_messages = [_trigger_message(b) for b in self.buses if b.ftt is not None]
+        for m in [*cfg.messages, *trigger_messages]:
             if not m.is_can:
                 continue
             b = [x.name for x in self.buses].index(m.bus)
@@ -130,13 +139,14 @@ class Checker:
         order = np.argsort(np.array(keys, np.int64), kind="stable")
         self._keys = np.array(keys, np.int64)[order]
         self._key_state = order
-        self._sync_state = {
-            b: next(i for i, s in enumerate(self.states) if s.bus == b and s.msg.id == bus_.canopen.sync_id)
-            for b, bus_ in enumerate(self.buses)
-            if bus_.canopen is not None
-            and any(s.bus == b and s.msg.id == bus_.canopen.sync_id and not s.msg.extended for s in self.states)
-        }
-        self._last_sync: dict[int, int] = {}
+        # per bus the message a response is measured from: CANopen's SYNC, FTT-CAN's trigger message
+        self._ref_state: dict[int, int] = {}
+        for b, bus_ in enumerate(self.buses):
+            ref_id = bus_.canopen.sync_id if bus_.canopen else bus_.ftt.tm_id if bus_.ftt else None
+            for i, st in enumerate(self.states):
+                if st.bus == b and st.msg.id == ref_id and not st.msg.extended:
+                    self._ref_state[b] = i
+        self._last_ref: dict[int, int] = {}
         self.frames = 0
         self.error_frames = 0
         self.first_t: int | None = None
@@ -161,20 +171,27 @@ class Checker:
         slack = m.jitter_ns / 1000 + max(0.0, (wcrt_us or 0.0) - best_tx_us)
         period = None
         min_gap = None
-        if m.kind == "periodic" and rate_hz(m) > 0:
-            period = 1e6 / rate_hz(m)
+        if m.kind == "periodic" and m.period_ns:
+            exact = exact_rate(m)  # the configured period (an FTT-CAN period_range's faster rates are jitter here)
+            period = 1e6 / float(exact) if exact is not None else m.period_ns / 1000
         elif m.kind == "sporadic" and m.interval_ns:
             min_gap = m.interval_ns / 1000
         pdo = m.pdo
         co = self.buses[bus].canopen
-        sync_tpdo = co is not None and pdo is not None and pdo.kind == "tpdo" and 1 <= pdo.transmission <= 240
-        st = _MessageState(m, bus, period, min_gap, slack, wcrt_us, "sync" if sync_tpdo else None)
+        ftt = self.buses[bus].ftt
+        ref = None
+        if co is not None and pdo is not None and pdo.kind == "tpdo" and 1 <= pdo.transmission <= 240:
+            ref = "sync"  # a synchronous TPDO answers the SYNC (netcfg.timing.canopen_sync)
+        elif ftt is not None and m.window == "sync":
+            ref = "tm"  # a synchronous FTT-CAN message goes in the EC its trigger message opens (netcfg.timing.ftt)
+        st = _MessageState(m, bus, period, min_gap, slack, wcrt_us, ref)
         if period is not None:
             st.period_edges = np.linspace(0.0, 2.0 * period, HIST_BINS + 1)
         elif min_gap is not None:
             st.period_edges = np.linspace(0.0, 4.0 * min_gap, HIST_BINS + 1)
-        if st.response_ref is not None and wcrt_us is not None and co is not None:
-            top = max(2.0 * wcrt_us, (co.sync_window_ns or co.sync_period_ns) / 1000)
+        if st.response_ref is not None and wcrt_us is not None:
+            cycle_ns = co.sync_window_ns or co.sync_period_ns if co is not None else ftt.ec_ns if ftt else 0
+            top = max(2.0 * wcrt_us, cycle_ns / 1000)
             st.resp_edges = np.linspace(0.0, top, HIST_BINS + 1)
         return st
 
@@ -228,8 +245,8 @@ class Checker:
         known = keep & (len(self._keys) > 0) & (self._keys[pos_c] == key if len(self._keys) else False)
         state_idx = np.where(known, self._key_state[pos_c] if len(self._keys) else 0, -1)
         fd_or_remote = (batch.flags & (FD | REMOTE)) != 0
-        # SYNC times first: a TPDO's response is measured from the SYNC before it
-        sync_times = {b: t[state_idx == s] for b, s in self._sync_state.items()}
+        # SYNC (TM) times first: a synchronous message's response is measured from the one before it
+        ref_times = {b: t[state_idx == s] for b, s in self._ref_state.items()}
         unknown = keep & ~known
         if unknown.any():
             self._unknown(t[unknown], bus[unknown], batch.can_id[unknown], ext[unknown], batch.data[unknown])
@@ -239,10 +256,10 @@ class Checker:
         for s in np.flatnonzero(np.diff(bounds[1:])):
             rows = order[bounds[s + 1] : bounds[s + 2]]
             st = self.states[s]
-            self._message(st, t[rows], batch.length[rows], batch.data[rows], fd_or_remote[rows], sync_times)
-        for b, times in sync_times.items():
+            self._message(st, t[rows], batch.length[rows], batch.data[rows], fd_or_remote[rows], ref_times)
+        for b, times in ref_times.items():
             if len(times):
-                self._last_sync[b] = int(times[-1])
+                self._last_ref[b] = int(times[-1])
 
     def _load(self, t: NDArray[np.int64], bus: NDArray[np.int64], ext: NDArray[np.bool_], length: Any) -> None:
         if not len(t) or self.first_t is None:
@@ -267,7 +284,7 @@ class Checker:
         length: NDArray[np.int16],
         data: NDArray[np.uint8],
         odd: NDArray[np.bool_],
-        sync_times: dict[int, NDArray[np.int64]],
+        ref_times: dict[int, NDArray[np.int64]],
     ) -> None:
         m = st.msg
         if st.first_t is None:
@@ -302,10 +319,10 @@ class Checker:
                         f"{st.min_gap_us / 1000:.3f} ms (less {st.slack_us:.0f} us jitter), "
                         f"{(st.min_gap_us - st.slack_us - iv[k]) :.0f} us sooner",
                     )
-        # response from the SYNC before each frame
-        if st.response_ref == "sync" and st.bus in self._sync_state:
-            syncs = sync_times.get(st.bus, np.empty(0, np.int64))
-            last = self._last_sync.get(st.bus)
+        # response from the SYNC (TM) before each frame
+        if st.response_ref is not None and st.bus in self._ref_state:
+            syncs = ref_times.get(st.bus, np.empty(0, np.int64))
+            last = self._last_ref.get(st.bus)
             refs = np.concatenate([[last], syncs]) if last is not None else syncs
             if len(refs):
                 at = np.searchsorted(refs, t, side="left") - 1
@@ -323,8 +340,8 @@ class Checker:
                         for k in np.flatnonzero(resp > st.wcrt_us)[:MAX_VIOLATIONS]:
                             self._violation(
                                 "late", st, int(when[k]),
-                                f"{resp[k]:.0f} us after SYNC; the analysed worst case is {st.wcrt_us:.0f} us, "
-                                f"{resp[k] - st.wcrt_us:.0f} us late",
+                                f"{resp[k]:.0f} us after {st.response_ref.upper()}; the analysed worst case is "
+                                f"{st.wcrt_us:.0f} us, {resp[k] - st.wcrt_us:.0f} us late",
                             )
         if m.signals and not wrong.all():
             self._ranges(st, t[~wrong], data[~wrong])
@@ -332,7 +349,9 @@ class Checker:
     def _periodic(self, st: _MessageState, iv: NDArray[np.int64], ends: NDArray[np.int64]) -> None:
         period = st.period_us
         assert period is not None
-        periods = np.floor(iv / period + 0.5).astype(np.int64)  # nearest whole number of periods
+        # the nearest whole number of periods: a log cannot tell a frame that is later than half a period from a
+        # missing one, so an interval nearer to k >= 2 periods counts k - 1 missing (shorter excesses are jitter)
+        periods = np.floor(iv / period + 0.5).astype(np.int64)
         gaps = periods >= 2
         for k in np.flatnonzero(gaps)[:MAX_VIOLATIONS]:
             missing = int(periods[k] - 1)
@@ -470,6 +489,8 @@ class Checker:
                         f"{trailing} period{'s' if trailing > 1 else ''} missing at the end of the log: last frame "
                         f"{(end - st.last_t) / 1000:.3f} ms before it, period {st.period_us / 1000:g} ms",
                     )
+            if st.period_us is not None and st.first_t is not None and st.last_t is not None:
+                self._rate(st)
             if st.jitter_out is not None:
                 count, first, worst, worst_t, worst_iv = st.jitter_out
                 assert st.period_us is not None
@@ -529,6 +550,21 @@ class Checker:
             "warning_count": self.warning_count,
             "ok": not self.violation_count,
         }
+
+    def _rate(self, st: _MessageState) -> None:
+        """Fewer frames than the period needs over the message's span, beyond the gaps already counted: a sender
+        whose period is longer than configured. The sender's clock may run slow by the clock tolerance."""
+        assert st.period_us is not None and st.first_t is not None and st.last_t is not None
+        span = st.last_t - st.first_t
+        needed = int(np.floor((span * (1 - self.clock_tolerance) - st.slack_us) / st.period_us)) + 1
+        short = needed - st.count - st.missing
+        if short > 0:
+            self._violation(
+                "rate", st, st.last_t,
+                f"{st.count} frames over {span / 1e6:.6f} s; a {st.period_us / 1000:g} ms period needs at least "
+                f"{needed} ({short} more than the gaps explain; mean period {span / max(st.count - 1, 1) / 1000:.3f} "
+                f"ms, clock tolerance {self.clock_tolerance * 1e6:g} ppm)",
+            )
 
     def _since(self, t: int) -> int:
         return t - (self.first_t or 0)
@@ -613,7 +649,8 @@ class Checker:
             if st.bus != b:
                 continue
             tx = bits_to_ns(can_frame_bits(st.msg.size, st.msg.extended, "worst"), bus.bitrate)
-            gap = st.period_us if st.period_us is not None else st.min_gap_us
+            fastest = st.msg.interval_ns  # a periodic message's fastest admissible period, a sporadic one's minimum
+            gap = fastest / 1000 if fastest and st.msg.kind != "on-demand" else None
             frames = 1 if not gap else int(np.ceil((self.window_us + st.slack_us) / gap))
             total_ns += frames * tx
         return total_ns / (self.window_us * 1000)
@@ -621,8 +658,8 @@ class Checker:
     def _canopen_report(self, b: int) -> dict[str, Any]:
         svc = self.services[b]
         sync = None
-        if b in self._sync_state:
-            st = self.states[self._sync_state[b]]
+        if b in self._ref_state:
+            st = self.states[self._ref_state[b]]
             sync = {"count": st.count, "period_us": self._message_report(st)["period_us"], "jitter_us": st.dev_max}
         co = self.buses[b].canopen
         assert co is not None
@@ -644,6 +681,18 @@ class Checker:
             "sdo_frames": svc["sdo"],
             "other_service_frames": svc["other"],
         }
+
+
+def _trigger_message(bus: Bus) -> Message:
+    """FTT-CAN's trigger message as a message of the bus: sent by the master once per elementary cycle."""
+    ftt = bus.ftt
+    assert ftt is not None
+    return Message(
+        name=f"{bus.name}_TM", bus=bus.name, protocol=bus.protocol, producer=ftt.master, consumers=(), id=ftt.tm_id,
+        extended=False, size=ftt.tm_size, kind="periodic", period_ns=ftt.ec_ns, interval_ns=ftt.ec_ns, offset_ns=0,
+        deadline_ns=None, jitter_ns=0, rate_hz=None, window=None, ftt_id=None, udp=None, pdo=None, signals=(),
+        implicit="TM", wcrt_ns=None,
+    )
 
 
 def _key(bus: int, can_id: int, extended: bool) -> int:
