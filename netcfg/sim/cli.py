@@ -15,7 +15,7 @@ from netcfg import runtime
 from netcfg.outputs import TMP_TAG
 from netcfg.sim.faults import Fault, FaultError
 from netcfg.sim.montecarlo import progress_bar, run_batch, run_once
-from netcfg.sim.results import histograms, summary, text
+from netcfg.sim.results import histograms, log_check, summary, text
 from netcfg.sim.scenario import SimOptions
 from netcfg.sim.trace import SUPPORTED_SUFFIXES, TraceFrame, write_trace
 from netcfg.spec.units import format_ns, parse_duration_option
@@ -187,8 +187,10 @@ def simulate_command(args: argparse.Namespace) -> int:
             print(f"netcfg: cannot write plots to {args.plots}: {exc.strerror or exc}", file=sys.stderr)
             return 2
     if args.log is not None:
+        frames = trace_frames(sc)
+        doc_out["log_check"] = log_check(cfg, frames)
         try:
-            _write_atomically(args.log, trace_frames(sc))
+            _write_atomically(args.log, frames)
         except OSError as exc:
             print(f"netcfg: cannot write the trace {args.log}: {exc.strerror or exc}", file=sys.stderr)
             return 2
@@ -204,6 +206,7 @@ def simulate_command(args: argparse.Namespace) -> int:
         or doc_out["lost"]
         or doc_out.get("findings")
         or (doc_out["exceeds_analysis"] and not res.error_model)
+        or (not doc_out.get("log_check", {"ok": True})["ok"] and not res.error_model)
     )
     return 1 if bad else 0
 

@@ -210,6 +210,16 @@ def summary(res: RunResult) -> dict[str, Any]:
     return out
 
 
+def log_check(cfg: RuntimeConfig, frames: list[Any]) -> dict[str, Any]:
+    """The trace held against the analysis by `netcfg verify`'s checker, so that both call the same things a
+    violation: its verdict and the first violations."""
+    from netcfg.verify import check_frames
+
+    report = check_frames(cfg, frames)
+    keys = ("ok", "violation_count", "violations_by_kind", "warning_count")
+    return {**{k: report[k] for k in keys}, "violations": report["violations"][:20]}
+
+
 def text(doc: dict[str, Any]) -> str:
     lines = [
         f"system {doc['system']}: {doc['runs']} run(s), {doc['duration_us'] / 1e6:.3f} s simulated, "
@@ -249,6 +259,11 @@ def text(doc: dict[str, Any]) -> str:
         lines += ["", f"  finding: {finding}"]
     if doc.get("violations"):
         lines += ["", "  outside the analysis:", *(f"    {v}" for v in doc["violations"])]
+    check = doc.get("log_check")
+    if check is not None:
+        lines += ["", f"  trace held against the analysis (as netcfg verify): {check['violation_count']} violations"]
+        for v in check["violations"]:
+            lines.append(f"    {v['time_us'] / 1e6:.6f} s: {v['kind']}: {v['message'] or ''} {v['detail']}")
     if doc.get("note"):
         lines.append("")
         lines.append("  " + doc["note"])

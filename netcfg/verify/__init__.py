@@ -23,7 +23,7 @@ import numpy as np
 
 from netcfg.runtime import RuntimeConfig
 from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker, VerifyError
-from netcfg.verify.frames import EXTENDED, PAYLOAD_COLUMNS, Batch, ChannelTable
+from netcfg.verify.frames import ERROR, EXTENDED, PAYLOAD_COLUMNS, Batch, ChannelTable
 from netcfg.verify.logs import LogError, read_log
 
 __all__ = ["Batch", "ChannelTable", "Checker", "LogError", "VerifyError", "check_frames", "verify_log"]
@@ -54,12 +54,12 @@ def verify_log(
 
 def check_frames(
     cfg: RuntimeConfig,
-    frames: Iterable[tuple[int, str, int, bool, bytes]],
+    frames: Iterable[tuple[Any, ...]],
     window_us: int = DEFAULT_WINDOW_US,
 ) -> dict[str, Any]:
-    """Frames as (end time in ns, bus name, identifier, extended, payload), in time order -> the report. For a
-    program that holds its frames already (the simulator's trace); times are taken to the microsecond, as a log
-    file would carry them."""
+    """Frames as (end time in ns, bus name, identifier, extended, payload[, error frame]), in time order -> the
+    report. For a program that holds its frames already (the simulator's trace, netcfg.sim.trace.TraceFrame);
+    times are taken to the microsecond, as a log file would carry them."""
     table = ChannelTable()
     t: list[int] = []
     ch: list[int] = []
@@ -67,11 +67,12 @@ def check_frames(
     flags: list[int] = []
     lengths: list[int] = []
     payload = bytearray()
-    for t_ns, channel, can_id, extended, data in frames:
+    for frame in frames:
+        t_ns, channel, can_id, extended, data = frame[:5]
         t.append((t_ns + 500) // 1000)
         ch.append(table.index(channel))
         ids.append(can_id)
-        flags.append(EXTENDED if extended else 0)
+        flags.append((EXTENDED if extended else 0) | (ERROR if len(frame) > 5 and frame[5] else 0))
         lengths.append(len(data))
         payload += bytes(data[:PAYLOAD_COLUMNS]).ljust(PAYLOAD_COLUMNS, b"\0")
     checker = Checker(cfg, table.names, window_us=window_us)
