@@ -10,6 +10,8 @@ recognise (CAN FD, remote or error frames, odd spacing) is handed to python-can'
 from __future__ import annotations
 
 import io
+import struct
+import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -81,7 +83,7 @@ def _guard(path: Path, batches: Iterator[Batch]) -> Iterator[Batch]:
         yield from batches
     except LogError:
         raise
-    except (OSError, ValueError, IndexError, KeyError, TypeError, UnicodeDecodeError, EOFError) as exc:
+    except (OSError, ValueError, IndexError, KeyError, TypeError, EOFError, struct.error, zlib.error) as exc:
         raise LogError(f"{path}: not a readable log ({type(exc).__name__}: {exc})") from exc
     except Exception as exc:  # python-can's readers raise their own types on damaged files (e.g. BLFParseError)
         if type(exc).__module__.startswith("can"):

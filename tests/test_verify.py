@@ -1,0 +1,299 @@
+"""`netcfg verify`: a recorded CAN log held against the spec and its analysis.
+
+The logs here are what `netcfg simulate --log` records for ALLEX-2 (seed 000: SYNC every 20 ms, an 8 s gait cycle
+of 400 samples per drive), edited frame by frame where a test needs a fault, and written back through python-can's
+own writers (candump -L, Vector ASC and BLF). Bounds come from the runtime configuration the analysis wrote
+(`wcrt_ns`), never from this file.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import can
+import pytest
+from conftest import ROOT, SPECS, cli
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from netcfg import runtime
+from netcfg.verify import check_frames, verify_log
+from netcfg.verify.logs import read_log
+
+ALLEX2 = SPECS / "allex2.yaml"
+RUNTIME = ROOT / "generated" / "allex2" / "runtime.json"
+GAIT_SAMPLES = 400  # seed 000: 8 s gait cycle, SYNC every 20 ms
+
+
+@pytest.fixture(scope="module")
+def cfg() -> runtime.RuntimeConfig:
+    return runtime.load(RUNTIME)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The simulated ALLEX-2 network's 8 s gait cycle as a candump -L log, recorded by `netcfg simulate --log`."""
+    log = tmp_path_factory.mktemp("verify") / "gait.log"
+    proc = cli("simulate", str(ALLEX2), "--duration", "8s", "--log", str(log))
+    assert proc.returncode == 0, proc.stderr
+    return log
+
+
+def frames_of(log: Path) -> list[can.Message]:
+    with can.LogReader(str(log)) as reader:
+        return list(reader)
+
+
+def write(frames: list[can.Message], path: Path) -> Path:
+    frames = sorted(frames, key=lambda m: m.timestamp)
+    with can.Logger(str(path)) as writer:
+        for m in frames:
+            writer.on_message_received(m)
+    return path
+
+
+def verify_json(*args: str) -> tuple[int, dict[str, Any], str]:
+    proc = cli("verify", *args, "--format", "json")
+    return proc.returncode, json.loads(proc.stdout) if proc.stdout else {}, proc.stderr
+
+
+def inject_faults(cfg: runtime.RuntimeConfig, frames: list[can.Message]) -> tuple[list[can.Message], dict[str, Any]]:
+    """The recorded frames with three faults: hip_l_cmd's 100th frame removed (a gap of one period), hip_l_state's
+    200th frame moved to 500 us after its SYNC (the analysis allows wcrt_ns), one frame with identifier 0x555."""
+    cmd = cfg.message("hip_l_cmd")
+    state = cfg.message("hip_l_state")
+    sync_id = cfg.bus("can0").canopen.sync_id  # type: ignore[union-attr]
+    out = list(frames)
+    cmds = [m for m in out if m.arbitration_id == cmd.id]
+    removed = cmds[99]
+    out.remove(removed)
+    states = [m for m in out if m.arbitration_id == state.id]
+    moved = states[199]
+    sync_before = max(m.timestamp for m in out if m.arbitration_id == sync_id and m.timestamp < moved.timestamp)
+    moved.timestamp = sync_before + 500e-6
+    stranger = can.Message(timestamp=frames[len(frames) // 2].timestamp + 1e-6, channel="can0", arbitration_id=0x555,
+                           is_extended_id=False, data=b"\x01\x02")
+    out.append(stranger)
+    facts = {
+        "gap_at": cmds[100].timestamp,
+        "late_at": moved.timestamp,
+        "late_by_us": 500 - state.wcrt_ns / 1000,  # type: ignore[operator]
+        "unknown_at": stranger.timestamp,
+    }
+    return out, facts
+
+
+def test_the_simulated_allex2_log_passes(recorded: Path) -> None:
+    """Every periodic message came 400 times (seed 000's 400 samples in 8 s); nothing outside the analysis."""
+    code, report, err = verify_json(str(ALLEX2), str(recorded))
+    assert code == 0, err
+    assert report["ok"] and report["violations"] == [] and report["unknown_ids"] == []
+    for m in report["messages"]:
+        if m["kind"] == "periodic":
+            assert m["count"] == GAIT_SAMPLES, m["name"]
+            assert m["missing"] == 0 and m["within_analysis"] is True
+    bus = report["buses"][0]
+    assert bus["canopen"]["sync"]["count"] == GAIT_SAMPLES
+    # every synchronous TPDO arrived inside the synchronous window (10 ms, seed 000)
+    assert all(p["inside_window"] for p in bus["canopen"]["synchronous_pdos"])
+    assert bus["canopen"]["sync_window_us"] == 10_000
+
+
+def test_a_gap_a_late_frame_and_an_unknown_identifier_are_exactly_three_violations(
+    recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path
+) -> None:
+    frames, facts = inject_faults(cfg, frames_of(recorded))
+    log = write(frames, tmp_path / "faulty.log")
+    code, report, err = verify_json(str(RUNTIME), str(log))
+    assert code == 1
+    start = min(m.timestamp for m in frames)
+    got = {v["kind"]: v for v in report["violations"]}
+    assert len(report["violations"]) == 3 and set(got) == {"gap", "late", "unknown_id"}
+    assert got["gap"]["message"] == "hip_l_cmd"
+    assert got["gap"]["time_us"] == round((facts["gap_at"] - start) * 1e6)
+    assert "1 period missing" in got["gap"]["detail"]
+    assert got["late"]["message"] == "hip_l_state"
+    assert got["late"]["time_us"] == round((facts["late_at"] - start) * 1e6)
+    assert f"{facts['late_by_us']:.0f} us late" in got["late"]["detail"]
+    assert got["unknown_id"]["time_us"] == round((facts["unknown_at"] - start) * 1e6)
+    assert report["unknown_ids"] == [
+        {"bus": "can0", "id": 0x555, "extended": False, "count": 1, "first_us": got["unknown_id"]["time_us"]}
+    ]
+    hip_l_cmd = next(m for m in report["messages"] if m["name"] == "hip_l_cmd")
+    assert hip_l_cmd["missing"] == 1 and hip_l_cmd["count"] == GAIT_SAMPLES - 1
+    # one line per violation on stderr: the log, when, what, which message, by how much
+    lines = err.strip().splitlines()
+    assert len(lines) == 3 and all(line.startswith(f"{log}: ") for line in lines)
+    assert any("late: hip_l_state:" in line and f"{facts['late_by_us']:.0f} us late" in line for line in lines)
+
+
+def test_asc_and_blf_written_by_python_can_give_identical_reports(
+    recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path
+) -> None:
+    """The same frames through python-can's ASC and BLF writers. ASC counts time from its first frame and BLF keeps
+    the absolute time, so the reports differ only in `start_us` (where the log's clock started) and `log`."""
+    frames, _ = inject_faults(cfg, frames_of(recorded))
+    reports = []
+    for suffix in (".asc", ".blf", ".log"):
+        report = verify_log(cfg, write(frames, tmp_path / f"same{suffix}"))
+        reports.append({k: v for k, v in report.items() if k not in ("start_us", "log")})
+    assert reports[0] == reports[1] == reports[2]
+    assert reports[0]["violation_count"] == 3
+
+
+def test_the_vectorised_candump_reader_matches_python_cans(recorded: Path, cfg: runtime.RuntimeConfig) -> None:
+    fast = verify_log(cfg, recorded)
+    reference = verify_log(cfg, recorded, fast=False)
+    assert fast == reference
+
+
+def _columns(path: Path, fast: bool) -> list[tuple[Any, ...]]:
+    channels, batches = read_log(path, fast=fast)
+    rows: list[tuple[Any, ...]] = []
+    for b in batches:
+        for i in range(len(b)):
+            rows.append((int(b.t_us[i]), channels.names[b.channel[i]], int(b.can_id[i]), int(b.flags[i]),
+                         int(b.length[i]), bytes(b.data[i])))
+    return rows
+
+
+frame_strategy = st.builds(
+    lambda ts, ch, ext, ident, data, kind: (ts, ch, ext, ident if ext else ident & 0x7FF, data, kind),
+    st.integers(0, 2_000_000_000_000_000),
+    st.sampled_from(["can0", "vcan1", "7"]),
+    st.booleans(),
+    st.integers(0, (1 << 29) - 1),
+    st.binary(max_size=8),
+    st.sampled_from(["data", "data", "data", "remote", "fd", "error"]),
+)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(frame_strategy, max_size=30))
+def test_vectorised_and_python_can_readers_agree_on_any_candump_file(
+    tmp_path: Path, frames: list[tuple[Any, ...]]
+) -> None:
+    """Data, remote, CAN FD and error frames, 11- and 29-bit, several interfaces, microsecond times."""
+    msgs = []
+    for ts, ch, ext, ident, data, kind in sorted(frames, key=lambda f: f[0]):
+        t = ts / 1e6
+        if kind == "error":
+            msgs.append(can.Message(timestamp=t, channel=ch, is_error_frame=True))
+        elif kind == "remote":
+            msgs.append(can.Message(timestamp=t, channel=ch, arbitration_id=ident, is_extended_id=ext,
+                                    is_remote_frame=True, dlc=len(data)))
+        else:
+            msgs.append(can.Message(timestamp=t, channel=ch, arbitration_id=ident, is_extended_id=ext, data=data,
+                                    is_fd=kind == "fd"))
+    path = tmp_path / "any.log"
+    with can.CanutilsLogWriter(str(path)) as writer:
+        for m in msgs:
+            writer.on_message_received(m)
+    assert _columns(path, fast=True) == _columns(path, fast=False)
+
+
+def test_canopen_services_are_listed_not_unknown(
+    recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path
+) -> None:
+    """CiA 301's predefined connection set: heartbeat 0x700 + node id (state byte: 0x05 operational, 0x7F
+    pre-operational), EMCY 0x080 + node id, NMT 0x000 (command, node)."""
+    frames = frames_of(recorded)
+    t0 = frames[0].timestamp
+    hip_l = cfg.node("hip_l").node_id
+    assert hip_l is not None
+    extra = [
+        can.Message(timestamp=t0 + 0.0001, channel="can0", arbitration_id=0x000, is_extended_id=False,
+                    data=bytes([0x01, 0x00])),
+        can.Message(timestamp=t0 + 0.5, channel="can0", arbitration_id=0x700 + hip_l, is_extended_id=False,
+                    data=b"\x7f"),
+        can.Message(timestamp=t0 + 1.5, channel="can0", arbitration_id=0x700 + hip_l, is_extended_id=False,
+                    data=b"\x05"),
+        can.Message(timestamp=t0 + 2.5, channel="can0", arbitration_id=0x080 + hip_l, is_extended_id=False,
+                    data=bytes([0x10, 0x81, 0x11, 0, 0, 0, 0, 0])),
+    ]
+    report = verify_log(cfg, write(frames + extra, tmp_path / "services.log"))
+    assert report["unknown_ids"] == [] and report["ok"]
+    co = report["buses"][0]["canopen"]
+    assert co["nmt_commands"] == [{"time_us": 100, "command": "start", "node": "all nodes"}]
+    assert [(s["node"], s["state"]) for s in co["nmt_states"]] == [("hip_l", "pre-operational"),
+                                                                  ("hip_l", "operational")]
+    assert co["heartbeats"] == {"hip_l": {"count": 2, "state": "operational"}}
+    assert co["emcy"] == [{"time_us": 2_500_000, "node": "hip_l", "code": "0x8110", "register": 0x11}]
+
+
+def test_signals_outside_the_specs_limits(cfg: runtime.RuntimeConfig) -> None:
+    """A limit on hip_l_state.position_actual_value (the spec's `min`/`max`), frames encoded by netcfg.runtime."""
+    doc = json.loads(RUNTIME.read_text(encoding="utf-8"))
+    for m in doc["messages"]:
+        if m["name"] == "hip_l_state":
+            for s in m["signals"]:
+                if s["name"] == "position_actual_value":
+                    s["min"], s["max"] = -1000, 4000
+    limited = runtime.parse(doc)
+    msg = cfg.message("hip_l_state")  # the same layout without the limits, which the codec would enforce
+    positions = [0, 4000, 5000, -1500, 100]
+    frames = [
+        (i * 20_000_000, "can0", msg.id, False, msg.encode(position_actual_value=p, velocity_actual_value=0))
+        for i, p in enumerate(positions)
+    ]
+    report = check_frames(limited, frames)
+    ranges = [v for v in report["violations"] if v["kind"] == "range"]
+    assert len(ranges) == 1 and ranges[0]["message"] == "hip_l_state"
+    assert ranges[0]["time_us"] == 40_000  # the third frame, 2 periods after the first
+    assert "in 2 frame(s), worst 5000" in ranges[0]["detail"]  # 5000 is 1000 above 4000, -1500 500 below -1000
+
+
+def test_a_flooded_window_exceeds_the_analysed_load(
+    recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path
+) -> None:
+    """500 extra 8-byte frames of hip_l_cmd within one 100 ms window: at least 500 x 135 bits (55 + 10 x 8, worst
+    stuffing, Davis et al. 2007) = 67.5 ms of a 1 Mbit/s bus, more than any window can carry by the analysis."""
+    frames = frames_of(recorded)
+    t0 = frames[0].timestamp + 1.0
+    flood = [can.Message(timestamp=t0 + i * 150e-6, channel="can0", arbitration_id=0x201, is_extended_id=False,
+                         data=bytes(8)) for i in range(500)]
+    report = verify_log(cfg, write(frames + flood, tmp_path / "flood.log"))
+    loads = [v for v in report["violations"] if v["kind"] == "load"]
+    assert loads and all("bus can0" in v["detail"] for v in loads)
+    assert report["buses"][0]["load"]["max"] >= 500 * 135 / 100_000
+
+
+def test_unreadable_logs_exit_2_without_a_traceback(tmp_path: Path, recorded: Path) -> None:
+    garbage = tmp_path / "garbage.log"
+    garbage.write_text("this is not a candump log\n", encoding="utf-8")
+    blf = tmp_path / "broken.blf"
+    blf.write_bytes(b"LOGG" + bytes(40))
+    for log, extra in ((garbage, ()), (blf, ()), (tmp_path / "absent.log", ()), (recorded, ("--log-format", "xyz"))):
+        proc = cli("verify", str(RUNTIME), str(log), *extra)
+        assert proc.returncode == 2, (log, proc.stderr)
+        assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    unknown_suffix = tmp_path / "gait.txt"
+    unknown_suffix.write_bytes(recorded.read_bytes())
+    proc = cli("verify", str(RUNTIME), str(unknown_suffix))
+    assert proc.returncode == 2 and "--log-format" in proc.stderr
+    assert cli("verify", str(RUNTIME), str(unknown_suffix), "--log-format", "candump").returncode == 0
+
+
+def test_simulate_holds_its_trace_with_the_same_checker(tmp_path: Path) -> None:
+    log = tmp_path / "cambada.log"
+    proc = cli("simulate", str(SPECS / "cambada.yaml"), "--duration", "1s", "--log", str(log), "--format", "json")
+    assert proc.returncode == 0, proc.stderr
+    check = json.loads(proc.stdout)["log_check"]
+    assert check["ok"] and check["violation_count"] == 0
+    # the file it wrote gives the same verdict through netcfg verify
+    assert cli("verify", str(SPECS / "cambada.yaml"), str(log)).returncode == 0
+
+
+def test_report_plots_are_deterministic(recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path) -> None:
+    from netcfg.verify.plots import draw
+
+    report = verify_log(cfg, recorded)
+    report["messages"] = [m for m in report["messages"] if m["name"] in ("can0_SYNC", "hip_l_state")]
+    first = draw(report, tmp_path / "a")
+    second = draw(report, tmp_path / "b")
+    assert [Path(p).name for p in first] == ["period_can0_SYNC.png", "period_hip_l_state.png",
+                                             "response_hip_l_state.png", "load_can0.png"]
+    for a, b in zip(first, second):
+        assert Path(a).read_bytes() == Path(b).read_bytes()
