@@ -127,6 +127,9 @@ for _i, _c in enumerate(b"0123456789ABCDEF"):
 for _i, _c in enumerate(b"abcdef"):
     _HEX[_c] = 10 + _i
 _POW10 = np.array([10**k for k in range(19)], np.int64)
+_DECIMAL = np.full(256, 255, np.uint8)
+_DECIMAL[48:58] = np.arange(10)
+_PAD = 32
 _MAX_CHANNEL = 16  # interface names longer than this go to python-can's reader
 
 
@@ -170,7 +173,7 @@ def _candump_block(block: bytes, channels: ChannelTable) -> Batch:
 
 def _parse_plain(block: bytes, channels: ChannelTable) -> Batch | None:
     """Lines `(SECONDS.FRACTION) IFACE ID#HEXDATA[ R|T]` of classical data frames; None when any line is otherwise."""
-    buf = np.frombuffer(block, np.uint8)
+    buf = np.frombuffer(block + bytes(_PAD), np.uint8)  # windows past the last line read zeros
     ends = np.flatnonzero(buf == 10)
     starts = np.empty_like(ends)
     starts[0] = 0
@@ -198,18 +201,17 @@ def _parse_plain(block: bytes, channels: ChannelTable) -> Batch | None:
     frac_len = closes - dots - 1
     if int_len.min() < 1 or int_len.max() > 12 or frac_len.min() < 1 or frac_len.max() > 9:
         return None
-    seconds = _decimal(buf, starts + 1, int_len, 12)
-    fraction = _decimal(buf, dots + 1, frac_len, 9)
+    seconds = _number(buf, starts + 1, int_len, _DECIMAL)
+    fraction = _number(buf, dots + 1, frac_len, _DECIMAL)
     if seconds is None or fraction is None:
         return None
     ns = fraction * _POW10[9 - frac_len]
     t_us = seconds * 1_000_000 + (ns + 500) // 1000  # rounded to the microsecond, as seconds_to_us
     # identifier: 3 hex digits (11-bit) or 8 (29-bit; an error frame has bit 29 set: python-can's reader takes it)
-    id_start = iface_end + 1
-    id_len = hashes - id_start
+    id_len = hashes - iface_end - 1
     if not np.isin(id_len, (3, 8)).all():
         return None
-    can_id = _hex(buf, id_start, id_len, 8)
+    can_id = _number(buf, iface_end + 1, id_len, _HEX)
     if can_id is None:
         return None
     extended = id_len == 8
@@ -234,11 +236,11 @@ def _parse_plain(block: bytes, channels: ChannelTable) -> Batch | None:
     data = np.zeros((n, PAYLOAD_COLUMNS), np.uint8)
     for k in range(int(length.max(initial=0))):
         have = length > k
-        hi = _HEX[buf[np.where(have, data_start + 2 * k, 0)]]
-        lo = _HEX[buf[np.where(have, data_start + 2 * k + 1, 0)]]
-        if ((hi[have] == 255) | (lo[have] == 255)).any():
+        hi = _HEX[buf[data_start + 2 * k]]  # the padding keeps every index inside the block
+        lo = _HEX[buf[data_start + 2 * k + 1]]
+        if (((hi | lo) == 255) & have).any():
             return None
-        data[:, k] = np.where(have, (hi << 4) | lo, 0)
+        data[:, k] = ((hi << 4) | lo) * have
     channel = _channels(buf, closes + 2, iface_end - closes - 2, channels)
     if channel is None:
         return None
@@ -246,25 +248,25 @@ def _parse_plain(block: bytes, channels: ChannelTable) -> Batch | None:
     return Batch(t_us, channel, can_id, flags, length, data)
 
 
-def _decimal(buf: NDArray[np.uint8], start: NDArray[np.int64], length: NDArray[np.int64], most: int) -> Any:
-    value = np.zeros(len(start), np.int64)
-    for k in range(int(min(most, length.max(initial=0)))):
-        have = length > k
-        digit = buf[np.where(have, start + k, 0)].astype(np.int64) - 48
-        if ((digit < 0) | (digit > 9))[have].any():
-            return None
-        value = np.where(have, value * 10 + digit, value)
-    return value
-
-
-def _hex(buf: NDArray[np.uint8], start: NDArray[np.int64], length: NDArray[np.int64], most: int) -> Any:
-    value = np.zeros(len(start), np.int64)
-    for k in range(most):
-        have = length > k
-        digit = _HEX[buf[np.where(have, start + k, 0)]].astype(np.int64)
-        if (digit[have] == 255).any():
-            return None
-        value = np.where(have, (value << 4) | digit, value)
+def _number(
+    buf: NDArray[np.uint8], first: NDArray[np.int64], length: NDArray[np.int64], digit_of: NDArray[np.uint8]
+) -> NDArray[np.int64] | None:
+    """The numbers written at buf[first : first + length] (digits by digit_of's table, base 10 or 16), one column of
+    digits at a time; None when a character is not a digit."""
+    base = 10 if digit_of is _DECIMAL else 16
+    value = np.zeros(len(first), np.int64)
+    uniform = bool((length == length[0]).all())
+    for k in range(int(length.max(initial=0))):
+        digit = digit_of[buf[first + k]]
+        if uniform:
+            if (digit == 255).any():
+                return None
+            value = value * base + digit
+        else:
+            have = length > k
+            if ((digit == 255) & have).any():
+                return None
+            value = np.where(have, value * base + digit, value)
     return value
 
 
@@ -276,9 +278,8 @@ def _channels(
         return None
     names = np.zeros((len(start), _MAX_CHANNEL), np.uint8)
     for k in range(int(length.max())):
-        have = length > k
-        names[:, k] = np.where(have, buf[np.where(have, start + k, 0)], 0)
-    keys = names.view(np.dtype((np.void, _MAX_CHANNEL))).ravel()
+        names[:, k] = buf[start + k] * (length > k)
+    keys = np.ascontiguousarray(names).view(np.dtype((np.void, _MAX_CHANNEL))).ravel()
     if (keys == keys[0]).all():  # the common case: one interface
         unique, inverse = keys[:1], np.zeros(len(keys), np.int64)
     else:
