@@ -105,9 +105,10 @@ def _analysed_utilization(source: Path) -> dict[str, float] | None:
 
 
 def _public(report: dict[str, Any]) -> dict[str, Any]:
-    """The JSON document: times as microseconds (floats at the edge), histograms left to --report."""
+    """The JSON document: histograms and the load of every window are left to --report (a long log has millions)."""
     out = dict(report)
     out["messages"] = [{k: v for k, v in m.items() if k != "histograms"} for m in report["messages"]]
+    out["buses"] = [{k: v for k, v in b.items() if k != "load_per_window"} for b in report["buses"]]
     return out
 
 
@@ -132,7 +133,7 @@ def text(report: dict[str, Any]) -> str:
         "error frames, "
         f"{report['violation_count']} violations, {report['warning_count']} warnings",
         "",
-        f"  {'message':<24}{'id':>6}{'count':>8}{'period min/mean/max ms':>26}{'jitter us':>11}{'bound us':>10}"
+        f"  {'message':<24}{'id':>9}{'count':>10}{'period min/mean/max ms':>27}{'jitter us':>11}{'bound us':>10}"
         f"{'resp max us':>13}{'wcrt us':>9}{'missing':>9}  ok",
     ]
     for m in report["messages"]:
@@ -143,7 +144,7 @@ def text(report: dict[str, Any]) -> str:
         if m["warnings"]:
             ok += f" ({m['warnings']} warnings)"
         lines.append(
-            f"  {m['name']:<24}{m['id']:>6X}{m['count']:>8}{period:>26}{_f(m['jitter_us']):>11}"
+            f"  {m['name']:<24}{m['id']:>9X}{m['count']:>10}{period:>27}{_f(m['jitter_us']):>11}"
             f"{_f(m['analysed_jitter_us']):>10}{_f(None if r is None else r['max']):>13}{_f(m['wcrt_us']):>9}"
             f"{m['missing']:>9}  {ok}"
         )
