@@ -297,3 +297,35 @@ def test_report_plots_are_deterministic(recorded: Path, cfg: runtime.RuntimeConf
                                              "response_hip_l_state.png", "load_can0.png"]
     for a, b in zip(first, second):
         assert Path(a).read_bytes() == Path(b).read_bytes()
+
+
+def test_a_multi_bus_log_maps_channels_to_buses(tmp_path: Path) -> None:
+    """large_plant's three buses: the simulator names each frame's channel after its bus; the same frames under
+    numbered channels need --bus CHANNEL=BUS and then give the same report."""
+    named = tmp_path / "plant.log"
+    cli("simulate", str(SPECS / "large_plant.yaml"), "--duration", "300ms", "--log", str(named))
+    frames = frames_of(named)
+    buses = sorted({str(m.channel) for m in frames})
+    assert len(buses) == 3
+    for m in frames:
+        m.channel = f"vcan{buses.index(str(m.channel))}"
+    numbered = write(frames, tmp_path / "numbered.log")
+    proc = cli("verify", str(SPECS / "large_plant.yaml"), str(numbered))
+    assert proc.returncode == 2 and "--bus vcan0=BUS" in proc.stderr
+    mapping = [arg for i, b in enumerate(buses) for arg in ("--bus", f"vcan{i}={b}")]
+    _, by_name, _ = verify_json(str(SPECS / "large_plant.yaml"), str(named))
+    _, by_map, _ = verify_json(str(SPECS / "large_plant.yaml"), str(numbered), *mapping)
+    assert by_map["frames"] == len(frames) and by_map["unknown_ids"] == []
+    assert {k: v for k, v in by_map.items() if k != "log"} == {k: v for k, v in by_name.items() if k != "log"}
+
+
+def test_a_live_master_feeds_python_can_messages(recorded: Path, cfg: runtime.RuntimeConfig) -> None:
+    """The checker a master calls (Checker.feed_messages) gives the report `netcfg verify` gives for the log."""
+    from netcfg.verify import Checker
+
+    checker = Checker(cfg)
+    frames = frames_of(recorded)
+    for start in range(0, len(frames), 1000):  # as frames arrive, in pieces
+        checker.feed_messages(frames[start : start + 1000])
+    live = checker.finish()
+    assert live == {k: v for k, v in verify_log(cfg, recorded).items() if k != "log"}

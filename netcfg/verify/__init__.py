@@ -5,8 +5,8 @@
 
 A master or the simulator that has the frames already feeds them itself:
 
-    checker = Checker(cfg, channels=["can0"])
-    checker.feed(batch)                                  # Batches, in time order, as many as needed
+    checker = Checker(cfg)
+    checker.feed_messages(received)                      # python-can Messages, in time order, as many as needed
     report = checker.finish()
 
 `netcfg verify`, `netcfg simulate --log` and a live master all use this one checker, so they agree on what a
@@ -15,7 +15,7 @@ violation is (see netcfg.verify.checker for the list).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +33,7 @@ def verify_log(
     cfg: RuntimeConfig,
     log: Path,
     *,
-    bus: str | None = None,
+    bus: str | Mapping[str, str] | None = None,
     log_format: str | None = None,
     window_us: int = DEFAULT_WINDOW_US,
     strict: bool = False,

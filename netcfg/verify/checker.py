@@ -30,8 +30,9 @@ frame was queued, so a long interval is either a late frame or release jitter th
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,7 +40,10 @@ from numpy.typing import NDArray
 from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 from netcfg.timing.load import exact_rate, rate_hz
-from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch
+from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch, ChannelTable, batch_from_messages
+
+if TYPE_CHECKING:
+    import can
 
 __all__ = ["MAX_VIOLATIONS", "Checker", "VerifyError"]
 
@@ -100,14 +104,18 @@ class _MessageState:
 
 
 class Checker:
-    """Feed Batches in time order; then report(). `channels` is the reader's channel-name list (grows as it
-    reads); `bus` names the configuration's bus every channel belongs to when the names are not bus names."""
+    """Feed Batches (or python-can Messages, feed_messages) in time order; then finish().
+
+    `channels` is the reader's channel-name list (it grows as the reader meets new ones); without it the checker
+    keeps its own, for feed_messages. A channel whose name is a bus name belongs to that bus; `bus` maps other
+    channel names to buses ({"1": "motion"}), or names the one bus every other channel belongs to; a system with
+    one CAN bus needs neither."""
 
     def __init__(
         self,
         cfg: RuntimeConfig,
-        channels: list[str],
-        bus: str | None = None,
+        channels: list[str] | None = None,
+        bus: str | Mapping[str, str] | None = None,
         window_us: int = DEFAULT_WINDOW_US,
         strict: bool = False,
         utilization: dict[str, float] | None = None,
@@ -115,17 +123,24 @@ class Checker:
     ) -> None:
         self.cfg = cfg
         self.clock_tolerance = clock_tolerance_ppm / 1e6
-        self.channels = channels
+        self._table = ChannelTable()
+        self.channels = channels if channels is not None else self._table.names
         self.strict = strict
         self.window_us = window_us
         self.buses: list[Bus] = [b for b in cfg.buses if b.is_can]
         if not self.buses:
             raise VerifyError(f"{cfg.system} has no CAN bus; verify checks CAN logs")
-        if bus is not None:
-            cfg.bus(bus)  # names close matches when unknown
-            if not cfg.bus(bus).is_can:
-                raise VerifyError(f"bus '{bus}' is {cfg.bus(bus).protocol}; verify checks CAN buses")
-        self.forced_bus = None if bus is None else [b.name for b in self.buses].index(bus)
+        self.forced_bus: int | None = None
+        self.channel_map: dict[str, int] = {}
+        for channel, name in ({"": bus} if isinstance(bus, str) else dict(bus or {})).items():
+            cfg.bus(name)  # names close matches when unknown
+            if not cfg.bus(name).is_can:
+                raise VerifyError(f"bus '{name}' is {cfg.bus(name).protocol}; verify checks CAN buses")
+            index = [b.name for b in self.buses].index(name)
+            if channel:
+                self.channel_map[channel] = index
+            else:
+                self.forced_bus = index
         self._channel_bus: list[int] = []
         self.states: list[_MessageState] = []
         keys: list[int] = []
@@ -202,6 +217,8 @@ class Checker:
         return np.array(self._channel_bus, np.int64)[channel] if len(channel) else np.empty(0, np.int64)
 
     def _bus_of_channel(self, name: str) -> int:
+        if name in self.channel_map:
+            return self.channel_map[name]
         if self.forced_bus is not None:
             return self.forced_bus
         names = [b.name for b in self.buses]
@@ -209,11 +226,18 @@ class Checker:
             return names.index(name)
         if len(self.buses) == 1:
             return 0
+        if not name:
+            return -1  # no channel (python-can's error frames): fine unless a data frame has none either
         raise VerifyError(
-            f"the log's channel {name!r} is none of the buses {', '.join(names)}; say which with --bus NAME"
+            f"the log's channel {name!r} is none of the buses {', '.join(names)}; say which with "
+            f"--bus {name or 'CHANNEL'}=BUS"
         )
 
     # --- feeding ------------------------------------------------------------------------------------------------
+
+    def feed_messages(self, messages: Iterable[can.Message]) -> None:
+        """python-can Messages (a live bus, a reader): needs the checker's own channel list (no `channels`)."""
+        self.feed(batch_from_messages(messages, self._table))
 
     def feed(self, batch: Batch) -> None:
         n = len(batch)
@@ -237,6 +261,11 @@ class Checker:
                 self._violation("error_frames", None, int(t_err), "an error frame: the analysis has no error model")
         keep = ~err
         bus = self._buses_of(batch.channel)
+        if (bus[keep] < 0).any():
+            raise VerifyError(
+                f"the log's frames name no channel and the system has {len(self.buses)} CAN buses; say which "
+                "with --bus BUS"
+            )
         ext = (batch.flags & EXTENDED) != 0
         self._load(t[keep], bus[keep], ext[keep], batch.length[keep])
         key = _key_array(bus, batch.can_id, ext)

@@ -23,7 +23,9 @@ def add_parser(sub: Any) -> None:
     p = sub.add_parser("verify", help="hold a recorded CAN log against the spec and its analysis")
     p.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
     p.add_argument("log", type=Path, metavar="LOG", help="candump .log, .asc, .blf, .trc, .csv, .db (SQLite), .mf4")
-    p.add_argument("--bus", help="the bus the log was recorded on (when its channel names are not bus names)")
+    p.add_argument("--bus", action="append", default=[], metavar="[CHANNEL=]BUS",
+                   help="the bus the log was recorded on, when its channel names are not bus names; "
+                   "CHANNEL=BUS for each channel of a multi-bus log (repeatable)")
     p.add_argument("--log-format", help="the log's format when its suffix does not say (candump, asc, blf, ...)")
     p.add_argument("--format", choices=("text", "json"), default="text")
     p.add_argument("--report", type=Path, metavar="DIR", help="write period, latency and bus-load plots (PNG) here")
@@ -57,11 +59,17 @@ def verify_command(args: argparse.Namespace) -> int:
     if doc is None:
         return 1
     cfg = runtime.parse(doc, str(args.source))
+    plain = [b for b in args.bus if "=" not in b]
+    if len(plain) > 1:
+        print("netcfg: --bus: give one BUS for every channel, or CHANNEL=BUS per channel", file=sys.stderr)
+        return 2
+    buses: dict[str, str] = {"": plain[0]} if plain else {}
+    buses.update(b.split("=", 1) for b in args.bus if "=" in b)  # type: ignore[misc]
     utilization = _analysed_utilization(args.source)
     started = time.perf_counter()
     try:
         report = verify_log(
-            cfg, args.log, bus=args.bus, log_format=args.log_format, window_us=window_ns // 1000,
+            cfg, args.log, bus=buses, log_format=args.log_format, window_us=window_ns // 1000,
             strict=args.strict, fast=not args.reference_reader, utilization=utilization, progress=_progress,
         )
     except LogError as exc:

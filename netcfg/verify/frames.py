@@ -7,7 +7,7 @@ message with array operations. Times are integer microseconds, the resolution ev
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,7 +68,7 @@ def seconds_to_us(timestamp: float) -> int:
     return round(timestamp * 1_000_000)
 
 
-def batch_from_messages(messages: Sequence[object] | Iterable[object], channels: ChannelTable) -> Batch:
+def batch_from_messages(messages: Iterable[object], channels: ChannelTable) -> Batch:
     """python-can Messages -> a Batch (the reference path: every reader python-can has)."""
     t: list[int] = []
     ch: list[int] = []
