@@ -329,3 +329,20 @@ def test_a_live_master_feeds_python_can_messages(recorded: Path, cfg: runtime.Ru
         checker.feed_messages(frames[start : start + 1000])
     live = checker.finish()
     assert live == {k: v for k, v in verify_log(cfg, recorded).items() if k != "log"}
+
+
+def test_the_analysed_utilisation_is_the_analysis_own(tmp_path: Path) -> None:
+    """verify compares the measured load with the analysis' utilisation over every frame a log shows: on CAN the
+    report's figure (ALLEX-2), on FTT-CAN the report's load plus its trigger-message overhead (CAMBADA: seed 002's
+    27 % bus load and 8.4 % TM overhead)."""
+    from conftest import check
+
+    for name, duration in (("allex2", "100ms"), ("cambada", "100ms")):
+        log = tmp_path / f"{name}.log"
+        cli("simulate", str(SPECS / f"{name}.yaml"), "--duration", duration, "--log", str(log))
+        analysed = check(SPECS / f"{name}.yaml")["buses"][0]
+        verified = verify_log(runtime.load(ROOT / "generated" / name / "runtime.json"), log)["buses"][0]
+        extra = analysed["ftt"]["tm_overhead"] if "ftt" in analysed else 0.0
+        assert verified["utilization_analysed"] == pytest.approx(analysed["utilization"] + extra, abs=1e-6)
+        if name == "cambada":
+            assert verified["utilization_analysed"] == pytest.approx(0.27 + 0.084, abs=0.001)

@@ -38,13 +38,12 @@ def verify_log(
     window_us: int = DEFAULT_WINDOW_US,
     strict: bool = False,
     fast: bool = True,
-    utilization: dict[str, float] | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     """Read the log in batches and check it; LogError when it cannot be read, VerifyError when the log and the
     configuration cannot be matched."""
     channels, batches = read_log(log, log_format, fast=fast, progress=progress)
-    checker = Checker(cfg, channels.names, bus, window_us, strict, utilization)
+    checker = Checker(cfg, channels.names, bus, window_us, strict)
     for batch in batches:
         checker.feed(batch)
     report = checker.finish()

@@ -118,7 +118,6 @@ class Checker:
         bus: str | Mapping[str, str] | None = None,
         window_us: int = DEFAULT_WINDOW_US,
         strict: bool = False,
-        utilization: dict[str, float] | None = None,
         clock_tolerance_ppm: float = DEFAULT_CLOCK_TOLERANCE_PPM,
     ) -> None:
         self.cfg = cfg
@@ -173,7 +172,6 @@ class Checker:
         self.violation_count: dict[str, int] = {}
         self.warnings: list[dict[str, Any]] = []
         self.warning_count = 0
-        self.utilization = utilization or {}
         # worst-case bits of a classical frame by [extended][payload bytes] (netcfg.timing.frames)
         self._bits = np.array([[can_frame_bits(s, x, "worst") for s in range(9)] for x in (False, True)], np.int64)
 
@@ -637,7 +635,7 @@ class Checker:
         window_ns = self.window_us * 1000
         load = [round(bits_to_ns(int(x), bus.bitrate) / window_ns, 6) for x in bits]
         bound = self.window_bound(b)
-        analysed = self.utilization.get(bus.name, self._utilization(b))
+        analysed = self._utilization(b)
         for w, value in enumerate(load):
             if w < len(load) - 1 and value > bound:  # the last window is cut short by the log's end
                 assert self.first_t is not None
@@ -661,7 +659,9 @@ class Checker:
         return out
 
     def _utilization(self, b: int) -> float:
-        """The analysis' worst-case utilisation of the bus from the runtime configuration (netcfg.timing)."""
+        """The bus's worst-case utilisation as the analysis computes it (netcfg.timing: worst-case stuffing, each
+        message at its fastest admissible rate), over every frame the log can show: FTT-CAN's trigger message
+        included (the analysis reports it apart, as the TM overhead)."""
         bus = self.buses[b]
         return sum(
             bits_to_ns(can_frame_bits(st.msg.size, st.msg.extended, "worst"), bus.bitrate) * rate_hz(st.msg) / 1e9

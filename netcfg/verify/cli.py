@@ -36,7 +36,6 @@ def add_parser(sub: Any) -> None:
 
 
 def verify_command(args: argparse.Namespace) -> int:
-    from netcfg.sim.cli import load_document
     from netcfg.sim.faults import FaultError, parse_time
 
     try:
@@ -47,6 +46,8 @@ def verify_command(args: argparse.Namespace) -> int:
     if window_ns < 1000:
         print(f"netcfg: --window {args.window}: give at least 1 us, e.g. 100ms", file=sys.stderr)
         return 2
+    from netcfg.sim.cli import load_document
+
     try:
         doc = load_document(args.source)
     except json.JSONDecodeError as exc:
@@ -65,12 +66,11 @@ def verify_command(args: argparse.Namespace) -> int:
         return 2
     buses: dict[str, str] = {"": plain[0]} if plain else {}
     buses.update(b.split("=", 1) for b in args.bus if "=" in b)  # type: ignore[misc]
-    utilization = _analysed_utilization(args.source)
     started = time.perf_counter()
     try:
         report = verify_log(
             cfg, args.log, bus=buses, log_format=args.log_format, window_us=window_ns // 1000,
-            strict=args.strict, fast=not args.reference_reader, utilization=utilization, progress=_progress,
+            strict=args.strict, fast=not args.reference_reader, progress=_progress,
         )
     except LogError as exc:
         _progress_done()
@@ -99,17 +99,6 @@ def verify_command(args: argparse.Namespace) -> int:
     for line in violation_lines(report, str(args.log)):
         print(line, file=sys.stderr)
     return 0 if report["ok"] else 1
-
-
-def _analysed_utilization(source: Path) -> dict[str, float] | None:
-    """A spec's analysis report gives the bus utilisation; a runtime.json does not carry it (the checker then asks
-    netcfg.timing for it)."""
-    if source.suffix == ".json":
-        return None
-    from netcfg.check import check
-
-    report = check(source)
-    return {b["name"]: float(b["utilization"]) for b in report.get("buses", [])}
 
 
 def _public(report: dict[str, Any]) -> dict[str, Any]:
