@@ -71,7 +71,10 @@ def draw(report: dict[str, Any], folder: Path) -> list[str]:
 
 
 def _bars(ax: Any, hist: dict[str, Any], scale: float) -> None:
-    """The fixed bins (the under- and overflow bins are left out; the table has the extremes)."""
+    """The fixed bins; frames beyond the last are counted in a note (the table has the extremes)."""
     edges = [e / scale for e in hist["edges_us"]]
     counts = hist["counts"][1:-1]
     ax.stairs(counts, edges, fill=True, color="#4878a8")
+    beyond = hist["counts"][-1]
+    if beyond:
+        ax.text(0.99, 0.5, f"{beyond} beyond ->", transform=ax.transAxes, ha="right", color="#c03030")
