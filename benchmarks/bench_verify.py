@@ -1,11 +1,11 @@
 """`netcfg verify` speed and memory, on a generated log, side by side with python-can's own readers.
 
-    python benchmarks/bench_verify.py [--frames 5000000] [--reference-frames 200000]
+    python benchmarks/bench_verify.py [--frames 5000000] [--reference-frames 200000] [--repeat 3]
 
 The log is the simulated ALLEX-2 network (seed 000's 8 s gait cycle, about 7,600 frames) repeated back to back, its
 times shifted by 8 s each time, as a candump -L file. Figures:
 1. netcfg's vectorised candump reader and checker together (what `netcfg verify` does after start-up): frames per
-   CPU second, median of three runs (one core: everything runs in one thread).
+   CPU second, median of --repeat runs (one core: everything runs in one thread).
 2. python-can's readers (candump, ASC, BLF) on the first --reference-frames frames, each followed by the same
    checker: frames per CPU second, median of three.
 3. Peak memory (maximum resident set) of a fresh process checking logs of 1/5 and all of --frames frames: bounded
@@ -86,6 +86,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=5_000_000)
     ap.add_argument("--reference-frames", type=int, default=200_000)
+    ap.add_argument("--repeat", type=int, default=3, help="runs per figure (the median is printed)")
     args = ap.parse_args()
     cfg = allex2_config()
     with tempfile.TemporaryDirectory() as tmp:
@@ -96,7 +97,7 @@ def main() -> None:
         n_small = write_log(cfg, small, args.frames // 5)
         size_mb = big.stat().st_size / 1e6
         print(f"log: {n:,} frames, {size_mb:.0f} MB candump -L (ALLEX-2 gait cycle repeated)")
-        fast = timed(lambda: verify_log(cfg, big))
+        fast = timed(lambda: verify_log(cfg, big), args.repeat)
         print(f"netcfg verify, vectorised candump reader + checker: {fast:.2f} s CPU, {n / fast:,.0f} frames/s")
 
         ref_log = folder / "ref.log"

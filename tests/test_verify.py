@@ -346,3 +346,13 @@ def test_the_analysed_utilisation_is_the_analysis_own(tmp_path: Path) -> None:
         assert verified["utilization_analysed"] == pytest.approx(analysed["utilization"] + extra, abs=1e-6)
         if name == "cambada":
             assert verified["utilization_analysed"] == pytest.approx(0.27 + 0.084, abs=0.001)
+
+
+def test_error_frames_are_one_violation_with_their_count(cfg: runtime.RuntimeConfig) -> None:
+    sync = cfg.message("can0_SYNC")
+    frames: list[tuple[Any, ...]] = [(i * 20_000_000, "can0", sync.id, False, b"") for i in range(10)]
+    frames += [(30_000_000 + i * 1000, "can0", 0, False, b"", True) for i in range(3)]
+    report = check_frames(cfg, sorted(frames, key=lambda f: f[0]))
+    errors = [v for v in report["violations"] if v["kind"] == "error_frames"]
+    assert report["error_frames"] == 3 and len(errors) == 1
+    assert errors[0]["time_us"] == 30_000 and errors[0]["detail"].startswith("3 error frame(s)")

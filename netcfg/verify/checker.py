@@ -163,6 +163,7 @@ class Checker:
         self._last_ref: dict[int, int] = {}
         self.frames = 0
         self.error_frames = 0
+        self.first_error_t = 0
         self.first_t: int | None = None
         self.last_t: int | None = None
         self.window_bits: list[NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in self.buses]
@@ -253,9 +254,9 @@ class Checker:
         self.frames += n
         err = (batch.flags & ERROR) != 0
         if err.any():
+            if not self.error_frames:
+                self.first_error_t = int(t[err][0])
             self.error_frames += int(err.sum())
-            for t_err in t[err][:1]:
-                self._violation("error_frames", None, int(t_err), "an error frame: the analysis has no error model")
         keep = ~err
         bus = self._buses_of(batch.channel)
         if (bus[keep] < 0).any():
@@ -434,48 +435,63 @@ class Checker:
                         rec[2] = v
 
     def _unknown(self, t: Any, bus: Any, can_id: Any, ext: Any, data: NDArray[np.uint8]) -> None:
-        for k in range(len(t)):
-            b, i, x = int(bus[k]), int(can_id[k]), bool(ext[k])
-            if not x and self.buses[b].canopen is not None and self._service(b, i, int(t[k]), data[k]):
+        """Frames of no configured message: CANopen services of the bus's nodes are noted (SDO and the like
+        counted at once, heartbeats, NMT and EMCY one by one: they are few); the rest counted per identifier."""
+        rest = np.ones(len(t), bool)
+        for b, bus_ in enumerate(self.buses):
+            if bus_.canopen is None:
                 continue
+            on_bus = (bus == b) & ~ext
+            if not on_bus.any():
+                continue
+            node_ids = np.array(sorted(self._node_names(b)), np.int64)
+            base, node = can_id & 0x780, can_id & 0x7F
+            ours = np.isin(node, node_ids)
+            counted = on_bus & ((np.isin(base, (TSDO_BASE, RSDO_BASE)) & ours) | (can_id == TIME_ID)
+                                | np.isin(can_id, LSS_IDS))
+            self.services[b]["sdo"] += int((counted & np.isin(base, (TSDO_BASE, RSDO_BASE))).sum())
+            self.services[b]["other"] += int((counted & ~np.isin(base, (TSDO_BASE, RSDO_BASE))).sum())
+            listed = np.isin(base, (EMCY_BASE, HEARTBEAT_BASE)) & ours & (node > 0)
+            one_by_one = on_bus & ((can_id == NMT_ID) | listed)
+            for k in np.flatnonzero(one_by_one):
+                self._service(b, int(can_id[k]), int(t[k]), data[k])
+            rest &= ~(counted | one_by_one)
+        if not rest.any():
+            return
+        keys = _key_array(bus[rest], can_id[rest], ext[rest])
+        unique, first, counts = np.unique(keys, return_index=True, return_counts=True)
+        times = t[rest]
+        for key, at, count in zip(unique.tolist(), first.tolist(), counts.tolist()):
+            b, x, i = key >> 31, bool(key >> 30 & 1), key & ((1 << 30) - 1)
             rec = self.unknown.get((b, i, x))
             if rec is None:
-                self.unknown[(b, i, x)] = [1, int(t[k])]
+                self.unknown[(b, i, x)] = [count, int(times[at])]
             else:
-                rec[0] += 1
+                rec[0] += count
 
-    def _service(self, b: int, can_id: int, t: int, data: NDArray[np.uint8]) -> bool:
-        """A CANopen service frame of one of the bus's nodes: noted, not unknown."""
-        nodes = {n.node_id: n.name for n in self.cfg.nodes if n.name in self.buses[b].nodes and n.node_id}
+    def _node_names(self, b: int) -> dict[int, str]:
+        return {n.node_id: n.name for n in self.cfg.nodes if n.name in self.buses[b].nodes and n.node_id}
+
+    def _service(self, b: int, can_id: int, t: int, data: NDArray[np.uint8]) -> None:
+        """An NMT command, or a heartbeat or EMCY of one of the bus's nodes: listed."""
+        nodes = self._node_names(b)
         svc = self.services[b]
         base, node_id = can_id & 0x780, can_id & 0x7F
         if can_id == NMT_ID:
             command, target = int(data[0]), int(data[1])
             who = "all nodes" if target == 0 else nodes.get(target, f"node {target}")
             _append(svc["nmt"], {"time_us": t, "command": NMT_COMMANDS.get(command, f"0x{command:02X}"), "node": who})
-            return True
-        if can_id == TIME_ID or can_id in LSS_IDS:
-            svc["other"] += 1
-            return True
-        name = nodes.get(node_id)
-        if name is None:
-            return False
-        if base == EMCY_BASE:
+        elif base == EMCY_BASE:
             code = int(data[0]) | int(data[1]) << 8
-            _append(svc["emcy"], {"time_us": t, "node": name, "code": f"0x{code:04X}", "register": int(data[2])})
-            return True
-        if base == HEARTBEAT_BASE:
+            _append(svc["emcy"], {"time_us": t, "node": nodes[node_id], "code": f"0x{code:04X}",
+                                  "register": int(data[2])})
+        else:
             state = NMT_STATES.get(int(data[0]) & 0x7F, f"0x{int(data[0]):02X}")
-            beats = svc["heartbeats"].setdefault(name, {"count": 0, "state": None})
+            beats = svc["heartbeats"].setdefault(nodes[node_id], {"count": 0, "state": None})
             beats["count"] += 1
             if beats["state"] != state:
-                _append(svc["states"], {"time_us": t, "node": name, "state": state})
+                _append(svc["states"], {"time_us": t, "node": nodes[node_id], "state": state})
                 beats["state"] = state
-            return True
-        if base in (TSDO_BASE, RSDO_BASE):
-            svc["sdo"] += 1
-            return True
-        return False
 
     def _violation(self, kind: str, st: _MessageState | None, t: int, detail: str) -> None:
         self.violation_count[kind] = self.violation_count.get(kind, 0) + 1
@@ -541,6 +557,11 @@ class Checker:
                     f"signal {name} outside [{_g(sig.minimum)}, {_g(sig.maximum)}] in {count} frame(s), "
                     f"worst {worst:g}{' ' + sig.unit if sig.unit else ''}",
                 )
+        if self.error_frames:
+            self._violation(
+                "error_frames", None, self.first_error_t,
+                f"{self.error_frames} error frame(s): the analysis has no error model (retransmissions are not in it)",
+            )
         for (b, i, x), (count, first) in sorted(self.unknown.items(), key=lambda kv: (kv[1][1], kv[0])):
             self._violation(
                 "unknown_id", None, first,
@@ -632,17 +653,20 @@ class Checker:
         bus = self.buses[b]
         bits = self.window_bits[b]
         window_ns = self.window_us * 1000
-        load = [round(bits_to_ns(int(x), bus.bitrate) / window_ns, 6) for x in bits]
+        # bits_to_ns over the array: exact at every standard bit rate, rounded up otherwise
+        load = np.round(-(-bits * 1_000_000_000 // bus.bitrate) / window_ns, 6).tolist()
         bound = self.window_bound(b)
         analysed = self._utilization(b)
-        for w, value in enumerate(load):
-            if w < len(load) - 1 and value > bound:  # the last window is cut short by the log's end
-                assert self.first_t is not None
-                self._violation(
-                    "load", None, self.first_t + (w + 1) * self.window_us,
-                    f"bus {bus.name}: load {value:.1%} in the {self.window_us / 1000:g} ms window ending here; the "
-                    f"analysis allows at most {bound:.1%} in any such window (utilisation {analysed:.1%})",
-                )
+        over = np.flatnonzero(np.array(load[:-1]) > bound)  # the last window is cut short by the log's end
+        if len(over) > MAX_VIOLATIONS:
+            self.violation_count["load"] = self.violation_count.get("load", 0) + len(over) - MAX_VIOLATIONS
+        for w in over[:MAX_VIOLATIONS]:
+            assert self.first_t is not None
+            self._violation(
+                "load", None, self.first_t + (int(w) + 1) * self.window_us,
+                f"bus {bus.name}: load {load[w]:.1%} in the {self.window_us / 1000:g} ms window ending here; the "
+                f"analysis allows at most {bound:.1%} in any such window (utilisation {analysed:.1%})",
+            )
         full = load[:-1] if len(load) > 1 else load
         out: dict[str, Any] = {
             "name": bus.name,
