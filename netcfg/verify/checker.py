@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from netcfg.cia301 import sync_every
 from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 from netcfg.timing.load import exact_rate, rate_hz
@@ -194,7 +195,7 @@ class Checker:
         co = self.buses[bus].canopen
         ftt = self.buses[bus].ftt
         ref = None
-        if co is not None and pdo is not None and pdo.kind == "tpdo" and 1 <= pdo.transmission <= 240:
+        if co is not None and pdo is not None and pdo.kind == "tpdo" and sync_every(pdo.transmission) is not None:
             ref = "sync"  # a synchronous TPDO answers the SYNC (netcfg.timing.canopen_sync)
         elif ftt is not None and m.window == "sync":
             ref = "tm"  # a synchronous FTT-CAN message goes in the EC its trigger message opens (netcfg.timing.ftt)
