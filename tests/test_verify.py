@@ -356,3 +356,15 @@ def test_error_frames_are_one_violation_with_their_count(cfg: runtime.RuntimeCon
     errors = [v for v in report["violations"] if v["kind"] == "error_frames"]
     assert report["error_frames"] == 3 and len(errors) == 1
     assert errors[0]["time_us"] == 30_000 and errors[0]["detail"].startswith("3 error frame(s)")
+
+
+def test_usage_problems(recorded: Path, tmp_path: Path) -> None:
+    """A spec with errors is exit 1 (its errors named); a system without a CAN bus, an unknown bus, exit 2."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("system: x\nbuses: [\n", encoding="utf-8")
+    proc = cli("verify", str(bad), str(recorded))
+    assert proc.returncode == 1 and f"{bad}:3:1: error:" in proc.stderr and "no log was checked" in proc.stderr
+    proc = cli("verify", str(ROOT / "generated" / "ntua_sahr" / "runtime.json"), str(recorded))
+    assert proc.returncode == 2 and "no CAN bus" in proc.stderr
+    proc = cli("verify", str(RUNTIME), str(recorded), "--bus", "can9")
+    assert proc.returncode == 2 and "no bus named 'can9'" in proc.stderr

@@ -46,10 +46,8 @@ def verify_command(args: argparse.Namespace) -> int:
     if window_ns < 1000:
         print(f"netcfg: --window {args.window}: give at least 1 us, e.g. 100ms", file=sys.stderr)
         return 2
-    from netcfg.sim.cli import load_document
-
     try:
-        doc = load_document(args.source)
+        doc = _configuration(args.source)
     except json.JSONDecodeError as exc:
         print(f"{args.source}:{exc.lineno}:{exc.colno}: error: not valid JSON ({exc.msg}); rebuild it with "
               "'netcfg build'", file=sys.stderr)
@@ -99,6 +97,25 @@ def verify_command(args: argparse.Namespace) -> int:
     for line in violation_lines(report, str(args.log)):
         print(line, file=sys.stderr)
     return 0 if report["ok"] else 1
+
+
+def _configuration(source: Path) -> dict[str, Any] | None:
+    """The runtime configuration as a JSON document: read, or compiled from a spec (as `simulate` does). None:
+    errors were printed."""
+    from netcfg.sim.cli import load_document
+
+    if source.suffix == ".json":
+        return load_document(source)
+    from netcfg.check import analyse_spec
+    from netcfg.emit.runtime_json import runtime_document
+
+    model, report = analyse_spec(source)
+    for d in report["errors"]:
+        print(f"{d['file']}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
+    if model is None or report["errors"]:
+        print(f"netcfg: {source} has errors; no log was checked", file=sys.stderr)
+        return None
+    return dict(json.loads(json.dumps(runtime_document(model, report))))
 
 
 def _public(report: dict[str, Any]) -> dict[str, Any]:
