@@ -368,3 +368,31 @@ def test_usage_problems(recorded: Path, tmp_path: Path) -> None:
     assert proc.returncode == 2 and "no CAN bus" in proc.stderr
     proc = cli("verify", str(RUNTIME), str(recorded), "--bus", "can9")
     assert proc.returncode == 2 and "no bus named 'can9'" in proc.stderr
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-0.5, 0.5), min_size=6, max_size=40), st.data())
+def test_jitter_inside_the_analysis_is_quiet_and_a_dropped_frame_is_one_gap(
+    offsets: list[float], data: st.DataObject
+) -> None:
+    """hip_l_cmd every 20 ms, each frame moved by at most half the analysed slack (jitter + worst-case response -
+    best transmission time), so every interval is within period +- slack: no gap, no warning. Without one frame
+    (not the first or the last): exactly one gap of one period, at the frame after it."""
+    cfg = runtime.load(RUNTIME)
+    cmd = cfg.message("hip_l_cmd")
+    assert cmd.period_ns is not None and cmd.wcrt_ns is not None
+    from netcfg.timing.frames import bits_to_ns, can_frame_bits
+
+    slack_ns = cmd.jitter_ns + cmd.wcrt_ns - bits_to_ns(can_frame_bits(cmd.size, cmd.extended, "nominal"), 1_000_000)
+    times = [k * cmd.period_ns + int(o * (slack_ns - 2000)) for k, o in enumerate(offsets)]  # 2 us for rounding
+    frames = [(t, "can0", cmd.id, False, bytes(cmd.size)) for t in times]
+
+    def about_cmd(report: dict[str, Any]) -> list[tuple[str, Any]]:
+        return [(v["kind"], v["time_us"]) for v in report["violations"] + report["warnings"]
+                if v["message"] == cmd.name]
+
+    assert about_cmd(check_frames(cfg, frames)) == []
+    drop = data.draw(st.integers(1, len(frames) - 2))
+    report = check_frames(cfg, frames[:drop] + frames[drop + 1 :])
+    first = (times[0] + 500) // 1000
+    assert about_cmd(report) == [("gap", (times[drop + 1] + 500) // 1000 - first)]
