@@ -132,14 +132,15 @@ def test_a_gap_a_late_frame_and_an_unknown_identifier_are_exactly_three_violatio
 def test_asc_and_blf_written_by_python_can_give_identical_reports(
     recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path
 ) -> None:
-    """The same frames through python-can's ASC and BLF writers. ASC counts time from its first frame and BLF keeps
-    the absolute time, so the reports differ only in `start_us` (where the log's clock started) and `log`."""
+    """The same frames through python-can's ASC and BLF writers (and its candump, PCAN TRC and CSV ones). ASC counts
+    time from its first frame and BLF keeps the absolute time, so the reports differ only in `start_us` (where the
+    log's clock started) and `log`."""
     frames, _ = inject_faults(cfg, frames_of(recorded))
     reports = []
-    for suffix in (".asc", ".blf", ".log"):
+    for suffix in (".asc", ".blf", ".log", ".trc", ".csv"):
         report = verify_log(cfg, write(frames, tmp_path / f"same{suffix}"))
         reports.append({k: v for k, v in report.items() if k not in ("start_us", "log")})
-    assert reports[0] == reports[1] == reports[2]
+    assert all(r == reports[0] for r in reports)
     assert reports[0]["violation_count"] == 3
 
 
