@@ -1,8 +1,8 @@
 """The checker: CAN frames, in time order, held against a runtime configuration and its analysed bounds.
 
 One implementation for every source of frames: `netcfg verify` (a recorded log), `netcfg simulate --log` (the
-simulator's own trace) and a live master. Feed it Batches (netcfg.verify.frames) as they come; `report()` gives the
-JSON document of `netcfg verify --format json`. Memory is bounded by the configuration, not the log: per message a
+simulator's own trace) and a live master. Feed it Batches (netcfg.verify.frames) or python-can Messages as they
+come; `finish()` gives the JSON document of `netcfg verify --format json`. Memory is bounded by the configuration, not the log: per message a
 few running figures and fixed-bin histograms, per bus one number per load window, and at most MAX_VIOLATIONS
 violations in detail (all of them counted).
 
@@ -12,13 +12,14 @@ What is a violation (each names the message, the log time and by how much):
 - `rate`: a periodic message came fewer times over its span than its period needs (less the clock tolerance), beyond
   what the gaps explain: a sender running at a longer period.
 - `late`: a response the log can measure exceeds the analysed worst case. On a CANopen bus a synchronous TPDO's
-  response is measured from the SYNC before it (the analysis' reference for it, netcfg.timing.canopen_sync).
+  response is measured from the SYNC before it (the analysis' reference for it, netcfg.timing.canopen_sync), on
+  FTT-CAN a synchronous message's from the trigger message that opened its elementary cycle.
 - `early`: a sporadic message came sooner after the previous one than its minimum inter-arrival time allows (less
   the jitter the analysis grants it): the analysed load assumed no more.
 - `unknown_id`: an identifier the configuration does not have (one per identifier, with its count); CANopen service
   identifiers (NMT, SYNC, TIME, EMCY, SDO, heartbeat, LSS) of the bus's nodes are known.
 - `never_seen`: a periodic or sporadic message with no frame in the log.
-- `size`: a frame whose payload length is not the message's size.
+- `size`: a frame whose payload length is not the message's size (or a CAN FD or remote frame on its identifier).
 - `range`: a decoded signal outside the limits the spec gives it (one per signal, with the count and worst value).
 - `load`: a load window carried more bits than the analysis allows in any window of that length.
 - `error_frames`: the log has error frames (the analysis has no error model).
