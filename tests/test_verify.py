@@ -278,13 +278,22 @@ def test_unreadable_logs_exit_2_without_a_traceback(tmp_path: Path, recorded: Pa
 
 
 def test_simulate_holds_its_trace_with_the_same_checker(tmp_path: Path) -> None:
+    """CAMBADA on FTT-CAN. The simulator sends every frame with worst-case stuffing, so each synchronous message's
+    latest end is its analysed worst case from the EC start; the log stamps the trigger message's end, and verify
+    adds back the trigger message's shortest time: 5 bytes at 250 kbit/s, 47 + 8 x 5 = 87 bits against the worst
+    55 + 10 x 5 = 105 (Davis et al. 2007, eq. 1), so the measured worst is the analysed one less 18 bits, 72 us."""
     log = tmp_path / "cambada.log"
     proc = cli("simulate", str(SPECS / "cambada.yaml"), "--duration", "1s", "--log", str(log), "--format", "json")
     assert proc.returncode == 0, proc.stderr
     check = json.loads(proc.stdout)["log_check"]
     assert check["ok"] and check["violation_count"] == 0
     # the file it wrote gives the same verdict through netcfg verify
-    assert cli("verify", str(SPECS / "cambada.yaml"), str(log)).returncode == 0
+    code, report, _ = verify_json(str(SPECS / "cambada.yaml"), str(log))
+    assert code == 0
+    synchronous = [m for m in report["messages"] if m["response_from"] == "tm"]
+    assert len(synchronous) == 8  # the SRT of seed 002, Table 2: FTT ids 0-7
+    for m in synchronous:
+        assert m["response_us"]["max"] == m["wcrt_us"] - 72, m["name"]
 
 
 def test_report_plots_are_deterministic(recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path) -> None:

@@ -2,9 +2,9 @@
 
 One implementation for every source of frames: `netcfg verify` (a recorded log), `netcfg simulate --log` (the
 simulator's own trace) and a live master. Feed it Batches (netcfg.verify.frames) or python-can Messages as they
-come; `finish()` gives the JSON document of `netcfg verify --format json`. Memory is bounded by the configuration, not the log: per message a
-few running figures and fixed-bin histograms, per bus one number per load window, and at most MAX_VIOLATIONS
-violations in detail (all of them counted).
+come; `finish()` gives the JSON document of `netcfg verify --format json`. Memory is bounded by the configuration,
+not the log: per message a few running figures and fixed-bin histograms, per bus one number per load window, and
+at most MAX_VIOLATIONS violations in detail (all of them counted).
 
 What is a violation (each names the message, the log time and by how much):
 - `gap`: a periodic message skipped periods: an interval nearer to 2, 3, ... periods than to one (a log cannot
@@ -13,7 +13,8 @@ What is a violation (each names the message, the log time and by how much):
   what the gaps explain: a sender running at a longer period.
 - `late`: a response the log can measure exceeds the analysed worst case. On a CANopen bus a synchronous TPDO's
   response is measured from the SYNC before it (the analysis' reference for it, netcfg.timing.canopen_sync), on
-  FTT-CAN a synchronous message's from the trigger message that opened its elementary cycle.
+  FTT-CAN a synchronous message's from the start of its elementary cycle (the trigger message's end less its
+  shortest transmission time).
 - `early`: a sporadic message came sooner after the previous one than its minimum inter-arrival time allows (less
   the jitter the analysis grants it): the analysed load assumed no more.
 - `unknown_id`: an identifier the configuration does not have (one per identifier, with its count); CANopen service
@@ -163,6 +164,12 @@ class Checker:
                 if st.bus == b and st.msg.id == ref_id and not st.msg.extended:
                     self._ref_state[b] = i
         self._last_ref: dict[int, int] = {}
+        # a log stamps a frame's end; FTT-CAN's analysis counts from the EC's start, where the trigger message
+        # starts: its shortest transmission (no stuff bits) is added back, so a reported late frame is surely late
+        self._ref_offset = {
+            b: bits_to_ns(can_frame_bits(bus_.ftt.tm_size, False, "nominal"), bus_.bitrate) // 1000 if bus_.ftt else 0
+            for b, bus_ in enumerate(self.buses)
+        }
         self.frames = 0
         self.error_frames = 0
         self.first_error_t = 0
@@ -356,7 +363,7 @@ class Checker:
             if len(refs):
                 at = np.searchsorted(refs, t, side="left") - 1
                 ok = at >= 0
-                resp = t[ok] - refs[at[ok]]
+                resp = t[ok] - refs[at[ok]] + self._ref_offset[st.bus]
                 if len(resp):
                     st.resp_min = int(resp.min()) if st.resp_min is None else min(st.resp_min, int(resp.min()))
                     st.resp_max = int(resp.max()) if st.resp_max is None else max(st.resp_max, int(resp.max()))
