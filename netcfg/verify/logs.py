@@ -83,6 +83,8 @@ def _guard(path: Path, batches: Iterator[Batch]) -> Iterator[Batch]:
         yield from batches
     except LogError:
         raise
+    except (NotImplementedError, ImportError) as exc:  # e.g. MF4 without python-can's optional asammdf
+        raise LogError(f"{path}: python-can cannot read this format here: {exc}") from exc
     except (OSError, ValueError, IndexError, KeyError, TypeError, EOFError, struct.error, zlib.error) as exc:
         raise LogError(f"{path}: not a readable log ({type(exc).__name__}: {exc})") from exc
     except Exception as exc:  # python-can's readers raise their own types on damaged files (e.g. BLFParseError)
