@@ -270,6 +270,12 @@ def test_unreadable_logs_exit_2_without_a_traceback(tmp_path: Path, recorded: Pa
         proc = cli("verify", str(RUNTIME), str(log), *extra)
         assert proc.returncode == 2, (log, proc.stderr)
         assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    # a damaged line is named by its number: here the 101st, after 100 good ones
+    lines = recorded.read_text(encoding="ascii").splitlines(keepends=True)
+    damaged = tmp_path / "damaged.log"
+    damaged.write_text("".join([*lines[:100], "(0.5) can0 12X#00\n", *lines[100:]]), encoding="ascii")
+    proc = cli("verify", str(RUNTIME), str(damaged))
+    assert proc.returncode == 2 and f"{damaged}:101: not a candump -L line: '(0.5) can0 12X#00'" in proc.stderr
     unknown_suffix = tmp_path / "gait.txt"
     unknown_suffix.write_bytes(recorded.read_bytes())
     proc = cli("verify", str(RUNTIME), str(unknown_suffix))

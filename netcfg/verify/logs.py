@@ -138,6 +138,7 @@ _MAX_CHANNEL = 16  # interface names longer than this go to python-can's reader
 def _candump_batches(path: Path, channels: ChannelTable, progress: Callable[[float], None] | None) -> Iterator[Batch]:
     size = path.stat().st_size
     done = 0
+    line = 1  # of the block's first line, for error messages
     with path.open("rb") as f:
         tail = b""
         while True:
@@ -149,11 +150,12 @@ def _candump_batches(path: Path, channels: ChannelTable, progress: Callable[[flo
             cut = block.rfind(b"\n") + 1
             tail, block = block[cut:], block[:cut]
             if block:
-                yield from _split(_candump_block(block, channels))
+                yield from _split(_candump_block(block, channels, path, line))
+                line += block.count(b"\n")
             if progress is not None and size:
                 progress(done / size)
         if tail.strip():
-            yield from _split(_candump_block(tail + b"\n", channels))
+            yield from _split(_candump_block(tail + b"\n", channels, path, line))
 
 
 def _split(batch: Batch) -> Iterator[Batch]:
@@ -162,15 +164,26 @@ def _split(batch: Batch) -> Iterator[Batch]:
         yield Batch(batch.t_us[s], batch.channel[s], batch.can_id[s], batch.flags[s], batch.length[s], batch.data[s])
 
 
-def _candump_block(block: bytes, channels: ChannelTable) -> Batch:
-    """Whole lines of a candump -L file -> frames; python-can's reader for a block the fast path does not cover."""
+def _candump_block(block: bytes, channels: ChannelTable, path: Path, line: int) -> Batch:
+    """Whole lines of a candump -L file (the first is line `line`) -> frames; python-can's reader for a block the
+    fast path does not cover, and LogError naming the first line it cannot read."""
     parsed = _parse_plain(block, channels)
     if parsed is not None:
         return parsed
     import can
 
-    text = block.decode("ascii")
-    return batch_from_messages(can.CanutilsLogReader(io.StringIO(text)), channels)
+    try:
+        return batch_from_messages(can.CanutilsLogReader(io.StringIO(block.decode("ascii"))), channels)
+    except (ValueError, IndexError, KeyError, TypeError) as exc:
+        for number, text in enumerate(block.splitlines(), line):
+            try:
+                list(can.CanutilsLogReader(io.StringIO(text.decode("ascii"))))
+            except (ValueError, IndexError, KeyError, TypeError):
+                shown = text[:60].decode("ascii", "replace")
+                raise LogError(
+                    f"{path}:{number}: not a candump -L line: {shown!r}; expected '(SECONDS) INTERFACE ID#DATA'"
+                ) from exc
+        raise
 
 
 def _parse_plain(block: bytes, channels: ChannelTable) -> Batch | None:
