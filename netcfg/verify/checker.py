@@ -25,9 +25,11 @@ What is a violation (each names the message, the log time and by how much):
 - `load`: a load window carried more bits than the analysis allows in any window of that length.
 - `error_frames`: the log has error frames (the analysis has no error model).
 
-A periodic message's interval is compared with its period +- (analysed jitter + worst-case response - its
-transmission time) as well; being outside is a warning, not a violation, unless `strict`: a log does not show when a
-frame was queued, so a long interval is either a late frame or release jitter the spec does not declare.
+A periodic message's interval is compared with its period +- (its release jitter + worst-case response - its
+transmission time) as well, the release jitter counting the spread of the tasks that send it (runtime.json's
+`sent_by`) and a CANopen master's SYNC jitter. Being outside is a warning, not a violation, unless `strict`: a log
+does not show when a frame was queued, so a long interval is either a late frame or release jitter the spec does
+not declare.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from numpy.typing import NDArray
 from netcfg.cia301 import sync_every
 from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
-from netcfg.timing.load import exact_rate, rate_hz
+from netcfg.timing.load import exact_rate, rate_hz, release_jitter_ns
 from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch, ChannelTable, batch_from_messages
 
 if TYPE_CHECKING:
@@ -191,7 +193,7 @@ class Checker:
         bitrate = self.buses[bus].bitrate
         best_tx_us = bits_to_ns(can_frame_bits(m.size, m.extended, "nominal"), bitrate) / 1000
         wcrt_us = None if m.wcrt_ns is None else m.wcrt_ns / 1000
-        slack = m.jitter_ns / 1000 + max(0.0, (wcrt_us or 0.0) - best_tx_us)
+        slack = self._release_jitter_ns(m, bus) / 1000 + max(0.0, (wcrt_us or 0.0) - best_tx_us)
         period = None
         min_gap = None
         if m.kind == "periodic" and m.period_ns:
@@ -216,6 +218,19 @@ class Checker:
             top = 2.0 * wcrt_us  # the analysed worst case in the middle; later responses fall in the overflow bin
             st.resp_edges = np.linspace(0.0, top, HIST_BINS + 1)
         return st
+
+    def _release_jitter_ns(self, m: Message, bus: int) -> int:
+        """The message's own jitter, its sending tasks' completion spread (netcfg.timing.load), and on a CANopen
+        bus the master's SYNC jitter for the SYNC and for tasks that run on SYNC."""
+        co = self.buses[bus].canopen
+        sync_late = co.master_jitter_ns if co is not None else 0
+        spreads = []
+        for ref in m.sent_by or ():
+            task = self.cfg.task(ref)
+            spreads.append(task.wcet_ns - task.bcet_ns + (sync_late if task.sync_bus == m.bus else 0))
+        if co is not None and m.id == co.sync_id and not m.extended:
+            spreads.append(sync_late)
+        return release_jitter_ns(m.jitter_ns, spreads)
 
     def _buses_of(self, channel: NDArray[np.int32]) -> NDArray[np.int64]:
         while len(self._channel_bus) < len(self.channels):
