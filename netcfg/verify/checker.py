@@ -7,8 +7,9 @@ not the log: per message a few running figures and fixed-bin histograms, per bus
 at most MAX_VIOLATIONS violations in detail (all of them counted).
 
 What is a violation (each names the message, the log time and by how much):
-- `gap`: a periodic message skipped periods: an interval nearer to 2, 3, ... periods than to one (a log cannot
-  tell a frame later than half a period from a missing one); also at the end of the log.
+- `gap`: a periodic message skipped periods: an interval nearer to k >= 2 periods than to k - 1 and longer than
+  the analysis allows for k - 1 (a log cannot tell a frame later than half a period from a missing one); also at
+  the end of the log.
 - `rate`: a periodic message came fewer times over its span than its period needs (less the clock tolerance), beyond
   what the gaps explain: a sender running at a longer period.
 - `late`: a response the log can measure exceeds the analysed worst case. On a CANopen bus a synchronous TPDO's
@@ -400,9 +401,7 @@ class Checker:
     def _periodic(self, st: _MessageState, iv: NDArray[np.int64], ends: NDArray[np.int64]) -> None:
         period = st.period_us
         assert period is not None
-        # the nearest whole number of periods: a log cannot tell a frame that is later than half a period from a
-        # missing one, so an interval nearer to k >= 2 periods counts k - 1 missing (shorter excesses are jitter)
-        periods = np.floor(iv / period + 0.5).astype(np.int64)
+        periods = _periods_spanned(iv, period, st.slack_us)
         gaps = periods >= 2
         for k in np.flatnonzero(gaps)[:MAX_VIOLATIONS]:
             missing = int(periods[k] - 1)
@@ -547,7 +546,7 @@ class Checker:
                     self._violation("never_seen", st, end or 0, f"no frame with id {_id_text(m.id, m.extended)}")
                 continue
             if st.period_us is not None and end is not None and st.last_t is not None:
-                trailing = int(np.floor((end - st.last_t) / st.period_us + 0.5)) - 1
+                trailing = int(_periods_spanned(np.array([end - st.last_t]), st.period_us, st.slack_us)[0]) - 1
                 if trailing >= 1:
                     st.missing += trailing
                     self._violation(
@@ -757,6 +756,16 @@ class Checker:
             "sdo_frames": svc["sdo"],
             "other_service_frames": svc["other"],
         }
+
+
+def _periods_spanned(iv: NDArray[np.int64], period: float, slack: float) -> NDArray[np.int64]:
+    """How many periods each interval spans, for counting missing frames: the nearest whole number (a log cannot
+    tell a frame later than half a period from a missing one), but no more than the fewest the analysis allows
+    (frames k periods apart are k * period +- slack apart), so a late frame within the analysed jitter is never
+    counted as a missing one."""
+    nearest = np.floor(iv / period + 0.5)
+    fewest = np.ceil((iv - slack) / period)
+    return np.maximum(np.minimum(nearest, fewest), 1).astype(np.int64)
 
 
 def _trigger_message(bus: Bus) -> Message:
