@@ -19,7 +19,7 @@ What is a violation (each names the message, the log time and by how much):
 - `early`: a sporadic message came sooner after the previous one than its minimum inter-arrival time allows (less
   the jitter the analysis grants it): the analysed load assumed no more.
 - `unknown_id`: an identifier the configuration does not have (one per identifier, with its count); CANopen service
-  identifiers (NMT, SYNC, TIME, EMCY, SDO, heartbeat, LSS) of the bus's nodes are known.
+  identifiers (NMT, SYNC, TIME, EMCY, SDO, heartbeat, LSS) of the bus's nodes are known (netcfg.verify.canopen).
 - `never_seen`: a periodic or sporadic message with no frame in the log.
 - `size`: a frame whose payload length is not the message's size (or a CAN FD or remote frame on its identifier).
 - `range`: a decoded signal outside the limits the spec gives it (one per signal, with the count and worst value).
@@ -46,6 +46,7 @@ from netcfg.cia301 import sync_every
 from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 from netcfg.timing.load import exact_rate, rate_hz, release_jitter_ns
+from netcfg.verify.canopen import ServiceLog
 from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch, ChannelTable, batch_from_messages
 
 if TYPE_CHECKING:
@@ -60,16 +61,6 @@ DEFAULT_WINDOW_US = 100_000
 # +-100 ppm (the simulator's default drift bound is 50 ppm)
 DEFAULT_CLOCK_TOLERANCE_PPM = 100.0
 
-# CANopen services by function code (CiA 301, 7.3.3 predefined connection set): COB-ID = base + node id
-NMT_ID = 0x000
-TIME_ID = 0x100
-EMCY_BASE = 0x080
-TSDO_BASE = 0x580
-RSDO_BASE = 0x600
-HEARTBEAT_BASE = 0x700
-LSS_IDS = (0x7E4, 0x7E5)
-NMT_STATES = {0x00: "boot-up", 0x04: "stopped", 0x05: "operational", 0x7F: "pre-operational"}
-NMT_COMMANDS = {0x01: "start", 0x02: "stop", 0x80: "enter pre-operational", 0x81: "reset node", 0x82: "reset comm"}
 
 
 class VerifyError(ValueError):
@@ -180,7 +171,11 @@ class Checker:
         self.last_t: int | None = None
         self.window_bits: list[NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in self.buses]
         self.unknown: dict[tuple[int, int, bool], list[int]] = {}  # (bus, id, extended) -> [count, first_t]
-        self.services: list[dict[str, Any]] = [_empty_services() for _ in self.buses]
+        self.services = {
+            b: ServiceLog({n.node_id: n.name for n in cfg.nodes if n.name in bus_.nodes and n.node_id})
+            for b, bus_ in enumerate(self.buses)
+            if bus_.canopen is not None
+        }
         self.violations: list[dict[str, Any]] = []
         self.violation_count: dict[str, int] = {}
         self.warnings: list[dict[str, Any]] = []
@@ -461,24 +456,10 @@ class Checker:
         """Frames of no configured message: CANopen services of the bus's nodes are noted (SDO and the like
         counted at once, heartbeats, NMT and EMCY one by one: they are few); the rest counted per identifier."""
         rest = np.ones(len(t), bool)
-        for b, bus_ in enumerate(self.buses):
-            if bus_.canopen is None:
-                continue
-            on_bus = (bus == b) & ~ext
-            if not on_bus.any():
-                continue
-            node_ids = np.array(sorted(self._node_names(b)), np.int64)
-            base, node = can_id & 0x780, can_id & 0x7F
-            ours = np.isin(node, node_ids)
-            counted = on_bus & ((np.isin(base, (TSDO_BASE, RSDO_BASE)) & ours) | (can_id == TIME_ID)
-                                | np.isin(can_id, LSS_IDS))
-            self.services[b]["sdo"] += int((counted & np.isin(base, (TSDO_BASE, RSDO_BASE))).sum())
-            self.services[b]["other"] += int((counted & ~np.isin(base, (TSDO_BASE, RSDO_BASE))).sum())
-            listed = np.isin(base, (EMCY_BASE, HEARTBEAT_BASE)) & ours & (node > 0)
-            one_by_one = on_bus & ((can_id == NMT_ID) | listed)
-            for k in np.flatnonzero(one_by_one):
-                self._service(b, int(can_id[k]), int(t[k]), data[k])
-            rest &= ~(counted | one_by_one)
+        for b, services in self.services.items():
+            on_bus = np.flatnonzero((bus == b) & ~ext)
+            if len(on_bus):
+                rest[on_bus[services.take(t[on_bus], can_id[on_bus], data[on_bus])]] = False
         if not rest.any():
             return
         keys = _key_array(bus[rest], can_id[rest], ext[rest])
@@ -491,30 +472,6 @@ class Checker:
                 self.unknown[(b, i, x)] = [count, int(times[at])]
             else:
                 rec[0] += count
-
-    def _node_names(self, b: int) -> dict[int, str]:
-        return {n.node_id: n.name for n in self.cfg.nodes if n.name in self.buses[b].nodes and n.node_id}
-
-    def _service(self, b: int, can_id: int, t: int, data: NDArray[np.uint8]) -> None:
-        """An NMT command, or a heartbeat or EMCY of one of the bus's nodes: listed."""
-        nodes = self._node_names(b)
-        svc = self.services[b]
-        base, node_id = can_id & 0x780, can_id & 0x7F
-        if can_id == NMT_ID:
-            command, target = int(data[0]), int(data[1])
-            who = "all nodes" if target == 0 else nodes.get(target, f"node {target}")
-            _append(svc["nmt"], {"time_us": t, "command": NMT_COMMANDS.get(command, f"0x{command:02X}"), "node": who})
-        elif base == EMCY_BASE:
-            code = int(data[0]) | int(data[1]) << 8
-            _append(svc["emcy"], {"time_us": t, "node": nodes[node_id], "code": f"0x{code:04X}",
-                                  "register": int(data[2])})
-        else:
-            state = NMT_STATES.get(int(data[0]) & 0x7F, f"0x{int(data[0]):02X}")
-            beats = svc["heartbeats"].setdefault(nodes[node_id], {"count": 0, "state": None})
-            beats["count"] += 1
-            if beats["state"] != state:
-                _append(svc["states"], {"time_us": t, "node": nodes[node_id], "state": state})
-                beats["state"] = state
 
     def _violation(self, kind: str, st: _MessageState | None, t: int, detail: str) -> None:
         self.violation_count[kind] = self.violation_count.get(kind, 0) + 1
@@ -594,9 +551,8 @@ class Checker:
         # times count from the log's first frame: formats differ in their origin (ASC starts at its first frame)
         for item in [*self.violations, *self.warnings]:
             item["time_us"] = self._since(item["time_us"])
-        for svc in self.services:
-            for item in [*svc["nmt"], *svc["emcy"], *svc["states"]]:
-                item["time_us"] = self._since(item["time_us"])
+        for services in self.services.values():
+            services.shift_times(self.first_t or 0)
         self.violations.sort(key=lambda v: (v["time_us"], v["kind"], v["message"] or ""))
         messages = [self._message_report(st) for st in self.states]
         return {
@@ -731,7 +687,6 @@ class Checker:
         return total_ns / (self.window_us * 1000)
 
     def _canopen_report(self, b: int) -> dict[str, Any]:
-        svc = self.services[b]
         sync = None
         if b in self._ref_state:
             st = self.states[self._ref_state[b]]
@@ -749,12 +704,7 @@ class Checker:
             "sync": sync,
             "sync_window_us": None if window is None else window / 1000,
             "synchronous_pdos": in_window,
-            "heartbeats": svc["heartbeats"],
-            "nmt_states": svc["states"],
-            "nmt_commands": svc["nmt"],
-            "emcy": svc["emcy"],
-            "sdo_frames": svc["sdo"],
-            "other_service_frames": svc["other"],
+            **self.services[b].report(),
         }
 
 
@@ -798,15 +748,6 @@ def _hist_doc(counts: NDArray[np.int64], edges: NDArray[np.float64] | None) -> d
     if edges is None or not counts.any():
         return None
     return {"edges_us": [round(float(e), 3) for e in edges], "counts": [int(c) for c in counts]}
-
-
-def _empty_services() -> dict[str, Any]:
-    return {"nmt": [], "emcy": [], "heartbeats": {}, "states": [], "sdo": 0, "other": 0}
-
-
-def _append(items: list[dict[str, Any]], item: dict[str, Any]) -> None:
-    if len(items) < MAX_VIOLATIONS:
-        items.append(item)
 
 
 def _excess(sig: Any, v: float) -> float:
