@@ -431,3 +431,13 @@ def test_a_message_sent_by_a_task_may_stray_by_the_tasks_spread(recorded: Path, 
     assert by_name["hip_l_cmd"]["analysed_jitter_us"] == pytest.approx(expected_us)
     assert by_name["hip_l_cmd"]["warnings"] == 0
     assert by_name["knee_l_cmd"]["warnings"] == 1 and report["ok"]
+
+
+def test_strict_makes_undeclared_jitter_a_violation(recorded: Path, cfg: runtime.RuntimeConfig) -> None:
+    """The five command RxPDOs that no task is declared to send (runtime.json's sent_by) stray beyond their own
+    analysed jitter in the simulated cycle (see the test above): with strict, one jitter violation each."""
+    undeclared = {m.name for m in cfg.messages if m.name.endswith("_cmd") and not m.sent_by}
+    assert len(undeclared) == 5
+    report = verify_log(cfg, recorded, strict=True)
+    assert {(v["kind"], v["message"]) for v in report["violations"]} == {("jitter", n) for n in undeclared}
+    assert report["violation_count"] == 5 and not report["ok"]
