@@ -441,3 +441,20 @@ def test_strict_makes_undeclared_jitter_a_violation(recorded: Path, cfg: runtime
     report = verify_log(cfg, recorded, strict=True)
     assert {(v["kind"], v["message"]) for v in report["violations"]} == {("jitter", n) for n in undeclared}
     assert report["violation_count"] == 5 and not report["ok"]
+
+
+def test_a_progress_bar_only_on_a_terminal(monkeypatch: pytest.MonkeyPatch, recorded: Path) -> None:
+    import io
+
+    from netcfg.verify import cli as verify_cli
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr("sys.stderr", stream)
+        _, batches = read_log(recorded, progress=verify_cli._progress)
+        assert sum(len(b) for b in batches) > 0
+        verify_cli._progress_done()
+        assert ("100% of the log" in stream.getvalue()) is shown
