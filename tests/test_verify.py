@@ -9,6 +9,7 @@ own writers (candump -L, Vector ASC and BLF). Bounds come from the runtime confi
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -261,26 +262,35 @@ def test_a_flooded_window_exceeds_the_analysed_load(
     assert report["buses"][0]["load"]["max"] >= 500 * 135 / 100_000
 
 
-def test_unreadable_logs_exit_2_without_a_traceback(tmp_path: Path, recorded: Path) -> None:
+def test_unreadable_logs_exit_2_without_a_traceback(
+    tmp_path: Path, recorded: Path, cfg: runtime.RuntimeConfig
+) -> None:
+    from netcfg.verify import LogError
+
     garbage = tmp_path / "garbage.log"
     garbage.write_text("this is not a candump log\n", encoding="utf-8")
     blf = tmp_path / "broken.blf"
     blf.write_bytes(b"LOGG" + bytes(40))
-    for log, extra in ((garbage, ()), (blf, ()), (tmp_path / "absent.log", ()), (recorded, ("--log-format", "xyz"))):
-        proc = cli("verify", str(RUNTIME), str(log), *extra)
+    for log in (garbage, blf):  # the command line: exit 2, one line, no traceback
+        proc = cli("verify", str(RUNTIME), str(log))
         assert proc.returncode == 2, (log, proc.stderr)
         assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     # a damaged line is named by its number: here the 101st, after 100 good ones
     lines = recorded.read_text(encoding="ascii").splitlines(keepends=True)
     damaged = tmp_path / "damaged.log"
     damaged.write_text("".join([*lines[:100], "(0.5) can0 12X#00\n", *lines[100:]]), encoding="ascii")
-    proc = cli("verify", str(RUNTIME), str(damaged))
-    assert proc.returncode == 2 and f"{damaged}:101: not a candump -L line: '(0.5) can0 12X#00'" in proc.stderr
     unknown_suffix = tmp_path / "gait.txt"
     unknown_suffix.write_bytes(recorded.read_bytes())
-    proc = cli("verify", str(RUNTIME), str(unknown_suffix))
-    assert proc.returncode == 2 and "--log-format" in proc.stderr
-    assert cli("verify", str(RUNTIME), str(unknown_suffix), "--log-format", "candump").returncode == 0
+    for log, fmt, says in (
+        (damaged, None, f"{damaged}:101: not a candump -L line: '(0.5) can0 12X#00'"),
+        (blf, None, f"{blf}: not a readable log"),
+        (tmp_path / "absent.log", None, "no such file"),
+        (recorded, "xyz", "--log-format 'xyz'"),
+        (unknown_suffix, None, "give --log-format"),
+    ):
+        with pytest.raises(LogError, match=re.escape(says)):
+            verify_log(cfg, log, log_format=fmt)
+    assert verify_log(cfg, unknown_suffix, log_format="candump")["ok"]
 
 
 def test_simulate_holds_its_trace_with_the_same_checker(tmp_path: Path) -> None:
@@ -315,22 +325,34 @@ def test_report_plots_are_deterministic(recorded: Path, cfg: runtime.RuntimeConf
         assert Path(a).read_bytes() == Path(b).read_bytes()
 
 
+def simulated_log(name: str, duration_ns: int, path: Path) -> runtime.RuntimeConfig:
+    """The simulator's trace of generated/<name>/runtime.json, written as `simulate --log` writes it."""
+    from netcfg.sim.cli import trace_frames
+    from netcfg.sim.montecarlo import run_once
+    from netcfg.sim.scenario import SimOptions
+    from netcfg.sim.trace import write_trace
+
+    cfg = runtime.load(ROOT / "generated" / name / "runtime.json")
+    sc, _ = run_once(cfg, SimOptions(duration_ns=duration_ns, trace=True))
+    write_trace(trace_frames(sc), path)
+    return cfg
+
+
 def test_a_multi_bus_log_maps_channels_to_buses(tmp_path: Path) -> None:
     """large_plant's three buses: the simulator names each frame's channel after its bus; the same frames under
     numbered channels need --bus CHANNEL=BUS and then give the same report."""
     named = tmp_path / "plant.log"
-    cli("simulate", str(SPECS / "large_plant.yaml"), "--duration", "300ms", "--log", str(named))
+    plant = simulated_log("large_plant", 300_000_000, named)
     frames = frames_of(named)
     buses = sorted({str(m.channel) for m in frames})
     assert len(buses) == 3
     for m in frames:
         m.channel = f"vcan{buses.index(str(m.channel))}"
     numbered = write(frames, tmp_path / "numbered.log")
-    proc = cli("verify", str(SPECS / "large_plant.yaml"), str(numbered))
+    proc = cli("verify", str(ROOT / "generated" / "large_plant" / "runtime.json"), str(numbered))
     assert proc.returncode == 2 and "--bus vcan0=BUS" in proc.stderr
-    mapping = [arg for i, b in enumerate(buses) for arg in ("--bus", f"vcan{i}={b}")]
-    _, by_name, _ = verify_json(str(SPECS / "large_plant.yaml"), str(named))
-    _, by_map, _ = verify_json(str(SPECS / "large_plant.yaml"), str(numbered), *mapping)
+    by_name = verify_log(plant, named)
+    by_map = verify_log(plant, numbered, bus={f"vcan{i}": b for i, b in enumerate(buses)})
     assert by_map["frames"] == len(frames) and by_map["unknown_ids"] == []
     assert {k: v for k, v in by_map.items() if k != "log"} == {k: v for k, v in by_name.items() if k != "log"}
 
@@ -353,11 +375,11 @@ def test_the_analysed_utilisation_is_the_analysis_own(tmp_path: Path) -> None:
     27 % bus load and 8.4 % TM overhead)."""
     from conftest import check
 
-    for name, duration in (("allex2", "100ms"), ("cambada", "100ms")):
+    for name in ("allex2", "cambada"):
         log = tmp_path / f"{name}.log"
-        cli("simulate", str(SPECS / f"{name}.yaml"), "--duration", duration, "--log", str(log))
+        system = simulated_log(name, 100_000_000, log)
         analysed = check(SPECS / f"{name}.yaml")["buses"][0]
-        verified = verify_log(runtime.load(ROOT / "generated" / name / "runtime.json"), log)["buses"][0]
+        verified = verify_log(system, log)["buses"][0]
         extra = analysed["ftt"]["tm_overhead"] if "ftt" in analysed else 0.0
         assert verified["utilization_analysed"] == pytest.approx(analysed["utilization"] + extra, abs=1e-6)
         if name == "cambada":
