@@ -214,7 +214,8 @@ def _parse_plain(block: bytes, channels: ChannelTable) -> Batch | None:
     # timestamp: integer seconds, then 1..9 decimals
     int_len = dots - starts - 1
     frac_len = closes - dots - 1
-    if int_len.min() < 1 or int_len.max() > 12 or frac_len.min() < 1 or frac_len.max() > 9:
+    # more than 6 decimals: python-can's float rounds them, which only its own reader reproduces
+    if int_len.min() < 1 or int_len.max() > 12 or frac_len.min() < 1 or frac_len.max() > 6:
         return None
     seconds = _number(buf, starts + 1, int_len, _DECIMAL)
     fraction = _number(buf, dots + 1, frac_len, _DECIMAL)
