@@ -15,74 +15,30 @@ violation is (see netcfg.verify.checker for the list).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
-from pathlib import Path
-from typing import Any
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from netcfg.runtime import RuntimeConfig
-from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker, VerifyError
-from netcfg.verify.frames import ERROR, EXTENDED, PAYLOAD_COLUMNS, Batch, ChannelTable
-from netcfg.verify.logs import LogError, read_log
+if TYPE_CHECKING:
+    from netcfg.verify.api import check_frames, verify_log
+    from netcfg.verify.checker import Checker, VerifyError
+    from netcfg.verify.frames import Batch, ChannelTable
+    from netcfg.verify.logs import LogError
 
 __all__ = ["Batch", "ChannelTable", "Checker", "LogError", "VerifyError", "check_frames", "verify_log"]
 
-
-def verify_log(
-    cfg: RuntimeConfig,
-    log: Path,
-    *,
-    bus: str | Mapping[str, str] | None = None,
-    log_format: str | None = None,
-    window_us: int = DEFAULT_WINDOW_US,
-    strict: bool = False,
-    fast: bool = True,
-    progress: Callable[[float], None] | None = None,
-) -> dict[str, Any]:
-    """Read the log in batches and check it; LogError when it cannot be read, VerifyError when the log and the
-    configuration cannot be matched."""
-    channels, batches = read_log(log, log_format, fast=fast, progress=progress)
-    checker = Checker(cfg, channels.names, bus, window_us, strict)
-    for batch in batches:
-        checker.feed(batch)
-    report = checker.finish()
-    report["log"] = str(log)
-    return report
+# names -> their modules, imported on first use: the command line registers `verify` without loading numpy
+_HOME = {
+    "check_frames": "api",
+    "verify_log": "api",
+    "Checker": "checker",
+    "VerifyError": "checker",
+    "Batch": "frames",
+    "ChannelTable": "frames",
+    "LogError": "logs",
+}
 
 
-def check_frames(
-    cfg: RuntimeConfig,
-    frames: Iterable[tuple[Any, ...]],
-    window_us: int = DEFAULT_WINDOW_US,
-) -> dict[str, Any]:
-    """Frames as (end time in ns, bus name, identifier, extended, payload[, error frame]), in time order -> the
-    report. For a program that holds its frames already (the simulator's trace, netcfg.sim.trace.TraceFrame);
-    times are taken to the microsecond, as a log file would carry them."""
-    table = ChannelTable()
-    t: list[int] = []
-    ch: list[int] = []
-    ids: list[int] = []
-    flags: list[int] = []
-    lengths: list[int] = []
-    payload = bytearray()
-    for frame in frames:
-        t_ns, channel, can_id, extended, data = frame[:5]
-        t.append((t_ns + 500) // 1000)
-        ch.append(table.index(channel))
-        ids.append(can_id)
-        flags.append((EXTENDED if extended else 0) | (ERROR if len(frame) > 5 and frame[5] else 0))
-        lengths.append(len(data))
-        payload += bytes(data[:PAYLOAD_COLUMNS]).ljust(PAYLOAD_COLUMNS, b"\0")
-    checker = Checker(cfg, table.names, window_us=window_us)
-    checker.feed(
-        Batch(
-            np.array(t, np.int64),
-            np.array(ch, np.int32),
-            np.array(ids, np.int64),
-            np.array(flags, np.uint8),
-            np.array(lengths, np.int16),
-            np.frombuffer(bytes(payload), np.uint8).reshape(len(t), PAYLOAD_COLUMNS).copy(),
-        )
-    )
-    return checker.finish()
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'netcfg.verify' has no attribute {name!r}")
+    return getattr(import_module(f"netcfg.verify.{_HOME[name]}"), name)

@@ -13,9 +13,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from netcfg import runtime
-from netcfg.verify import LogError, VerifyError, verify_log
-
 __all__ = ["add_parser", "verify_command"]
 
 
@@ -36,7 +33,11 @@ def add_parser(sub: Any) -> None:
 
 
 def verify_command(args: argparse.Namespace) -> int:
+    from netcfg import runtime
     from netcfg.sim.faults import FaultError, parse_time
+    from netcfg.verify.api import verify_log
+    from netcfg.verify.checker import VerifyError
+    from netcfg.verify.logs import LogError
 
     try:
         window_ns = parse_time(args.window)
