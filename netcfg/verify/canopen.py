@@ -53,6 +53,10 @@ class ServiceLog:
             self._note(int(can_id[k]), int(t[k]), data[k])
         return np.asarray(sdo | other | listed)
 
+    def note(self, can_id: int, t: int, data: NDArray[np.uint8]) -> None:
+        """One NMT, heartbeat or EMCY frame, also when the configuration lists it as a message (its heartbeats)."""
+        self._note(can_id, t, data)
+
     def _note(self, can_id: int, t: int, data: NDArray[np.uint8]) -> None:
         if can_id == NMT_ID:
             command, target = int(data[0]), int(data[1])
@@ -77,6 +81,8 @@ class ServiceLog:
             item["time_us"] -= origin
 
     def report(self) -> dict[str, Any]:
+        for items in (self.nmt, self.emcy, self.states):  # noted message by message within a batch
+            items.sort(key=lambda item: item["time_us"])
         return {
             "heartbeats": self.heartbeats,
             "nmt_states": self.states,

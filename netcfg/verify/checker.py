@@ -392,6 +392,9 @@ class Checker:
                             )
         if m.signals and not wrong.all():
             self._ranges(st, t[~wrong], data[~wrong])
+        if m.implicit == "heartbeat" and st.bus in self.services and not m.extended:
+            for k in np.flatnonzero(length > 0):  # the NMT state each heartbeat carries
+                self.services[st.bus].note(m.id, int(t[k]), data[k])
 
     def _periodic(self, st: _MessageState, iv: NDArray[np.int64], ends: NDArray[np.int64]) -> None:
         period = st.period_us
