@@ -34,15 +34,15 @@ def add_parser(sub: Any) -> None:
 
 def verify_command(args: argparse.Namespace) -> int:
     from netcfg import runtime
-    from netcfg.sim.faults import FaultError, parse_time
+    from netcfg.spec.units import parse_duration_option
     from netcfg.verify.api import verify_log
     from netcfg.verify.checker import VerifyError
     from netcfg.verify.logs import LogError
 
     try:
-        window_ns = parse_time(args.window)
-    except FaultError as exc:
-        print(f"netcfg: --window {args.window}: {exc}", file=sys.stderr)
+        window_ns = parse_duration_option(args.window)  # the one unit grammar of specs and command lines
+    except ValueError as exc:
+        print(f"netcfg: --window {exc}", file=sys.stderr)
         return 2
     if window_ns < 1000:
         print(f"netcfg: --window {args.window}: give at least 1 us, e.g. 100ms", file=sys.stderr)
