@@ -417,8 +417,8 @@ def test_usage_problems(recorded: Path, tmp_path: Path) -> None:
 def test_jitter_inside_the_analysis_is_quiet_and_a_dropped_frame_is_one_gap(
     offsets: list[float], data: st.DataObject
 ) -> None:
-    """knee_l_cmd every 20 ms (no task is declared to send it, so its release jitter is its own), each frame moved
-    by at most half the analysed slack (jitter + worst-case response - best transmission time), so every interval
+    """knee_l_cmd every 20 ms (no task is declared to send it), each frame moved by at most half the analysed
+    slack (worst-case response, which holds the release jitter, - best transmission time), so every interval
     is within period +- slack: no gap, no warning. Without one frame (not the first or the last): exactly one gap
     of one period, at the frame after it."""
     cfg = runtime.load(RUNTIME)
@@ -426,7 +426,7 @@ def test_jitter_inside_the_analysis_is_quiet_and_a_dropped_frame_is_one_gap(
     assert cmd.period_ns is not None and cmd.wcrt_ns is not None and not cmd.sent_by
     from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
-    slack_ns = cmd.jitter_ns + cmd.wcrt_ns - bits_to_ns(can_frame_bits(cmd.size, cmd.extended, "nominal"), 1_000_000)
+    slack_ns = cmd.wcrt_ns - bits_to_ns(can_frame_bits(cmd.size, cmd.extended, "nominal"), 1_000_000)
     times = [k * cmd.period_ns + int(o * (slack_ns - 2000)) for k, o in enumerate(offsets)]  # 2 us for rounding
     frames = [(t, "can0", cmd.id, False, bytes(cmd.size)) for t in times]
 
@@ -443,18 +443,17 @@ def test_jitter_inside_the_analysis_is_quiet_and_a_dropped_frame_is_one_gap(
 
 def test_a_message_sent_by_a_task_may_stray_by_the_tasks_spread(recorded: Path, cfg: runtime.RuntimeConfig) -> None:
     """hip_l_cmd goes out when master.control finishes (runtime.json's sent_by): control runs 10 ms after SYNC for
-    225.8-8557.3 us (seed 000, Table 5), SYNC up to the master's jitter late, so the command's interval may stray
-    from 20 ms by 8557.3 - 225.8 + jitter + its worst-case response - its best transmission (8 bytes: 47 + 64 =
-    111 bits, 111 us at 1 Mbit/s). knee_l_cmd, sent the same way by the simulated master but declared by no task,
-    keeps its own jitter only, and its intervals draw a warning."""
+    225.8-8557.3 us (seed 000, Table 5). The analysis counts that spread as the command's release jitter, so its
+    worst-case response from the nominal release holds it (Davis et al. 2007, eq. 13: R = J + w + C), and its
+    interval may stray from 20 ms by R less its best transmission (8 bytes: 47 + 64 = 111 bits, 111 us at
+    1 Mbit/s). knee_l_cmd, sent the same way by the simulated master but declared by no task, has no such jitter
+    in its analysis, and its intervals draw a warning."""
     report = verify_log(cfg, recorded)
     by_name = {m["name"]: m for m in report["messages"]}
-    co = cfg.bus("can0").canopen
-    assert co is not None
     cmd = cfg.message("hip_l_cmd")
     assert cmd.sent_by == ("master.control",) and cmd.wcrt_ns is not None
-    expected_us = (8_557_300 - 225_800 + co.master_jitter_ns + cmd.jitter_ns + cmd.wcrt_ns - 111_000) / 1000
-    assert by_name["hip_l_cmd"]["analysed_jitter_us"] == pytest.approx(expected_us)
+    assert cmd.wcrt_ns >= 8_557_300 - 225_800  # the control step's spread is inside the analysed response
+    assert by_name["hip_l_cmd"]["analysed_jitter_us"] == pytest.approx((cmd.wcrt_ns - 111_000) / 1000)
     assert by_name["hip_l_cmd"]["warnings"] == 0
     assert by_name["knee_l_cmd"]["warnings"] == 1 and report["ok"]
 

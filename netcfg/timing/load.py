@@ -99,10 +99,3 @@ def can_bus_overloaded(
     decided exactly (a load of exactly 1 fits)."""
     loads = [(timings[m.name].tx_ns, m.interval_ns) for m in bus.messages if m.interval_ns and m.kind != "on-demand"]
     return compare_to_capacity(approx, [*loads, *([extra] if extra else [])]) > 0
-
-
-def release_jitter_ns(own_jitter_ns: int, sender_spreads_ns: Iterable[int]) -> int:
-    """How far a message's releases can stray from its period grid: the jitter the spec gives it and, when tasks
-    send it as they finish, the widest spread of their completion (WCET - BCET, plus how late the task itself may
-    start, e.g. a CANopen master's SYNC jitter for a SYNC-driven task)."""
-    return own_jitter_ns + max(sender_spreads_ns, default=0)

@@ -26,11 +26,11 @@ What is a violation (each names the message, the log time and by how much):
 - `load`: a load window carried more bits than the analysis allows in any window of that length.
 - `error_frames`: the log has error frames (the analysis has no error model).
 
-A periodic message's interval is compared with its period +- (its release jitter + worst-case response - its
-transmission time) as well, the release jitter counting the spread of the tasks that send it (runtime.json's
-`sent_by`) and a CANopen master's SYNC jitter. Being outside is a warning, not a violation, unless `strict`: a log
-does not show when a frame was queued, so a long interval is either a late frame or release jitter the spec does
-not declare.
+A periodic message's interval is compared with its period +- (worst-case response - its best transmission time)
+as well: the analysed response counts from the nominal release and holds the release jitter (for a message a task
+sends, that task's spread), and the CANopen master's SYNC jitter is added for the SYNC. Being outside is a warning,
+not a violation, unless `strict`: a log does not show when a frame was queued, so a long interval is either a late
+frame or release jitter the spec does not declare.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from netcfg.cia301 import sync_every
 from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
-from netcfg.timing.load import exact_rate, rate_hz, release_jitter_ns
+from netcfg.timing.load import exact_rate, rate_hz
 from netcfg.verify.canopen import ServiceLog
 from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch, ChannelTable, batch_from_messages
 
@@ -189,7 +189,9 @@ class Checker:
         bitrate = self.buses[bus].bitrate
         best_tx_us = bits_to_ns(can_frame_bits(m.size, m.extended, "nominal"), bitrate) / 1000
         wcrt_us = None if m.wcrt_ns is None else m.wcrt_ns / 1000
-        slack = self._release_jitter_ns(m, bus) / 1000 + max(0.0, (wcrt_us or 0.0) - best_tx_us)
+        # the analysed response counts from the nominal release and includes the queuing jitter (Davis et al.
+        # 2007, eq. 13: R = J + w + C), so frames lie within [C_best, R] after their nominal instants
+        slack = self._unanalysed_jitter_ns(m, bus) / 1000 + max(0.0, (wcrt_us or m.jitter_ns / 1000) - best_tx_us)
         period = None
         min_gap = None
         if m.kind == "periodic" and m.period_ns:
@@ -215,18 +217,13 @@ class Checker:
             st.resp_edges = np.linspace(0.0, top, HIST_BINS + 1)
         return st
 
-    def _release_jitter_ns(self, m: Message, bus: int) -> int:
-        """The message's own jitter, its sending tasks' completion spread (netcfg.timing.load), and on a CANopen
-        bus the master's SYNC jitter for the SYNC and for tasks that run on SYNC."""
+    def _unanalysed_jitter_ns(self, m: Message, bus: int) -> int:
+        """Release jitter the message's analysed response does not hold: the CANopen master's SYNC jitter for the
+        SYNC it produces (its response is analysed from a strictly periodic release)."""
         co = self.buses[bus].canopen
-        sync_late = co.master_jitter_ns if co is not None else 0
-        spreads = []
-        for ref in m.sent_by or ():
-            task = self.cfg.task(ref)
-            spreads.append(task.wcet_ns - task.bcet_ns + (sync_late if task.sync_bus == m.bus else 0))
         if co is not None and m.id == co.sync_id and not m.extended:
-            spreads.append(sync_late)
-        return release_jitter_ns(m.jitter_ns, spreads)
+            return co.master_jitter_ns
+        return 0
 
     def _buses_of(self, channel: NDArray[np.int32]) -> NDArray[np.int64]:
         while len(self._channel_bus) < len(self.channels):
