@@ -11,7 +11,7 @@ from typing import Any
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
+from netcfg.timing import can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
 
@@ -262,13 +262,27 @@ def rta_frames(
     ]
 
 
+def release_offsets(m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]:
+    """Messages released at a fixed offset of their sender's clock -> (sender, offset): periodic at one period,
+    with an offset, and not sent by a task as it finishes (then the task's end, not the offset, releases it)."""
+    return {
+        msg.name: (msg.producer, msg.offset_ns)
+        for msg in bus.messages
+        if msg.kind == "periodic"
+        and msg.offset_ns is not None
+        and msg.period_ns is not None
+        and msg.period_ns == msg.interval_ns
+        and not flows.sending_tasks(m, msg)
+    }
+
+
 def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     timings, worst, nominal = load.can_bus_load(bus)
     # (nominal, worst-case) frame time of each message: without and with stuff bits
     frame_ns = {name: (bits_to_ns(t.bits_nominal, bus.bitrate), t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
-    plain = can_rta.analyse(rta_frames(bus.messages, timings, acc), tau)
+    plain = can_offsets.analyse(rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus))
     for msg in bus.messages:
         acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
     out: dict[str, Any] = {
