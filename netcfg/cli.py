@@ -74,6 +74,12 @@ def main(argv: list[str] | None = None) -> int:
 
     add_run_parser(sub)
     add_verify_parser(sub)
+    p_tune = sub.add_parser("tune", help="identifiers and offsets that make a CAN spec schedulable with the most slack")
+    p_tune.add_argument("spec", type=Path, metavar="SPEC")
+    p_tune.add_argument("-o", "--output", type=Path, required=True, metavar="OUT.yaml", help="the tuned spec to write")
+    p_tune.add_argument("--robust", action="store_true", help="Davis & Burns' robust assignment: most error frames")
+    p_tune.add_argument("--force", action="store_true", help="replace OUT.yaml if it exists")
+    p_tune.add_argument("--format", choices=("text", "json"), default="text")
     args = parser.parse_args(argv)
     try:
         if args.command == "check":
@@ -92,6 +98,10 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_run(args)
         if args.command == "verify":
             return cmd_verify(args)
+        if args.command == "tune":
+            from netcfg.tune import command
+
+            return command(args.spec, args.output, args.robust, args.force, args.format)
     except BrokenPipeError:  # e.g. `netcfg check x | head`
         return 0
     return 2  # pragma: no cover - argparse rejects unknown commands

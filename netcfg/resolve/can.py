@@ -53,3 +53,18 @@ class CanProtocol(BusProtocol):
                 continue
             taken[id_key] = f"'{m.name}'"
             self.check_message_id(bus, m)
+            self.check_id_range(m)
+
+    def check_id_range(self, m: model.Message) -> None:
+        """A node's `id_range` holds every identifier it sends with (implicit protocol frames aside)."""
+        node = self.r.spec_nodes.get(m.producer)
+        if node is None or node.id_range is None or m.implicit is not None:
+            return
+        lo, hi = node.id_range
+        if not lo <= m.id <= hi:
+            self.r.err(
+                "id-range",
+                f"identifier 0x{m.id:03X} of '{m.name}' is outside node '{m.producer}''s id_range "
+                f"0x{lo:03X}..0x{hi:03X}; pick one inside it (netcfg tune does) or widen the range",
+                self.r.key_or_item(m.path, "id"),
+            )

@@ -314,12 +314,22 @@ class Node(SpecModel):
         description="how the node's processor runs its tasks: fixed-priority preemptive (default) or "
         "fixed-priority non-preemptive; the analysis bounds each task's response time under it",
     )
+    id_range: tuple[Int, Int] | None = Field(
+        None, description="CAN: [lowest, highest] identifier this node may send with; `netcfg tune` stays inside it"
+    )
     description: str | None = None
 
 
 class Mux(SpecModel):
     signal: Name = Field(description="the multiplexer signal of the same message")
     values: list[Int] = Field(min_length=1, description="its raw values for which this signal is present")
+
+
+class Pins(SpecModel):
+    """What `netcfg tune` must leave as written (default: it may change both)."""
+
+    id: Literal["fixed", "free"] = "free"
+    offset: Literal["fixed", "free"] = "free"
 
 
 class Signal(SpecModel):
@@ -400,6 +410,7 @@ class Message(SpecModel):
     window: Literal["sync", "async"] | None = Field(None, description="FTT-CAN window (default: sync if periodic)")
     ftt_id: Int | None = Field(None, ge=0, description="FTT-CAN synchronous id (bit in the EC-schedule)")
     udp: Udp | None = None
+    tune: Pins | None = Field(None, description="what `netcfg tune` keeps: {id: fixed} and/or {offset: fixed}")
     description: str | None = None
 
 

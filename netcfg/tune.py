@@ -1,0 +1,483 @@
+"""`netcfg tune`: identifiers and offsets that make a CAN bus schedulable with the most slack.
+
+Identifiers: Audsley's optimal priority assignment (Audsley 1991; shown to be optimal for CAN's revised
+response-time analysis by Davis and Burns 2009, "Robust priority assignment for messages on Controller Area
+Network (CAN)", Real-Time Systems 43(2)). From the lowest priority up, each level takes a message that meets its
+deadline with every message still unassigned above it; the response time of a message depends only on which
+messages are above and below it, not on their order, so if any assignment exists this finds one. The levels are the
+identifiers the bus's free messages already use (so the set of identifiers does not change), plus the pinned ones.
+Among the messages that fit a level, the plain variant takes the one with the longest deadline; the robust variant
+(Davis and Burns 2009, RPA) takes the one that tolerates the most error frames at that level, which maximises the
+number of errors the whole bus tolerates.
+
+Offsets: then, per sender, the periodic messages it releases from its own clock are spread over their hyperperiod,
+each placed where its releases are farthest from the releases already placed (the heuristic of Grenier, Havet and
+Navet 2008, "Pushing the limits of CAN"), and the result is kept only when the smallest slack on the bus, by the
+offset-aware analysis (netcfg.timing.can_offsets), is larger than with the spec's own offsets.
+
+What is kept: every message's producer, size, period, deadline and jitter; identifiers pinned with
+`tune: {id: fixed}`, offsets pinned with `tune: {offset: fixed}`; a node's `id_range`; on CANopen buses every
+COB-ID (CiA 301's predefined connection set, which devices expect) and on FTT-CAN buses the synchronous messages
+(the master schedules them; `offset: auto` places them). Only plain CAN buses are re-identified.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from math import gcd, lcm
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from netcfg import model
+from netcfg.analyze import release_offsets, rta_frames
+from netcfg.spec.schema import Spec
+from netcfg.timing import can_offsets, can_rta, flows, load
+from netcfg.timing.frames import arbitration_key, bits_to_ns
+
+ERROR_FRAME_BITS = 31  # an error frame: 6-bit flag, up to 6 superposed, 8-bit delimiter, 3-bit intermission
+MAX_ERRORS = 64
+MAX_STEPS = 20_000
+
+
+@dataclass
+class Item:
+    """A message as the search sees it."""
+
+    name: str
+    c_ns: int
+    t_ns: int  # can_rta.ONE_SHOT for an on-demand message
+    j_ns: int
+    d_ns: int | None
+    extended: bool
+    id: int
+    producer: str
+    pinned: bool
+    id_range: tuple[int, int] | None
+
+
+@dataclass
+class BusPlan:
+    bus: str
+    ids: dict[str, int] = field(default_factory=dict)  # message -> new identifier
+    offsets: dict[str, int] = field(default_factory=dict)  # message -> new offset (ns)
+    errors_tolerated: int | None = None  # robust variant: error frames every message survives
+    notes: list[str] = field(default_factory=list)
+
+
+class NoAssignment(Exception):
+    """No identifier assignment meets every deadline; the message says where the search stopped."""
+
+
+def response_time(
+    item: Item, blocking: int, hp_c: np.ndarray, hp_t: np.ndarray, hp_j: np.ndarray, tau: int, extra: int = 0
+) -> int | None:
+    """Davis et al. 2007 (eqs. 10-14) for one message above `blocking` and below the hp arrays, with `extra` ns of
+    error recovery added to the busy period and every queuing delay. None: unbounded or too long to follow."""
+    periodic = hp_t < can_rta.ONE_SHOT
+    load_ = float((hp_c[periodic] / hp_t[periodic]).sum()) + (
+        item.c_ns / item.t_ns if item.t_ns < can_rta.ONE_SHOT else 0
+    )
+    if load_ >= 1.0:
+        return None
+
+    def demand(x: int) -> int:
+        return int(((-(-(x + hp_j) // hp_t)) * hp_c).sum()) if hp_c.size else 0
+
+    base = blocking + extra
+    busy, steps = base + item.c_ns + int(hp_c.sum()), 0
+    while True:
+        nxt = base + demand(busy) + -(-(busy + item.j_ns) // item.t_ns) * item.c_ns
+        steps += 1
+        if nxt <= busy:
+            break
+        if steps > MAX_STEPS:
+            return None
+        busy = nxt
+    worst, w = 0, 0
+    for q in range(max(1, -(-(busy + item.j_ns) // item.t_ns))):
+        w = max(w, base + q * item.c_ns)
+        while True:
+            nxt = base + q * item.c_ns + demand(w + tau)
+            steps += 1
+            if nxt <= w:
+                break
+            if steps > MAX_STEPS:
+                return None
+            w = nxt
+        worst = max(worst, item.j_ns + w - q * item.t_ns + item.c_ns)
+    return worst
+
+
+def meets(item: Item, r: int | None) -> bool:
+    return r is not None and (item.d_ns is None or r <= item.d_ns)
+
+
+def audsley(items: Sequence[Item], tau: int, robust: bool = False) -> tuple[dict[str, int], int | None]:
+    """-> (message -> identifier, error frames tolerated by all (robust) or None). Raises NoAssignment."""
+    levels = sorted({(arbitration_key(it.id, it.extended), it.id, it.extended) for it in items})
+    pinned_at = {(it.id, it.extended): it for it in items if it.pinned}
+    c = np.array([it.c_ns for it in items], dtype=np.int64)
+    t = np.array([it.t_ns for it in items], dtype=np.int64)
+    j = np.array([it.j_ns for it in items], dtype=np.int64)
+    index = {it.name: i for i, it in enumerate(items)}
+    waiting = np.ones(len(items), dtype=bool)
+    # a free message tried at a level: longest deadline (or period) first, as deadline-monotonic would place it
+    free = sorted((it for it in items if not it.pinned), key=lambda it: (-(it.d_ns or it.t_ns), -it.t_ns, it.name))
+    blocking = 0
+    out: dict[str, int] = {}
+    tolerated: int | None = None
+
+    def fits(it: Item, extra: int = 0) -> int | None:
+        mask = waiting.copy()
+        mask[index[it.name]] = False
+        return response_time(it, blocking, c[mask], t[mask], j[mask], tau, extra)
+
+    def errors_survived(it: Item) -> int:
+        mask = waiting.copy()
+        recovery = ERROR_FRAME_BITS * tau + int(max(c[mask].max(initial=0), it.c_ns))
+        lo, hi = 0, MAX_ERRORS
+        while lo < hi:  # the most error frames (each with its retransmission) it survives
+            mid = (lo + hi + 1) // 2
+            if meets(it, fits(it, mid * recovery)):
+                lo = mid
+            else:
+                hi = mid - 1
+        return lo
+
+    for _, ident, extended in reversed(levels):
+        chosen: Item | None = None
+        if (ident, extended) in pinned_at:
+            it = pinned_at[(ident, extended)]
+            if not meets(it, fits(it)):
+                raise NoAssignment(_refusal(it, ident, fits(it), pinned=True))
+            chosen = it
+        else:
+            tried: list[tuple[Item, int | None]] = []
+            best = -1
+            for it in free:
+                if not waiting[index[it.name]] or it.extended != extended:
+                    continue
+                if it.id_range is not None and not it.id_range[0] <= ident <= it.id_range[1]:
+                    continue
+                r = fits(it)
+                tried.append((it, r))
+                if not meets(it, r):
+                    continue
+                if not robust:
+                    chosen = it
+                    break
+                survived = errors_survived(it)
+                if survived > best:
+                    chosen, best = it, survived
+            if chosen is None:
+                raise NoAssignment(_none_fits(ident, tried, int(waiting.sum())))
+            if robust:
+                tolerated = best if tolerated is None else min(tolerated, best)
+        if robust and chosen.pinned:
+            survived = errors_survived(chosen)
+            tolerated = survived if tolerated is None else min(tolerated, survived)
+        out[chosen.name] = ident
+        waiting[index[chosen.name]] = False
+        blocking = max(blocking, chosen.c_ns)
+    return out, tolerated
+
+
+def _refusal(it: Item, ident: int, r: int | None, pinned: bool) -> str:
+    took = "no bounded response" if r is None else f"{r / 1000:g} us"
+    return (
+        f"'{it.name}' is pinned to identifier 0x{ident:03X} (tune: {{id: fixed}}) and misses its deadline of "
+        f"{(it.d_ns or 0) / 1000:g} us there ({took}) whatever the order above it; unpin it or give it a smaller id"
+    )
+
+
+def _none_fits(ident: int, tried: list[tuple[Item, int | None]], above: int) -> str:
+    if not tried:
+        return (
+            f"no message may take identifier 0x{ident:03X}: the id_range of every remaining sender excludes it; "
+            "widen a node's id_range"
+        )
+    more = ", ..." if len(tried) > 4 else ""
+    shown = ", ".join(
+        f"'{it.name}' {('unbounded' if r is None else f'{r / 1000:g} us')} > {(it.d_ns or 0) / 1000:g} us"
+        for it, r in tried[:4]
+    )
+    return (
+        f"no identifier assignment meets every deadline: at identifier 0x{ident:03X}, with {above - 1} messages "
+        f"still above it, none of the remaining messages meets its deadline ({shown}{more}); "
+        "lower the load (slower periods, shorter payloads), relax a deadline or raise the bit rate"
+    )
+
+
+# -- offsets ----------------------------------------------------------------------------------------------------
+def spread_offsets(periods: dict[str, int], fixed: dict[str, int], step_ns: int = 1000) -> dict[str, int] | None:
+    """Offsets for one sender's messages (name -> period): each, shortest period first, where its releases are
+    farthest from those already placed over the hyperperiod. `fixed` offsets are placed first and kept.
+    None when the hyperperiod unrolls into more than can_offsets.MAX_JOBS releases."""
+    every = {**periods, **{n: periods.get(n, 0) for n in fixed}}
+    hyper = lcm(*every.values())
+    if sum(hyper // p for p in every.values()) > can_offsets.MAX_JOBS:
+        return None
+    placed = np.array(
+        sorted((o + k * periods[n]) % hyper for n, o in fixed.items() for k in range(hyper // periods[n])),
+        dtype=np.int64,
+    )
+    out = {}
+    for name in sorted((n for n in periods if n not in fixed), key=lambda n: (periods[n], n)):
+        period = periods[name]
+        step = _round_step(max(gcd(*periods.values()) // (2 * len(periods)), period // 256), step_ns)
+        cands = np.arange(0, period, step, dtype=np.int64)
+        if placed.size == 0:
+            best = 0
+        else:
+            rel = (cands[:, None] + np.arange(hyper // period, dtype=np.int64)[None, :] * period) % hyper
+            pos = np.searchsorted(placed, rel)
+            after = placed[pos % placed.size] + np.where(pos == placed.size, hyper, 0)
+            before = placed[(pos - 1) % placed.size] - np.where(pos == 0, hyper, 0)
+            gap = np.minimum(after - rel, rel - before).min(axis=1)
+            best = int(cands[int(np.argmax(gap))])
+        out[name] = best
+        placed = np.sort(np.concatenate([placed, (best + np.arange(hyper // period) * period) % hyper]))
+    return out
+
+
+def _round_step(ns: int, least: int) -> int:
+    """The largest 1, 2 or 5 times `least` times a power of ten not above ns (offsets a person reads easily)."""
+    best, scale = least, least
+    while scale <= ns:
+        best = max([best] + [k * scale for k in (1, 2, 5) if k * scale <= ns])
+        scale *= 10
+    return best
+
+
+def slacks(frames: list[can_rta.CanFrame], tau: int, offsets: dict[str, tuple[str, int]]) -> list[float]:
+    """Every deadline - bound on the bus, smallest first (ns; -inf for a missing bound): comparing these lists
+    maximises the smallest slack, then the next smallest, and so on."""
+    res = can_offsets.analyse(frames, tau, offsets)
+    out = []
+    for f in frames:
+        r = res[f.name].wcrt_ns
+        if f.d_ns is not None:
+            out.append(f.d_ns - r if r is not None else -float("inf"))
+    return sorted(out)
+
+
+# -- the whole spec ---------------------------------------------------------------------------------------------
+def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPlan:
+    plan = BusPlan(bus.name)
+    if bus.protocol != "can":
+        plan.notes.append(
+            f"bus '{bus.name}' ({bus.protocol}): identifiers kept"
+            + (" (CiA 301 COB-IDs)" if bus.protocol == "canopen" else " (the master schedules its synchronous window)")
+        )
+        return plan
+    pins = {msg.name: msg.tune for msg in spec.messages if msg.tune is not None}
+    ranges = {n.name: n.id_range for n in spec.nodes}
+    timings, _, _ = load.can_bus_load(bus)
+    tau = bits_to_ns(1, bus.bitrate)
+    items = [
+        Item(
+            msg.name,
+            timings[msg.name].tx_ns,
+            msg.interval_ns or can_rta.ONE_SHOT,
+            msg.jitter_ns,
+            msg.deadline_ns,
+            msg.extended,
+            msg.id,
+            msg.producer,
+            msg.name in pins and pins[msg.name].id == "fixed",  # type: ignore[union-attr]
+            ranges.get(msg.producer),
+        )
+        for msg in bus.messages
+    ]
+    ids, plan.errors_tolerated = audsley(items, tau, robust)
+    plan.ids = {name: ident for name, ident in ids.items() if ident != m.messages[name].id}
+    # offsets, on the new identifiers
+    new = [
+        can_rta.CanFrame(f.name, ids[f.name], f.extended, f.c_ns, f.t_ns, f.j_ns, f.d_ns)
+        for f in rta_frames(bus.messages, timings)
+    ]
+    before = release_offsets(m, bus)
+    after = dict(before)
+    by_node: dict[str, dict[str, int]] = {}
+    fixed: dict[str, dict[str, int]] = {}
+    for msg in bus.messages:
+        free = msg.kind == "periodic" and msg.period_ns and msg.period_ns == msg.interval_ns
+        if not free or flows.sending_tasks(m, msg):
+            continue
+        if msg.name in pins and pins[msg.name].offset == "fixed":  # type: ignore[union-attr]
+            if msg.offset_ns is not None:
+                fixed.setdefault(msg.producer, {})[msg.name] = msg.offset_ns
+            continue
+        by_node.setdefault(msg.producer, {})[msg.name] = msg.period_ns  # type: ignore[assignment]
+    for node, periods in sorted(by_node.items()):
+        if len(periods) + len(fixed.get(node, {})) < 2:
+            continue
+        chosen = spread_offsets(periods, fixed.get(node, {}))
+        if chosen is None:
+            plan.notes.append(f"node '{node}': its periods' hyperperiod is too long to place offsets; kept")
+            continue
+        after.update({name: (node, o) for name, o in chosen.items()})
+    if slacks(new, tau, after) > slacks(new, tau, before):
+        plan.offsets = {name: o for name, (_, o) in after.items() if before.get(name, (None, None))[1] != o}
+    else:
+        plan.notes.append(f"bus '{bus.name}': offsets kept (spreading them would not add slack)")
+    return plan
+
+
+def plan(m: model.Model, spec: Spec, robust: bool = False) -> list[BusPlan]:
+    return [plan_bus(m, spec, bus, robust) for bus in m.buses.values() if bus.is_can]
+
+
+def summary_rows(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """bus -> {load, worst slack (us), misses} from a check report."""
+    out = {}
+    for b in report["buses"]:
+        slack = [x["slack_us"] for x in b["messages"] if x.get("slack_us") is not None]
+        unbounded = any(x["schedulable"] is False and x["wcrt_us"] is None for x in b["messages"])
+        out[b["name"]] = {
+            "load": b["utilization"],
+            "worst_slack_us": None if unbounded else min(slack, default=None),
+            "misses": sum(1 for x in b["messages"] if x["schedulable"] is False),
+        }
+    return out
+
+
+# -- the command ------------------------------------------------------------------------------------------------
+def _id_text(ident: int, extended: bool) -> str:
+    return f"0x{ident:08X}" if extended else f"0x{ident:03X}"
+
+
+def _duration_text(ns: int) -> str:
+    for unit, scale in (("ms", 1_000_000), ("us", 1_000)):
+        if ns % scale == 0:
+            return f"{ns // scale} {unit}"
+    return f"{ns} ns"
+
+
+def command(source: Path, output: Path, robust: bool, force: bool, fmt: str) -> int:
+    """netcfg tune SPEC -o OUT.yaml; exit 0 written, 1 no assignment or the spec has errors, 2 I/O or usage."""
+    from netcfg.check import analyse_spec
+    from netcfg.diagnostics import Collector, sort_diagnostics
+    from netcfg.resolve import resolve
+    from netcfg.spec.edit import set_message_values
+    from netcfg.spec.load import read_spec
+
+    if source.suffix.lower() == ".dbc" or output.suffix.lower() == ".dbc":
+        print(
+            "netcfg: tune reads and writes YAML specs; import a DBC first: netcfg import dbc F.dbc -o F.yaml",
+            file=sys.stderr,
+        )
+        return 2
+    if output.exists() and not force:
+        print(f"netcfg: {output} exists; tune never replaces a file (choose another -o, or --force)", file=sys.stderr)
+        return 2
+    diags = Collector()
+    spec, smap = read_spec(source, diags)
+    m = resolve(spec, smap, diags, source.parent) if spec is not None else None
+    if m is None or spec is None or diags.errors:
+        for d in sort_diagnostics(diags.items):
+            print(d, file=sys.stderr)
+        print(f"netcfg: {source} has errors; fix them before tuning; nothing was written", file=sys.stderr)
+        return 1
+    _, before = analyse_spec(source)
+    try:
+        plans = plan(m, spec, robust)
+    except NoAssignment as exc:
+        print(f"netcfg: {source}: {exc}; nothing was written", file=sys.stderr)
+        return 1
+    values: dict[str, dict[str, str]] = {}
+    for p in plans:
+        for name, ident in p.ids.items():
+            values.setdefault(name, {})["id"] = _id_text(ident, m.messages[name].extended)
+        for name, ns in p.offsets.items():
+            values.setdefault(name, {})["offset"] = _duration_text(ns)
+    text = set_message_values(source.read_text(encoding="utf-8"), values)
+    tmp = output.with_name(f".{output.name}.tmp")
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_text(text, encoding="utf-8")
+        _, after = analyse_spec(tmp)
+        if after["errors"]:
+            tmp.unlink()
+            for d in after["errors"]:
+                print(f"{output}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
+            print("netcfg: the tuned spec would still be refused; nothing was written", file=sys.stderr)
+            return 1
+        os.replace(tmp, output)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        print(f"netcfg: cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    doc = result_document(m, plans, before, after, output)
+    print(json.dumps(doc, indent=2) if fmt == "json" else result_text(doc))
+    return 0
+
+
+def _us(ns: int | None) -> float | None:
+    return None if ns is None else ns / 1000
+
+
+def result_document(
+    m: model.Model, plans: list[BusPlan], before: dict[str, Any], after: dict[str, Any], output: Path
+) -> dict[str, Any]:
+    was, now = summary_rows(before), summary_rows(after)
+    return {
+        "output": str(output),
+        "ok_before": before["ok"],
+        "ok": after["ok"],
+        "buses": [
+            {
+                "name": p.bus,
+                "before": was.get(p.bus),
+                "after": now.get(p.bus),
+                "ids": [{"name": n, "from": m.messages[n].id, "to": i} for n, i in sorted(p.ids.items())],
+                "offsets": [
+                    {
+                        "name": n,
+                        "from_us": _us(m.messages[n].offset_ns),
+                        "to_us": o / 1000,
+                    }
+                    for n, o in sorted(p.offsets.items())
+                ],
+                "errors_tolerated": p.errors_tolerated,
+                "notes": p.notes,
+            }
+            for p in plans
+        ],
+    }
+
+
+def result_text(doc: dict[str, Any]) -> str:
+    lines = [
+        f"wrote {doc['output']} (check: {'accepted' if doc['ok'] else 'refused'}; "
+        f"the original: {'accepted' if doc['ok_before'] else 'refused'})"
+    ]
+    for b in doc["buses"]:
+        lines.append(f"\nbus {b['name']}:")
+        w, n = b["before"], b["after"]
+        if w and n:
+
+            def slack(x: float | None) -> str:
+                return "unbounded" if x is None else f"{x:g} us"
+
+            lines.append(f"  {'':22} {'before':>14} {'after':>14}")
+            lines.append(f"  {'load':22} {w['load']:>14.1%} {n['load']:>14.1%}")
+            lines.append(f"  {'worst slack':22} {slack(w['worst_slack_us']):>14} {slack(n['worst_slack_us']):>14}")
+            lines.append(f"  {'deadline misses':22} {w['misses']:>14} {n['misses']:>14}")
+        for x in b["ids"]:
+            lines.append(f"  id      {x['name']:20} 0x{x['from']:03X} -> 0x{x['to']:03X}")
+        for x in b["offsets"]:
+            was = "none" if x["from_us"] is None else f"{x['from_us']:g} us"
+            lines.append(f"  offset  {x['name']:20} {was} -> {x['to_us']:g} us")
+        if b["errors_tolerated"] is not None:
+            lines.append(f"  every message survives {b['errors_tolerated']} error frames in its busy period (robust)")
+        if not b["ids"] and not b["offsets"]:
+            lines.append("  nothing changed")
+        lines += [f"  note: {t}" for t in b["notes"]]
+    return "\n".join(lines)
