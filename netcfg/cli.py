@@ -31,6 +31,7 @@ def main(argv: list[str] | None = None) -> int:
                          help="DBC input: analyse messages that give no cycle time as periodic every T, e.g. 100ms")
     p_check.add_argument("--werror", action="append", default=[], metavar="CODE",
                          help="treat warnings with this code as errors (repeatable), e.g. dbc-no-receiver")
+    p_check.add_argument("--explain", metavar="MESSAGE", help="derive one CAN message's bound and what would fix it")
     p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
     p_build.add_argument("spec", type=Path, metavar="SPEC")
     p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
@@ -82,6 +83,11 @@ def main(argv: list[str] | None = None) -> int:
     p_tune.add_argument("--format", choices=("text", "json"), default="text")
     args = parser.parse_args(argv)
     try:
+        if args.command == "check" and args.explain:
+            from netcfg.explain import command as explain_command
+
+            options = ImportOptions(args.bitrate, args.lenient, default_period_ns=args.default_period)
+            return explain_command(args.specs, args.explain, args.format, options)
         if args.command == "check":
             options = ImportOptions(args.bitrate, args.lenient, default_period_ns=args.default_period)
             return cmd_check(args.specs, args.format, options, frozenset(args.werror))
