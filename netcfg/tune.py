@@ -315,15 +315,24 @@ def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPla
                 fixed.setdefault(msg.producer, {})[msg.name] = msg.offset_ns
             continue
         by_node.setdefault(msg.producer, {})[msg.name] = msg.period_ns  # type: ignore[assignment]
+    too_long: list[str] = []
     for node, periods in sorted(by_node.items()):
         if len(periods) + len(fixed.get(node, {})) < 2:
             continue
         chosen = spread_offsets(periods, fixed.get(node, {}))
         if chosen is None:
-            plan.notes.append(f"node '{node}': its periods' hyperperiod is too long to place offsets; kept")
+            too_long.append(node)
             continue
         after.update({name: (node, o) for name, o in chosen.items()})
-    if slacks(new, tau, after) > slacks(new, tau, before):
+    if too_long:
+        more = ", ..." if len(too_long) > 5 else ""
+        plan.notes.append(
+            f"offsets of {len(too_long)} node(s) kept ({', '.join(too_long[:5])}{more}): their "
+            f"periods' hyperperiod unrolls into more than {can_offsets.MAX_JOBS} releases"
+        )
+    if after == before:
+        pass
+    elif slacks(new, tau, after) > slacks(new, tau, before):
         plan.offsets = {name: o for name, (_, o) in after.items() if before.get(name, (None, None))[1] != o}
     else:
         plan.notes.append(f"bus '{bus.name}': offsets kept (spreading them would not add slack)")
@@ -362,6 +371,7 @@ def _duration_text(ns: int) -> str:
 
 def command(source: Path, output: Path, robust: bool, force: bool, fmt: str) -> int:
     """netcfg tune SPEC -o OUT.yaml; exit 0 written, 1 no assignment or the spec has errors, 2 I/O or usage."""
+    from netcfg.analyze import analyze
     from netcfg.check import analyse_spec
     from netcfg.diagnostics import Collector, sort_diagnostics
     from netcfg.resolve import resolve
@@ -385,7 +395,8 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str) -> 
             print(d, file=sys.stderr)
         print(f"netcfg: {source} has errors; fix them before tuning; nothing was written", file=sys.stderr)
         return 1
-    _, before = analyse_spec(source)
+    report = analyze(m, diags)
+    before = {**report, "ok": not diags.errors}
     try:
         plans = plan(m, spec, robust)
     except NoAssignment as exc:
