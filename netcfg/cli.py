@@ -81,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     p_tune.add_argument("--robust", action="store_true", help="Davis & Burns' robust assignment: most error frames")
     p_tune.add_argument("--force", action="store_true", help="replace OUT.yaml if it exists")
     p_tune.add_argument("--format", choices=("text", "json"), default="text")
+    p_tune.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k")
     args = parser.parse_args(argv)
     try:
         if args.command == "check" and args.explain:
@@ -107,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "tune":
             from netcfg.tune import command
 
-            return command(args.spec, args.output, args.robust, args.force, args.format)
+            return command(args.spec, args.output, args.robust, args.force, args.format, args.bitrate)
     except BrokenPipeError:  # e.g. `netcfg check x | head`
         return 0
     return 2  # pragma: no cover - argparse rejects unknown commands

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -36,6 +37,8 @@ import numpy as np
 
 from netcfg import model
 from netcfg.analyze import release_offsets, rta_frames
+from netcfg.diagnostics import Collector
+from netcfg.importers import ImportOptions
 from netcfg.spec.schema import Spec
 from netcfg.timing import can_offsets, can_rta, flows, load
 from netcfg.timing.frames import arbitration_key, bits_to_ns
@@ -369,27 +372,69 @@ def _duration_text(ns: int) -> str:
     return f"{ns} ns"
 
 
-def command(source: Path, output: Path, robust: bool, force: bool, fmt: str) -> int:
+def _read_dbc(path: Path, diags: Collector, bitrate: int | None) -> tuple[Spec | None, model.Model | None]:
+    """The spec `netcfg import dbc` would write for this DBC, and its model."""
+    from pydantic import ValidationError
+
+    from netcfg.check import load_dbc
+    from netcfg.importers.dbc import import_dbc
+
+    options = ImportOptions(bitrate)
+    imported = import_dbc(path, options, Collector())
+    if imported is None:
+        return None, load_dbc(path, diags, options)
+    try:
+        spec = Spec.model_validate(imported[0])
+    except ValidationError:
+        spec = None
+    return spec, load_dbc(path, diags, options)
+
+
+def _dbc_ids(m: model.Model, plans: list[BusPlan]) -> dict[int, int]:
+    """Old -> new identifier as a DBC writes it (bit 31 set on extended frames)."""
+    out = {}
+    for p in plans:
+        for name, ident in p.ids.items():
+            flag = 0x80000000 if m.messages[name].extended else 0
+            out[m.messages[name].id | flag] = ident | flag
+    return out
+
+
+# every DBC statement that names a message by its identifier (Vector's DBC format: BO_, BO_TX_BU_, CM_, BA_, VAL_,
+# SIG_VALTYPE_, SIG_GROUP_, SG_MUL_VAL_, EV_DATA_)
+_DBC_ID = re.compile(
+    r'^(\s*(?:BO_|BO_TX_BU_|VAL_|SG_MUL_VAL_|SIG_VALTYPE_|SIG_GROUP_|EV_DATA_|CM_\s+(?:BO_|SG_)|BA_\s+"[^"]*"\s+(?:BO_|SG_))\s+)(\d+)',
+    re.M,
+)
+
+
+def edit_dbc_ids(text: str, ids: dict[int, int]) -> str:
+    """Renumber messages in a DBC's own text (all at once, so swapped identifiers do not collide)."""
+    return _DBC_ID.sub(lambda mt: mt.group(1) + str(ids.get(int(mt.group(2)), int(mt.group(2)))), text)
+
+
+def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bitrate: int | None = None) -> int:
     """netcfg tune SPEC -o OUT.yaml; exit 0 written, 1 no assignment or the spec has errors, 2 I/O or usage."""
     from netcfg.analyze import analyze
     from netcfg.check import analyse_spec
-    from netcfg.diagnostics import Collector, sort_diagnostics
+    from netcfg.diagnostics import sort_diagnostics
     from netcfg.resolve import resolve
     from netcfg.spec.edit import set_message_values
     from netcfg.spec.load import read_spec
 
-    if source.suffix.lower() == ".dbc" or output.suffix.lower() == ".dbc":
-        print(
-            "netcfg: tune reads and writes YAML specs; import a DBC first: netcfg import dbc F.dbc -o F.yaml",
-            file=sys.stderr,
-        )
+    if (source.suffix.lower() == ".dbc") != (output.suffix.lower() == ".dbc"):
+        print("netcfg: tune writes what it reads: SPEC.yaml -o OUT.yaml, or F.dbc -o OUT.dbc", file=sys.stderr)
         return 2
     if output.exists() and not force:
         print(f"netcfg: {output} exists; tune never replaces a file (choose another -o, or --force)", file=sys.stderr)
         return 2
     diags = Collector()
-    spec, smap = read_spec(source, diags)
-    m = resolve(spec, smap, diags, source.parent) if spec is not None else None
+    is_dbc = source.suffix.lower() == ".dbc"
+    if is_dbc:
+        spec, m = _read_dbc(source, diags, bitrate)
+    else:
+        spec, smap = read_spec(source, diags)
+        m = resolve(spec, smap, diags, source.parent) if spec is not None else None
     if m is None or spec is None or diags.errors:
         for d in sort_diagnostics(diags.items):
             print(d, file=sys.stderr)
@@ -408,12 +453,18 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str) -> 
             values.setdefault(name, {})["id"] = _id_text(ident, m.messages[name].extended)
         for name, ns in p.offsets.items():
             values.setdefault(name, {})["offset"] = _duration_text(ns)
-    text = set_message_values(source.read_text(encoding="utf-8"), values)
-    tmp = output.with_name(f".{output.name}.tmp")
+        if is_dbc and p.offsets:  # a DBC carries no offsets netcfg reads back: identifiers only
+            p.offsets = {}
+            p.notes.append("offsets not written: netcfg reads no offsets from a DBC, so they would be lost")
+    if is_dbc:
+        data = edit_dbc_ids(source.read_bytes().decode("latin-1"), _dbc_ids(m, plans)).encode("latin-1")
+    else:
+        data = set_message_values(source.read_text(encoding="utf-8"), values).encode("utf-8")
+    tmp = output.with_name(f".tmp.{output.name}")  # keeps the suffix: the check below reads it by its kind
     try:
         output.parent.mkdir(parents=True, exist_ok=True)
-        tmp.write_text(text, encoding="utf-8")
-        _, after = analyse_spec(tmp)
+        tmp.write_bytes(data)
+        _, after = analyse_spec(tmp, ImportOptions(bitrate) if is_dbc else None)
         if after["errors"]:
             tmp.unlink()
             for d in after["errors"]:

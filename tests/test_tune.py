@@ -125,3 +125,31 @@ def test_robust_variant_states_the_errors_every_message_survives() -> None:
     items = [_item(f"m{i}", MS // 4, (i + 2) * MS, (i + 2) * MS, ident=i + 1) for i in range(6)]
     ids, tolerated = audsley(items, TAU, robust=True)
     assert _schedulable(items, ids) and tolerated is not None and tolerated >= 1
+
+
+def test_tune_a_dbc(tmp_path: Path) -> None:
+    """tune F.dbc -o OUT.dbc: the wrong-order bus as a DBC (the tuned spec's DBC, renumbered back to the original
+    identifiers in its own text) is refused by check and accepted after tune; only BO_ numbers and the statements
+    naming them change."""
+    from netcfg.tune import edit_dbc_ids
+
+    tuned = tmp_path / "tuned.yaml"
+    assert cli("tune", str(WRONG_ORDER), "-o", str(tuned)).returncode == 0
+    assert cli("build", str(tuned), "-o", str(tmp_path / "out")).returncode == 0
+    orig = {m["name"]: m["id"] for m in yaml.safe_load(WRONG_ORDER.read_text())["messages"]}
+    new = {m["name"]: m["id"] for m in yaml.safe_load(tuned.read_text())["messages"]}
+    good = (tmp_path / "out" / "dbc" / "body.dbc").read_text(encoding="latin-1")
+    wrong = tmp_path / "wrong.dbc"
+    wrong.write_text(edit_dbc_ids(good, {new[n]: orig[n] for n in orig}), encoding="latin-1")
+    assert cli("check", str(wrong), "--bitrate", "500k").returncode == 1
+    fixed = tmp_path / "fixed.dbc"
+    run = cli("tune", str(wrong), "-o", str(fixed), "--bitrate", "500k")
+    assert run.returncode == 0, run.stderr
+    assert cli("check", str(fixed), "--bitrate", "500k").returncode == 0
+    changed = [
+        (a, b)
+        for a, b in zip(wrong.read_text("latin-1").splitlines(), fixed.read_text("latin-1").splitlines())
+        if a != b
+    ]
+    assert changed and all(a.split()[0] == b.split()[0] for a, b in changed)
+    assert cli("tune", str(wrong), "-o", str(tmp_path / "x.yaml")).returncode == 2  # writes what it reads
