@@ -264,7 +264,10 @@ def rta_frames(
 
 def release_offsets(m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]:
     """Messages released at a fixed offset of their sender's clock -> (sender, offset): periodic at one period,
-    with an offset, and not sent by a task as it finishes (then the task's end, not the offset, releases it)."""
+    with an offset, and not sent by a task as it finishes (then the task's end, not the offset, releases it).
+    CANopen buses have none: the master's loop and SYNC, not an offset, release their PDOs."""
+    if bus.protocol not in ("can", "ftt-can"):
+        return {}
     return {
         msg.name: (msg.producer, msg.offset_ns)
         for msg in bus.messages

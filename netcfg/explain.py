@@ -24,6 +24,7 @@ from netcfg.importers import ImportOptions
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_offsets, can_rta, load
 from netcfg.timing.frames import bits_to_ns
+from netcfg.tune import round_step
 
 
 class NotExplained(Exception):
@@ -145,6 +146,9 @@ def one_change(
             }
         if ident < me.id - 4096:  # far enough: the rest of the range only adds priority it does not need
             break
+    offset = _offset_change(m, bus, frames, me, tau, offsets)
+    if offset is not None:
+        return offset
     best: dict[str, Any] | None = None
     for f in sorted((f for f in frames if f.priority_key < me.priority_key and f.t_ns), key=lambda f: f.priority_key):
         assert f.t_ns is not None
@@ -165,6 +169,41 @@ def one_change(
                     }
                 break
     return best
+
+
+def _offset_change(
+    m: model.Model,
+    bus: model.Bus,
+    frames: list[can_rta.CanFrame],
+    me: can_rta.CanFrame,
+    tau: int,
+    offsets: dict[str, tuple[str, int]],
+) -> dict[str, Any] | None:
+    """An offset for the message, against the offsets its sender's other messages already have."""
+    msg = m.messages[me.name]
+    producer = msg.producer
+    if not me.t_ns or not any(n != me.name and p == producer for n, (p, _) in offsets.items()):
+        return None
+    trial = {**offsets, me.name: (producer, 0)}
+    if me.name not in release_offsets(m, bus) and (msg.kind != "periodic" or msg.period_ns != msg.interval_ns):
+        return None
+    step = round_step(me.t_ns // 64, 1000)
+    best: tuple[int, int] | None = None  # (bound, offset): the offset that leaves the most slack
+    for o in range(0, me.t_ns, step):
+        trial[me.name] = (producer, o)
+        r = _meets(frames, me.name, tau, trial)
+        if r is not None and (best is None or r < best[0]):
+            best = (r, o)
+    if best is None:
+        return None
+    r, o = best
+    return {
+        "kind": "offset",
+        "offset_us": _us(o),
+        "wcrt_us": _us(r),
+        "text": f"give '{me.name}' offset {format_ns(o)} on '{producer}', away from its sender's other messages: "
+        f"its bound becomes {r / 1000:g} us <= {(me.d_ns or 0) / 1000:g} us",
+    }
 
 
 def text(doc: dict[str, Any]) -> str:

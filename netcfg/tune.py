@@ -233,7 +233,7 @@ def spread_offsets(periods: dict[str, int], fixed: dict[str, int], step_ns: int 
     out = {}
     for name in sorted((n for n in periods if n not in fixed), key=lambda n: (periods[n], n)):
         period = periods[name]
-        step = _round_step(max(gcd(*periods.values()) // (2 * len(periods)), period // 256), step_ns)
+        step = round_step(max(gcd(*periods.values()) // (2 * len(periods)), period // 256), step_ns)
         cands = np.arange(0, period, step, dtype=np.int64)
         if placed.size == 0:
             best = 0
@@ -249,7 +249,7 @@ def spread_offsets(periods: dict[str, int], fixed: dict[str, int], step_ns: int 
     return out
 
 
-def _round_step(ns: int, least: int) -> int:
+def round_step(ns: int, least: int) -> int:
     """The largest 1, 2 or 5 times `least` times a power of ten not above ns (offsets a person reads easily)."""
     best, scale = least, least
     while scale <= ns:
