@@ -45,7 +45,8 @@ def _names(prefix: str, n: int) -> list[str]:
 
 @st.composite
 def can_spec(draw: st.DrawFn) -> dict[str, Any]:
-    """Plain CAN: 2-4 nodes, up to 10 messages (periodic with jitter, sporadic), a task chain per flow."""
+    """Plain CAN: 2-4 nodes, up to 10 messages (periodic with offsets and jitter, sporadic), a task chain per
+    flow."""
     bitrate = draw(st.sampled_from(["125 kbit/s", "250 kbit/s", "500 kbit/s", "1 Mbit/s"]))
     nodes = _names("n", draw(st.integers(2, 4)))
     count = draw(st.integers(1, 10))
@@ -67,6 +68,8 @@ def can_spec(draw: st.DrawFn) -> dict[str, Any]:
         else:
             period = draw(st.integers(500, 100_000))
             msg["period"] = f"{period} us"
+            if draw(st.booleans()):  # released at an offset of its node's clock: analysed as a transaction
+                msg["offset"] = f"{draw(st.integers(0, period - 1))} us"
             jitter = draw(st.integers(0, period // 4))
             if jitter:
                 msg["jitter"] = f"{jitter} us"
