@@ -453,9 +453,9 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
             values.setdefault(name, {})["id"] = _id_text(ident, m.messages[name].extended)
         for name, ns in p.offsets.items():
             values.setdefault(name, {})["offset"] = _duration_text(ns)
-        if is_dbc and p.offsets:  # a DBC carries no offsets netcfg reads back: identifiers only
+        if is_dbc and p.offsets:  # the DBC is edited in its own text, where only identifiers are renumbered
             p.offsets = {}
-            p.notes.append("offsets not written: netcfg reads no offsets from a DBC, so they would be lost")
+            p.notes.append("offsets not written: in a DBC tune changes identifiers only")
     if is_dbc:
         data = edit_dbc_ids(source.read_bytes().decode("latin-1"), _dbc_ids(m, plans)).encode("latin-1")
     else:
