@@ -221,9 +221,8 @@ def test_runtime_fd_lengths_match_the_timing_core_and_python_can() -> None:
     netcfg.timing.frames and as python-can's dlc2len for DLC 0..15."""
     import can
 
-    from netcfg.timing.frames import CANFD_LENGTHS, CANFD_PADDING
-
     from netcfg.runtime.schema import FD_LENGTHS
+    from netcfg.timing.frames import CANFD_LENGTHS, CANFD_PADDING
 
     assert FD_LENGTHS == CANFD_LENGTHS == tuple(can.util.dlc2len(d) for d in range(16))
     assert runtime.FD_PADDING == CANFD_PADDING
@@ -238,3 +237,67 @@ def test_runtime_refuses_an_fd_bus_without_data_rate() -> None:
     doc["buses"][0]["data_bitrate"] = 5_000_000
     with pytest.raises(runtime.RuntimeConfigError, match="a frame of 60 bytes cannot carry 56"):
         runtime.parse(doc)
+
+
+# -- DBC: written with the FD marks cantools reads, and analysed back ------------------------------------------------
+
+
+def build_to(tmp_path: Path, data: dict[str, Any] | None = None) -> Path:
+    """netcfg build of arm_canfd.yaml (or of `data`) into tmp_path/out."""
+    spec = SPECS / "arm_canfd.yaml"
+    if data is not None:
+        spec = tmp_path / "spec.yaml"
+        spec.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    proc = cli("build", str(spec), "-o", str(tmp_path / "out"))
+    assert proc.returncode == 0, proc.stderr
+    return tmp_path / "out"
+
+
+def test_dbc_marks_fd_frames_so_cantools_reads_them_as_fd(tmp_path: Path) -> None:
+    import cantools
+
+    data = fd_spec(
+        [
+            {"name": "classic", "id": 1, "size": 8, "fd": False},
+            {"name": "slow", "id": 2, "size": 12, "brs": False},
+            {"name": "fast", "id": 3, "size": 21, "extended": True},
+        ]
+    )
+    db = cantools.database.load_file(build_to(tmp_path, data) / "dbc" / "can0.dbc")
+    got = {m.name: (m.is_fd, m.is_extended_frame, m.length) for m in db.messages}
+    assert got == {"classic": (False, False, 8), "slow": (True, False, 12), "fast": (True, True, 24)}
+    assert db.dbc.attributes["BusType"].value == "CAN FD"
+    assert db.dbc.attributes["Baudrate_CANFD"].value == 5_000_000
+    slow = db.get_message_by_name("slow")
+    assert slow.dbc.attributes["CANFD_BRS"].value in (0, "0")
+    assert "CANFD_BRS" not in db.get_message_by_name("fast").dbc.attributes  # the default, 1
+
+
+def test_check_an_fd_dbc_gives_the_specs_figures(tmp_path: Path) -> None:
+    """`netcfg check arm.dbc --bitrate 1M --data-bitrate 5M` on the DBC netcfg wrote for arm_canfd.yaml: the
+    same frames (56 bytes travel as 64 either way), so the same hand figures: 67.9 % and 226.2 us."""
+    dbc = build_to(tmp_path) / "dbc" / "arm.dbc"
+    proc = cli("check", str(dbc), "--bitrate", "1M", "--data-bitrate", "5M", "--format", "json")
+    assert proc.returncode == 0, proc.stderr
+    b = json.loads(proc.stdout)["buses"][0]
+    assert (b["protocol"], b["bitrate"], b["data_bitrate"]) == ("can-fd", 1_000_000, 5_000_000)
+    assert b["utilization"] == pytest.approx((FD64_US + 9 * FD8_US) / 1000)
+    assert message(b, "arm_command")["wcrt_us"] == pytest.approx(FD8_US + FD64_US)
+    # without --data-bitrate the DBC's own Baudrate_CANFD (5 Mbit/s) is used; --data-bitrate wins over it
+    slower = json.loads(cli("check", str(dbc), "--data-bitrate", "2M", "--format", "json").stdout)["buses"][0]
+    assert slower["data_bitrate"] == 2_000_000
+    assert message(slower, "arm_command")["frame_us_worst"] == pytest.approx(34 + 678 / 2)
+
+
+def test_fd_dbc_without_a_data_rate_says_how_to_give_one(tmp_path: Path) -> None:
+    dbc = build_to(tmp_path) / "dbc" / "arm.dbc"
+    text = dbc.read_text(encoding="cp1252")
+    stripped = tmp_path / "arm.dbc"
+    stripped.write_text("\n".join(x for x in text.splitlines() if "Baudrate_CANFD" not in x), encoding="cp1252")
+    proc = cli("check", str(stripped))
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert "--data-bitrate" in proc.stderr and "message 'arm_command'" in proc.stderr
+    proc = cli("import", "dbc", str(stripped), "--data-bitrate", "5M", "-o", str(tmp_path / "arm.yaml"))
+    assert proc.returncode == 0, proc.stderr
+    spec = yaml.safe_load((tmp_path / "arm.yaml").read_text(encoding="utf-8"))
+    assert spec["buses"][0]["protocol"] == "can-fd" and spec["buses"][0]["data_bitrate"] == "5 Mbit/s"

@@ -40,6 +40,12 @@ from netcfg.runtime import raw_signal_name
 from netcfg.runtime.codec import Field
 
 ENCODING = "cp1252"  # what DBC tools (and cantools.database.load_file) read by default
+# Vector's CAN FD attributes
+BUS_TYPE = DbcAttributeDefinition("BusType", default_value="CAN", type_name="STRING")
+BAUDRATE_CANFD = DbcAttributeDefinition(
+    "Baudrate_CANFD", default_value=2_000_000, type_name="INT", minimum=0, maximum=16_000_000
+)
+CANFD_BRS = DbcAttributeDefinition("CANFD_BRS", default_value="1", kind="BO_", type_name="ENUM", choices=["0", "1"])
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
@@ -79,6 +85,13 @@ def database(m: model.Model, bus: model.Bus) -> cdb.Database:
         attributes=OrderedDict(DBName=DbcAttribute(bus.name, db_name)),
         attribute_definitions=OrderedDict(DBName=db_name, GenMsgSendType=_SEND_TYPE, **_INT_MS, **_EXACT_MS),
     )
+    if bus.protocol == "can-fd":
+        # Vector's CAN FD attributes: BusType "CAN FD" makes cantools write each frame's VFrameFormat (and read it
+        # back as is_fd); Baudrate_CANFD is the data rate; CANFD_BRS (default 1) marks frames without bit-rate switch
+        assert bus.data_bitrate is not None
+        specifics.attribute_definitions.update(BusType=BUS_TYPE, Baudrate_CANFD=BAUDRATE_CANFD, CANFD_BRS=CANFD_BRS)
+        specifics.attributes["BusType"] = DbcAttribute("CAN FD", BUS_TYPE)
+        specifics.attributes["Baudrate_CANFD"] = DbcAttribute(bus.data_bitrate, BAUDRATE_CANFD)
     return cdb.Database(
         messages=messages,
         nodes=nodes,
@@ -147,10 +160,17 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
         signals = [_signal(raw, None, receivers, "the whole payload (the spec gives only a size)")]
     else:
         signals = []
+    fd: dict[str, Any] = {}
+    if msg.fd:  # the length a DBC gives an FD frame is its padded data length
+        fd["is_fd"] = True
+        if not msg.brs:
+            brs = DbcAttribute("0", CANFD_BRS)
+            fd["dbc_specifics"] = DbcSpecifics(attributes=OrderedDict(CANFD_BRS=brs))
     return cdb.Message(
+        **fd,
         frame_id=msg.id,
         name=msg.name,
-        length=msg.size,
+        length=msg.frame_size,
         signals=signals,
         comment=_message_comment(m, msg),
         senders=[msg.producer],
