@@ -11,6 +11,8 @@ Hand figures used below (ISO 11898-1:2015 field counts, worked out in tests/test
 from __future__ import annotations
 
 import json
+import shutil
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -301,3 +303,56 @@ def test_fd_dbc_without_a_data_rate_says_how_to_give_one(tmp_path: Path) -> None
     assert proc.returncode == 0, proc.stderr
     spec = yaml.safe_load((tmp_path / "arm.yaml").read_text(encoding="utf-8"))
     assert spec["buses"][0]["protocol"] == "can-fd" and spec["buses"][0]["data_bitrate"] == "5 Mbit/s"
+
+
+# -- C headers: the same 64-byte frames as the Python runtime ---------------------------------------------------
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")
+def test_c_and_python_pack_the_same_fd_frames(tmp_path: Path) -> None:
+    """controller.h of arm_canfd compiled with gcc -std=c99 -Wall -Wextra -Wpedantic -Werror: packing arm_command
+    gives the 64 bytes (56 of payload, 8 of zero padding) that the runtime's to_can() sends, and unpacking them
+    gives the values back; the header states the frame length and DLC (64 bytes = DLC 15, ISO 11898-1:2015)."""
+    import can
+
+    out = build_to(tmp_path)
+    cfg = runtime.load(out / "runtime.json")
+    cmd = cfg.message("arm_command")
+    vectors = [
+        {s.name: 0 for s in cmd.signals},
+        {
+            **{f"j{k}_position_setpoint": (-1) ** k * 0.1234 * k for k in range(1, 10)},
+            **{f"j{k}_torque_feedforward": 2.5 * k - 11 for k in range(1, 10)},
+            "mode": 255,
+            "sequence": 17,
+        },
+    ]
+    integer = {"mode", "sequence"}  # the struct holds physical values: double for scaled signals
+    literal = [{name: str(int(x)) if name in integer else repr(float(x)) for name, x in v.items()} for v in vectors]
+    lines = ['#include <stdio.h>', '#include "controller.h"', "int main(void)", "{"]
+    for values in literal:
+        lines += ["    {", "        struct msg_arm_command v, w;", "        uint8_t data[MSG_ARM_COMMAND_FRAME_SIZE];"]
+        lines += ["        size_t i;", "        memset(&v, 0, sizeof v);", "        memset(data, 0xAA, sizeof data);"]
+        lines += [f"        v.{name} = {value};" for name, value in values.items()]
+        lines += [
+            "        if (!msg_arm_command_pack(data, &v)) { return 1; }",
+            "        for (i = 0; i < sizeof data; i++) { printf(\"%02x\", data[i]); }",
+            "        msg_arm_command_unpack(&w, data);",
+            '        printf(" %d %d %.17g\\n", MSG_ARM_COMMAND_DLC, (int)w.sequence, w.j9_position_setpoint);',
+            "    }",
+        ]
+    lines += ["    return 0;", "}"]
+    source = tmp_path / "fd.c"
+    source.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    flags = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-I", str(out / "c")]
+    proc = subprocess.run(["gcc", *flags, "-o", str(tmp_path / "fd"), str(source)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    got = subprocess.run([str(tmp_path / "fd")], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert len(got) == len(vectors)
+    for values, line in zip(vectors, got):
+        frame: can.Message = cmd.to_can(**values)
+        c_hex, dlc, sequence, j9 = line.split()
+        assert bytes.fromhex(c_hex) == bytes(frame.data) and len(frame.data) == 64
+        assert (int(dlc), can.util.len2dlc(len(frame.data))) == (15, 15)
+        back = cmd.decode(bytes(frame.data))
+        assert int(sequence) == values["sequence"] and float(j9) == back["j9_position_setpoint"]
