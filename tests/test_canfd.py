@@ -356,3 +356,38 @@ def test_c_and_python_pack_the_same_fd_frames(tmp_path: Path) -> None:
         assert (int(dlc), can.util.len2dlc(len(frame.data))) == (15, 15)
         back = cmd.decode(bytes(frame.data))
         assert int(sequence) == values["sequence"] and float(j9) == back["j9_position_setpoint"]
+
+
+def test_simulated_fd_traces_read_back_with_python_can(tmp_path: Path) -> None:
+    """`netcfg simulate --log` writes FD frames as FD (candump's `##` form, ASC's CANFD lines): python-can reads
+    arm_command back with is_fd, bitrate_switch and its 64 padded bytes, the joints' 8-byte FD frames too."""
+    import can
+
+    for suffix in (".log", ".asc"):
+        log = tmp_path / f"arm{suffix}"
+        proc = cli("simulate", "specs/arm_canfd.yaml", "--duration", "20ms", "--log", str(log))
+        assert proc.returncode == 0, proc.stderr
+        frames = [m for m in can.LogReader(str(log)) if not m.is_error_frame]
+        # ten frames a millisecond, each node starting at a random phase: the last of some still queued at 20 ms
+        assert 20 * 10 - 10 <= len(frames) <= 20 * 10
+        cmd = [m for m in frames if m.arbitration_id == 0x100]
+        assert len(cmd) >= 19 and all(m.is_fd and m.bitrate_switch and len(m.data) == 64 for m in cmd)
+        assert all(m.is_fd and len(m.data) == 8 for m in frames if m.arbitration_id != 0x100)
+
+
+def test_a_bit_error_in_an_fd_frame_costs_an_error_frame_and_the_frame_again() -> None:
+    """A bit error 10 us into a 64-byte FD frame (169.6 us worst case at 1M/5M): the error frame (23 bits at the
+    nominal rate, ISO 11898-1's longest active error frame: 6 + 6 + 8 + 3) ends at 10 + 23 = 33 us, then the frame
+    is sent whole again: 33 + 169.6 = 202.6 us from its release."""
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.engine import Simulator
+
+    sim = Simulator(seed=1)
+    bus = CanBus(sim, "can0", 1_000_000, stuffing="worst", data_bitrate=5_000_000)
+    src = bus.add_source("m", 0x100, False, 64, "n", fd=True, brs=True)
+    bus.error_times = [10_000]
+    bus.start()
+    sim.at(0, lambda _: bus.submit(src))
+    sim.run_until(MS)
+    assert bus.record.response == [round((33 + FD64_US) * 1000)]
+    assert bus.error_frames == 1 and bus.retries == {src: 1}
