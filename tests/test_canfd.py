@@ -391,3 +391,26 @@ def test_a_bit_error_in_an_fd_frame_costs_an_error_frame_and_the_frame_again() -
     sim.run_until(MS)
     assert bus.record.response == [round((33 + FD64_US) * 1000)]
     assert bus.error_frames == 1 and bus.retries == {src: 1}
+
+
+def test_a_program_on_the_simulated_bus_sends_and_hears_fd_frames() -> None:
+    """netcfg.sim.pybus: a program's python-can bus on the simulated arm bus hears arm_command as an FD frame with
+    BRS and its 64 padded bytes, and a frame it sends with is_fd takes the FD frame time on the bus (an 8-byte FD
+    frame on an otherwise idle bus: at most 56.6 us, the worst case at 1M/5M)."""
+    import can
+
+    from netcfg.sim.pybus import SimCanBus
+    from netcfg.sim.scenario import Scenario
+
+    cfg = runtime.load(ROOT / "generated" / "arm_canfd" / "runtime.json")
+    sc = Scenario(cfg, SimOptions(duration_ns=10 * MS, seed=0))
+    sc.start()
+    bus = SimCanBus(sc, "arm", node="joint1")
+    frames = [bus.recv(0.002) for _ in range(30)]  # three milliseconds of the arm's traffic
+    heard = [m for m in frames if m is not None and m.arbitration_id == 0x100]
+    assert heard and all(m.is_fd and m.bitrate_switch and len(m.data) == 64 for m in heard)
+    assert cfg.decode_can(heard[0])[0].name == "arm_command"
+    bus.send(can.Message(arbitration_id=0x7FF, is_extended_id=False, is_fd=True, bitrate_switch=True, data=bytes(8)))
+    src = bus.sim_bus.by_name["joint1_0x7ff"]
+    assert src.fd and src.brs and src.dur_ns == round(FD8_US * 1000)
+    bus.shutdown()
