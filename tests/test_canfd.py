@@ -414,3 +414,15 @@ def test_a_program_on_the_simulated_bus_sends_and_hears_fd_frames() -> None:
     src = bus.sim_bus.by_name["joint1_0x7ff"]
     assert src.fd and src.brs and src.dur_ns == round(FD8_US * 1000)
     bus.shutdown()
+
+
+def test_arm_canfd_flow_bounds_by_hand() -> None:
+    """joint1_loop: joint1.sample -> joint1_state -> controller.control (periodic, 1 ms) -> arm_command ->
+    joint1.apply, unsynchronised (each node on its own clock). Best: sample BCET 10 + joint1_state without stuff
+    bits 28 + (1 + 5 + 64 + 27 + 1) / 5 = 47.6 + control BCET 50 + arm_command without stuff bits
+    28 + (1 + 5 + 512 + 32 + 1) / 5 = 138.2, up to the start of apply: 245.8 us. Worst: sample WCET 20 +
+    joint1_state's WCRT 282.8 + one control period waited 1000 + control WCET 150 + arm_command's WCRT 226.2 =
+    1679 us."""
+    report = check(SPECS / "arm_canfd.yaml")
+    (f,) = report["flows"]
+    assert (f["latency_min_us"], f["latency_max_us"]) == (pytest.approx(245.8), pytest.approx(1679.0))
