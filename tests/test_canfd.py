@@ -273,6 +273,13 @@ def test_dbc_marks_fd_frames_so_cantools_reads_them_as_fd(tmp_path: Path) -> Non
     slow = db.get_message_by_name("slow")
     assert slow.dbc.attributes["CANFD_BRS"].value in (0, "0")
     assert "CANFD_BRS" not in db.get_message_by_name("fast").dbc.attributes  # the default, 1
+    # and netcfg's importer reads the same frames back: the classical one as fd: false, no BRS as brs: false
+    proc = cli("import", "dbc", str(tmp_path / "out" / "dbc" / "can0.dbc"), "-o", str(tmp_path / "back.yaml"))
+    assert proc.returncode == 0, proc.stderr
+    back = yaml.safe_load((tmp_path / "back.yaml").read_text(encoding="utf-8"))
+    assert back["buses"][0]["protocol"] == "can-fd" and back["buses"][0]["data_bitrate"] == "5 Mbit/s"
+    flags = {m["name"]: (m.get("fd"), m.get("brs"), m["size"]) for m in back["messages"]}
+    assert flags == {"classic": (False, None, 8), "slow": (None, False, 12), "fast": (None, None, 24)}
 
 
 def test_check_an_fd_dbc_gives_the_specs_figures(tmp_path: Path) -> None:
