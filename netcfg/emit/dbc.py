@@ -160,14 +160,11 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
         signals = [_signal(raw, None, receivers, "the whole payload (the spec gives only a size)")]
     else:
         signals = []
-    fd: dict[str, Any] = {}
-    if msg.fd:  # the length a DBC gives an FD frame is its padded data length
-        fd["is_fd"] = True
-        if not msg.brs:
-            brs = DbcAttribute("0", CANFD_BRS)
-            fd["dbc_specifics"] = DbcSpecifics(attributes=OrderedDict(CANFD_BRS=brs))
+    specifics = _timing(msg)
+    if msg.fd and not msg.brs:
+        specifics.attributes["CANFD_BRS"] = DbcAttribute("0", CANFD_BRS)
     return cdb.Message(
-        **fd,
+        is_fd=msg.fd,  # the length a DBC gives an FD frame is its padded data length
         frame_id=msg.id,
         name=msg.name,
         length=msg.frame_size,
@@ -178,7 +175,7 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
         is_extended_frame=msg.extended,
         bus_name=msg.bus,
         sort_signals=None,
-        dbc_specifics=_timing(msg),
+        dbc_specifics=specifics,
     )
 
 
