@@ -15,8 +15,10 @@ Timing, as attributes of the message (BA_ ... BO_):
                           jitter and deadline, which they cannot say. netcfg's DBC importer reads them first,
                           so spec -> DBC -> spec keeps every timing field.
 A message given only as a size gets one unsigned signal spanning its payload, `<message>_raw` (netcfg.runtime
-reads and writes it under the same name), so a bus monitor still shows its bytes. Comments say what netcfg knows
-of each frame (PDO slot, FTT id, implicit role).
+reads and writes it under the same name), so a bus monitor still shows its bytes; a CAN FD payload of more than 8
+bytes gets `<message>_raw0`, `_raw1`, ... of 8 bytes each (a DBC signal has at most 64 bits). Comments say what
+netcfg knows of each frame (PDO slot, FTT id, implicit role). CAN FD buses carry BusType "CAN FD" and
+Baudrate_CANFD, FD frames their VFrameFormat (cantools writes it) and, without bit-rate switch, CANFD_BRS 0.
 
 cantools keeps lists in the order it is given them; messages are sorted by identifier and nodes keep the
 spec's order, so the output is byte-identical across builds.
@@ -155,9 +157,19 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
             _signal(field_of(s), s.unit, receivers, _entry_comment(msg, k), s.is_multiplexer)
             for k, s in enumerate(msg.signals)
         ]
-    elif msg.size:
+    elif 0 < msg.size <= 8:
         raw = Field(raw_signal_name(msg.name), 0, 8 * msg.size)
         signals = [_signal(raw, None, receivers, "the whole payload (the spec gives only a size)")]
+    elif msg.size:  # a CAN FD payload: a DBC signal has at most 64 bits, so the raw bytes go in 8-byte pieces
+        signals = [
+            _signal(
+                Field(f"{raw_signal_name(msg.name)}{k}", 64 * k, min(64, 8 * msg.size - 64 * k)),
+                None,
+                receivers,
+                f"payload bytes {8 * k}..{min(8 * k + 7, msg.size - 1)} (the spec gives only a size)",
+            )
+            for k in range((msg.size + 7) // 8)
+        ]
     else:
         signals = []
     specifics = _timing(msg)
