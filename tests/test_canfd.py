@@ -62,18 +62,22 @@ def test_arm_variants_loads_and_verdicts() -> None:
 
 
 def test_arm_canfd_response_times_by_hand() -> None:
-    """Davis et al. (2007) RTA with FD frame times, each frame released once per ms, all at once:
-    arm_command (highest priority) waits for one lower-priority 8-byte FD frame: 56.6 + 169.6 = 226.2 us;
-    joint k's state waits for the command, k - 1 higher states, one lower state, then sends:
-    169.6 + (k - 1) * 56.6 + 56.6 + 56.6; joint 9 has nothing below it: 169.6 + 9 * 56.6 = 679.0 us."""
+    """Davis et al. (2007) RTA with FD frame times, each frame released once per ms, all at once. arm_command and
+    joint1_state are sent by tasks as they finish (the flow joint1_loop), so their release varies by the task's
+    WCET - BCET (netcfg's holistic jitter): 150 - 50 = 100 us for controller.control, 20 - 10 = 10 us for
+    joint1.sample. arm_command (highest priority): J 100 + one lower-priority 8-byte FD frame 56.6 + 169.6 =
+    326.2 us. joint1_state: J 10 + the command 169.6 + one lower state 56.6 + its own 56.6 = 292.8 us. Joint k >= 2
+    (no jitter): the command, k - 1 higher states, one lower state, its own: 169.6 + (k + 1) * 56.6; joint 9 has
+    nothing below it: 169.6 + 9 * 56.6 = 679.0 us."""
     b = bus(check(SPECS / "arm_canfd.yaml"), "arm")
     assert b["protocol"] == "can-fd" and b["bitrate"] == 1_000_000 and b["data_bitrate"] == 5_000_000
     cmd = message(b, "arm_command")
     assert (cmd["size"], cmd["frame_size"], cmd["fd"], cmd["brs"]) == (56, 64, True, True)
     assert cmd["frame_us_worst"] == pytest.approx(FD64_US)
     assert cmd["frame_bits_worst"] == 34 + 678 and cmd["frame_bits_worst_data_phase"] == 678
-    assert cmd["wcrt_us"] == pytest.approx(FD8_US + FD64_US)
-    for k in range(1, 9):
+    assert cmd["wcrt_us"] == pytest.approx(100 + FD8_US + FD64_US)
+    assert message(b, "joint1_state")["wcrt_us"] == pytest.approx(10 + FD64_US + 2 * FD8_US)
+    for k in range(2, 9):
         assert message(b, f"joint{k}_state")["wcrt_us"] == pytest.approx(FD64_US + (k + 1) * FD8_US)
     assert message(b, "joint9_state")["wcrt_us"] == pytest.approx(FD64_US + 9 * FD8_US)
 
@@ -284,7 +288,8 @@ def test_dbc_marks_fd_frames_so_cantools_reads_them_as_fd(tmp_path: Path) -> Non
 
 def test_check_an_fd_dbc_gives_the_specs_figures(tmp_path: Path) -> None:
     """`netcfg check arm.dbc --bitrate 1M --data-bitrate 5M` on the DBC netcfg wrote for arm_canfd.yaml: the
-    same frames (56 bytes travel as 64 either way), so the same hand figures: 67.9 % and 226.2 us."""
+    same frames (56 bytes travel as 64 either way), so the same load, 67.9 %; the DBC has no tasks, so the command
+    has no sender jitter: 56.6 + 169.6 = 226.2 us."""
     dbc = build_to(tmp_path) / "dbc" / "arm.dbc"
     proc = cli("check", str(dbc), "--bitrate", "1M", "--data-bitrate", "5M", "--format", "json")
     assert proc.returncode == 0, proc.stderr
