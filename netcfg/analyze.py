@@ -186,7 +186,7 @@ def analyze_node(m: model.Model, node: model.Node, acc: _Analysis, diags: Collec
 
 
 def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
-    return {
+    row = {
         "name": msg.name,
         "id": msg.id,
         "extended": msg.extended,
@@ -200,6 +200,7 @@ def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
         "frame_bits_worst": t.bits_worst,
         "frame_bits_nominal": t.bits_nominal,
         "tx_us": us(t.tx_ns),
+        "frame_us_worst": us(t.tx_ns),
         "utilization": round(t.utilization, 6),
         "wcrt_us": None,
         "wcrt_ns": None,  # exact, for runtime.json
@@ -207,6 +208,9 @@ def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
         "slack_us": None,
         "schedulable": None,
     }
+    if t.fd_worst is not None:  # CAN FD: the padded length, and how many of the worst-case bits are at the data rate
+        row.update(fd=True, brs=msg.brs, frame_size=msg.frame_size, frame_bits_worst_data_phase=t.fd_worst.data)
+    return row
 
 
 def set_verdict(row: dict[str, Any], wcrt_ns: int | None, deadline_ns: int | None) -> None:
@@ -282,7 +286,7 @@ def release_offsets(m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]
 def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     timings, worst, nominal = load.can_bus_load(bus)
     # (nominal, worst-case) frame time of each message: without and with stuff bits
-    frame_ns = {name: (bits_to_ns(t.bits_nominal, bus.bitrate), t.tx_ns) for name, t in timings.items()}
+    frame_ns = {name: (t.nominal_ns, t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
     plain = can_offsets.analyse(rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus))
@@ -292,6 +296,7 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
         "name": bus.name,
         "protocol": bus.protocol,
         "bitrate": bus.bitrate,
+        **({"data_bitrate": bus.data_bitrate} if bus.data_bitrate is not None else {}),
         "utilization": round(worst, 6),
         "utilization_nominal": round(nominal, 6),
         "messages": rows,

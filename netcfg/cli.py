@@ -32,6 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     p_check.add_argument("--werror", action="append", default=[], metavar="CODE",
                          help="treat warnings with this code as errors (repeatable), e.g. dbc-no-receiver")
     p_check.add_argument("--explain", metavar="MESSAGE", help="derive one CAN message's bound and what would fix it")
+    p_check.add_argument("--data-bitrate", type=_bitrate, help="DBC input with CAN FD frames: the data-phase bit rate")
     p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
     p_build.add_argument("spec", type=Path, metavar="SPEC")
     p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
@@ -40,6 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     p_import.add_argument("source", type=Path, metavar="FILE")
     p_import.add_argument("-o", "--output", type=Path, required=True, metavar="SPEC", help="the spec to write")
     p_import.add_argument("--bitrate", type=_bitrate, help="the bus bit rate (wins over the file's)")
+    p_import.add_argument("--data-bitrate", type=_bitrate, help="CAN FD data-phase bit rate (wins over the file's)")
     p_import.add_argument("--lenient", action="store_true", help="what cannot be mapped is a warning, not an error")
     p_import.add_argument("--default-period", type=_duration_ns, metavar="T",
                           help="DBC: messages that give no cycle time are periodic every T, e.g. 100ms")
@@ -87,13 +89,17 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "check" and args.explain:
             from netcfg.explain import command as explain_command
 
-            options = ImportOptions(args.bitrate, args.lenient, default_period_ns=args.default_period)
+            options = ImportOptions(
+                args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
+            )
             return explain_command(args.specs, args.explain, args.format, options)
         if args.command == "check":
-            options = ImportOptions(args.bitrate, args.lenient, default_period_ns=args.default_period)
+            options = ImportOptions(
+                args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
+            )
             return cmd_check(args.specs, args.format, options, frozenset(args.werror))
         if args.command == "import":
-            options = ImportOptions(args.bitrate, args.lenient, args.output, args.default_period)
+            options = ImportOptions(args.bitrate, args.lenient, args.output, args.default_period, args.data_bitrate)
             return cmd_import(args.kind, args.source, args.output, options)
         if args.command == "build":
             return cmd_build(args.spec, args.output)

@@ -58,7 +58,9 @@ def render(report: dict[str, Any]) -> str:
     for bus in report["buses"]:
         out.append("")
         out.append(
-            f"bus {bus['name']} ({bus['protocol']}, {rate(bus['bitrate'])}): "
+            f"bus {bus['name']} ({bus['protocol']}, {rate(bus['bitrate'])}"
+            + (f", data {rate(bus['data_bitrate'])}" if bus.get("data_bitrate") else "")
+            + "): "
             f"utilisation {bus['utilization']:.1%} worst case"
             + (f", {bus['utilization_with_tm']:.1%} with the trigger message" if "ftt" in bus else "")
         )

@@ -55,7 +55,13 @@ def test_cantools_loads_every_dbc_and_it_lists_every_frame(outputs: dict[str, Pa
         assert {m.name for m in db.messages} == expected
         for m in cfg.messages_on(bus.name):
             d = db.get_message_by_name(m.name)
-            assert (d.frame_id, d.is_extended_frame, d.length, d.senders) == (m.id, m.extended, m.size, [m.producer])
+            assert (d.frame_id, d.is_extended_frame, d.length, d.senders) == (
+                m.id,
+                m.extended,
+                m.frame_size,  # a CAN FD frame's DBC length is its padded data length
+                [m.producer],
+            )
+            assert d.is_fd == m.fd
             assert db.get_message_by_frame_id(m.id | (0x80000000 if m.extended else 0)).name == m.name
             assert [(s.name, s.start, s.length, s.is_signed) for s in d.signals] == [
                 (f.name, f.start_bit, f.bits, f.signed) for f in m.fields

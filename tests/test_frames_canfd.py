@@ -15,7 +15,10 @@ Best case: no dynamic stuff bits; the BRS bit and the CRC delimiter at the data 
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from netcfg.timing.frames import (
     CANFD_LENGTHS,
@@ -23,6 +26,8 @@ from netcfg.timing.frames import (
     can_frame_bits,
     canfd_dlc,
     canfd_frame_bits,
+    canfd_frame_bits_exact,
+    canfd_frame_bits_exact_batch,
     canfd_padded_size,
 )
 
@@ -101,3 +106,39 @@ def test_arm_loads_from_issue_hand_figures() -> None:
     fd64 = canfd_frame_bits(64).ns(1_000_000, 5_000_000)  # 34 us + 678 x 200 ns = 169.6 us
     assert fd64 == 169_600
     assert round(100 * (fd64 + 9 * fd8) / period_ns) == 68
+
+
+def test_exact_fd_frame_by_hand() -> None:
+    """Identifier 0, base format, BRS, eight zero bytes, counted bit by bit:
+    SOF, 11 identifier bits, RRS, IDE are 14 dominant bits: stuff bits after the 5th and the 10th (the stuff bit
+    after the 5th starts a new run), 4 zeros left; FDF 1, res 0, BRS 1: 2 stuff bits in the 17 arbitration bits,
+    nominal 17 + 2 + CRC delimiter 1 + 12 = 32. Data phase: ESI 0, DLC 1000 (three zeros), then 64 zero data bits:
+    a stuff bit after the 2nd data bit, then one per 5 zeros in the remaining 62: 12; 13 in all.
+    5 + 64 + stuff count 4 + CRC-17 + 6 fixed stuff bits + 13 = 109."""
+    exact = canfd_frame_bits_exact(0, False, bytes(8))
+    assert exact == FdFrameBits(32, 109)
+    nominal, data = canfd_frame_bits_exact_batch(0, False, True, np.zeros((3, 8), dtype=np.uint8))
+    assert nominal.tolist() == [32] * 3 and data.tolist() == [109] * 3
+    assert canfd_frame_bits_exact(0, False, bytes(8), brs=False) == FdFrameBits(32 + 109, 0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    can_id=st.integers(0, 0x1FFFFFFF),
+    extended=st.booleans(),
+    brs=st.booleans(),
+    data=st.binary(min_size=0, max_size=64),
+)
+def test_exact_fd_frame_within_worst_and_best_case(can_id: int, extended: bool, brs: bool, data: bytes) -> None:
+    """best <= exact <= worst at several rate pairs (the module docstring's bounds), and the batch path agrees."""
+    if not extended:
+        can_id &= 0x7FF
+    exact = canfd_frame_bits_exact(can_id, extended, data, brs)
+    worst = canfd_frame_bits(len(data), extended, brs, "worst")
+    best = canfd_frame_bits(len(data), extended, brs, "nominal")
+    for rates in ((1_000_000, 5_000_000), (500_000, 2_000_000), (1_000_000, 1_000_000), (125_000, 8_000_000)):
+        assert best.ns(*rates) <= exact.ns(*rates) <= worst.ns(*rates)
+    nominal, data_bits = canfd_frame_bits_exact_batch(
+        can_id, extended, brs, np.frombuffer(data, dtype=np.uint8).reshape(1, len(data))
+    )
+    assert (int(nominal[0]), int(data_bits[0])) == (exact.nominal, exact.data)

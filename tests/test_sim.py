@@ -252,7 +252,7 @@ def test_random_bit_errors_cost_time_but_no_frame() -> None:
 # -- soundness -----------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("system", ["cambada", "allex2", "large_plant", "ntua_sahr"])
+@pytest.mark.parametrize("system", ["cambada", "allex2", "large_plant", "ntua_sahr", "arm_canfd"])
 def test_simulated_responses_never_exceed_the_analysis(system: str) -> None:
     """Over 12 seeds (random phasings, drifts, execution times), no message's simulated response exceeds its
     analysed worst case; a failure names the message, the seed and both figures."""

@@ -29,6 +29,7 @@ from typing import Any
 from netcfg import model
 from netcfg.emit import render
 from netcfg.runtime import codec, raw_signal_name
+from netcfg.timing.frames import canfd_dlc
 
 # integer widths a C99 <stdint.h> always has on our targets
 _WIDTHS = (8, 16, 32, 64)
@@ -246,6 +247,10 @@ class MessageView:
     end_bit: int  # one past the last bit a signal uses
     pack_order: tuple[SignalView, ...]  # multiplexers before the signals they select
     description: str | None
+    fd: bool = False  # CAN FD: sent as frame_size bytes (the payload padded with zeros), DLC dlc
+    brs: bool = False
+    frame_size: int = 0
+    dlc: int = 0
 
 
 @dataclass(frozen=True)
@@ -267,6 +272,7 @@ class BusView:
     ftt: model.FttBus | None
     canopen: model.CanopenBus | None
     description: str | None
+    data_bitrate: int | None = None  # CAN FD data phase
 
 
 @dataclass(frozen=True)
@@ -350,6 +356,10 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
         end_bit=max((s.end_bit for s in sigs), default=0),
         pack_order=tuple(sorted(sigs, key=lambda s: s.mux_depth)),
         description=_description(msg),
+        fd=msg.fd,
+        brs=msg.brs,
+        frame_size=msg.frame_size,
+        dlc=canfd_dlc(msg.size) if msg.fd else msg.size,
     )
 
 
@@ -387,7 +397,8 @@ def node_view(m: model.Model, node: model.Node) -> NodeView | None:
         description=_description(node),
         tasks=tuple((t.name, _description(t)) for t in node.tasks.values()),
         buses=tuple(
-            BusView(b.name, b.protocol, b.bitrate, b.id_bits, b.ftt, b.canopen, _description(b)) for b in buses
+            BusView(b.name, b.protocol, b.bitrate, b.id_bits, b.ftt, b.canopen, _description(b), b.data_bitrate)
+            for b in buses
         ),
         triggers=tuple(triggers),
         messages=tuple(messages),

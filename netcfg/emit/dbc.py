@@ -15,8 +15,10 @@ Timing, as attributes of the message (BA_ ... BO_):
                           jitter and deadline, which they cannot say. netcfg's DBC importer reads them first,
                           so spec -> DBC -> spec keeps every timing field.
 A message given only as a size gets one unsigned signal spanning its payload, `<message>_raw` (netcfg.runtime
-reads and writes it under the same name), so a bus monitor still shows its bytes. Comments say what netcfg knows
-of each frame (PDO slot, FTT id, implicit role).
+reads and writes it under the same name), so a bus monitor still shows its bytes; a CAN FD payload of more than 8
+bytes gets `<message>_raw0`, `_raw1`, ... of 8 bytes each (a DBC signal has at most 64 bits). Comments say what
+netcfg knows of each frame (PDO slot, FTT id, implicit role). CAN FD buses carry BusType "CAN FD" and
+Baudrate_CANFD, FD frames their VFrameFormat (cantools writes it) and, without bit-rate switch, CANFD_BRS 0.
 
 cantools keeps lists in the order it is given them; messages are sorted by identifier and nodes keep the
 spec's order, so the output is byte-identical across builds.
@@ -40,6 +42,12 @@ from netcfg.runtime import raw_signal_name
 from netcfg.runtime.codec import Field
 
 ENCODING = "cp1252"  # what DBC tools (and cantools.database.load_file) read by default
+# Vector's CAN FD attributes
+BUS_TYPE = DbcAttributeDefinition("BusType", default_value="CAN", type_name="STRING")
+BAUDRATE_CANFD = DbcAttributeDefinition(
+    "Baudrate_CANFD", default_value=2_000_000, type_name="INT", minimum=0, maximum=16_000_000
+)
+CANFD_BRS = DbcAttributeDefinition("CANFD_BRS", default_value="1", kind="BO_", type_name="ENUM", choices=["0", "1"])
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
@@ -79,6 +87,13 @@ def database(m: model.Model, bus: model.Bus) -> cdb.Database:
         attributes=OrderedDict(DBName=DbcAttribute(bus.name, db_name)),
         attribute_definitions=OrderedDict(DBName=db_name, GenMsgSendType=_SEND_TYPE, **_INT_MS, **_EXACT_MS),
     )
+    if bus.protocol == "can-fd":
+        # Vector's CAN FD attributes: BusType "CAN FD" makes cantools write each frame's VFrameFormat (and read it
+        # back as is_fd); Baudrate_CANFD is the data rate; CANFD_BRS (default 1) marks frames without bit-rate switch
+        assert bus.data_bitrate is not None
+        specifics.attribute_definitions.update(BusType=BUS_TYPE, Baudrate_CANFD=BAUDRATE_CANFD, CANFD_BRS=CANFD_BRS)
+        specifics.attributes["BusType"] = DbcAttribute("CAN FD", BUS_TYPE)
+        specifics.attributes["Baudrate_CANFD"] = DbcAttribute(bus.data_bitrate, BAUDRATE_CANFD)
     return cdb.Database(
         messages=messages,
         nodes=nodes,
@@ -142,15 +157,29 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
             _signal(field_of(s), s.unit, receivers, _entry_comment(msg, k), s.is_multiplexer)
             for k, s in enumerate(msg.signals)
         ]
-    elif msg.size:
+    elif 0 < msg.size <= 8:
         raw = Field(raw_signal_name(msg.name), 0, 8 * msg.size)
         signals = [_signal(raw, None, receivers, "the whole payload (the spec gives only a size)")]
+    elif msg.size:  # a CAN FD payload: a DBC signal has at most 64 bits, so the raw bytes go in 8-byte pieces
+        signals = [
+            _signal(
+                Field(f"{raw_signal_name(msg.name)}{k}", 64 * k, min(64, 8 * msg.size - 64 * k)),
+                None,
+                receivers,
+                f"payload bytes {8 * k}..{min(8 * k + 7, msg.size - 1)} (the spec gives only a size)",
+            )
+            for k in range((msg.size + 7) // 8)
+        ]
     else:
         signals = []
+    specifics = _timing(msg)
+    if msg.fd and not msg.brs:
+        specifics.attributes["CANFD_BRS"] = DbcAttribute("0", CANFD_BRS)
     return cdb.Message(
+        is_fd=msg.fd,  # the length a DBC gives an FD frame is its padded data length
         frame_id=msg.id,
         name=msg.name,
-        length=msg.size,
+        length=msg.frame_size,
         signals=signals,
         comment=_message_comment(m, msg),
         senders=[msg.producer],
@@ -158,7 +187,7 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
         is_extended_frame=msg.extended,
         bus_name=msg.bus,
         sort_signals=None,
-        dbc_specifics=_timing(msg),
+        dbc_specifics=specifics,
     )
 
 

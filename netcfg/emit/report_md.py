@@ -27,7 +27,13 @@ SYNC_HEIGHT_IN = 3.8
 MAX_SHOWN_ECS = 30  # a longer macro-cycle is shown as 30 consecutive ECs around the busiest one
 MAX_PLOT_ENTRIES = 64  # SRT rows in the macro-cycle plot; beyond that it would be taller than a screen
 
-PROTOCOLS = {"can": "CAN", "canopen": "CANopen", "ftt-can": "FTT-CAN", "ethernet-udp": "switched Ethernet, UDP"}
+PROTOCOLS = {
+    "can": "CAN",
+    "can-fd": "CAN FD",
+    "canopen": "CANopen",
+    "ftt-can": "FTT-CAN",
+    "ethernet-udp": "switched Ethernet, UDP",
+}
 # matplotlib's tab10 colours, spelled out so that a user's style cannot change them
 PALETTE = (
     "#1f77b4",
@@ -148,7 +154,7 @@ def _bus_view(model: Model, b: dict[str, Any]) -> dict[str, Any]:
     view: dict[str, Any] = {
         "name": b["name"],
         "protocol": PROTOCOLS.get(b["protocol"], b["protocol"]),
-        "rate": rate(b["bitrate"]),
+        "rate": rate(b["bitrate"]) + (f", data phase {rate(b['data_bitrate'])}" if b.get("data_bitrate") else ""),
         "description": one_line(_description(bus)),
         "utilization": pct(b["utilization"]),
         "utilization_nominal": pct(b["utilization_nominal"]) if "utilization_nominal" in b else None,

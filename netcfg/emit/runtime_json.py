@@ -83,7 +83,10 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
     canopen = _canopen(b.canopen)
     if canopen is not None:
         canopen["sync_completion_ns"] = sync_completion_ns  # the bound a master's read time is held against
+    # CAN FD keys only on CAN FD buses and frames: files of the other protocols stay as they were
+    fd = {"data_bitrate": b.data_bitrate} if b.protocol == "can-fd" else {}
     return {
+        **fd,
         "name": b.name,
         "protocol": b.protocol,
         "bitrate": b.bitrate,
@@ -255,7 +258,9 @@ def _interpolation_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
 
 
 def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None, wcrt_unsync_ns: int | None) -> dict[str, Any]:
+    fd = {"fd": True, "brs": msg.brs, "frame_size": msg.frame_size} if msg.fd else {}
     return {
+        **fd,
         "name": msg.name,
         "bus": msg.bus,
         "producer": msg.producer,

@@ -23,6 +23,7 @@ class ImportOptions:
     lenient: bool = False  # what cannot be mapped becomes a warning per item instead of an error
     output: PathLike | None = None  # where the spec will be written: file paths in it are made relative to it
     default_period_ns: int | None = None  # DBC: the period assumed for a message that gives no cycle time
+    data_bitrate: int | None = None  # CAN FD data phase, from the command line: wins over the file's
 
 
 # spec data + comments per path (where each item came from)

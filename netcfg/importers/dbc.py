@@ -1,12 +1,12 @@
 """DBC (Vector CANdb++) -> netcfg spec data, read through cantools.
 
-One DBC describes one classical CAN bus. The mapping, item by item (what cannot be mapped is a warning naming
-it, or an error where no analysis is possible, such as a CAN FD frame; nothing is dropped silently; --lenient
-is accepted but no DBC item needs it any more):
+One DBC describes one CAN or CAN FD bus. The mapping, item by item (what cannot be mapped is a warning naming
+it, or an error where no analysis is possible; nothing is dropped silently; --lenient is accepted but no DBC item
+needs it any more):
 
 - system: the file stem made a safe name. Bus: `protocol: can`, named from the DBName attribute (else 'can0').
-- bus type: the database attribute `BusType`, when given, must be CAN (or CAN FD: its FD frames are refused
-  one by one); another (LIN, FlexRay) is an error.
+- bus type: the database attribute `BusType`, when given, must be CAN or CAN FD; another (LIN, FlexRay) is an
+  error.
 - bit rate: --bitrate wins; else the database attribute `Baudrate`, else `BusSpeed` (a BA_ value, else the
   BA_DEF_DEF_ default when it is not 0). Every DBC we found in public repositories (cantools' writer, CANdb++
   style files, generator scripts; BusSpeed too) gives bit/s (`BA_ "Baudrate" 500000;`); a value of at most
@@ -22,8 +22,11 @@ is accepted but no DBC item needs it any more):
   frames are), size = the BO_ length, producer = first sender, consumers = the receivers of its signals.
   A message without sender (Vector__XXX) is sent by the placeholder node 'unassigned' (warning dbc-no-sender);
   one without receivers (read by a logger or a gateway outside the file) is received by all other nodes
-  (warning dbc-no-receiver). `netcfg check --werror CODE` makes either an error. CAN FD frames (VFrameFormat
-  *_FD or more than 8 bytes) are an error: the analysis models classical CAN only.
+  (warning dbc-no-receiver). `netcfg check --werror CODE` makes either an error.
+- CAN FD: a DBC with FD frames (cantools' is_fd, from VFrameFormat StandardCAN_FD/ExtendedCAN_FD, or a frame of
+  more than 8 bytes, with a warning when no VFrameFormat says FD) is a `protocol: can-fd` bus; its data rate comes
+  from --data-bitrate, else the Vector attribute Baudrate_CANFD, else an error saying how to give one. A frame with
+  CANFD_BRS 0 gets `brs: false`; the classical frames on that bus `fd: false`.
 - timing, from GenMsgSendType (cantools reads its enum, or the definition's default) and, in ms, GenMsgCycleTime,
   GenMsgCycleTimeFast and GenMsgDelayTime (Vector's interaction layer: DelayTime is the least time between two
   transmissions, CycleTimeFast the repetition period while active, also of the GenMsgNrOfRepetition repeats
@@ -256,6 +259,7 @@ class _Importer:
         self.positions: dict[DataPath, tuple[int, int]] = {}  # (line, column) in the DBC of spec items
         self.message_names = _Names("message", "msg", "_msg")
         self.index = 0  # of the next message in the spec's list (messages that fail are not in it)
+        self.fd = False  # the bus has CAN FD frames
 
     # -- diagnostics ------------------------------------------------------------------------------------
     def pos(self, at: tuple[int, int] | int | None = None) -> Position:
@@ -432,6 +436,33 @@ class _Importer:
             return None
         return number if number > 0 or (zero and number == 0) else None
 
+    @staticmethod
+    def is_fd(msg: Message) -> bool:
+        return bool(msg.is_fd) or msg.length > CAN_MAX_PAYLOAD
+
+    def data_bitrate(self, db: Database) -> tuple[int, str] | None:
+        """The CAN FD data rate: --data-bitrate, else Vector's Baudrate_CANFD attribute."""
+        if self.options.data_bitrate is not None:
+            return self.options.data_bitrate, "from the command line (--data-bitrate), which wins over the DBC"
+        fd_names = [f"message '{m.name}'" for m in db.messages if self.is_fd(m)]
+        more = f" and {len(fd_names) - 3} more" if len(fd_names) > 3 else ""
+        got = self.db_attribute(db, "Baudrate_CANFD")
+        if got is not None:
+            try:
+                number = round(float(str(got[0]).strip()))
+            except ValueError:
+                number = 0
+            if number > 0:
+                return number, f"{got[1]}, in bit/s"
+        self.add(
+            "dbc-data-bitrate",
+            f"the DBC has CAN FD frames ({', '.join(fd_names[:3])}{more}) but no data bit rate (no Baudrate_CANFD "
+            "attribute); give one on the command "
+            'line, e.g. `--data-bitrate 2M`, or add `BA_ "Baudrate_CANFD" 2000000;` to the DBC',
+            self.lines.attributes.get("Baudrate_CANFD"),
+        )
+        return None
+
     def bitrate(self, db: Database) -> tuple[int, str] | None:
         if self.options.bitrate is not None:
             return self.options.bitrate, "from the command line (--bitrate), which wins over the DBC"
@@ -505,6 +536,13 @@ class _Importer:
         if rate is not None:
             bus["bitrate"] = bitrate_text(rate[0])
             self.comments[("buses", 0, "bitrate")] = rate[1]
+        self.fd = any(self.is_fd(msg) for msg in db.messages)
+        data_rate = self.data_bitrate(db) if self.fd else None
+        if self.fd:
+            bus["protocol"] = "can-fd"
+            if data_rate is not None:
+                bus["data_bitrate"] = bitrate_text(data_rate[0])
+                self.comments[("buses", 0, "data_bitrate")] = data_rate[1]
         if db.buses and db.buses[0].comment:
             bus["description"] = db.buses[0].comment.strip()
 
@@ -522,7 +560,7 @@ class _Importer:
             self.add(
                 "dbc-node", "no nodes: the DBC declares no BU_ and no message names a sender; add a BU_ line", None
             )
-        if rate is None or self.diags.errors:
+        if rate is None or (self.fd and data_rate is None) or self.diags.errors:
             return None
         data: dict[str, Any] = {"system": system, "buses": [bus], "nodes": node_list, "messages": messages}
         return data, self.comments
@@ -574,15 +612,17 @@ class _Importer:
         name, why = self.message_names.claim(msg.name)
         if why:
             self.add("dbc-name", f"message '{msg.name}': {why}; imported as '{name}'", at, "warning")
-        if msg.is_fd or msg.length > CAN_MAX_PAYLOAD:
-            what = f"{msg.length} bytes" if msg.length > CAN_MAX_PAYLOAD else "a CAN FD frame (VFrameFormat)"
+        if msg.length > MAX_FRAME_BYTES:
+            self.add("dbc-can-fd", f"message '{msg.name}' is {msg.length} bytes: a CAN FD frame has at most 64", at)
+            return None
+        if msg.length > CAN_MAX_PAYLOAD and not msg.is_fd:
             self.add(
                 "dbc-can-fd",
-                f"message '{msg.name}' is {what}: netcfg analyses classical CAN (at most 8 bytes); split it into "
-                "classical frames or leave it out of the DBC",
+                f"message '{msg.name}' has {msg.length} bytes but no VFrameFormat saying CAN FD; imported as a CAN FD "
+                "frame (set VFrameFormat StandardCAN_FD or ExtendedCAN_FD to silence this)",
                 at,
+                "warning",
             )
-            return None
         out: dict[str, Any] = {"name": name}
         # --- who sends and who receives
         if msg.senders:
@@ -622,6 +662,10 @@ class _Importer:
         if msg.is_extended_frame:
             out["extended"] = True
         out["size"] = msg.length
+        if self.fd and not self.is_fd(msg):
+            out["fd"] = False
+        elif self.fd and msg.dbc is not None and "CANFD_BRS" in msg.dbc.attributes:
+            out.update({} if str(msg.dbc.attributes["CANFD_BRS"].value).strip() == "1" else {"brs": False})
         # --- when it is sent
         timing = self.timing(db, msg, at)
         out.update(timing.data)

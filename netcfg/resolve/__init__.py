@@ -13,6 +13,7 @@ from pathlib import Path as FsPath
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.resolve.can import CanProtocol
+from netcfg.resolve.canfd import CanFdProtocol
 from netcfg.resolve.canopen import CanopenProtocol
 from netcfg.resolve.core import Resolver
 from netcfg.resolve.ethernet import EthernetProtocol
@@ -29,6 +30,7 @@ __all__ = ["PROTOCOLS", "resolve", "snake"]
 # One resolver per protocol of the spec language (schema.Bus.protocol).
 PROTOCOLS: dict[str, type[BusProtocol]] = {
     "can": CanProtocol,
+    "can-fd": CanFdProtocol,
     "canopen": CanopenProtocol,
     "ftt-can": FttProtocol,
     "ethernet-udp": EthernetProtocol,

@@ -164,6 +164,12 @@ class Resolver:
                 messages=[],
                 path=path,
             )
+            if b.data_bitrate is not None and b.protocol != "can-fd":
+                self.err(
+                    "wrong-section",
+                    f"'data_bitrate' is the CAN FD data phase; bus '{b.name}' is {b.protocol}",
+                    (*path, "data_bitrate"),
+                )
             self.protocol(b.protocol).resolve_bus(b, bus, path)
             self.model.buses[b.name] = bus
 
@@ -413,6 +419,7 @@ class Resolver:
             if ident > limit:
                 self.err("id-range", f"id 0x{ident:X} does not fit {width} (max 0x{limit:X})", (*path, "id"))
         rules.check_fields(m, path)
+        fd, brs = rules.frame_format(m, path)
         return model.Message(
             name=m.name,
             bus=sbus.name,
@@ -437,6 +444,8 @@ class Resolver:
             rate_hz=rate,
             udp_ports=(m.udp.src_port, m.udp.dst_port) if m.udp else None,
             description=m.description,
+            fd=fd,
+            brs=brs,
         )
 
     def resolve_timing(self, m: schema.Message, bus: model.Bus, pdo: model.Pdo | None, path: Path, ec: int | None):

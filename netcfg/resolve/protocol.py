@@ -96,6 +96,13 @@ class BusProtocol:
         """-> (largest identifier, its width in words)."""
         return (0x1FFFFFFF, "29 bits") if extended else (0x7FF, "11 bits")
 
+    def frame_format(self, m: schema.Message, path: Path) -> tuple[bool, bool]:
+        """-> (CAN FD frame, bit-rate switch); only CAN FD buses have either."""
+        for key in ("fd", "brs"):
+            if getattr(m, key) is not None:
+                self.r.err("wrong-section", f"'{key}' is a CAN FD setting; this bus is {self.name}", (*path, key))
+        return False, False
+
     def check_fields(self, m: schema.Message, path: Path) -> None:
         """Message keys that belong to another protocol."""
         if m.udp is not None:

@@ -75,7 +75,8 @@ __all__ = [
 
 FORMAT = "netcfg-runtime"
 SUPPORTED_VERSIONS = (1,)
-CAN_PROTOCOLS = ("can", "canopen", "ftt-can")
+CAN_PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can")
+FD_PADDING = 0x00  # pads a CAN FD payload to its frame length, as netcfg.timing.frames.CANFD_PADDING (tested)
 
 
 class RuntimeConfigError(ValueError):
@@ -172,9 +173,15 @@ class Message:
     wcrt_ns: int | None  # the analysis' worst-case response time
     sent_by: tuple[str, ...] | None = None  # tasks (node.task) that send it as they finish; else it runs free
     wcrt_unsync_ns: int | None = None  # the same bus run as free-running CAN (FTT-CAN, CANopen: plain arbitration)
+    fd: bool = False  # a CAN FD frame: up to 64 bytes, sent padded to frame_size
+    brs: bool = False  # CAN FD bit-rate switch
+    # data bytes in the frame: a CAN FD payload padded to the next valid length (ISO 11898-1:2015); 0: size
+    frame_size: int = 0
     fields: tuple[Field, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if not self.frame_size:
+            object.__setattr__(self, "frame_size", self.size)
         fields: tuple[Field, ...] = self.signals
         if not fields and self.size > 0:
             fields = (Field(raw_signal_name(self.name), 0, 8 * self.size),)
@@ -201,19 +208,28 @@ class Message:
             raise CodecError(f"message '{self.name}': {exc}") from exc
 
     def decode(self, data: bytes | bytearray) -> dict[str, Number]:
-        """Payload -> physical values by field name."""
-        if len(data) != self.size:
+        """Payload -> physical values by field name. A CAN FD frame's padding bytes (beyond size) are ignored."""
+        if len(data) != self.size and not (self.fd and len(data) == self.frame_size):
             raise CodecError(f"message '{self.name}' has {self.size} bytes of payload, got {len(data)}")
-        return codec.decode(self.fields, bytes(data))
+        return codec.decode(self.fields, bytes(data[: self.size]))
 
     def to_can(self, **values: Number | str | bytes) -> can.Message:
         if not self.is_can:
             raise TypeError(f"message '{self.name}' travels on {self.protocol} bus '{self.bus}'; use encode_udp()")
         import can  # only CAN masters need python-can
 
-        return can.Message(
-            arbitration_id=self.id, is_extended_id=self.extended, dlc=self.size, data=self.encode(**values)
-        )
+        data = self.encode(**values)
+        if self.fd:  # padded to the frame length, so that every receiver sees the DLC the analysis timed
+            data += bytes([FD_PADDING]) * (self.frame_size - self.size)
+            return can.Message(
+                arbitration_id=self.id,
+                is_extended_id=self.extended,
+                is_fd=True,
+                bitrate_switch=self.brs,
+                dlc=len(data),
+                data=data,
+            )
+        return can.Message(arbitration_id=self.id, is_extended_id=self.extended, dlc=self.size, data=data)
 
     def encode_udp(self, **values: Number | str | bytes) -> bytes:
         """The UDP datagram's payload: the 1-byte message id, then the data (seed 001, Table 6.1)."""
@@ -380,13 +396,14 @@ class EthernetParams:
 @dataclass(frozen=True)
 class Bus:
     name: str
-    protocol: str  # "can" | "canopen" | "ftt-can" | "ethernet-udp"
+    protocol: str  # "can" | "can-fd" | "canopen" | "ftt-can" | "ethernet-udp"
     bitrate: int
     id_bits: int
     nodes: tuple[str, ...]
     canopen: CanopenParams | None
     ftt: FttParams | None
     ethernet: EthernetParams | None
+    data_bitrate: int | None = None  # CAN FD: the data-phase rate
 
     @property
     def is_can(self) -> bool:
@@ -707,6 +724,7 @@ def _bus(d: dict[str, Any]) -> Bus:
         name=d["name"],
         protocol=d["protocol"],
         bitrate=d["bitrate"],
+        data_bitrate=d.get("data_bitrate"),
         id_bits=d["id_bits"],
         nodes=_strs(d["nodes"]),
         canopen=None
@@ -838,6 +856,9 @@ def _message(d: dict[str, Any], protocol: str) -> Message:
         rate_hz=None if rate is None else Fraction(rate[0], rate[1]),
         window=d["window"],
         ftt_id=d["ftt_id"],
+        fd=bool(d.get("fd", False)),
+        brs=bool(d.get("brs", False)),
+        frame_size=d.get("frame_size", 0),
         udp=None if udp is None else UdpPorts(udp["src_port"], udp["dst_port"]),
         pdo=None
         if pdo is None

@@ -22,8 +22,12 @@ from netcfg.runtime.codec import byte_ops
 MAX_NS = 10**15  # the longest duration netcfg handles (netcfg.spec.units.MAX_DURATION_NS; a test ties the two)
 U8, U16, U32 = 0xFF, 0xFFFF, 0xFFFF_FFFF
 MAX_NAME_CHARS = 255
-PROTOCOLS = ("can", "canopen", "ftt-can", "ethernet-udp")
-MAX_PAYLOAD = {"can": 8, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472}  # CAN 2.0; UDP without fragmentation
+PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can", "ethernet-udp")
+# CAN 2.0; CAN FD (ISO 11898-1:2015); UDP without fragmentation
+MAX_PAYLOAD = {"can": 8, "can-fd": 64, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472}
+# CAN FD data lengths (ISO 11898-1:2015), as netcfg.timing.frames has them (a master does not import the compiler;
+# a test keeps the two equal)
+FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 MAX_ID = {11: 0x7FF, 29: 0x1FFF_FFFF}
 
 
@@ -101,6 +105,7 @@ MESSAGE = obj(
     signals=lst(SIGNAL, hi=8 * 1472), implicit=text(null=True), wcrt_ns=ns(null=True),
     wcrt_unsync_ns=ns(null=True, optional=True),
     sent_by=lst(name(), null=True, optional=True),
+    fd=F("bool", optional=True), brs=F("bool", optional=True), frame_size=i(0, 64, optional=True),
 )
 TASK = obj(
     name=name(), period_ns=ns(1, null=True), offset_ns=ns(), wcet_ns=ns(1), bcet_ns=ns(),
@@ -139,7 +144,7 @@ ETHERNET = obj(
 )
 BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),
-    canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET,
+    canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET, data_bitrate=i(1, 10**12, optional=True),
 )
 TRIGGER = obj(
     name=name(), bus=name(), ftt_id=i(0, 10**6), period_ns=ns(1), interval_ns=ns(1, null=True), offset_ns=ns(),
@@ -242,6 +247,8 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
         section = {"canopen": "canopen", "ftt-can": "ftt", "ethernet-udp": "ethernet"}.get(b["protocol"])
         if section is not None and b[section] is None:
             out.append(f"{where}: a {b['protocol']} bus needs its '{section}' section")
+        if b["protocol"] == "can-fd" and "data_bitrate" not in b:
+            out.append(f"{where}: a can-fd bus needs its data_bitrate")
         ftt = b["ftt"]
         if ftt is not None and ftt["ec_ns"] <= ftt["tm_ns"]:
             out.append(f"{where}: the elementary cycle ({ftt['ec_ns']} ns) must be longer than its trigger message "
@@ -253,8 +260,15 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
     for m in doc["messages"]:
         where = f"message {m['name']!r}"
         proto = protocol.get(m["bus"])
-        if proto is not None and m["size"] > MAX_PAYLOAD[proto]:
-            out.append(f"{where}: {m['size']} bytes do not fit a {proto} frame (at most {MAX_PAYLOAD[proto]})")
+        fd = m.get("fd", False)
+        limit = MAX_PAYLOAD[proto] if proto is not None and (fd or proto != "can-fd") else 8
+        if proto is not None and m["size"] > limit:
+            out.append(f"{where}: {m['size']} bytes do not fit a {proto} frame (at most {limit})")
+        if fd and proto not in (None, "can-fd"):
+            out.append(f"{where}: a CAN FD frame on {proto} bus {m['bus']!r}")
+        frame_size = m.get("frame_size", m["size"])
+        if (frame_size not in FD_LENGTHS or frame_size < m["size"]) if fd else frame_size != m["size"]:
+            out.append(f"{where}: a frame of {frame_size} bytes cannot carry {m['size']}")
         if m["kind"] == "periodic" and m["period_ns"] is None:
             out.append(f"{where}: a periodic message needs period_ns")
         for s in m["signals"]:

@@ -22,6 +22,9 @@ from netcfg.timing.frames import (
     bits_to_ns,
     can_frame_bits_exact_batch,
     can_frame_bits_of,
+    canfd_frame_bits,
+    canfd_frame_bits_exact,
+    canfd_frame_bits_exact_batch,
 )
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
@@ -50,6 +53,8 @@ class CanSource:
     key: int = 0
     dur_ns: int = 0  # frame time in the bus's stuffing mode (exact mode: computed per frame)
     gated: bool = False  # FTT-CAN asynchronous traffic: only inside the asynchronous window
+    fd: bool = False  # CAN FD: arbitration and tail at the bus's bit rate, the data phase (brs) at its data rate
+    brs: bool = False
 
 
 # Free-running sources, expanded a chunk at a time: (t0, t1) -> (release instants, source indices) of every
@@ -69,13 +74,20 @@ class Record:
 
 class CanBus:
     def __init__(
-        self, sim: Simulator, name: str, bitrate: int, stuffing: str = "worst", trace: bool = False
+        self,
+        sim: Simulator,
+        name: str,
+        bitrate: int,
+        stuffing: str = "worst",
+        trace: bool = False,
+        data_bitrate: int | None = None,
     ) -> None:
         if stuffing not in FRAME_BITS:
             raise ValueError(f"stuffing must be exact, worst or none, not {stuffing!r}")
         self.sim = sim
         self.name = name
         self.bitrate = bitrate
+        self.data_bitrate = data_bitrate or bitrate  # CAN FD: the data phase of frames with bit-rate switch
         self.stuffing = stuffing
         self.trace = trace
         self.sources: list[CanSource] = []
@@ -109,12 +121,26 @@ class CanBus:
         self.ifs_ns = bits_to_ns(INTERMISSION_BITS, bitrate)
 
     # -- set-up -----------------------------------------------------------------------------------------
-    def add_source(self, name: str, can_id: int, extended: bool, size: int, producer: str, gated: bool = False) -> int:
-        src = CanSource(len(self.sources), name, can_id, extended, size, producer, gated=gated)
+    def add_source(
+        self,
+        name: str,
+        can_id: int,
+        extended: bool,
+        size: int,
+        producer: str,
+        gated: bool = False,
+        fd: bool = False,
+        brs: bool = False,
+    ) -> int:
+        src = CanSource(len(self.sources), name, can_id, extended, size, producer, gated=gated, fd=fd, brs=brs)
         src.key = arbitration_key(can_id, extended)
         # in exact mode each frame's length comes from its payload (_duration); dur_ns is then the worst case
         mode: FrameStuffing = "worst" if self.stuffing == "exact" else FRAME_BITS[self.stuffing]
-        src.dur_ns = bits_to_ns(can_frame_bits_of(can_id, extended, bytes(size), mode), self.bitrate)
+        if fd:
+            assert mode != "exact"
+            src.dur_ns = canfd_frame_bits(size, extended, brs, mode).ns(self.bitrate, self.data_bitrate)
+        else:
+            src.dur_ns = bits_to_ns(can_frame_bits_of(can_id, extended, bytes(size), mode), self.bitrate)
         self.sources.append(src)
         self.by_name[name] = src
         self._keys.append(src.key)
@@ -217,11 +243,19 @@ class CanBus:
             src = self.sources[s]
             rows = np.flatnonzero(new == s)
             payloads = self.sim.rng.integers(0, 256, (len(rows), src.size), dtype=np.uint8)
-            bits = can_frame_bits_exact_batch(src.can_id, src.extended, payloads)
-            for r, payload, b in zip(rows.tolist(), payloads, bits.tolist()):
+            if src.fd:
+                nominal, fast = canfd_frame_bits_exact_batch(src.can_id, src.extended, src.brs, payloads)
+                durations = [
+                    bits_to_ns(n, self.bitrate) + bits_to_ns(f, self.data_bitrate)
+                    for n, f in zip(nominal.tolist(), fast.tolist())
+                ]
+            else:
+                bits = can_frame_bits_exact_batch(src.can_id, src.extended, payloads)
+                durations = [bits_to_ns(b, self.bitrate) for b in bits.tolist()]
+            for r, payload, dur in zip(rows.tolist(), payloads, durations):
                 blob = payload.tobytes()
                 data[first_new + r] = blob
-                self._exact[(s, blob)] = bits_to_ns(b, self.bitrate)
+                self._exact[(s, blob)] = dur
         return data
 
     def _duration(self, src: CanSource, data: bytes | None) -> int:
@@ -231,6 +265,9 @@ class CanBus:
         known = self._exact.get((src.index, payload))
         if known is not None:
             return known
+        if src.fd:
+            fd_bits = canfd_frame_bits_exact(src.can_id, src.extended, bytes(payload), src.brs)
+            return fd_bits.ns(self.bitrate, self.data_bitrate)
         return bits_to_ns(can_frame_bits_of(src.can_id, src.extended, payload, "exact"), self.bitrate)
 
     def _step(self, token: int) -> None:

@@ -19,7 +19,7 @@ from netcfg.sim.results import histograms, log_check, summary, text
 from netcfg.sim.scenario import SimOptions
 from netcfg.sim.trace import SUPPORTED_SUFFIXES, TraceFrame, write_trace
 from netcfg.spec.units import format_ns, parse_duration_option
-from netcfg.timing.frames import can_frame_bits
+from netcfg.timing.frames import CANFD_PADDING, can_frame_bits, canfd_frame_bits, canfd_padded_size
 
 MAX_DRIFT_PPM = 100_000.0  # 10 %: beyond any clock; the arithmetic stays meaningful below it
 # The work one run may take, in events (message releases, task jobs, SYNCs, FTT-CAN elementary cycles), estimated
@@ -80,13 +80,21 @@ def work_problem(cfg: runtime.RuntimeConfig, duration_ns: int, max_events: int) 
     )
 
 
+def _frame_bits(m: runtime.Message) -> int:
+    """Bits of one frame in the worst case (both phases of a CAN FD frame): what a bit error can hit."""
+    if m.fd:
+        fd = canfd_frame_bits(m.size, m.extended, m.brs)
+        return fd.nominal + fd.data
+    return can_frame_bits(min(m.size, 8), m.extended)
+
+
 def fault_problem(cfg: runtime.RuntimeConfig, faults: tuple[Fault, ...]) -> str | None:
     """Why a --fault would make the run meaningless (a bit error rate that sends CAN nodes bus-off), or None."""
     for f in faults:
         if f.kind != "ber" or f.value <= 0:
             continue
         frames = [
-            can_frame_bits(min(m.size, 8), m.extended)
+            _frame_bits(m)
             for m in cfg.messages
             if m.is_can and (f.target is None or m.bus == f.target)
         ]
@@ -230,7 +238,9 @@ def trace_frames(sc: Any) -> list[TraceFrame]:
         for m, end, data in zip(rec.msg, rec.end, rec.data):
             src = bus.sources[m]
             payload = data if data is not None else bytes(src.size)
-            out.append(TraceFrame(end, name, src.can_id, src.extended, payload))
+            if src.fd:  # sent padded to its CAN FD length, as netcfg.runtime does
+                payload += bytes([CANFD_PADDING]) * (canfd_padded_size(src.size) - src.size)
+            out.append(TraceFrame(end, name, src.can_id, src.extended, payload, fd=src.fd, brs=src.brs))
         for t in bus.error_log:
             out.append(TraceFrame(t + bus.error_ns, name, 0, False, b"", True))
     out.sort(key=lambda f: (f.t_ns, f.channel))

@@ -103,8 +103,9 @@ class Fault:
             raise FaultError(f"fault '{self.kind}': no CAN bus named '{self.target}'")
         if self.kind == "ber":
             for bus in buses:
-                # errors as a Poisson process in bus time; one that falls on an idle bus does nothing
-                rate_per_ns = self.value * bus.bitrate / 1e9
+                # errors as a Poisson process in bus time; one that falls on an idle bus does nothing. On CAN FD
+                # at the data phase's bit rate throughout: never fewer errors than the bits sent would see
+                rate_per_ns = self.value * max(bus.bitrate, bus.data_bitrate) / 1e9
                 if rate_per_ns > 0:
                     n = int(sc.opts.duration_ns * rate_per_ns * 1.5) + 10
                     gaps = sc.rng.exponential(1 / rate_per_ns, n)

@@ -25,6 +25,7 @@ from typing import Any
 import can
 
 from netcfg.sim.run import SimRun
+from netcfg.timing.frames import CANFD_PADDING, canfd_padded_size
 
 
 class Program:
@@ -134,10 +135,12 @@ class SimCanBus(can.BusABC):
             return  # like python-can's buses: no echo of one's own frames
         s = self.sim_bus.sources[src]
         payload = data if data is not None else bytes(s.size)
+        if s.fd:  # a receiver sees an FD frame's padded length, as on a real bus
+            payload += bytes([CANFD_PADDING]) * (canfd_padded_size(len(payload)) - len(payload))
         self._rx.append(
             can.Message(
                 timestamp=end / 1e9, arbitration_id=s.can_id, is_extended_id=s.extended, data=payload,
-                channel=self.sim_bus.name,
+                channel=self.sim_bus.name, is_fd=s.fd, bitrate_switch=s.brs,
             )
         )
         if self.host is not None:
@@ -148,7 +151,9 @@ class SimCanBus(can.BusABC):
         src = self._by_id.get(key)
         if src is None:
             name = f"{self.node}_0x{msg.arbitration_id:x}"
-            src = self.sim_bus.add_source(name, msg.arbitration_id, msg.is_extended_id, msg.dlc, self.node)
+            src = self.sim_bus.add_source(
+                name, msg.arbitration_id, msg.is_extended_id, msg.dlc, self.node, fd=msg.is_fd, brs=msg.bitrate_switch
+            )
             self._by_id[key] = src
         self._own.add(src)
         if not self.sc.alive(self.node):

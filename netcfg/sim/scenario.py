@@ -224,13 +224,14 @@ class Scenario:
 
     # -- CAN --------------------------------------------------------------------------------------------
     def _build_can(self, bus: Bus) -> None:
-        can = CanBus(self.sim, bus.name, bus.bitrate, self.opts.stuffing, self.opts.trace)
+        can = CanBus(self.sim, bus.name, bus.bitrate, self.opts.stuffing, self.opts.trace, bus.data_bitrate)
         self.can[bus.name] = can
         sync = self.synchronised
         ftt = bus.ftt if bus.protocol == "ftt-can" and sync else None
         for m in self.cfg.messages_on(bus.name):
             gated = ftt is not None and m.window != "sync"
-            self.msg_source[m.name] = (can, can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated))
+            src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs)
+            self.msg_source[m.name] = (can, src)
         driver: object | None = None
         if ftt is not None:
             from netcfg.sim.ftt import FttMaster

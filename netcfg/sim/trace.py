@@ -43,6 +43,8 @@ class TraceFrame(NamedTuple):
     extended: bool
     data: bytes
     error: bool = False
+    fd: bool = False  # a CAN FD frame (data padded to a CAN FD length); brs: with bit-rate switch
+    brs: bool = False
 
 
 class _AscSink(io.TextIOBase):
@@ -129,7 +131,9 @@ def write_trace(frames: Iterable[TraceFrame], path: str | Path, fmt: str | None 
                     is_extended_id=frame.extended,
                     dlc=len(frame.data),
                     data=frame.data,
-                    check=True,  # python-can refuses identifiers and payloads a classical CAN frame cannot carry
+                    is_fd=frame.fd,
+                    bitrate_switch=frame.brs,
+                    check=True,  # python-can refuses identifiers and payloads the frame's format cannot carry
                 )
             writer.on_message_received(msg)
             count += 1

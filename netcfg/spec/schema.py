@@ -242,8 +242,11 @@ class EthernetParams(SpecModel):
 
 class Bus(SpecModel):
     name: Name
-    protocol: Literal["can", "canopen", "ftt-can", "ethernet-udp"]
-    bitrate: BitRateField = Field(description="bit rate, or link speed for Ethernet")
+    protocol: Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp"]
+    bitrate: BitRateField = Field(description="bit rate, or link speed for Ethernet; on CAN FD the arbitration rate")
+    data_bitrate: BitRateField | None = Field(
+        None, description="CAN FD: the data-phase bit rate of frames sent with bit-rate switch (brs)"
+    )
     id_bits: Literal[11, 29] = Field(11, description="default identifier length on CAN buses")
     ftt: FttParams | None = None
     canopen: CanopenParams | None = None
@@ -391,6 +394,12 @@ class Message(SpecModel):
     id: Int | None = Field(None, ge=0, description="CAN identifier, or the application message id on UDP")
     extended: Bool | None = Field(None, description="29-bit identifier (default: the bus's id_bits)")
     size: Int | None = Field(None, ge=0, description="payload bytes (or give signals / a PDO map)")
+    fd: Bool | None = Field(
+        None, description="CAN FD buses: an FD frame (up to 64 bytes; default) or, with false, a classical one"
+    )
+    brs: Bool | None = Field(
+        None, description="CAN FD frames: bit-rate switch, the data phase at data_bitrate (default)"
+    )
     signals: list[Signal] | None = None
     pdo: Pdo | None = None
     type: Literal["periodic", "sporadic", "on-demand"] | None = Field(

@@ -32,6 +32,17 @@ with CRC-21 (25 bits). The bit rate switches at the sample point of BRS and back
 delimiter, so those two bits are partly at each rate: the worst case counts both at the nominal rate, the best case
 (no dynamic stuff bits) both at the data rate. Without BRS every bit is at the nominal rate. A payload is padded to
 the next valid length (0-8, 12, 16, 20, 24, 32, 48, 64 bytes).
+
+Exact CAN FD frames (canfd_frame_bits_exact): the dynamically stuffed region is, base format, SOF 0, identifier,
+RRS 0, IDE 0, FDF 1, res 0, BRS, ESI 0 (error active), DLC, data; extended format SOF 0, base identifier, SRR 1,
+IDE 1, identifier extension, RRS 0, FDF 1, res 0, BRS, ESI 0, DLC, data. Its stuff bits are counted as on the wire;
+those inserted after one of the arbitration bits (SOF .. BRS, fixed by the identifier) are at the nominal rate, the
+rest at the data rate. The stuff count and the CRC sequence (CRC-17 or CRC-21 over the stuffed bits) carry fixed
+stuff bits only, so their values do not change the length: the frame's length depends on the identifier, BRS and
+the data alone. A dynamic stuff bit due right after the last data bit is counted before the fixed stuff bit (at
+most one bit more than a controller that lets the fixed stuff bit stand in for it). The sample point of BRS and
+of the CRC delimiter is not modelled: both count at the nominal rate, as in the worst case, so exact <= worst holds
+at every pair of rates.
 """
 
 from __future__ import annotations
@@ -331,6 +342,83 @@ def canfd_frame_bits(size: int, extended: bool = False, brs: bool = True, stuffi
     if not brs:
         return FdFrameBits(nominal + data, 0)
     return FdFrameBits(nominal, data)
+
+CANFD_PADDING = 0x00  # what pads a payload to its frame length when netcfg sends one (ISO 11898-1 leaves it open)
+
+
+def _canfd_header_bits(can_id: int, extended: bool, brs: bool, dlc: int) -> list[int]:
+    """SOF through DLC of a CAN FD frame (the exact layout is in the module docstring)."""
+    if extended:
+        arbitration = [0, *_msb_first(can_id >> 18, 11), 1, 1, *_msb_first(can_id & 0x3FFFF, 18), 0, 1, 0, int(brs)]
+    else:
+        arbitration = [0, *_msb_first(can_id, 11), 0, 0, 1, 0, int(brs)]
+    return [*arbitration, 0, *_msb_first(dlc, 4)]  # ESI, DLC
+
+
+def _canfd_fixed_bits(length: int, extended: bool) -> FdFrameBits:
+    """The bits of a CAN FD frame of `length` data bytes besides its dynamic stuff bits, BRS and the CRC delimiter
+    counted at the nominal rate (the split of the worst case)."""
+    arbitration = CANFD_ARBITRATION_BITS_EXTENDED if extended else CANFD_ARBITRATION_BITS
+    crc = canfd_crc_bits(length)
+    fixed_stuff = 1 + (CANFD_STUFF_COUNT_BITS + crc) // 4
+    data = CANFD_CONTROL_DATA_BITS + 8 * length + CANFD_STUFF_COUNT_BITS + crc + fixed_stuff
+    return FdFrameBits(arbitration + 1 + CANFD_TAIL_BITS, data)  # + 1: the CRC delimiter
+
+
+def _canfd_split(fixed: FdFrameBits, arbitration_stuff: int, total_stuff: int, brs: bool) -> FdFrameBits:
+    nominal, data = fixed.nominal + arbitration_stuff, fixed.data + total_stuff - arbitration_stuff
+    return FdFrameBits(nominal, data) if brs else FdFrameBits(nominal + data, 0)
+
+
+def _canfd_check(can_id: int, extended: bool, size: int) -> int:
+    limit = 1 << (29 if extended else 11)
+    if not 0 <= can_id < limit:
+        raise ValueError(f"CAN identifier {can_id:#x} does not fit {29 if extended else 11} bits")
+    return canfd_padded_size(size)
+
+
+@lru_cache(maxsize=1 << 16)
+def canfd_frame_bits_exact(can_id: int, extended: bool, data: bytes, brs: bool = True) -> FdFrameBits:
+    """Bits of one CAN FD data frame with its actual stuff bits, at each rate, intermission included. A payload
+    shorter than a valid length is padded with CANFD_PADDING, as netcfg sends it. Memoised (data must be bytes)."""
+    length = _canfd_check(can_id, extended, len(data))
+    header = _canfd_header_bits(can_id, extended, brs, CANFD_LENGTHS.index(length))
+    bits = list(header)
+    for byte in data + bytes([CANFD_PADDING]) * (length - len(data)):
+        bits += _msb_first(byte, 8)
+    arbitration = CANFD_ARBITRATION_BITS_EXTENDED if extended else CANFD_ARBITRATION_BITS
+    return _canfd_split(
+        _canfd_fixed_bits(length, extended), count_stuff_bits(bits[:arbitration]), count_stuff_bits(bits), brs
+    )
+
+
+def canfd_frame_bits_exact_batch(
+    can_id: int, extended: bool, brs: bool, payloads: NDArray[np.uint8]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """canfd_frame_bits_exact for n payloads of one identifier: payloads (n, size) uint8 -> ((n,) bits at the
+    nominal rate, (n,) bits at the data rate), the fields of FdFrameBits row by row."""
+    payloads = np.asarray(payloads)
+    if payloads.ndim != 2 or payloads.dtype != np.uint8:
+        raise ValueError(f"payloads must be a 2-D uint8 array (n, size), got {payloads.dtype} {payloads.shape}")
+    n, size = payloads.shape
+    length = _canfd_check(can_id, extended, size)
+    if length > size:
+        payloads = np.concatenate([payloads, np.full((n, length - size), CANFD_PADDING, dtype=np.uint8)], axis=1)
+    header = _canfd_header_bits(can_id, extended, brs, CANFD_LENGTHS.index(length))
+    arbitration = CANFD_ARBITRATION_BITS_EXTENDED if extended else CANFD_ARBITRATION_BITS
+    arbitration_stuff = count_stuff_bits(header[:arbitration])
+    state0, count0 = _stuff_state(header)
+    state = np.full(n, state0, dtype=np.uint8)
+    count = np.full(n, count0, dtype=np.int64)
+    for bits in np.ascontiguousarray(np.unpackbits(payloads, axis=1).T):
+        k = 2 * state + bits
+        count += _STUFF_COUNT[k]
+        state = _STUFF_NEXT[k]
+    fixed = _canfd_fixed_bits(length, extended)
+    if not brs:
+        return fixed.nominal + fixed.data + count, np.zeros(n, dtype=np.int64)
+    return np.full(n, fixed.nominal + arbitration_stuff, dtype=np.int64), fixed.data + count - arbitration_stuff
+
 
 # Ethernet II + IPv4 + UDP, bytes on the wire besides the application data.
 ETH_PREAMBLE_SFD = 8

@@ -12,30 +12,48 @@ from fractions import Fraction
 from typing import Protocol
 
 from netcfg import model
-from netcfg.timing.frames import bits_to_ns, can_frame_bits, udp_message_bytes
+from netcfg.timing.frames import FdFrameBits, bits_to_ns, can_frame_bits, canfd_frame_bits, udp_message_bytes
 
 
 @dataclass(frozen=True)
 class FrameTiming:
-    bits_worst: int
+    bits_worst: int  # CAN FD: both phases together
     bits_nominal: int
     tx_ns: int  # worst case on the wire
     utilization: float  # tx_ns / interval, 0 for on-demand
+    nominal_ns: int = 0  # best case on the wire: no stuff bits
+    fd_worst: FdFrameBits | None = None  # CAN FD: the worst case's bits at the arbitration and at the data rate
 
 
-def frame_timing(msg: model.Message, bitrate: int) -> FrameTiming:
-    """One classical CAN data frame."""
+def frame_timing(msg: model.Message, bitrate: int, data_bitrate: int | None = None) -> FrameTiming:
+    """One CAN data frame: classical, or CAN FD (msg.fd) with its data phase at data_bitrate when msg.brs."""
+    if msg.fd:
+        if data_bitrate is None:
+            raise ValueError(f"CAN FD message '{msg.name}' needs the bus's data bit rate")
+        fd_worst = canfd_frame_bits(msg.size, msg.extended, msg.brs, "worst")
+        fd_nominal = canfd_frame_bits(msg.size, msg.extended, msg.brs, "nominal")
+        tx = fd_worst.ns(bitrate, data_bitrate)
+        return FrameTiming(
+            fd_worst.nominal + fd_worst.data,
+            fd_nominal.nominal + fd_nominal.data,
+            tx,
+            tx / msg.interval_ns if msg.interval_ns else 0.0,
+            fd_nominal.ns(bitrate, data_bitrate),
+            fd_worst,
+        )
     worst = can_frame_bits(msg.size, msg.extended, "worst")
     nominal = can_frame_bits(msg.size, msg.extended, "nominal")
     tx = bits_to_ns(worst, bitrate)
-    return FrameTiming(worst, nominal, tx, tx / msg.interval_ns if msg.interval_ns else 0.0)
+    return FrameTiming(
+        worst, nominal, tx, tx / msg.interval_ns if msg.interval_ns else 0.0, bits_to_ns(nominal, bitrate)
+    )
 
 
 def udp_timing(msg: model.Message, bitrate: int) -> FrameTiming:
     """One UDP datagram: the 1-byte application message id (seed 001, Table 6.1) + the data."""
     bits = 8 * udp_message_bytes(msg.size)
     tx = bits_to_ns(bits, bitrate)
-    return FrameTiming(bits, bits, tx, tx * float(rate_hz(msg)) / 1e9)
+    return FrameTiming(bits, bits, tx, tx * float(rate_hz(msg)) / 1e9, tx)
 
 
 class Rated(Protocol):
@@ -82,10 +100,10 @@ def compare_to_capacity(approx: float, loads: Iterable[tuple[int, int]]) -> int:
 
 def can_bus_load(bus: model.Bus) -> tuple[dict[str, FrameTiming], float, float]:
     """-> (timing per message, worst-case utilisation, utilisation without stuff bits)."""
-    timings = {m.name: frame_timing(m, bus.bitrate) for m in bus.messages}
+    timings = {m.name: frame_timing(m, bus.bitrate, bus.data_bitrate) for m in bus.messages}
     worst = sum(t.utilization for t in timings.values())
     nominal = sum(
-        bits_to_ns(t.bits_nominal, bus.bitrate) / m.interval_ns
+        t.nominal_ns / m.interval_ns
         for m, t in zip(bus.messages, timings.values())
         if m.interval_ns and m.kind != "on-demand"
     )

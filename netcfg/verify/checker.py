@@ -334,8 +334,8 @@ class Checker:
         if st.first_t is None:
             st.first_t = int(t[0])
         st.count += len(t)
-        # payload length
-        wrong = (length != m.size) | odd
+        # payload length; a CAN FD message's frames carry its padded length (odd: FD or remote, as expected for it)
+        wrong = (length != m.frame_size) if m.fd else (length != m.size) | odd
         if wrong.any():
             if not st.bad_size:
                 st.bad_size = [0, int(t[wrong][0]), int(length[wrong][0])]

@@ -1,0 +1,67 @@
+"""CAN FD (ISO 11898-1:2015): an arbitration bit rate and a data bit rate, payloads up to 64 bytes padded to the
+next valid length, classical frames (`fd: false`) on the same bus. Identifiers follow the classical CAN rules."""
+
+from __future__ import annotations
+
+from netcfg import model
+from netcfg.resolve.can import MAX_CAN_BITRATE, CanProtocol
+from netcfg.spec import schema
+from netcfg.spec.source import Path
+from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_LENGTHS, CANFD_MAX_PAYLOAD, canfd_padded_size
+
+
+class CanFdProtocol(CanProtocol):
+    name = "can-fd"
+
+    def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
+        if b.bitrate > MAX_CAN_BITRATE:
+            self.r.err(
+                "bitrate",
+                f"the CAN FD arbitration phase runs at most 1 Mbit/s; bus '{b.name}' says {b.bitrate} bit/s "
+                "(the faster rate is 'data_bitrate')",
+                (*path, "bitrate"),
+            )
+        if b.data_bitrate is None:
+            self.r.err(
+                "data-bitrate",
+                f"CAN FD bus '{b.name}' needs 'data_bitrate', the rate of the data phase (e.g. 'data_bitrate: 5M')",
+                path,
+            )
+            return
+        if b.data_bitrate < b.bitrate:
+            self.r.err(
+                "data-bitrate",
+                f"the data phase cannot be slower than arbitration: data_bitrate {b.data_bitrate} bit/s is below "
+                f"bitrate {b.bitrate} bit/s",
+                (*path, "data_bitrate"),
+            )
+        bus.data_bitrate = b.data_bitrate
+
+    def check_payload(self, m: schema.Message, size: int, path: Path) -> None:
+        where = (*path, "size") if m.size is not None else path
+        if m.fd is False:
+            if size > CAN_MAX_PAYLOAD:
+                self.r.err(
+                    "payload",
+                    f"{size} bytes do not fit a classical frame (at most 8); drop 'fd: false' or split the message",
+                    where,
+                )
+            return
+        if size > CANFD_MAX_PAYLOAD:
+            self.r.err("payload", f"{size} bytes do not fit a CAN FD frame (at most 64); split the message", where)
+            return
+        padded = canfd_padded_size(size)
+        if padded != size:
+            lengths = ", ".join(str(n) for n in CANFD_LENGTHS[CAN_MAX_PAYLOAD + 1 :])
+            self.r.warn(
+                "fd-padding",
+                f"message '{m.name}': a CAN FD frame carries 0-8, {lengths} bytes; its {size} bytes go in a "
+                f"{padded}-byte frame with {padded - size} padding bytes (timed and sent as {padded})",
+                where,
+            )
+
+    def frame_format(self, m: schema.Message, path: Path) -> tuple[bool, bool]:
+        fd = m.fd is not False
+        if not fd and m.brs:
+            self.r.err("brs", "bit-rate switch exists only in CAN FD frames; drop 'brs' or 'fd: false'", (*path, "brs"))
+        return fd, fd and m.brs is not False
