@@ -1,5 +1,6 @@
 """Seed 001 on one machine: the PC endpoint and stand-in MCUs exchange commands and encoder frames over loopback.
 
+    python examples/ntua_loopback.py                        # SAHR from generated/, 1,000 pairs (about 1 s)
     python examples/ntua_loopback.py generated/ntua_sahr/runtime.json --pairs 10000
     python examples/ntua_loopback.py generated/ntua_treadmill/runtime.json --pairs 2000 --net 127.0.1
 
@@ -18,12 +19,15 @@ from pathlib import Path
 import netcfg.runtime as rt
 from netcfg.runtime.udp import PcEndpoint, StandInMcu, exchange, loopback_hosts
 
+SAHR = Path(__file__).resolve().parent.parent / "generated" / "ntua_sahr" / "runtime.json"
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runtime", type=Path, help="a runtime.json of an Ethernet/UDP system")
+    parser.add_argument("runtime", type=Path, nargs="?", default=SAHR,
+                        help="a runtime.json of an Ethernet/UDP system (default: the SAHR robot's in generated/)")
     parser.add_argument("--pc", default="pc", help="the PC's node name (default: pc)")
-    parser.add_argument("--pairs", type=int, default=10_000, help="commands to send per command message")
+    parser.add_argument("--pairs", type=int, default=1_000, help="commands to send per command message (default 1000)")
     parser.add_argument("--period-us", type=float, help="pace commands at this period instead of the configured one")
     parser.add_argument("--net", default="127.0.0", help="first three octets of the loopback addresses to use")
     parser.add_argument("--quiet-mcus", action="store_true", help="do not stream the MCUs that take no commands")
