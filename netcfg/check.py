@@ -38,7 +38,7 @@ def load_dbc(path: Path, diags: Collector, options: ImportOptions) -> Model | No
     try:
         spec = Spec.model_validate(imported[0])
     except ValidationError as exc:
-        report_validation_errors(exc, smap, diags)
+        report_validation_errors(exc, smap, diags, imported[0])
         return None
     return resolve(spec, smap, diags, path.parent)
 

@@ -14,6 +14,7 @@ from netcfg.inputs import check_input_path
 from netcfg.model import MessageKind
 from netcfg.resolve import pdo as pdo_map
 from netcfg.resolve.can import CanProtocol
+from netcfg.resolve.suggest import did_you_mean, nodes_on_bus
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.units import format_ns
@@ -68,7 +69,10 @@ class CanopenProtocol(CanProtocol):
             producer = ms[0]
         elif producer not in self.r.spec_nodes or b.name not in self.r.spec_nodes[producer].buses:
             self.r.err(
-                "unknown-node", f"SYNC producer '{producer}' is not a node on bus '{b.name}'", (*cpath, "sync_producer")
+                "unknown-node",
+                f"SYNC producer '{producer}' is not a node on bus '{b.name}'"
+                f"{did_you_mean(producer, nodes_on_bus(self.r, b.name))}",
+                (*cpath, "sync_producer"),
             )
             return
         # CiA 301 0x1019: 0 (no counter) or an overflow value 2..240; `true` takes the largest
@@ -248,7 +252,7 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
         except KeyError:
             r.err(
                 "unknown-device",
-                f"no built-in device profile '{n.device}'; built-in: "
+                f"no built-in device profile '{n.device}'{did_you_mean(n.device, builtin_profile_names())}; built-in: "
                 f"{', '.join(builtin_profile_names())}, or give a vendor file as 'device: {{eds: x.eds}}'",
                 dpath,
             )

@@ -14,6 +14,7 @@ from netcfg import cia301, model
 from netcfg.diagnostics import Collector
 from netcfg.resolve import canopen
 from netcfg.resolve.protocol import BusProtocol
+from netcfg.resolve.suggest import did_you_mean
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
 from netcfg.spec.units import Duration, format_ns
@@ -184,8 +185,8 @@ class Resolver:
                 if bname not in self.spec_buses:
                     self.err(
                         "unknown-bus",
-                        f"node '{n.name}' sits on bus '{bname}', which is not defined; "
-                        f"known buses: {', '.join(sorted(self.spec_buses)) or 'none'}",
+                        f"node '{n.name}' sits on bus '{bname}', which is not defined"
+                        f"{did_you_mean(bname, self.spec_buses)}; known buses: {some_names(self.spec_buses)}",
                         (*path, "buses", j),
                     )
             if len(set(n.buses)) != len(n.buses):
@@ -313,8 +314,8 @@ class Resolver:
                 where = (*path, "producer") if k == 0 else (*path, "consumers", k - 1)
                 self.err(
                     "unknown-node",
-                    f"message '{m.name}' names node '{name}', which is not defined; "
-                    f"known nodes: {some_names(self.spec_nodes)}",
+                    f"message '{m.name}' names node '{name}', which is not defined"
+                    f"{did_you_mean(name, self.spec_nodes)}; known nodes: {some_names(self.spec_nodes)}",
                     where,
                 )
         if any(name not in self.spec_nodes for name in ends):
@@ -323,7 +324,8 @@ class Resolver:
             if m.bus not in self.spec_buses:
                 self.err(
                     "unknown-bus",
-                    f"bus '{m.bus}' is not defined; known buses: {some_names(self.spec_buses)}",
+                    f"bus '{m.bus}' is not defined{did_you_mean(m.bus, self.spec_buses)}; "
+                    f"known buses: {some_names(self.spec_buses)}",
                     (*path, "bus"),
                 )
                 return None
@@ -635,7 +637,8 @@ class Resolver:
                     if msg is None:
                         self.err(
                             "unknown-message",
-                            f"task '{task.ref}' runs on message '{task.on_message}', which is not defined",
+                            f"task '{task.ref}' runs on message '{task.on_message}', which is not defined"
+                            f"{did_you_mean(task.on_message, self.model.messages)}",
                             (*task.path, "on_message"),
                         )
                     elif node.name not in msg.consumers:

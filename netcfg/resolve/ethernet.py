@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from netcfg import model
 from netcfg.resolve.protocol import BusProtocol
+from netcfg.resolve.suggest import did_you_mean
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.timing.frames import APP_ID_BYTES, MAX_UDP_PAYLOAD
@@ -86,7 +87,8 @@ class EthernetProtocol(BusProtocol):
                     if p.to not in switch_names and p.to not in bus.nodes:
                         self.r.err(
                             "unknown-node",
-                            f"{where} leads to '{p.to}', which is neither a switch nor a node on bus '{bus.name}'",
+                            f"{where} leads to '{p.to}', which is neither a switch nor a node on bus '{bus.name}'"
+                            f"{did_you_mean(p.to, [*switch_names, *bus.nodes])}",
                             (*ppath, "to"),
                         )
                         continue

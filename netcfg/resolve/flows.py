@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from netcfg import model
 from netcfg.resolve.core import Resolver, quoted_names
+from netcfg.resolve.suggest import did_you_mean
 from netcfg.spec.source import Path
 
 
@@ -26,7 +27,8 @@ def resolve_flows(r: Resolver) -> None:
                     node_name, _, task_name = ref.partition(".")
                     node = r.model.nodes.get(node_name)
                     if node is None or task_name not in node.tasks:
-                        r.err("unknown-task", f"flow '{f.name}': '{ref}' is not a task (node.task)", rpath)
+                        hint = did_you_mean(ref, all_tasks(r))
+                        r.err("unknown-task", f"flow '{f.name}': '{ref}' is not a task (node.task){hint}", rpath)
                         ok = False
                     kinds.add("task")
                 elif ref in r.model.messages:
@@ -34,7 +36,8 @@ def resolve_flows(r: Resolver) -> None:
                 else:
                     r.err(
                         "unknown-message",
-                        f"flow '{f.name}': '{ref}' is neither a message nor a task (tasks are written node.task)",
+                        f"flow '{f.name}': '{ref}' is neither a message nor a task (tasks are written node.task)"
+                        f"{did_you_mean(ref, [*r.model.messages, *all_tasks(r)])}",
                         rpath,
                     )
                     ok = False
@@ -103,3 +106,8 @@ def check_flow_links(r: Resolver, flow: str, steps: list[model.FlowStep], path: 
                     )
                     ok = False
     return ok
+
+
+def all_tasks(r: Resolver) -> list[str]:
+    """Every task as a flow step names it: node.task."""
+    return [f"{n.name}.{t}" for n in r.model.nodes.values() for t in n.tasks]

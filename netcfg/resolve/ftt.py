@@ -11,6 +11,8 @@ from netcfg import model
 from netcfg.model import MessageKind
 from netcfg.resolve.can import CanProtocol
 from netcfg.resolve.core import some_names
+from netcfg.resolve.flows import all_tasks
+from netcfg.resolve.suggest import did_you_mean, nodes_on_bus
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.units import Duration, format_ns
@@ -60,7 +62,10 @@ class FttProtocol(CanProtocol):
                 return
             master = ms[0]
         elif master not in self.r.spec_nodes or b.name not in self.r.spec_nodes[master].buses:
-            self.r.err("unknown-node", f"FTT-CAN master '{master}' is not a node on bus '{b.name}'", (*fpath, "master"))
+            hint = did_you_mean(master, nodes_on_bus(self.r, b.name))
+            self.r.err(
+                "unknown-node", f"FTT-CAN master '{master}' is not a node on bus '{b.name}'{hint}", (*fpath, "master")
+            )
             return
         bus.ftt = model.FttBus(
             ec_ns=ec,
@@ -148,7 +153,8 @@ class FttProtocol(CanProtocol):
             if sbus is None or bus is None:
                 self.r.err(
                     "unknown-bus",
-                    f"bus '{t.bus}' is not defined; known buses: {some_names(self.r.spec_buses)}",
+                    f"bus '{t.bus}' is not defined{did_you_mean(t.bus, self.r.spec_buses)}; "
+                    f"known buses: {some_names(self.r.spec_buses)}",
                     (*path, "bus"),
                 )
                 continue
@@ -189,7 +195,8 @@ class FttProtocol(CanProtocol):
                 if node is None or task_name not in node.tasks:
                     self.r.err(
                         "unknown-task",
-                        f"trigger '{t.name}' activates '{ref}', which is not a task (write node.task)",
+                        f"trigger '{t.name}' activates '{ref}', which is not a task (write node.task)"
+                        f"{did_you_mean(ref, all_tasks(self.r))}",
                         (*path, "tasks", j),
                     )
                     continue

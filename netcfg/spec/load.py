@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
-from typing import Any
+from types import UnionType
+from typing import Annotated, Any, Union, get_args, get_origin
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from netcfg.diagnostics import Collector, Position
 from netcfg.inputs import MAX_BYTES, InputError, decode_text, read_input_bytes
@@ -43,15 +45,47 @@ def read_spec(path: Path, diags: Collector, display_name: str | None = None) -> 
     try:
         return Spec.model_validate(data), smap
     except ValidationError as exc:
-        report_validation_errors(exc, smap, diags)
+        report_validation_errors(exc, smap, diags, data)
         return None, smap
 
 
-def _fmt_path(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
-    return out
+# The spec's lists of named items, and what one item is called in a message.
+ITEM_NAMES = {
+    "buses": "bus", "nodes": "node", "messages": "message", "tasks": "task", "flows": "flow", "triggers": "trigger",
+    "signals": "signal", "switches": "switch",
+}
+
+
+def _fmt_path(loc: tuple[Any, ...], data: Any = None) -> str:
+    """A location as a person names it: "message 'odometry' pdo.map[2]", not "messages[3].pdo.map[2]"."""
+    words: list[str] = []  # named items stand alone; keys and indexes after them join with dots
+    named_last = False
+    node = data
+    for i, part in enumerate(loc):
+        child = _child(node, part)
+        key = loc[i - 1] if i else None
+        name = child.get("name") if isinstance(child, dict) else None
+        if isinstance(part, int) and key in ITEM_NAMES and isinstance(name, str) and words:
+            words[-1] = words[-1].removesuffix(str(key)).removesuffix(".")
+            words[-1:] = [w for w in (words[-1],) if w] + [f"{ITEM_NAMES[key]} '{name}'"]
+            named_last = True
+        elif isinstance(part, int):
+            words[-1:] = [f"{words[-1] if words else ''}[{part}]"]
+        elif named_last or not words:
+            words.append(str(part))
+            named_last = False
+        else:
+            words[-1] += f".{part}"
+        node = child
+    return " ".join(words)
+
+
+def _child(node: Any, part: Any) -> Any:
+    if isinstance(node, dict):
+        return node.get(part)
+    if isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+        return node[part]
+    return None
 
 
 def _data_path(loc: tuple[Any, ...]) -> tuple[Any, ...]:
@@ -66,7 +100,42 @@ def _data_path(loc: tuple[Any, ...]) -> tuple[Any, ...]:
     return tuple(out)
 
 
-def report_validation_errors(exc: ValidationError, smap: SourceMap, diags: Collector) -> None:
+def _model_at(raw_loc: tuple[Any, ...]) -> type[BaseModel] | None:
+    """The spec model found at a pydantic error location (which names union branches by class)."""
+    tp: Any = Spec
+    for part in raw_loc:
+        tp = _unwrap(tp)
+        members = [_unwrap(m) for m in get_args(tp)] if get_origin(tp) in (Union, UnionType) else [tp]
+        models = [m for m in members if isinstance(m, type) and issubclass(m, BaseModel)]
+        if isinstance(part, int):
+            lists = [m for m in members if get_origin(m) in (list, tuple)]
+            tp = get_args(lists[0])[0] if lists and get_args(lists[0]) else None
+        elif any(m.__name__ == part for m in models):
+            tp = next(m for m in models if m.__name__ == part)
+        elif any(part in m.model_fields for m in models):
+            tp = next(m for m in models if part in m.model_fields).model_fields[part].annotation
+        # anything else is a tag pydantic adds for a validator or a literal branch: stay where we are
+    tp = _unwrap(tp)
+    members = [_unwrap(m) for m in get_args(tp)] if get_origin(tp) in (Union, UnionType) else [tp]
+    return next((m for m in members if isinstance(m, type) and issubclass(m, BaseModel)), None)
+
+
+def _unwrap(tp: Any) -> Any:
+    """X from Annotated[X, ...] and from X | None."""
+    while get_origin(tp) is Annotated:
+        tp = get_args(tp)[0]
+    if get_origin(tp) in (Union, UnionType):
+        args = [a for a in get_args(tp) if a is not type(None)]
+        if len(args) == 1:
+            return _unwrap(args[0])
+    return tp
+
+
+def report_validation_errors(
+    exc: ValidationError, smap: SourceMap, diags: Collector, data: Any = None
+) -> None:
+    from netcfg.resolve.suggest import did_you_mean
+
     seen: set[tuple[Any, ...]] = set()
     for err in exc.errors(include_url=False):
         loc = _data_path(tuple(err["loc"]))
@@ -74,14 +143,20 @@ def report_validation_errors(exc: ValidationError, smap: SourceMap, diags: Colle
         if kind == "extra_forbidden":
             key = loc[-1]
             parent = loc[:-1]
-            message = f"unknown key '{key}' in {_fmt_path(parent) or 'the spec'}; check its spelling (netcfg schema)"
+            where = _fmt_path(parent, data) or "the spec"
+            model = _model_at(tuple(err["loc"])[:-1])
+            hint = did_you_mean(str(key), model.model_fields) if model is not None else ""
+            message = f"unknown key '{key}' in {where}{hint or '; check its spelling (netcfg schema)'}"
             pos = smap.key_at(loc)
         elif kind == "missing":
-            message = f"missing required key '{loc[-1]}' in {_fmt_path(loc[:-1]) or 'the spec'}"
+            message = f"missing required key '{loc[-1]}' in {_fmt_path(loc[:-1], data) or 'the spec'}"
             pos = smap.at(loc[:-1])
         else:
             text = str(err["msg"]).removeprefix("Value error, ")
-            message = f"{_fmt_path(loc)}: {text}"
+            if kind == "literal_error" and isinstance(err.get("input"), str):
+                allowed = re.findall(r"'([^']*)'", str(err.get("ctx", {}).get("expected", "")))
+                text += did_you_mean(err["input"], allowed)
+            message = f"{_fmt_path(loc, data)}: {text}"
             pos = smap.at(loc)
         if loc in seen:  # a union reports one error per branch; keep the first
             continue
