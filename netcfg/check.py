@@ -71,3 +71,23 @@ def promote_warnings(report: dict[str, Any], codes: frozenset[str]) -> dict[str,
     report["errors"] = report["errors"] + promoted
     report["ok"] = False
     return report
+
+
+SPEC_SUFFIXES = (".yaml", ".yml")
+
+
+def spec_files(paths: list[Path]) -> list[Path]:
+    """The specs to check: files as given, folders as every *.yaml/*.yml directly inside them, sorted by name.
+
+    Raises FileNotFoundError for a folder without specs, so that `check empty/` is not silently fine.
+    """
+    out: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.suffix in SPEC_SUFFIXES and p.is_file())
+            if not found:
+                raise FileNotFoundError(f"no specs (*.yaml, *.yml) in folder {path}")
+            out += found
+        else:
+            out.append(path)
+    return out

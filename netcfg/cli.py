@@ -22,8 +22,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--version", action="version", version=f"netcfg {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p_check = sub.add_parser("check", help="validate specs and analyse their timing; writes nothing")
-    p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC")
+    p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC", help="a spec, a DBC, or a folder of specs")
     p_check.add_argument("--format", choices=("text", "json"), default="text")
+    p_check.add_argument("-q", "--quiet", action="store_true", help="print only errors and warnings")
     p_check.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k or '500 kbit/s'")
     p_check.add_argument("--lenient", action="store_true",
                          help="DBC input: accepted; what cannot be mapped is a warning anyway (see --default-period)")
@@ -69,6 +70,8 @@ def main(argv: list[str] | None = None) -> int:
                        help="frame lengths: bits actually stuffed, the worst case, or no stuff bits")
     p_sim.add_argument("--drift", type=_number_option("--drift"), default=50.0, metavar="PPM",
                        help="clock drift bound per node")
+    p_sim.add_argument("--force", action="store_true",
+                       help="simulate a spec that check refuses (to see how it fails); the analysis does not hold")
     p_sim.add_argument("--fault", action="append", default=[], metavar="FAULT",
                        help="inject a fault (repeatable): ber=1e-6, bit-error@12ms, crash:NODE@2s, "
                        "babble:NODE@1s..2s, lose:MESSAGE@100ms, master-fail@2s")
@@ -97,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
             options = ImportOptions(
                 args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
             )
-            return cmd_check(args.specs, args.format, options, frozenset(args.werror))
+            return cmd_check(args.specs, args.format, options, frozenset(args.werror), args.quiet)
         if args.command == "import":
             options = ImportOptions(args.bitrate, args.lenient, args.output, args.default_period, args.data_bitrate)
             return cmd_import(args.kind, args.source, args.output, options)
@@ -227,11 +230,20 @@ def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) ->
 
 
 def cmd_check(
-    paths: list[Path], fmt: str, options: ImportOptions | None = None, werror: frozenset[str] = frozenset()
+    paths: list[Path],
+    fmt: str,
+    options: ImportOptions | None = None,
+    werror: frozenset[str] = frozenset(),
+    quiet: bool = False,
 ) -> int:
-    from netcfg.check import check, promote_warnings
+    from netcfg.check import check, promote_warnings, spec_files
     from netcfg.report_text import render
 
+    try:
+        paths = spec_files(paths)
+    except OSError as exc:
+        print(f"netcfg: {exc}", file=sys.stderr)
+        return 2
     reports: list[dict[str, Any]] = []
     for path in paths:
         try:
@@ -254,7 +266,11 @@ def cmd_check(
         print(json.dumps(doc, indent=2))
     else:
         for report in reports:
-            print(render(report))
+            if quiet:  # the problems only: warnings, then errors below
+                for d in report["warnings"]:
+                    print(f"{d['file']}:{d['line']}:{d['column']}: warning: {d['message']} [{d['code']}]")
+            else:
+                print(render(report))
             for d in report["errors"]:
                 print(f"{d['file']}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
     return 0 if all(r["ok"] for r in reports) else 1

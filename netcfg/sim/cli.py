@@ -112,8 +112,12 @@ def fault_problem(cfg: runtime.RuntimeConfig, faults: tuple[Fault, ...]) -> str 
     return None
 
 
-def load_document(source: Path) -> dict[str, Any] | None:
-    """The runtime configuration as a JSON document: read, or compiled from a spec. None: errors were printed."""
+def load_document(source: Path, force: bool = False) -> dict[str, Any] | None:
+    """The runtime configuration as a JSON document: read, or compiled from a spec. None: errors were printed.
+
+    With `force`, a spec whose model resolves but which check refuses (a missed deadline, an overloaded bus, a
+    window too short...) is simulated anyway, with a warning: that is how a user sees how it fails.
+    """
     if source.suffix == ".json":
         doc = runtime.read_document(source)  # the input guard: size, depth, number length
         runtime.parse(doc, str(source))  # the runtime schema, with ranges
@@ -124,9 +128,13 @@ def load_document(source: Path) -> dict[str, Any] | None:
     model, report = analyse_spec(source)
     for d in report["errors"]:
         print(f"{d['file']}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
-    if model is None or report["errors"]:
-        print(f"netcfg: {source} has errors; nothing was simulated", file=sys.stderr)
+    if model is None or (report["errors"] and not force):
+        hint = "" if model is None else " (--force simulates it anyway)"
+        print(f"netcfg: {source} has errors; nothing was simulated{hint}", file=sys.stderr)
         return None
+    if report["errors"]:
+        print(f"netcfg: warning: {source} has {len(report['errors'])} errors and check refuses it; simulating it "
+              "anyway (--force): the analysed bounds below are not guarantees", file=sys.stderr)
     return json.loads(json.dumps(runtime_document(model, report)))
 
 
@@ -155,7 +163,7 @@ def simulate_command(args: argparse.Namespace) -> int:
         print(f"netcfg: --log {args.log}: the trace formats are {', '.join(SUPPORTED_SUFFIXES)}", file=sys.stderr)
         return 2
     try:
-        doc = load_document(args.source)
+        doc = load_document(args.source, getattr(args, "force", False))
     except json.JSONDecodeError as exc:
         print(f"{args.source}:{exc.lineno}:{exc.colno}: error: not valid JSON ({exc.msg}); rebuild it with "
               "'netcfg build'", file=sys.stderr)
