@@ -315,3 +315,21 @@ def test_names_cannot_break_the_ini_structure(tmp_path: Path) -> None:
 def test_two_emits_give_identical_bytes() -> None:
     for spec in ("allex2.yaml", "large_plant.yaml"):
         assert emitted(SPECS / spec)[1] == emitted(SPECS / spec)[1]
+
+
+@pytest.mark.usefixtures("needs_shared")
+def test_vendor_identity_is_kept_in_eds_and_dcf(tmp_path: Path) -> None:
+    """What maxon's EDS says of itself ([DeviceInfo]: VendorName 'maxon motor ag', VendorNumber 0x000000FB,
+    ProductName 'EPOS4 Module 50/5', ProductNumber 0x61500000, RevisionNumber 0x01700000) reaches our files, in
+    [DeviceInfo] and as the defaults of 0x1018 sub 1-3, as canopen reads them back: a master's identity check
+    compares a drive with these."""
+    _, files = emitted(vendor_spec(tmp_path))
+    out = write(files, tmp_path / "out")
+    vendor = canopen.import_od(str(EPOS4_EDS)).device_information
+    for ext in ("eds", "dcf"):
+        od = canopen.import_od(str(out / "canopen" / f"hip_l.{ext}"), 1)
+        info = od.device_information
+        assert (info.vendor_name, info.product_name) == ("maxon motor ag", "EPOS4 Module 50/5")
+        assert (info.vendor_name, info.product_name) == (vendor.vendor_name, vendor.product_name)
+        assert (info.vendor_number, info.product_number, info.revision_number) == (0xFB, 0x61500000, 0x01700000)
+        assert [entry(od, 0x1018, s).default for s in (1, 2, 3)] == [0xFB, 0x61500000, 0x01700000]

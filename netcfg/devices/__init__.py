@@ -61,6 +61,8 @@ class DeviceProfile:
     vendor_id: int | None = None
     product_code: int | None = None
     revision: int | None = None  # 0x1018 sub 3 / [DeviceInfo] RevisionNumber; None: not known
+    vendor_name: str = ""  # [DeviceInfo] VendorName / ProductName of the vendor's file; "": not known
+    product_name: str = ""
     rpdo_count: int = 4
     tpdo_count: int = 4
     max_mapped_objects: int = 8
@@ -92,6 +94,8 @@ def builtin_profile(name: str) -> DeviceProfile:
         vendor_id=raw.get("vendor_id"),
         product_code=raw.get("product_code"),
         revision=raw.get("revision"),
+        vendor_name=raw.get("vendor_name", ""),
+        product_name=raw.get("product_name", ""),
         rpdo_count=raw["rpdo_count"],
         tpdo_count=raw["tpdo_count"],
         max_mapped_objects=raw["max_mapped_objects"],

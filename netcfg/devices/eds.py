@@ -192,6 +192,8 @@ def import_eds(path: Path, name: str) -> DeviceProfile:
     profile.vendor_id = profile.vendor_id or info.vendor_number or None
     profile.product_code = profile.product_code or info.product_number or None
     profile.revision = profile.revision or info.revision_number or None
+    profile.vendor_name = (info.vendor_name or "").strip()
+    profile.product_name = (info.product_name or "").strip()
     profile.rpdo_count = sum(1 for i in cia301.pdo_comm_indices("rpdo") if i in od)
     profile.tpdo_count = sum(1 for i in cia301.pdo_comm_indices("tpdo") if i in od)
     if cia301.TPDO_MAP in od:  # TPDO 1 stands for all

@@ -102,6 +102,7 @@ class FileView:
     vendor_number: str
     product_name: str
     product_number: str
+    revision_number: str
     baudrates: tuple[tuple[int, int], ...]
     boot_master: int
     boot_slave: int
@@ -144,7 +145,7 @@ class _Obj:
 
 Dictionary = dict[int, _Obj]
 Known = dict[int, tuple[_Obj, list[Section]]]  # objects whose sections are made already
-Cache = dict[tuple[int, int | None, int | None], "_Base"]
+Cache = dict[tuple[int, int | None, int | None, int | None], "_Base"]
 
 
 @dataclass
@@ -204,7 +205,7 @@ def _render(view: FileView, file_name: str, dcf: bool) -> bytes:
 
 # -- slaves with a device profile ----------------------------------------------------------------------------------
 def _base(dev: DeviceProfile, cache: Cache) -> _Base:
-    key = (id(dev.objects), dev.vendor_id, dev.product_code)
+    key = (id(dev.objects), dev.vendor_id, dev.product_code, dev.revision)
     base = cache.get(key)
     if base is not None:
         return base
@@ -266,9 +267,11 @@ def _device_view(model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: 
         node=node,
         bus=bus,
         description=f"{node.name}: {dev.name} on CANopen bus {bus.name} of {model.system}, configured by netcfg",
+        vendor_name=dev.vendor_name,
         vendor_number=dev.vendor_id or 0,
-        product_name=dev.name,
+        product_name=dev.product_name or dev.name,
         product_number=dev.product_code or 0,
+        revision_number=dev.revision or 0,
         master=node.role == "master",
         dummies=dummies,
         comments=comments,
@@ -281,7 +284,15 @@ def _mandatory(od: Dictionary, dev: DeviceProfile) -> None:
     _var(od, 0x1000, NAMES[0x1000], U32, "ro", None)
     _var(od, 0x1001, NAMES[0x1001], U8, "ro", 0)
     identity = od.setdefault(0x1018, _Obj())
-    for sub, name, value in ((1, "Vendor-ID", dev.vendor_id), (2, "Product code", dev.product_code)):
+    # the vendor's identity is what a master checks before configuring the drive (CiA 301 7.5.2.23): keep it
+    stated = (
+        (1, "Vendor-ID", dev.vendor_id),
+        (2, "Product code", dev.product_code),
+        (3, "Revision number", dev.revision),
+    )
+    for sub, name, value in stated:
+        if sub == 3 and sub not in identity.subs and value is None:
+            continue  # sub 3 is optional: only where the device has it or its revision is known
         var = identity.subs.setdefault(sub, _Var(name, U32, "ro"))
         if var.default is None:
             var.default = value
@@ -489,6 +500,8 @@ def _file_view(
     product_name: str,
     product_number: int,
     master: bool,
+    vendor_name: str = "",
+    revision_number: int = 0,
     dummies: set[int],
     comments: list[str],
     known: Known,
@@ -505,10 +518,11 @@ def _file_view(
     groups = tuple((name, tuple(indices)) for name, indices in lists.items())
     return FileView(
         description=ini_text(description),
-        vendor_name="",  # not in DeviceProfile
+        vendor_name=ini_text(vendor_name),
         vendor_number=f"0x{vendor_number:08X}",
         product_name=ini_text(product_name),
         product_number=f"0x{product_number:08X}",
+        revision_number=f"0x{revision_number:08X}",
         # the device's own rates are not in its profile: the one the bus runs at is the one known to work
         baudrates=tuple((rate, int(rate == kbit)) for rate in STANDARD_RATES),
         boot_master=int(master),
