@@ -47,6 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     p_import.add_argument("--default-period", type=_duration_ns, metavar="T",
                           help="DBC: messages that give no cycle time are periodic every T, e.g. 100ms")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
+    _add_init_and_diff(sub)
     p_sim = sub.add_parser("simulate", help="run the runtime configuration in the discrete-event simulator")
     p_sim.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
     p_sim.add_argument("--duration", default="10s", help="simulated time per run, e.g. 8s, 500ms (default 10s)")
@@ -118,9 +119,32 @@ def main(argv: list[str] | None = None) -> int:
             from netcfg.tune import command
 
             return command(args.spec, args.output, args.robust, args.force, args.format, args.bitrate)
+        if args.command == "init":
+            from netcfg.init_spec import init_command
+
+            return init_command(args.source, args.file or args.dbc, args.output, ImportOptions(args.bitrate))
+        if args.command == "diff":
+            from netcfg.diff import diff_command
+
+            return diff_command(args.old, args.new, args.format)
     except BrokenPipeError:  # e.g. `netcfg check x | head`
         return 0
     return 2  # pragma: no cover - argparse rejects unknown commands
+
+
+def _add_init_and_diff(sub: Any) -> None:
+    from netcfg.init_spec import SOURCES
+
+    p_init = sub.add_parser("init", help="write a commented starting spec that check accepts")
+    p_init.add_argument("--from", dest="source", choices=SOURCES, help="start from an example system or a DBC")
+    p_init.add_argument("file", nargs="?", type=Path, metavar="FILE", help="with --from dbc: the DBC file")
+    p_init.add_argument("--dbc", type=Path, metavar="FILE", help="the same as --from dbc FILE")
+    p_init.add_argument("-o", "--output", type=Path, metavar="SPEC", help="the spec to write (default: stdout)")
+    p_init.add_argument("--bitrate", type=_bitrate, help="with a DBC: the bus bit rate")
+    p_diff = sub.add_parser("diff", help="what changed between two specs or two build folders, in timing terms")
+    p_diff.add_argument("old", type=Path, metavar="A", help="a spec or a build folder")
+    p_diff.add_argument("new", type=Path, metavar="B", help="a spec or a build folder")
+    p_diff.add_argument("--format", choices=("text", "json"), default="text")
 
 
 MAX_SEED = 2**63 - 1

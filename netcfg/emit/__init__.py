@@ -32,6 +32,7 @@ EMITTERS: dict[str, str] = {
     "runtime": "netcfg.emit.runtime_json:emit",  # runtime.json
     "dbc": "netcfg.emit.dbc:emit",  # dbc/<bus>.dbc
     "report": "netcfg.emit.report_md:emit",  # report.md, report/*.png
+    "report_json": "netcfg.emit.report_json:emit",  # report.json: the check report, for tools and `netcfg diff`
     "bus_yml": "netcfg.emit.bus_yml:emit",  # canopen/bus.yml
 }
 
