@@ -31,7 +31,7 @@ EMITTERS: dict[str, str] = {
     "srt": "netcfg.emit.srt:emit",  # ftt/<bus>_srt.{c,h,csv,md}
     "runtime": "netcfg.emit.runtime_json:emit",  # runtime.json
     "dbc": "netcfg.emit.dbc:emit",  # dbc/<bus>.dbc
-    "report": "netcfg.emit.report_md:emit",  # report.md, report/*.png
+    "report": "netcfg.emit.report_html:emit",  # report.md, report/*.png (report_md) and report.html from them
     "report_json": "netcfg.emit.report_json:emit",  # report.json: the check report, for tools and `netcfg diff`
     "bus_yml": "netcfg.emit.bus_yml:emit",  # canopen/bus.yml
 }
