@@ -99,3 +99,13 @@ def test_schema_errors_name_the_item_not_its_index(tmp_path: Path) -> None:
     assert any(m.startswith("message 'odometry' size:") for m in messages), messages
     assert any(m.startswith("node 'sensor' task 'sample' wcet:") for m in messages), messages
     assert not any("messages[" in m or "nodes[" in m for m in messages), messages
+
+
+def test_simulator_fault_targets_get_a_suggestion() -> None:
+    """Names on the command line are looked up the same way: a node, a message (ALLEX-2's SYNC is can0_SYNC)."""
+    from tests.conftest import cli
+
+    proc = cli("simulate", "specs/allex2.yaml", "--duration", "100ms", "--fault", "lose:can0_SYNK@10ms")
+    assert proc.returncode != 0 and "did you mean 'can0_SYNC'?" in proc.stderr, proc.stderr
+    proc = cli("simulate", "specs/allex2.yaml", "--duration", "100ms", "--fault", "crash:knee_1@10ms")
+    assert proc.returncode != 0 and "did you mean 'knee_" in proc.stderr, proc.stderr

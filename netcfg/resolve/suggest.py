@@ -27,9 +27,9 @@ def closest(name: str, known: Iterable[str]) -> str | None:
 
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
-    """'; did you mean 'x'?' to append to an error message, or '' when no known name is close."""
+    """" (did you mean 'x'?)" to put right after the unknown name's sentence, or "" when no known name is close."""
     match = closest(name, known)
-    return f"; did you mean '{match}'?" if match is not None else ""
+    return f" (did you mean '{match}'?)" if match is not None else ""
 
 
 def nodes_on_bus(r: Resolver, bus: str) -> list[str]:

@@ -100,7 +100,8 @@ class Fault:
                 )
             if self.target is None:
                 raise FaultError(f"fault '{self.kind}': no CAN bus to apply it to (bit errors are CAN only)")
-            raise FaultError(f"fault '{self.kind}': no CAN bus named '{self.target}'")
+            can = [b.name for b in sc.cfg.buses if b.protocol != "ethernet-udp"]
+            raise FaultError(f"fault '{self.kind}': no CAN bus named '{self.target}'{_hint(self.target, can)}")
         if self.kind == "ber":
             for bus in buses:
                 # errors as a Poisson process in bus time; one that falls on an idle bus does nothing. On CAN FD
@@ -129,7 +130,8 @@ class Fault:
                 sc.eth_owner[self.target].lose_at(self.target, self.at_ns)
                 return
             if self.target not in sc.msg_source:
-                raise FaultError(f"fault 'lose': no CAN or Ethernet message named '{self.target}'")
+                hint = _hint(self.target, [*sc.msg_source, *sc.eth_owner])
+                raise FaultError(f"fault 'lose': no CAN or Ethernet message named '{self.target}'{hint}")
             bus, src = sc.msg_source[self.target]
             bus.lose.setdefault(src, []).append(self.at_ns)
         elif self.kind == "master-fail":
@@ -143,5 +145,13 @@ class Fault:
 def _node(sc: SimRun, name: str | None) -> str:
     names = [n.name for n in sc.cfg.nodes]
     if name not in names:
-        raise FaultError(f"no node named '{name}'; the nodes are: {', '.join(names)}")
+        raise FaultError(f"no node named '{name}'{_hint(name, names)}; the nodes are: {', '.join(names)}")
     return name
+
+
+def _hint(name: str | None, known: list[str]) -> str:
+    """The shared 'did you mean' of every name lookup; imported only on this error path, which is the only place
+    the simulator needs the compiler's package."""
+    from netcfg.resolve.suggest import did_you_mean
+
+    return did_you_mean(name, known) if name is not None else ""
