@@ -245,10 +245,14 @@ def test_missing_spec_file_in_process(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "cannot read" in err
 
 
-def test_directory_instead_of_spec_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
-    rc, out, err = _run_main(capsys, ["check", str(BAD)])
-    assert rc == 2
+def test_a_folder_of_bad_specs_checks_each_and_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
+    """`check DIR` checks every spec in the folder (issue 21; a folder without specs is exit 2, see
+    test_check_folder.py): every file here has a mistake, so each is reported and the run fails."""
+    rc, out, err = _run_main(capsys, ["check", "--quiet", str(BAD)])
+    assert rc == 1
     assert "Traceback" not in out + err
+    reported = {line.split(":", 1)[0] for line in err.splitlines() if ": error: " in line}
+    assert reported == {str(p) for p in BAD.glob("*.yaml")}
 
 
 def test_zero_byte_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -238,7 +238,7 @@ def test_allex2_round_trips_through_bus_yml(tmp_path: Path) -> None:
     assert built.returncode == 0, built.stderr
     names = sorted(p.name for p in (a / "canopen").iterdir())
     assert names == sorted(p.name for p in (b / "canopen").iterdir())
-    assert len(names) == 6 * 2 + 1 + 1  # 6 drives x (EDS + DCF), the master's DCF, bus.yml
+    assert len(names) == 6 * 3 + 1 + 1  # 6 drives x (EDS + DCF + concise DCF), the master's DCF, bus.yml
     for name in names:
         assert (a / "canopen" / name).read_bytes() == (b / "canopen" / name).read_bytes(), name
     assert (a / "dbc" / "can0.dbc").read_bytes() == (b / "dbc" / "can0.dbc").read_bytes()
