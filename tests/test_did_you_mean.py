@@ -76,6 +76,8 @@ def test_a_misspelt_name_gets_a_suggestion(case: str, tmp_path: Path) -> None:
     hits = [e for e in report["errors"] if e["code"] == code]
     assert hits, report["errors"]
     assert f"did you mean '{intended}'?" in hits[0]["message"], hits[0]["message"]
+    # one mistake, one error: what refers to the misspelt item is not reported again
+    assert len(report["errors"]) == 1, [e["message"] for e in report["errors"]]
 
 
 def test_the_unchanged_base_spec_is_valid(tmp_path: Path) -> None:

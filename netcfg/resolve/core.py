@@ -334,6 +334,8 @@ class Resolver:
             common = set(self.spec_nodes[m.producer].buses) & set(self.spec_buses)  # undefined ones are reported
             for c in m.consumers:
                 common &= set(self.spec_nodes[c].buses)
+            if not common and any(b not in self.spec_buses for n in ends for b in self.spec_nodes[n].buses):
+                return None  # a node's bus is misspelt: reported on the node, and the likely cause of this
             if len(common) != 1:
                 self.err(
                     "which-bus",
@@ -634,11 +636,13 @@ class Resolver:
             for task in node.tasks.values():
                 if task.on_message is not None:
                     msg = self.model.messages.get(task.on_message)
-                    if msg is None:
+                    if msg is None and any(m.name == task.on_message for m in self.spec.messages):
+                        pass  # the message is in the spec but has errors of its own, reported where they are
+                    elif msg is None:
                         self.err(
                             "unknown-message",
                             f"task '{task.ref}' runs on message '{task.on_message}', which is not defined"
-                            f"{did_you_mean(task.on_message, self.model.messages)}",
+                            f"{did_you_mean(task.on_message, [m.name for m in self.spec.messages])}",
                             (*task.path, "on_message"),
                         )
                     elif node.name not in msg.consumers:

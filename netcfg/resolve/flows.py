@@ -33,11 +33,13 @@ def resolve_flows(r: Resolver) -> None:
                     kinds.add("task")
                 elif ref in r.model.messages:
                     kinds.add("message")
+                elif any(m.name == ref for m in r.spec.messages):
+                    ok = False  # in the spec, but with errors of its own, reported where they are
                 else:
                     r.err(
                         "unknown-message",
                         f"flow '{f.name}': '{ref}' is neither a message nor a task (tasks are written node.task)"
-                        f"{did_you_mean(ref, [*r.model.messages, *all_tasks(r)])}",
+                        f"{did_you_mean(ref, [*(m.name for m in r.spec.messages), *all_tasks(r)])}",
                         rpath,
                     )
                     ok = False

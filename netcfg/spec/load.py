@@ -134,10 +134,20 @@ def _unwrap(tp: Any) -> Any:
 def report_validation_errors(
     exc: ValidationError, smap: SourceMap, diags: Collector, data: Any = None
 ) -> None:
-    from netcfg.resolve.suggest import did_you_mean
+    from netcfg.resolve.suggest import closest, did_you_mean
 
+    errors = exc.errors(include_url=False)
+    missing = {_data_path(tuple(e["loc"])) for e in errors if e["type"] == "missing"}
+    explained: set[tuple[Any, ...]] = set()  # required keys that are there, misspelt: one error says both
+    for e in errors:
+        if e["type"] == "extra_forbidden":
+            loc = _data_path(tuple(e["loc"]))
+            model = _model_at(tuple(e["loc"])[:-1])
+            meant = closest(str(loc[-1]), model.model_fields) if model is not None else None
+            if meant is not None and (*loc[:-1], meant) in missing:
+                explained.add((*loc[:-1], meant))
     seen: set[tuple[Any, ...]] = set()
-    for err in exc.errors(include_url=False):
+    for err in errors:
         loc = _data_path(tuple(err["loc"]))
         kind = err["type"]
         if kind == "extra_forbidden":
@@ -146,8 +156,13 @@ def report_validation_errors(
             where = _fmt_path(parent, data) or "the spec"
             model = _model_at(tuple(err["loc"])[:-1])
             hint = did_you_mean(str(key), model.model_fields) if model is not None else ""
+            meant = closest(str(key), model.model_fields) if model is not None else None
+            if meant is not None and (*parent, meant) in explained:
+                hint = f" (did you mean '{meant}'? it is required)"
             message = f"unknown key '{key}' in {where}{hint or '; check its spelling (netcfg schema)'}"
             pos = smap.key_at(loc)
+        elif kind == "missing" and loc in explained:
+            continue
         elif kind == "missing":
             message = f"missing required key '{loc[-1]}' in {_fmt_path(loc[:-1], data) or 'the spec'}"
             pos = smap.at(loc[:-1])
