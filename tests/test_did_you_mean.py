@@ -98,8 +98,8 @@ def test_schema_errors_name_the_item_not_its_index(tmp_path: Path) -> None:
     spec["nodes"][0]["tasks"][0]["wcet"] = "1 parsec"
     errors = check_data(tmp_path, spec)["errors"]
     messages = [e["message"] for e in errors]
-    assert any(m.startswith("message 'odometry' size:") for m in messages), messages
-    assert any(m.startswith("node 'sensor' task 'sample' wcet:") for m in messages), messages
+    assert any(m.startswith("size of message 'odometry':") for m in messages), messages
+    assert any(m.startswith("wcet of node 'sensor' task 'sample':") for m in messages), messages
     assert not any("messages[" in m or "nodes[" in m for m in messages), messages
 
 

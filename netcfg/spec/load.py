@@ -57,7 +57,7 @@ ITEM_NAMES = {
 
 
 def _fmt_path(loc: tuple[Any, ...], data: Any = None) -> str:
-    """A location as a person names it: "message 'odometry' pdo.map[2]", not "messages[3].pdo.map[2]"."""
+    """A location as a person names it: "pdo.map[2] of message 'odometry'", not "messages[3].pdo.map[2]"."""
     words: list[str] = []  # named items stand alone; keys and indexes after them join with dots
     named_last = False
     node = data
@@ -77,6 +77,8 @@ def _fmt_path(loc: tuple[Any, ...], data: Any = None) -> str:
         else:
             words[-1] += f".{part}"
         node = child
+    if len(words) > 1 and not named_last:  # "size of message 'odometry'", "canopen of bus 'can0'"
+        return f"{words[-1]} of {' '.join(words[:-1])}"
     return " ".join(words)
 
 
