@@ -88,15 +88,18 @@ def _slower_allex2(tmp_path: Path) -> Path:
 
 def test_diff_of_a_slower_cycle(tmp_path: Path) -> None:
     """SYNC period and every PDO period 20 ms -> 40 ms. Load is the sum of frame time / period over the
-    messages, so every bus load halves exactly; every periodic message reports its new period and deadline; the
-    files that carry the period change, the drives' EDS/DCF do not (the EPOS4 has no 0x1006 to write)."""
+    messages, so that part halves exactly; the six drives' heartbeats (1 byte every 100 ms: 55 + 10 * 1 = 65 bits
+    worst case at 1 Mbit/s, Davis et al. 2007, = 65 us / 100 ms each) stay. Every periodic message reports its new
+    period and deadline; the files that carry the period change, the drives' EDS/DCF do not (the EPOS4 has no
+    0x1006 to write)."""
     slow = _slower_allex2(tmp_path)
     proc = cli("diff", "specs/allex2.yaml", str(slow), "--format", "json")
     assert proc.returncode == 1  # different, as diff(1)
     d = json.loads(proc.stdout)
     (bus,) = d["buses"]
     before, after = bus["utilization"]
-    assert after == pytest.approx(before / 2, rel=1e-9)
+    heartbeats = 6 * 65 / 100_000
+    assert after == pytest.approx((before - heartbeats) / 2 + heartbeats, rel=1e-9)
     cmd = next(m for m in d["messages"] if m["name"] == "hip_l_cmd")
     assert (cmd["a"]["period_us"], cmd["b"]["period_us"]) == (20_000, 40_000)
     assert (cmd["a"]["deadline_us"], cmd["b"]["deadline_us"]) == (20_000, 40_000)
