@@ -30,7 +30,7 @@ class Example:
     line: int  # 1-based line in README.md, so a failure names where to look
     kind: str  # "shell" or "python"
     text: str
-    exit_code: int = 0  # a command shown failing on purpose says `exits N` in its comment
+    exit_code: int = 0  # a command shown failing on purpose says `exits N` (or `exit N`) in its comment
 
 
     @property
@@ -83,7 +83,7 @@ def _commands(body: list[str], start: int) -> list[Example]:
     for offset, raw in enumerate(body):
         match = COMMAND.match(raw.strip())
         if match and OPT_OUT not in raw:
-            expected = re.search(r"#.*\bexits (\d)\b", raw)
+            expected = re.search(r"#.*\bexits? (\d)\b", raw)
             code = int(expected.group(1)) if expected else 0
             found.append(Example(start + offset + 1, "shell", _strip_comment(match.group(1)), code))
     return found
