@@ -67,179 +67,35 @@ from netcfg.devices.eds import EdsError, object_dictionary
 from netcfg.diagnostics import Collector, Position
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as SpecPath
+from netcfg.importers.bus_yml_dcf import DeviceFile, Slot
+from netcfg.importers.bus_yml_keys import (
+    _PLACEHOLDER_ANY,
+    FIRST_AUTO_COB_ID,
+    HEADER_KEYS,
+    LAST_AUTO_COB_ID,
+    MAPPING_KEYS,
+    MASTER_KEPT,
+    MASTER_MAPPED,
+    NODE_ID_LIMITS,
+    OPTIONS_KEYS,
+    PDO_KEYS,
+    PDO_NOTE_KEYS,
+    PLACEHOLDER,
+    ROS_KEYS,
+    SDO_KEYS,
+    SLAVE_KEPT,
+    SLAVE_MAPPED,
+    BusPath,
+    check_name_ok,
+    default_timing,
+    duration,
+    duration_ns,
+    parse_annotation,
+    safe_name,
+)
 from netcfg.inputs import InputError, check_input_path, decode_text, read_input_bytes
 from netcfg.spec.load import report_validation_errors
-from netcfg.spec.schema import check_name
 from netcfg.spec.source import SourceMap, load_yaml
-
-BusPath = tuple[str | int, ...]
-PLACEHOLDER = "@BUS_CONFIG_PATH@"
-_PLACEHOLDER_ANY = re.compile(r"@[A-Za-z_][A-Za-z0-9_]*@")
-_ANNOTATION = re.compile(r"#\s*netcfg:\s*(?P<body>.*?)\s*$")
-NODE_ID_LIMITS = (cia301.NODE_IDS.start, cia301.NODE_IDS[-1])  # 1, 127
-FIRST_AUTO_COB_ID = 0x680  # dcfgen: COB-IDs of 'auto' PDOs 5+ are taken from here upwards
-LAST_AUTO_COB_ID = 0x6DF  # 0x6E0-0x6FF are restricted (CiA 301 table 74)
-
-OPTIONS_KEYS = {"dcf_path", "heartbeat_multiplier"}
-# Lely dcfgen keys (dcfgen/cli.py, ros2_canopen's master table): mapped, or kept as comments (no bus traffic)
-MASTER_MAPPED = {"node_id", "baudrate", "sync_period", "sync_window", "sync_overflow", "heartbeat_producer"}
-MASTER_KEPT = frozenset(
-    (
-        "vendor_id product_code revision_number serial_number heartbeat_multiplier heartbeat_consumer "
-        "emcy_inhibit_time error_behavior nmt_inhibit_time start start_nodes start_all_nodes reset_all_nodes "
-        "stop_all_nodes boot_time"
-    ).split()
-)
-SLAVE_MAPPED = {"dcf", "node_id", "heartbeat_producer", "heartbeat_multiplier", "rpdo", "tpdo", "sdo"}
-SLAVE_KEPT = frozenset(
-    (
-        "dcf_path revision_number serial_number heartbeat_consumer error_behavior boot "
-        "mandatory reset_communication software_file software_version configuration_file "
-        "restore_configuration"
-    ).split()
-)
-# ros2_canopen's driver parameters (its user guide and the keys its drivers read): not part of the network
-ROS_KEYS = frozenset(
-    (
-        "driver package enable_lazy_load namespace remappings period polling diagnostics sdo_timeout_ms "
-        "boot_timeout_ms boot_timeout non_transmit_timeout switching_state homing_timeout_seconds "
-        "position_mode velocity_mode torque_mode effort_mode num_channels channel_names channels "
-        "scale_pos_to_dev scale_pos_from_dev scale_vel_to_dev scale_vel_from_dev scale_eff_from_dev "
-        "offset_pos_to_dev offset_pos_from_dev"
-    ).split()
-)
-PDO_KEYS = frozenset("enabled cob_id transmission inhibit_time event_timer event_deadline sync_start mapping".split())
-MAPPING_KEYS = {"index", "sub_index"}
-SDO_KEYS = {"index", "sub_index", "value"}
-HEADER_KEYS = {"system", "bus", "master", "read_window_ns", "sync_id", "sync_producer"}
-PDO_NOTE_KEYS = {"message", "type", "period_ns", "min_interarrival_ns"}
-
-
-def default_timing(
-    kind: str, transmission: int, event_timer_ms: int | None, inhibit_100us: int | None, sync_ns: int
-) -> tuple[str, int | None, int | None]:
-    """(kind, period_ns, interval_ns) this importer gives a PDO without a `# netcfg:` note; the bus.yml emitter writes
-    a note only where the model differs. TPDOs follow the one rule for transmission types (cia301.tpdo_timing)."""
-    if kind == "tpdo":
-        tpdo_kind, period, mit = cia301.tpdo_timing(transmission, sync_ns, event_timer_ms, inhibit_100us)
-        if tpdo_kind == "periodic":
-            return "periodic", period, period
-        return ("sporadic", None, mit) if mit else ("on-demand", None, None)
-    if 1 <= transmission <= 240:
-        return "periodic", transmission * sync_ns, transmission * sync_ns
-    if transmission == 0:
-        return "sporadic", None, sync_ns
-    period = event_timer_ms * 1_000_000 if event_timer_ms else sync_ns
-    return "periodic", period, period
-
-
-def safe_name(text: str, fallback: str) -> str:
-    """A netcfg name from a file or bus.yml name: other characters become '_', a leading digit or a reserved word
-    gets the fallback as prefix."""
-    name = re.sub(r"[^A-Za-z0-9_]+", "_", text).strip("_")[:63]
-    for candidate in (name, f"{fallback}_{name}"[:63]):
-        if check_name_ok(candidate):
-            return candidate
-    return fallback
-
-
-def check_name_ok(name: str) -> bool:
-    try:
-        check_name(name)
-    except ValueError:
-        return False
-    return True
-
-
-def duration(us: int) -> str:
-    """A spec duration: whole milliseconds as ms, else microseconds."""
-    return f"{us // 1000} ms" if us % 1000 == 0 else f"{us} us"
-
-
-def duration_ns(ns: int) -> str:
-    """A spec duration from nanoseconds (`# netcfg:` notes keep them exact)."""
-    return duration(ns // 1000) if ns % 1000 == 0 else f"{ns} ns"
-
-
-def parse_annotation(line: str) -> dict[str, str]:
-    """`key=value` words of a `# netcfg: ...` comment on a line (empty when there is none)."""
-    m = _ANNOTATION.search(line)
-    if m is None:
-        return {}
-    out = {}
-    for word in m.group("body").split():
-        key, sep, value = word.partition("=")
-        if sep:
-            out[key] = value
-    return out
-
-
-# -- the DCF/EDS of a slave: what dcfgen starts from --------------------------------------------------------------
-@dataclass(frozen=True)
-class Slot:
-    """A PDO slot's values in the DCF (ParameterValue, else DefaultValue), $NODEID resolved."""
-
-    cob_id: int | None
-    transmission: int | None
-    inhibit_100us: int | None
-    event_timer_ms: int | None
-    sync_start: int | None
-    mapping: tuple[tuple[int, int], ...]
-
-
-class DeviceFile:
-    def __init__(self, od: Any) -> None:
-        self.od = od
-        self.comments: str = getattr(od, "comments", "") or ""
-        self.node_id: int | None = getattr(od, "node_id", None)
-
-    def has(self, index: int, sub: int) -> bool:
-        if index not in self.od:
-            return False
-        obj = self.od[index]
-        return sub == 0 if not hasattr(obj, "subindices") else sub in obj
-
-    def _value(self, index: int, sub: int, node_id: int) -> int | None:
-        if not self.has(index, sub):
-            return None
-        var = self.od[index] if not hasattr(self.od[index], "subindices") else self.od[index][sub]
-        raw = getattr(var, "value_raw", None) or getattr(var, "default_raw", None)
-        return _raw_int(raw, node_id) if isinstance(raw, str) else None
-
-    def slot(self, kind: str, number: int, node_id: int) -> Slot | None:
-        comm = cia301.pdo_comm_index(kind, number)
-        if comm not in self.od:
-            return None
-        map_index = cia301.pdo_map_index(kind, number)
-        count = self._value(map_index, 0, node_id) or 0
-        mapping = []
-        for k in range(1, count + 1):
-            value = self._value(map_index, k, node_id)
-            if value:
-                mapping.append(cia301.unpack_mapping(value)[:2])
-        return Slot(
-            self._value(comm, 1, node_id),
-            self._value(comm, 2, node_id),
-            self._value(comm, 3, node_id) if kind == "tpdo" else None,
-            self._value(comm, 5, node_id) if kind == "tpdo" else None,
-            self._value(comm, 6, node_id) if kind == "tpdo" else None,
-            tuple(mapping),
-        )
-
-    def slots(self, kind: str) -> list[int]:
-        return [n for n in range(1, cia301.MAX_PDOS + 1) if cia301.pdo_comm_index(kind, n) in self.od]
-
-
-_RAW = re.compile(r"^(?:\$NODEID\+)?(-?0X[0-9A-F]+|-?[0-9]+)(?:\+\$NODEID)?$")
-
-
-def _raw_int(raw: str, node_id: int) -> int | None:
-    """A CiA 306 integer value; '$NODEID+x' adds the node id (as dcfgen does with the bus.yml's node_id)."""
-    text = raw.replace(" ", "").upper()
-    m = _RAW.match(text)
-    if m is None:
-        return None
-    return int(m.group(1), 0) + (node_id if "$NODEID" in text else 0)
 
 
 # -- the importer ----------------------------------------------------------------------------------------------------
