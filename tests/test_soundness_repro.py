@@ -133,3 +133,39 @@ def test_06_ethernet_jitter_propagates_across_switches() -> None:
     lan = bus(check(next(DATA.glob("06-*.yaml"))), "lan")
     assert next(ll for ll in lan["links"] if (ll["from"], ll["to"]) == ("sw", "r"))["busy_period_us"] == 221.76
     assert message(lan, "v")["wcrt_us"] == 228.48
+
+
+MULTI_RATE = {
+    "system": "multi_rate",
+    "buses": [{"name": "can0", "protocol": "can", "bitrate": "500 kbit/s"}],
+    "nodes": [
+        {"name": "s", "buses": ["can0"]},
+        {"name": "c", "buses": ["can0"], "tasks": [{"name": "t", "period": "10 ms", "wcet": "1 ms", "bcet": "500 us"}]},
+        {"name": "d", "buses": ["can0"], "tasks": [{"name": "use", "period": "100 ms", "wcet": "1 ms"}]},
+    ],
+    "messages": [
+        {"name": "slow", "id": 0x10, "producer": "s", "consumers": ["c"], "size": 8, "period": "20 ms"},
+        {"name": "fast", "id": 0x11, "producer": "s", "consumers": ["c"], "size": 8, "period": "10 ms"},
+        {"name": "out", "id": 0x20, "producer": "c", "consumers": ["d"], "size": 8, "period": "20 ms"},
+    ],
+    "flows": [{"name": "f", "chain": [["slow", "fast"], "c.t", "out", "d.use"]}],
+}
+
+
+def test_a_stamp_renews_no_faster_than_the_slowest_step_before_it(tmp_path: Path) -> None:
+    """large_plant's axis_feedback ran outside its bound: a 10 ms task passes on data whose oldest part (a 20 ms
+    message in a parallel step) is renewed only every 20 ms, so a later 20 ms sampler may first see a stamp up to
+    20 ms after it appeared, not 10. By hand (500 kbit/s, 8-byte frames 135 bits = 270 us, Davis 2007 eq. 1):
+    slow 270 + 270 = 540 us, fast 270 + 270 + 270 = 810 us, out 270 + 270 + 270 = 810 us; step 0 delivered by
+    810 us; c.t waits up to 10,000 us + 1 us (100 ppm) and runs 1,000 us: 11,811; out waits 20,000 + 2 and takes
+    810: 32,623; d.use waits min(100 ms, 20 ms) + 2 us: starts by 52,625 us. Before the fix the two 20 ms waits
+    were taken as 10 ms (32,623 us in all)."""
+    report = check_data(tmp_path, MULTI_RATE)
+    assert report["ok"], report["errors"]
+    assert [message(bus(report, "can0"), n)["wcrt_us"] for n in ("slow", "fast", "out")] == [540, 810, 810]
+    flow = report["flows"][0]
+    assert flow["latency_max_us"] == 52_625
+    rc, sim = cli_json("simulate", str(tmp_path / "spec.yaml"), "--duration", "3s", "--runs", "3")
+    assert rc == 0, sim.get("violations")
+    measured = next(f for f in sim["flows"] if f["name"] == "f")
+    assert measured["within_analysis"] is True, measured

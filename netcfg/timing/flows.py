@@ -117,7 +117,7 @@ def unsynchronised(
         if step.kind == "message":
             delivery = (lo, hi)
         # an event-driven task passes its input's rate on
-        refresh = max(periods) or refresh
+        refresh = max(max(periods), refresh or 0) or None  # a stamp renews no faster than its slowest step so far
         prev = step
     return (lo, hi), delivery
 
