@@ -228,14 +228,7 @@ def cmd_import(kind: str, source: Path, output: Path, options: ImportOptions) ->
         print(f"netcfg: {_io_problem(exc, 'read', source)}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug in netcfg, not in the file: nothing is written
-        if os.environ.get("NETCFG_DEBUG"):
-            raise
-        print(
-            f"netcfg: internal error while importing {source}: {type(exc).__name__}: {exc}\nNothing was written. "
-            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
-            file=sys.stderr,
-        )
-        return 2
+        return _internal_error("importing", source, exc, nothing_written=True)
     for d in sort_diagnostics(diags.items):
         print(d, file=sys.stderr)
     if imported is None or diags.errors:
@@ -314,14 +307,7 @@ def cmd_build(spec: Path, output: Path | None) -> int:
         print(f"netcfg: cannot build {spec}: {exc.strerror or exc} ({exc.filename or ''})", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug in netcfg: nothing was swapped in
-        if os.environ.get("NETCFG_DEBUG"):
-            raise
-        print(
-            f"netcfg: internal error while building {spec}: {type(exc).__name__}: {exc}\n"
-            "Nothing was written. This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
-            file=sys.stderr,
-        )
-        return 2
+        return _internal_error("building", spec, exc, nothing_written=True)
     for d in report["errors"] + report["warnings"]:
         kind = "error" if d in report["errors"] else "warning"
         print(f"{d['file']}:{d['line']}:{d['column']}: {kind}: {d['message']} [{d['code']}]", file=sys.stderr)
@@ -346,14 +332,20 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         print(f"netcfg: {_io_problem(exc, 'simulate', args.source)}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug in netcfg
-        if os.environ.get("NETCFG_DEBUG"):
-            raise
-        print(
-            f"netcfg: internal error while simulating {args.source}: {type(exc).__name__}: {exc}\n"
-            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
-            file=sys.stderr,
-        )
-        return 2
+        return _internal_error("simulating", args.source, exc)
+
+
+def _internal_error(doing: str, path: Path, exc: Exception, nothing_written: bool = False) -> int:
+    """A bug in netcfg, not in the input: one message naming what it was doing (NETCFG_DEBUG=1 re-raises)."""
+    if os.environ.get("NETCFG_DEBUG"):
+        raise exc
+    nothing = "Nothing was written. " if nothing_written else ""
+    print(
+        f"netcfg: internal error while {doing} {path}: {type(exc).__name__}: {exc}\n{nothing}"
+        "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
+        file=sys.stderr,
+    )
+    return 2
 
 
 def _io_problem(exc: OSError, verb: str, path: Path) -> str:
@@ -379,14 +371,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"netcfg: {_io_problem(exc, 'run', args.source)}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug in netcfg; the safe stop has run (operate's finally)
-        if os.environ.get("NETCFG_DEBUG"):
-            raise
-        print(
-            f"netcfg: internal error while running {args.source}: {type(exc).__name__}: {exc}\n"
-            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
-            file=sys.stderr,
-        )
-        return 2
+        return _internal_error("running", args.source, exc)
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
@@ -400,14 +385,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
         print(f"netcfg: {_io_problem(exc, 'verify', args.log)}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug in netcfg
-        if os.environ.get("NETCFG_DEBUG"):
-            raise
-        print(
-            f"netcfg: internal error while verifying {args.log}: {type(exc).__name__}: {exc}\n"
-            "This is a bug in netcfg; please report it (NETCFG_DEBUG=1 shows the traceback).",
-            file=sys.stderr,
-        )
-        return 2
+        return _internal_error("verifying", args.log, exc)
 
 
 def cmd_schema() -> int:
