@@ -47,6 +47,14 @@ def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
     """Buses, processors and flows. A message that a task sends as it finishes is released with that task's
     response-time variation as jitter, which in turn may delay tasks started by messages: the two are iterated
     from zero jitter until nothing grows (holistic analysis, Tindell and Clark 1994); the last round reports."""
+    acc = _Analysis()
+    acc.extra_jitter = holistic_jitter(m)
+    return _analyze_once(m, diags, acc)
+
+
+def holistic_jitter(m: model.Model) -> dict[str, int]:
+    """Each task-sent message's release jitter beyond the spec's, at the fixed point of the holistic iteration
+    (analyze's; --explain and tune read the same figures)."""
     extra: dict[str, int] = {}
     if any(_sent_by_task(m, msg) for msg in m.messages.values()):
         for _ in range(MAX_HOLISTIC_ROUNDS):
@@ -57,9 +65,14 @@ def analyze(m: model.Model, diags: Collector) -> dict[str, Any]:
             if grown == extra:
                 break
             extra = grown
+    return extra
+
+
+def analysis_jitter(m: model.Model) -> _Analysis:
+    """An analysis context that carries only the holistic release jitter, for rta_frames outside analyze."""
     acc = _Analysis()
-    acc.extra_jitter = extra
-    return _analyze_once(m, diags, acc)
+    acc.extra_jitter = holistic_jitter(m)
+    return acc
 
 
 def _sent_by_task(m: model.Model, msg: model.Message) -> bool:

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import model
-from netcfg.analyze import release_offsets, rta_frames
+from netcfg.analyze import analysis_jitter, release_offsets, rta_frames
 from netcfg.check import load_model
 from netcfg.diagnostics import Collector, sort_diagnostics
 from netcfg.importers import ImportOptions
@@ -46,7 +46,7 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         raise NotExplained(f"'{name}' is on Ethernet bus '{bus.name}'; --explain derives CAN response times")
     timings, _, _ = load.can_bus_load(bus)
     tau = bits_to_ns(1, bus.bitrate)
-    frames = rta_frames(bus.messages, timings)
+    frames = rta_frames(bus.messages, timings, analysis_jitter(m))  # the release jitter check uses
     plain = can_rta.analyse(frames, tau)
     with_offsets = can_offsets.analyse(frames, tau, release_offsets(m, bus))
     me = next(f for f in frames if f.name == name)

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from netcfg import model
-from netcfg.analyze import release_offsets, rta_frames
+from netcfg.analyze import analysis_jitter, release_offsets, rta_frames
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
 from netcfg.spec.schema import Spec
@@ -283,12 +283,13 @@ def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPla
     ranges = {n.name: n.id_range for n in spec.nodes}
     timings, _, _ = load.can_bus_load(bus)
     tau = bits_to_ns(1, bus.bitrate)
+    acc = analysis_jitter(m)  # the release jitter check uses, a sending task's spread included
     items = [
         Item(
             msg.name,
             timings[msg.name].tx_ns,
             msg.interval_ns or can_rta.ONE_SHOT,
-            msg.jitter_ns,
+            acc.jitter(msg),
             msg.deadline_ns,
             msg.extended,
             msg.id,
@@ -303,7 +304,7 @@ def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPla
     # offsets, on the new identifiers
     new = [
         can_rta.CanFrame(f.name, ids[f.name], f.extended, f.c_ns, f.t_ns, f.j_ns, f.d_ns)
-        for f in rta_frames(bus.messages, timings)
+        for f in rta_frames(bus.messages, timings, acc)
     ]
     before = release_offsets(m, bus)
     after = dict(before)

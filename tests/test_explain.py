@@ -38,3 +38,13 @@ def test_explain_reproduces_the_hand_worked_bound() -> None:
 def test_explain_unknown_message_is_a_usage_error() -> None:
     run = cli("check", str(WRONG_ORDER), "--explain", "ecu_pw")
     assert run.returncode == 2 and "did you mean 'ecu_pwm'" in run.stderr and "Traceback" not in run.stderr
+
+
+def test_explain_uses_the_release_jitter_check_uses() -> None:
+    """arm_canfd's arm_command is sent by the 1 kHz control task as it finishes, so check releases it with that
+    task's spread as jitter: WCET 150 - BCET 50 = 100 us. By hand (tests/test_canfd.py): R = 100 + 56.6 (one
+    joint state frame blocking) + 169.6 (its own 64-byte frame) = 326.2 us; --explain must say the same."""
+    proc = cli("check", str(ROOT / "specs" / "arm_canfd.yaml"), "--explain", "arm_command", "--format", "json")
+    doc = json.loads(proc.stdout)
+    assert doc["jitter_us"] == 100
+    assert doc["wcrt_us"] == 326.2
