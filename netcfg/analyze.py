@@ -126,6 +126,10 @@ def assumptions(bus: model.Bus) -> list[str]:
         "controller); worst-case bit stuffing; no bus errors or retransmissions",
         "periodic messages released at most once per (fastest) period, sporadic ones at most once per minimum "
         "inter-arrival time, each at most its jitter late",
+        f"every sender's clock within +-{bus.clock_tolerance_ppm} ppm of nominal (clock_tolerance): periods are "
+        "counted at the fastest clocks"
+        if bus.clock_tolerance_ppm
+        else "every sender's clock exact (clock_tolerance 0): periods are counted as nominal",
     ]
     if bus.ftt is not None:
         out += [
@@ -250,6 +254,11 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
                 text = (
                     f"message '{msg.name}' has no bounded worst-case response time: the traffic at its "
                     "priority or on its path reaches 100% of the capacity"
+                    + (
+                        f" when the senders' clocks run {bus.clock_tolerance_ppm} ppm fast (the bus's clock_tolerance)"
+                        if bus.clock_tolerance_ppm and bus.protocol != "ethernet-udp"
+                        else ""
+                    )
                 )
             else:
                 text = (
@@ -302,7 +311,9 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     frame_ns = {name: (t.nominal_ns, t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
-    plain = can_offsets.analyse(rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus))
+    plain = can_offsets.analyse(
+        rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus), bus.clock_tolerance_ppm
+    )
     for msg in bus.messages:
         acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
     out: dict[str, Any] = {
@@ -540,7 +551,7 @@ def analyze_ftt(
         for msg in async_msgs
     ]
     limited: set[str] = set()
-    async_worst = ftt.async_response_times(envelope, async_frames, limited)
+    async_worst = ftt.async_response_times(envelope, async_frames, limited, bus.clock_tolerance_ppm)
     for row, msg in zip(rows, bus.messages):
         if msg.window == "sync":
             wcrt = sync_worst.get(msg.name)

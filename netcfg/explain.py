@@ -22,7 +22,7 @@ from netcfg.check import load_model
 from netcfg.diagnostics import Collector, sort_diagnostics
 from netcfg.importers import ImportOptions
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_offsets, can_rta, load
+from netcfg.timing import can_offsets, can_rta, clocks, load
 from netcfg.timing.frames import bits_to_ns
 from netcfg.tune import round_step
 
@@ -47,8 +47,9 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
     timings, _, _ = load.can_bus_load(bus)
     tau = bits_to_ns(1, bus.bitrate)
     frames = rta_frames(bus.messages, timings, analysis_jitter(m))  # the release jitter check uses
-    plain = can_rta.analyse(frames, tau)
-    with_offsets = can_offsets.analyse(frames, tau, release_offsets(m, bus))
+    ppm = bus.clock_tolerance_ppm
+    plain = can_rta.analyse(frames, tau, ppm)
+    with_offsets = can_offsets.analyse(frames, tau, release_offsets(m, bus), ppm)
     me = next(f for f in frames if f.name == name)
     r = plain[name]
     t = timings[name]
@@ -83,10 +84,10 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
     if r.wcrt_ns is not None:
         q = r.worst_instance
         t_me = me.t_ns or can_rta.ONE_SHOT
-        w = r.wcrt_ns - me.j_ns + q * t_me - me.c_ns
+        w = r.wcrt_ns - me.j_ns + clocks.shortest_real(q * t_me, ppm) - me.c_ns
         out["w_us"] = _us(w)
         for f in sorted((f for f in frames if f.priority_key < me.priority_key), key=lambda f: f.priority_key):
-            hits = -(-(w + f.j_ns + tau) // (f.t_ns or can_rta.ONE_SHOT))
+            hits = -(-clocks.longest_local(w + f.j_ns + tau, ppm) // (f.t_ns or can_rta.ONE_SHOT))
             out["interferers"].append(
                 {
                     "name": f.name,
@@ -112,9 +113,11 @@ def _blocking(frames: list[can_rta.CanFrame], me: can_rta.CanFrame) -> dict[str,
     return {"by": worst.name, "us": _us(worst.c_ns)}
 
 
-def _meets(frames: list[can_rta.CanFrame], name: str, tau: int, offsets: dict[str, tuple[str, int]]) -> int | None:
+def _meets(
+    frames: list[can_rta.CanFrame], name: str, tau: int, offsets: dict[str, tuple[str, int]], ppm: int
+) -> int | None:
     """The bound of `name` in this variant of the bus, or None when it still misses its deadline."""
-    res = can_offsets.analyse(frames, tau, offsets)
+    res = can_offsets.analyse(frames, tau, offsets, ppm)
     f = next(f for f in frames if f.name == name)
     r = res[name].wcrt_ns
     return r if r is not None and f.d_ns is not None and r <= f.d_ns else None
@@ -132,7 +135,7 @@ def one_change(
         if (me.extended, ident) in taken:
             continue
         trial = [*others, replace(me, id=ident)]
-        r = _meets(trial, me.name, tau, offsets)
+        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm)
         if r is not None:
             above = [f for f in others if f.priority_key > trial[-1].priority_key and f.priority_key < me.priority_key]
             passed = min(above, key=lambda f: f.priority_key).name if above else None
@@ -155,7 +158,7 @@ def one_change(
         for factor in (2, 3, 4, 5, 10, 20, 50, 100):
             period = f.t_ns * factor
             trial = [replace(g, t_ns=period, d_ns=max(g.d_ns or 0, period)) if g is f else g for g in frames]
-            r = _meets(trial, me.name, tau, offsets)
+            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm)
             if r is not None:
                 if best is None or factor < best["factor"]:
                     best = {
@@ -191,7 +194,7 @@ def _offset_change(
     best: tuple[int, int] | None = None  # (bound, offset): the offset that leaves the most slack
     for o in range(0, me.t_ns, step):
         trial[me.name] = (producer, o)
-        r = _meets(frames, me.name, tau, trial)
+        r = _meets(frames, me.name, tau, trial, bus.clock_tolerance_ppm)
         if r is not None and (best is None or r < best[0]):
             best = (r, o)
     if best is None:

@@ -197,6 +197,7 @@ class Bus:
     switches: list[Switch] = field(default_factory=list)
     description: str | None = None
     data_bitrate: int | None = None  # CAN FD: the data-phase rate
+    clock_tolerance_ppm: int = 100  # CAN: senders' clocks within +-this of nominal (timing.clocks)
     # FTT-CAN: the SRT and the EC-schedules of one macro-cycle, built once by the analysis; the emitters read it
     ftt_schedule: Schedule | None = None
 

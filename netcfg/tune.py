@@ -40,7 +40,7 @@ from netcfg.analyze import analysis_jitter, release_offsets, rta_frames
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
 from netcfg.spec.schema import Spec
-from netcfg.timing import can_offsets, can_rta, flows, load
+from netcfg.timing import can_offsets, can_rta, clocks, flows, load
 from netcfg.timing.frames import arbitration_key, bits_to_ns
 
 ERROR_FRAME_BITS = 31  # an error frame: 6-bit flag, up to 6 superposed, 8-bit delimiter, 3-bit intermission
@@ -78,24 +78,35 @@ class NoAssignment(Exception):
 
 
 def response_time(
-    item: Item, blocking: int, hp_c: np.ndarray, hp_t: np.ndarray, hp_j: np.ndarray, tau: int, extra: int = 0
+    item: Item,
+    blocking: int,
+    hp_c: np.ndarray,
+    hp_t: np.ndarray,
+    hp_j: np.ndarray,
+    tau: int,
+    extra: int = 0,
+    ppm: int = 0,
 ) -> int | None:
     """Davis et al. 2007 (eqs. 10-14) for one message above `blocking` and below the hp arrays, with `extra` ns of
-    error recovery added to the busy period and every queuing delay. None: unbounded or too long to follow."""
+    error recovery added to the busy period and every queuing delay, and senders' clocks within +-ppm as
+    can_rta counts them. None: unbounded or too long to follow."""
     periodic = hp_t < can_rta.ONE_SHOT
     load_ = float((hp_c[periodic] / hp_t[periodic]).sum()) + (
         item.c_ns / item.t_ns if item.t_ns < can_rta.ONE_SHOT else 0
     )
-    if load_ >= 1.0:
+    if load_ * clocks.PPM / (clocks.PPM - ppm) >= 1.0:
         return None
 
+    def local(x: int) -> int:
+        return clocks.longest_local(x, ppm)
+
     def demand(x: int) -> int:
-        return int(((-(-(x + hp_j) // hp_t)) * hp_c).sum()) if hp_c.size else 0
+        return int(((-(-clocks.longest_local(x + hp_j, ppm) // hp_t)) * hp_c).sum()) if hp_c.size else 0
 
     base = blocking + extra
     busy, steps = base + item.c_ns + int(hp_c.sum()), 0
     while True:
-        nxt = base + demand(busy) + -(-(busy + item.j_ns) // item.t_ns) * item.c_ns
+        nxt = base + demand(busy) + -(-local(busy + item.j_ns) // item.t_ns) * item.c_ns
         steps += 1
         if nxt <= busy:
             break
@@ -103,7 +114,7 @@ def response_time(
             return None
         busy = nxt
     worst, w = 0, 0
-    for q in range(max(1, -(-(busy + item.j_ns) // item.t_ns))):
+    for q in range(max(1, -(-local(busy + item.j_ns) // item.t_ns))):
         w = max(w, base + q * item.c_ns)
         while True:
             nxt = base + q * item.c_ns + demand(w + tau)
@@ -113,7 +124,7 @@ def response_time(
             if steps > MAX_STEPS:
                 return None
             w = nxt
-        worst = max(worst, item.j_ns + w - q * item.t_ns + item.c_ns)
+        worst = max(worst, item.j_ns + w - clocks.shortest_real(q * item.t_ns, ppm) + item.c_ns)
     return worst
 
 
@@ -121,7 +132,9 @@ def meets(item: Item, r: int | None) -> bool:
     return r is not None and (item.d_ns is None or r <= item.d_ns)
 
 
-def audsley(items: Sequence[Item], tau: int, robust: bool = False) -> tuple[dict[str, int], int | None]:
+def audsley(
+    items: Sequence[Item], tau: int, robust: bool = False, ppm: int = 0
+) -> tuple[dict[str, int], int | None]:
     """-> (message -> identifier, error frames tolerated by all (robust) or None). Raises NoAssignment."""
     levels = sorted({(arbitration_key(it.id, it.extended), it.id, it.extended) for it in items})
     pinned_at = {(it.id, it.extended): it for it in items if it.pinned}
@@ -139,7 +152,7 @@ def audsley(items: Sequence[Item], tau: int, robust: bool = False) -> tuple[dict
     def fits(it: Item, extra: int = 0) -> int | None:
         mask = waiting.copy()
         mask[index[it.name]] = False
-        return response_time(it, blocking, c[mask], t[mask], j[mask], tau, extra)
+        return response_time(it, blocking, c[mask], t[mask], j[mask], tau, extra, ppm)
 
     def errors_survived(it: Item) -> int:
         mask = waiting.copy()
@@ -258,10 +271,12 @@ def round_step(ns: int, least: int) -> int:
     return best
 
 
-def slacks(frames: list[can_rta.CanFrame], tau: int, offsets: dict[str, tuple[str, int]]) -> list[float]:
+def slacks(
+    frames: list[can_rta.CanFrame], tau: int, offsets: dict[str, tuple[str, int]], ppm: int = 0
+) -> list[float]:
     """Every deadline - bound on the bus, smallest first (ns; -inf for a missing bound): comparing these lists
     maximises the smallest slack, then the next smallest, and so on."""
-    res = can_offsets.analyse(frames, tau, offsets)
+    res = can_offsets.analyse(frames, tau, offsets, ppm)
     out = []
     for f in frames:
         r = res[f.name].wcrt_ns
@@ -299,7 +314,7 @@ def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPla
         )
         for msg in bus.messages
     ]
-    ids, plan.errors_tolerated = audsley(items, tau, robust)
+    ids, plan.errors_tolerated = audsley(items, tau, robust, bus.clock_tolerance_ppm)
     plan.ids = {name: ident for name, ident in ids.items() if ident != m.messages[name].id}
     # offsets, on the new identifiers
     new = [
@@ -336,7 +351,7 @@ def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPla
         )
     if after == before:
         pass
-    elif slacks(new, tau, after) > slacks(new, tau, before):
+    elif slacks(new, tau, after, bus.clock_tolerance_ppm) > slacks(new, tau, before, bus.clock_tolerance_ppm):
         plan.offsets = {name: o for name, (_, o) in after.items() if before.get(name, (None, None))[1] != o}
     else:
         plan.notes.append(f"bus '{bus.name}': offsets kept (spreading them would not add slack)")

@@ -139,10 +139,11 @@ def test_removing_a_message_never_makes_another_worse(spec: list[tuple[int, int,
 
 def test_spec_level_response_times_and_deadline_errors(tmp_path: Path) -> None:
     """Three frames on a 125 kbit/s bus as in the first test; the low one with a 3.25 ms deadline must fail
-    with file, line and the margin (3.5 - 3.25 = 0.25 ms)."""
+    with file, line and the margin (3.5 - 3.25 = 0.25 ms). The example's clocks are exact (clock_tolerance 0):
+    the default 100 ppm would let 'fast' repeat 0.35 us sooner (test_clocks.py)."""
     spec = {
         "system": "rta_demo",
-        "buses": [{"name": "can1", "protocol": "can", "bitrate": "125 kbit/s"}],
+        "buses": [{"name": "can1", "protocol": "can", "bitrate": "125 kbit/s", "clock_tolerance": 0}],
         "nodes": [{"name": "a", "buses": ["can1"]}, {"name": "b", "buses": ["can1"]}],
         "messages": [
             {"name": "fast", "id": 1, "producer": "a", "consumers": ["b"], "size": 7, "period": "2.5 ms"},

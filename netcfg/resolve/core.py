@@ -161,6 +161,7 @@ class Resolver:
                 protocol=b.protocol,
                 bitrate=b.bitrate,
                 id_bits=b.id_bits,
+                clock_tolerance_ppm=b.clock_tolerance,
                 nodes=[n.name for n in self.spec.nodes if b.name in n.buses],
                 messages=[],
                 path=path,

@@ -248,6 +248,14 @@ class Bus(SpecModel):
         None, description="CAN FD: the data-phase bit rate of frames sent with bit-rate switch (brs)"
     )
     id_bits: Literal[11, 29] = Field(11, description="default identifier length on CAN buses")
+    clock_tolerance: Int = Field(
+        100,
+        ge=0,
+        le=10_000,
+        description="CAN buses: how far, in ppm, each sender's clock may run from nominal (a crystal: 50-100 ppm). "
+        "The response-time analysis counts other messages' releases at the fastest clocks this allows; 0 assumes "
+        "perfect clocks",
+    )
     ftt: FttParams | None = None
     canopen: CanopenParams | None = None
     ethernet: EthernetParams | None = None

@@ -25,7 +25,9 @@ Lukkien (2007, section 5, eqs. 10-14), with the interference of the other transa
 
 Jitter: a job j is counted in a window [0, x) anchored on c's queuing if some release of c within its jitter
 allows it: its distance d from c's nominal release satisfies -J_j <= d < x + J_c (a union over c's jitter, sound;
-with J_c = 0 it is Palencia's count floor((J_j + phi)/T) + ceil((x - phi)/T)). Every bound here is also taken no
+with J_c = 0 it is Palencia's count floor((J_j + phi)/T) + ceil((x - phi)/T)). Clocks: a transaction runs on its
+sender's clock, within +-tolerance of nominal, so a window of x real ns is counted as longest_local(x) ns of it
+and a distance d between two of its releases as at least shortest_real(d) real ns. Every bound here is also taken no
 larger than the offset-free one (both are sound), so without offsets the result is exactly can_rta.analyse's.
 A transaction whose unrolling passes MAX_JOBS jobs is analysed without offsets (its messages stay independent).
 """
@@ -40,6 +42,7 @@ import numpy as np
 
 from netcfg.timing import can_rta
 from netcfg.timing.can_rta import CanFrame, Response
+from netcfg.timing.clocks import longest_local, longest_real, shortest_real
 
 MAX_JOBS = 512  # jobs of one unrolled transaction
 MAX_STEPS = 20_000  # fixed-point steps per message before the offset-free bound is kept
@@ -107,11 +110,12 @@ def _counts(distance: np.ndarray, jitter: np.ndarray, period: int, window: np.nd
 class _Interference:
     """I_G(x) of one other transaction for one analysed message: its jobs above that priority."""
 
-    def __init__(self, tr: Transaction, key: int) -> None:
+    def __init__(self, tr: Transaction, key: int, ppm: int) -> None:
         hp = tr.key < key
         self.period = tr.hyperperiod_ns
+        self.ppm = ppm
         self.c = tr.c_ns[hp]
-        self.j = tr.j_ns[hp]
+        self.j = longest_local(tr.j_ns[hp], ppm)
         o = tr.offset_ns[hp]
         self.distance = (o[None, :] - o[:, None]) % self.period  # [candidate, job]
         self.jc = self.j[:, None]
@@ -119,14 +123,17 @@ class _Interference:
     def __call__(self, x: int) -> int:
         if self.c.size == 0:
             return 0
-        n = _counts(self.distance, self.j[None, :], self.period, x + self.jc)
+        n = _counts(self.distance, self.j[None, :], self.period, longest_local(x + self.jc, self.ppm))
         return int((n @ self.c).max())
 
 
-def analyse(frames: Sequence[CanFrame], tau_ns: int, offsets: Mapping[str, tuple[str, int]]) -> dict[str, Response]:
+def analyse(
+    frames: Sequence[CanFrame], tau_ns: int, offsets: Mapping[str, tuple[str, int]], tolerance_ppm: int = 0
+) -> dict[str, Response]:
     """Response time of every frame on one bus; `offsets` maps a message to (its sender, its offset) when it is
-    released at that offset of its sender's clock (periodic, not sent by a task). Never above can_rta.analyse."""
-    plain = can_rta.analyse(frames, tau_ns)
+    released at that offset of its sender's clock (periodic, not sent by a task). Never above can_rta.analyse.
+    Senders' clocks are within +-tolerance_ppm of nominal."""
+    plain = can_rta.analyse(frames, tau_ns, tolerance_ppm)
     groups = transactions(frames, offsets)
     if not groups:
         return plain
@@ -136,7 +143,7 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int, offsets: Mapping[str, tuple
         r = plain[f.name]
         if r.wcrt_ns is None:
             continue
-        bound = _with_offsets(f, frames, groups, grouped, r.blocking_ns, tau_ns)
+        bound = _with_offsets(f, frames, groups, grouped, r.blocking_ns, tau_ns, tolerance_ppm)
         if bound is not None and bound < r.wcrt_ns:
             out[f.name] = replace(r, wcrt_ns=bound)
     return out
@@ -149,6 +156,7 @@ def _with_offsets(
     grouped: set[str],
     blocking: int,
     tau: int,
+    ppm: int,
 ) -> int | None:
     key = m.priority_key
     free = [g for g in frames if g.name not in grouped and g.priority_key < key]  # independent hp messages
@@ -156,11 +164,18 @@ def _with_offsets(
     ft = np.array([g.t_ns or can_rta.ONE_SHOT for g in free], dtype=np.int64)
     fj = np.array([g.j_ns for g in free], dtype=np.int64)
     own = next((tr for tr in groups if m.name in tr.names), None)
-    others = [_Interference(tr, key) for tr in groups if tr is not own]
+    others = [_Interference(tr, key, ppm) for tr in groups if tr is not own]
+
+    def local(x: int) -> int:
+        return longest_local(x, ppm)
+
+    def earliest(d: int) -> int:
+        """The least real distance of a release d ns (of its sender's clock) after another one."""
+        return shortest_real(d, ppm) if d >= 0 else -longest_real(-d, ppm)
 
     def foreign(x: int) -> int:
         """Work of everything but m's own transaction in a window of length x."""
-        total = int((-(-(x + fj) // ft)) @ fc) if fc.size else 0
+        total = int((-(-longest_local(x + fj, ppm) // ft)) @ fc) if fc.size else 0
         return total + sum(i(x) for i in others)
 
     steps = 0
@@ -179,15 +194,17 @@ def _with_offsets(
     if own is None:
         # m's instances: independent, as in Davis et al. 2007 with I_G in place of the offset-free terms
         t_m = m.t_ns or can_rta.ONE_SHOT
-        busy = least_fixed_point(blocking + m.c_ns, lambda t: blocking + foreign(t) + -(-(t + m.j_ns) // t_m) * m.c_ns)
+        busy = least_fixed_point(
+            blocking + m.c_ns, lambda t: blocking + foreign(t) + -(-local(t + m.j_ns) // t_m) * m.c_ns
+        )
         if busy is None:
             return None
         worst = 0
-        for q in range(max(1, -(-(busy + m.j_ns) // t_m))):
+        for q in range(max(1, -(-local(busy + m.j_ns) // t_m))):
             w = least_fixed_point(blocking + q * m.c_ns, lambda x, q=q: blocking + q * m.c_ns + foreign(x + tau))
             if w is None:
                 return None
-            worst = max(worst, m.j_ns + w - q * t_m + m.c_ns)
+            worst = max(worst, m.j_ns + w - shortest_real(q * t_m, ppm) + m.c_ns)
         return worst
 
     period = own.hyperperiod_ns
@@ -198,18 +215,18 @@ def _with_offsets(
     for c in np.flatnonzero(level):
         jc = int(own.j_ns[c])
         dist = (own.offset_ns - own.offset_ns[c]) % period  # every own job's distance from c's nominal release
-        dist_hp, j_hp, c_hp = dist[hp], own.j_ns[hp], own.c_ns[hp]
+        dist_hp, j_hp, c_hp = dist[hp], longest_local(own.j_ns[hp], ppm), own.c_ns[hp]
 
         def own_hp(
             x: int, dist_hp: np.ndarray = dist_hp, j_hp: np.ndarray = j_hp, c_hp: np.ndarray = c_hp, jc: int = jc
         ) -> int:
-            return int(_counts(dist_hp, j_hp, period, np.int64(x + jc)) @ c_hp)
+            return int(_counts(dist_hp, j_hp, period, np.int64(local(x + jc))) @ c_hp)
 
         # m's instances around c: distances d + n*L, present in the busy period when d >= -J_m
         d_m = dist[mine]
 
         def m_count(x: int, d_m: np.ndarray = d_m, jc: int = jc) -> int:
-            return int(_counts(d_m, np.full_like(d_m, m.j_ns), period, np.int64(x + jc)).sum())
+            return int(_counts(d_m, np.full_like(d_m, local(m.j_ns)), period, np.int64(local(x + jc))).sum())
 
         busy = least_fixed_point(
             blocking + m.c_ns,
@@ -218,8 +235,8 @@ def _with_offsets(
         if busy is None:
             return None
         # the instances of m in the busy period, in release order
-        first = -((m.j_ns + d_m) // period)
-        last = -(-(busy + jc - d_m) // period) - 1
+        first = -((local(m.j_ns) + d_m) // period)
+        last = -(-(local(busy + jc) - d_m) // period) - 1
         instances = sorted(int(d + n * period) for d, a, b in zip(d_m, first, last) for n in range(int(a), int(b) + 1))
         for earlier, d in enumerate(instances):
             w = least_fixed_point(
@@ -228,5 +245,5 @@ def _with_offsets(
             )
             if w is None:
                 return None
-            worst = max(worst, w + m.c_ns - max(d - jc, -m.j_ns))
+            worst = max(worst, w + m.c_ns - max(earliest(d) - jc, -m.j_ns))
     return worst

@@ -34,6 +34,7 @@ from typing import Literal
 
 import numpy as np
 
+from netcfg.timing.clocks import PPM, longest_local, shortest_real
 from netcfg.timing.frames import arbitration_key
 from netcfg.timing.load import compare_to_capacity
 
@@ -75,8 +76,10 @@ class Response:
         return self.wcrt_ns is not None and self.wcrt_ns <= deadline_ns
 
 
-def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
-    """Response time of every frame on one bus (all frames compete in arbitration)."""
+def analyse(frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0) -> dict[str, Response]:
+    """Response time of every frame on one bus (all frames compete in arbitration). Periods are counted on their
+    senders' clocks, each within +-tolerance_ppm of nominal (see clocks): a window of x real ns holds the releases
+    of longest_local(x) ns of a sender's time, and q periods of m last at least shortest_real(q T_m)."""
     order = sorted(range(len(frames)), key=lambda i: frames[i].priority_key)
     fs = [frames[i] for i in order]
     n = len(fs)
@@ -87,13 +90,17 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
     j = np.array([f.j_ns for f in fs], dtype=np.int64)
     prefix_c = np.concatenate(([0], np.cumsum(c)))  # prefix_c[i] = sum of C over hp(i)
     periodic = t < ONE_SHOT
-    utilisation = np.cumsum(np.where(periodic, c / t, 0.0))  # utilisation of hp(i) + i, approximately
+    # utilisation of hp(i) + i at the fastest clocks, approximately
+    utilisation = np.cumsum(np.where(periodic, c / t, 0.0)) * (PPM / (PPM - tolerance_ppm))
     blocking = np.concatenate((np.maximum.accumulate(c[::-1])[::-1][1:], [0]))  # max C over lp(i)
-    slack_order = np.argsort(t - j, kind="stable")  # "short" messages first
-    slack_sorted = (t - j)[slack_order]
+    # ceil(longest_local(x + J_k) / T_k) > 1 needs x > shortest_real(T_k) - J_k: "short" messages first
+    slack = np.where(periodic, shortest_real(np.where(periodic, t, 0), tolerance_ppm), t) - j
+    slack_order = np.argsort(slack, kind="stable")
+    slack_sorted = slack[slack_order]
 
     def extra(x: int, upto: int) -> int:
-        """sum over k < upto of (ceil((x + J_k) / T_k) - 1) * C_k: the interference beyond one instance each."""
+        """sum over k < upto of (ceil((x + J_k) / T_k) - 1) * C_k, x + J_k on k's clock: the interference
+        beyond one instance each."""
         cut = int(np.searchsorted(slack_sorted, x, side="left"))
         if cut == 0:
             return 0
@@ -101,7 +108,7 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
         ks = ks[ks < upto]
         if ks.size == 0:
             return 0
-        return int(((-(-(x + j[ks]) // t[ks])) - 1) @ c[ks])
+        return int(((-(-longest_local(x + j[ks], tolerance_ppm) // t[ks])) - 1) @ c[ks])
 
     def demand(x: int, upto: int) -> int:
         """Eq. 10's right-hand side without blocking: sum over k < upto of ceil((x + J_k) / T_k) * C_k."""
@@ -110,9 +117,17 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
     out: dict[str, Response] = {}
     for i, f in enumerate(fs):
         b = int(blocking[i])
-        hp_loads = ((int(ck), int(tk)) for ck, tk, p in zip(c[: i + 1], t[: i + 1], periodic[: i + 1]) if p)
+        hp_loads = (
+            (int(ck) * PPM, int(tk) * (PPM - tolerance_ppm))
+            for ck, tk, p in zip(c[: i + 1], t[: i + 1], periodic[: i + 1])
+            if p
+        )
         full = compare_to_capacity(float(utilisation[i]), hp_loads)
-        if full > 0 or (full == 0 and not _ends_at_full_load(b, c[: i + 1], t[: i + 1], j[: i + 1], periodic[: i + 1])):
+        # exactly full with drifting clocks: the fastest clocks overload it, so no end is assumed
+        if full > 0 or (
+            full == 0
+            and (tolerance_ppm or not _ends_at_full_load(b, c[: i + 1], t[: i + 1], j[: i + 1], periodic[: i + 1]))
+        ):
             out[f.name] = Response(f.name, None, b, None, 0, 0, "load")
             continue
         # level-i busy period (eq. 10), starting from a lower bound of its least fixed point
@@ -127,7 +142,7 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
         else:
             out[f.name] = Response(f.name, None, b, None, 0, 0, "iterations")
             continue
-        q_count = max(1, -(-(busy + int(j[i])) // int(t[i])))
+        q_count = max(1, -(-longest_local(busy + int(j[i]), tolerance_ppm) // int(t[i])))
         worst, worst_q, w = -1, 0, 0
         for q in range(q_count):
             w = max(w, b + q * int(c[i]) + int(prefix_c[i]))
@@ -139,7 +154,7 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, Response]:
                 w = nxt
             else:
                 break
-            r = int(j[i]) + w - q * int(t[i]) + int(c[i])
+            r = int(j[i]) + w - shortest_real(q * int(t[i]), tolerance_ppm) + int(c[i])
             if r > worst:
                 worst, worst_q = r, q
         if steps >= MAX_ITERATIONS:

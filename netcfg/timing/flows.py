@@ -20,6 +20,7 @@ from itertools import pairwise
 from math import lcm
 
 from netcfg import model
+from netcfg.timing import clocks
 from netcfg.timing.canopen_sync import MasterLoop
 from netcfg.timing.ftt import Schedule
 
@@ -122,7 +123,7 @@ def unsynchronised(
     return (lo, hi), delivery
 
 
-CLOCK_TOLERANCE_PPM = 100  # node clocks run within +-100 ppm of nominal (crystals; the simulator draws +-50 ppm)
+CLOCK_TOLERANCE_PPM = clocks.DEFAULT_TOLERANCE_PPM  # flows cross nodes and buses: the default tolerance
 
 
 def _sampling(consumer_period: int | None, refresh: int | None) -> int:
@@ -133,7 +134,7 @@ def _sampling(consumer_period: int | None, refresh: int | None) -> int:
     if not candidates:
         return 0
     wait = min(candidates)
-    return wait + -(-wait * CLOCK_TOLERANCE_PPM // 1_000_000)
+    return clocks.longest_real(wait, CLOCK_TOLERANCE_PPM)
 
 
 def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> bool:

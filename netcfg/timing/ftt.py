@@ -24,6 +24,7 @@ from fractions import Fraction
 from math import lcm
 
 from netcfg import model
+from netcfg.timing.clocks import PPM, longest_local, shortest_real
 from netcfg.timing.frames import arbitration_key, bits_to_ns, can_frame_bits
 
 
@@ -253,13 +254,15 @@ MAX_ASYNC_STEPS = 20_000  # fixed-point steps per asynchronous message before it
 
 
 def async_response_times(
-    sched: Schedule, frames: list[AsyncFrame], limited: set[str] | None = None
+    sched: Schedule, frames: list[AsyncFrame], limited: set[str] | None = None, tolerance_ppm: int = 0
 ) -> dict[str, int | None]:
     """Worst-case response of each asynchronous message over all ECs of the (envelope) schedule; None when
     unbounded: the level-m load, the message's own included, reaches the asynchronous supply, or the bound needs
     more than MAX_ASYNC_STEPS steps. As on plain CAN (Davis et al. 2007), every instance q of m in the level-m busy
     period is examined: w(q) = serve(B + (q + 1) C_m + sum over hp of ceil((w + J_k) / T_k) C_k),
-    R(q) = J_m + w(q) - q T_m. Messages stopped by the step limit are added to `limited`."""
+    R(q) = J_m + w(q) - q T_m. Asynchronous messages run on their senders' clocks, within +-tolerance_ppm of
+    the master's (clocks): windows of real time are counted as longest_local, q T_m as shortest_real. Messages
+    stopped by the step limit are added to `limited`."""
     if not frames:
         return {}
     idle = max(f.c_ns for f in frames)  # inserted idle time before each synchronous window
@@ -274,18 +277,21 @@ def async_response_times(
         level = ordered[: i + 1]
         blocking = max((g.c_ns for g in ordered[i + 1 :]), default=0)
         # exact: the level-m demand per macro-cycle against what the windows serve in one
-        if sum((Fraction(g.c_ns * cycle_ns, g.t_ns) for g in level if g.t_ns), Fraction(0)) >= cycle_supply:
+        fastest = Fraction(PPM, PPM - tolerance_ppm)  # the fastest sender clocks release this much more often
+        if sum((Fraction(g.c_ns * cycle_ns, g.t_ns) * fastest for g in level if g.t_ns), Fraction(0)) >= cycle_supply:
             out[f.name] = None
             continue
-        out[f.name] = _async_worst(sched, supply, f, ordered[:i], blocking)
+        out[f.name] = _async_worst(sched, supply, f, ordered[:i], blocking, tolerance_ppm)
         if out[f.name] is None and limited is not None:
             limited.add(f.name)  # the load fits: only the step limit stopped the analysis
     return out
 
 
-def _async_worst(sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[AsyncFrame], blocking: int) -> int | None:
+def _async_worst(
+    sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[AsyncFrame], blocking: int, ppm: int
+) -> int | None:
     def hp_demand(t: int) -> int:
-        return sum(g.c_ns * (-(-(t + g.j_ns) // g.t_ns) if g.t_ns else 1) for g in hp)
+        return sum(g.c_ns * (-(-longest_local(t + g.j_ns, ppm) // g.t_ns) if g.t_ns else 1) for g in hp)
 
     steps = 0
     worst = 0
@@ -293,7 +299,7 @@ def _async_worst(sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[Asy
         # level-m busy period from this start: until the windows have served everything released in it
         busy = 0
         while True:
-            own = f.c_ns * (-(-(busy + f.j_ns) // f.t_ns) if f.t_ns else 1)
+            own = f.c_ns * (-(-longest_local(busy + f.j_ns, ppm) // f.t_ns) if f.t_ns else 1)
             served = _time_to_serve(sched, supply, start, blocking + max(own, f.c_ns) + hp_demand(busy))
             steps += 1
             if served <= busy:
@@ -301,7 +307,7 @@ def _async_worst(sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[Asy
             if steps > MAX_ASYNC_STEPS:
                 return None
             busy = served
-        instances = max(1, -(-(busy + f.j_ns) // f.t_ns)) if f.t_ns else 1
+        instances = max(1, -(-longest_local(busy + f.j_ns, ppm) // f.t_ns)) if f.t_ns else 1
         w = 0
         for q in range(instances):
             while True:
@@ -312,7 +318,7 @@ def _async_worst(sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[Asy
                 if steps > MAX_ASYNC_STEPS:
                     return None
                 w = served
-            worst = max(worst, f.j_ns + w - q * (f.t_ns or 0))
+            worst = max(worst, f.j_ns + w - shortest_real(q * (f.t_ns or 0), ppm))
     return worst
 
 
