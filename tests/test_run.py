@@ -60,6 +60,7 @@ from netcfg.runtime.cia402 import (
 from netcfg.runtime.drives import DriveBench
 from netcfg.runtime.operate import BusLog, Plan, operate
 from netcfg.runtime.supervision import Supervisor
+from netcfg.verify import verify_log
 
 GENERATED = ROOT / "generated" / "allex2"
 JOINTS = ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r")
@@ -335,6 +336,10 @@ def test_run_brings_every_drive_up_collects_every_sample_and_stops_safely(
     assert controlwords[-6:] == [b"\x02\x00"] * 6  # quick stop, each drive
     assert [bytes(f.data) for f in sent[-6:]] == [bytes([0x80, n]) for n in range(1, 7)]  # NMT pre-operational
     assert len(samples.read_text(encoding="utf-8").splitlines()) == 1 + 25
+    # and it is in time order, so netcfg verify reads it (its drives' replies used to be logged before the
+    # master's own frames that caused them, and verify refused the log); the 25 SYNCs are all there
+    report = verify_log(rt.load(GENERATED / "runtime.json"), log)
+    assert {m["name"]: m["count"] for m in report["messages"]}["can0_SYNC"] == 25
 
 
 def test_a_killed_drive_is_lost_and_stopped_alone(capsys: pytest.CaptureFixture[str]) -> None:

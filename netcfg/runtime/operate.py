@@ -72,16 +72,23 @@ class BusLog(can.BusABC):
         self.channel_name = next((n for n in names if isinstance(n, (str, int))), None)
         self._filters = None
         self._is_shutdown = False
+        self._last = 0.0  # the log's latest timestamp
 
     def _log(self, msg: can.Message) -> None:
         if self._logger is not None:
             with self._lock:
+                # in time order, as a log must be (netcfg verify reads it): a reply stamped by its sender can come
+                # in before our own frame's stamp is logged; it is logged no earlier than the frame before it
+                if msg.timestamp < self._last:
+                    msg.timestamp = self._last
+                self._last = msg.timestamp
                 self._logger.on_message_received(msg)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        queued = time.time()
         self.inner.send(msg, timeout)
         sent = can.Message(
-            timestamp=time.time(),
+            timestamp=queued,
             arbitration_id=msg.arbitration_id,
             is_extended_id=msg.is_extended_id,
             is_remote_frame=msg.is_remote_frame,
