@@ -359,24 +359,30 @@ def test_c_and_python_pack_the_same_fd_frames(tmp_path: Path) -> None:
             "sequence": 17,
         },
     ]
-    integer = {"mode", "sequence"}  # the struct holds physical values: double for scaled signals
+    integer = {"mode", "sequence"}  # the struct holds raw integers; scaled signals are set in physical units
     literal = [{name: str(int(x)) if name in integer else repr(float(x)) for name, x in v.items()} for v in vectors]
     lines = ['#include <stdio.h>', '#include "controller.h"', "int main(void)", "{"]
     for values in literal:
         lines += ["    {", "        struct msg_arm_command v, w;", "        uint8_t data[MSG_ARM_COMMAND_FRAME_SIZE];"]
         lines += ["        size_t i;", "        memset(&v, 0, sizeof v);", "        memset(data, 0xAA, sizeof data);"]
-        lines += [f"        v.{name} = {value};" for name, value in values.items()]
+        lines += [
+            f"        v.{name} = {value};"
+            if name in integer
+            else f"        if (!msg_arm_command_{name}_set(&v, {value})) {{ return 1; }}"
+            for name, value in values.items()
+        ]
         lines += [
             "        if (!msg_arm_command_pack(data, &v)) { return 1; }",
             "        for (i = 0; i < sizeof data; i++) { printf(\"%02x\", data[i]); }",
             "        msg_arm_command_unpack(&w, data);",
-            '        printf(" %d %d %.17g\\n", MSG_ARM_COMMAND_DLC, (int)w.sequence, w.j9_position_setpoint);',
+            '        printf(" %d %d %.17g\\n", MSG_ARM_COMMAND_DLC, (int)w.sequence,'
+            " msg_arm_command_j9_position_setpoint_get(&w));",
             "    }",
         ]
     lines += ["    return 0;", "}"]
     source = tmp_path / "fd.c"
     source.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    flags = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-I", str(out / "c")]
+    flags = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-DNETCFG_FLOAT_ACCESSORS", "-I", str(out / "c")]
     proc = subprocess.run(["gcc", *flags, "-o", str(tmp_path / "fd"), str(source)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-4000:]
     got = subprocess.run([str(tmp_path / "fd")], capture_output=True, text=True, check=True).stdout.splitlines()

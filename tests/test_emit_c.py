@@ -185,6 +185,7 @@ def test_every_header_and_srt_compiles_as_c99(name: str, built: dict[str, tuple[
     every.write_text("".join(f'#include "{rel}"\n' for rel in headers) + "int netcfg_every;\n", encoding="utf-8")
     compile_units(GCC, C_FLAGS, [every], folder)
     compile_units(GCC, ["-std=c11", *C_FLAGS[1:]], [every], folder)  # the _Static_assert branch
+    compile_units(GCC, [*C_FLAGS, "-DNETCFG_FLOAT_ACCESSORS"], [every], folder)  # and the physical-unit accessors
 
 
 @needs_gxx
@@ -194,6 +195,7 @@ def test_every_header_and_srt_compiles_as_cxx17(name: str, built: dict[str, tupl
     headers = [rel for rel in files if rel.endswith(".h")]
     assert GXX is not None
     compile_units(GXX, CXX_FLAGS, include_units(folder, headers, ".cpp"), folder)
+    compile_units(GXX, [*CXX_FLAGS, "-DNETCFG_FLOAT_ACCESSORS"], include_units(folder, headers, ".cpp"), folder)
     sources = [folder / rel for rel in files if rel.endswith(".c")]
     if sources:
         compile_units(GXX, ["-x", "c++", *CXX_FLAGS], sources, folder)
@@ -285,27 +287,29 @@ def test_extended_identifiers_carry_the_flag(tmp_path: Path) -> None:
 
 
 def test_c_types_are_the_smallest_that_hold_the_bits(tmp_path: Path) -> None:
-    """The rule: integers take the smallest of (u)int8/16/32/64 holding their bits, floats float/double,
-    scaled values double; a 24-bit count is int32_t, a 7-bit duty uint8_t, a 48-bit raw payload uint64_t."""
+    """The rule: integers take the smallest of (u)int8/16/32/64 holding their bits, floats float/double, and
+    scaled values their raw integer the same way (so an MCU without an FPU never needs a double); a 24-bit
+    count is int32_t, a 7-bit duty uint8_t, a 48-bit raw payload uint64_t, a 20-bit signed scaled x int32_t,
+    a 16-bit signed scaled w1 int16_t, a 40-bit signed scaled `big` int64_t."""
     _, files = emit_c(cambada_with_signals(tmp_path))
     text = files["c/gateway.h"].decode() + files["c/odometry.h"].decode() + files["c/holonomic.h"].decode()
     for decl in [
         "int32_t count;",
         "uint8_t valid;",
         "uint16_t quality;",
-        "double x;",
+        "int32_t x;",
         "float theta;",
         "float vx;",
-        "double vy;",
+        "int32_t vy;",
         "uint8_t strength;",
-        "double w1;",
+        "int16_t w1;",
     ]:
         assert re.search(rf"^    {re.escape(decl)}", text, re.M), decl
     _, files = emit_c(SPECS / "cambada.yaml")
     assert "    uint64_t motor_setpoints_raw;" in files["c/holonomic.h"].decode()  # 6 bytes, no layout given
     _, files = emit_c(ntua_with_signals(tmp_path))
     pc = files["c/pc.h"].decode()
-    for decl in ["double pos;", "uint64_t ticks;", "int64_t delta;", "double big;", "double huge;"]:
+    for decl in ["double pos;", "uint64_t ticks;", "int64_t delta;", "int64_t big;", "uint64_t huge;"]:
         assert f"    {decl}" in pc
 
 
@@ -381,6 +385,10 @@ def vectors(fields: list[Field]) -> list[dict[str, Number]]:
     return [{name: c[i % len(c)] for name, c in cands.items()} for i in range(n)]
 
 
+def is_scaled(f: Field) -> bool:
+    return not f.is_float and not f.is_integer
+
+
 def run_c_codec(
     tmp_path: Path, files: dict[str, bytes], cases: list[tuple[str, list[Field], dict[str, Number]]]
 ) -> list[list[str]]:
@@ -409,16 +417,23 @@ def run_c_codec(
             "        memset(&v, 0, sizeof v);",
             "        memset(data, 0xAA, sizeof data);",
         ]
-        lines += [f"        v.{f.name} = {c_literal(f, values[f.name])};" for f in fields]
+        lines.append("        ok = true;")
+        for f in fields:  # scaled signals are raw integers: physical values go through the float setters
+            if is_scaled(f):
+                lines.append(f"        ok = msg_{name}_{f.name}_set(&v, {c_literal(f, values[f.name])}) && ok;")
+            else:
+                lines.append(f"        v.{f.name} = {c_literal(f, values[f.name])};")
         lines += [
-            f"        ok = msg_{name}_pack(data, &v);",
+            f"        ok = ok && msg_{name}_pack(data, &v);",
             '        printf("%d ", ok ? 1 : 0);',
             "        hex(data, sizeof data);",
             "        if (ok) {",
             f"            msg_{name}_unpack(&w, data);",
         ]
         for f in fields:
-            if f.is_float or not f.is_integer:
+            if is_scaled(f):
+                lines.append(f'            printf(" %.17g", msg_{name}_{f.name}_get(&w));')
+            elif f.is_float:
                 lines.append(f'            printf(" %.17g", (double)w.{f.name});')
             elif f.signed:
                 lines.append(f'            printf(" %" PRId64, (int64_t)w.{f.name});')
@@ -431,7 +446,11 @@ def run_c_codec(
     assert GCC is not None
     exe = tmp_path / "vectors"
     proc = subprocess.run(
-        [GCC, *C_FLAGS, "-o", str(exe), str(source)], cwd=tmp_path, capture_output=True, text=True, timeout=300
+        [GCC, *C_FLAGS, "-DNETCFG_FLOAT_ACCESSORS", "-o", str(exe), str(source)],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert proc.returncode == 0, proc.stderr[-4000:]
     run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, check=True)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 from netcfg import model
@@ -50,14 +51,14 @@ class SignalView:
     name: str
     start_bit: int
     bits: int
-    kind: str  # "int" (exact integer), "scaled" (double, raw * scale + offset), "float" (IEEE)
+    kind: str  # "int" (exact integer), "scaled" (raw integer, physical = raw * scale + offset), "float" (IEEE)
     signed: bool
     ctype: str
     word: str  # unsigned type of the float's bits (memcpy target)
     mask: int | None  # raw mask, None for 64-bit fields
     sign_bit: int
     ops: tuple[ByteOp, ...]
-    lo: int | None  # "int": bound on the value; "scaled": on the rounded raw; None = the C type's own limit
+    lo: int | None  # "int", "scaled": bound on the field (raw); None = the C type's own limit
     hi: int | None
     minimum: str | None  # physical bounds as C double literals ("scaled", "float")
     maximum: str | None
@@ -76,6 +77,36 @@ class SignalView:
     mux_depth: int = 0  # multiplexers are packed and unpacked before the signals they select
     enum_type: str | None = None  # `enum msg_<message>_<signal>` when it has value names
     enum: tuple[EnumItem, ...] = ()
+    set_lo: int | None = None  # "scaled", float setter: bounds on the rounded raw held in an int64_t / uint64_t
+    set_hi: int | None = None
+    fixed: FixedPoint | None = None  # "scaled": the exact rational scale and offset, when they fit int64_t
+
+
+@dataclass(frozen=True)
+class FixedPoint:
+    """physical * den = raw * scale_num + offset_num, all integers: scale and offset as the decimal fractions
+    the spec wrote (0.001 is 1/1000, 1/65536 is 0.0000152587890625, both exact), over one denominator."""
+
+    scale_num: int
+    offset_num: int
+    den: int
+
+
+def fixed_point(scale: float, offset: float) -> FixedPoint | None:
+    """None when a numerator or the denominator needs more than an int64_t (a scale like 1e-30)."""
+    # repr is the shortest decimal that reads back as the float: the number the user wrote, not its binary value
+    s, o = Fraction(repr(scale)), Fraction(repr(offset))
+    den = math.lcm(s.denominator, o.denominator)
+    view = FixedPoint(s.numerator * (den // s.denominator), o.numerator * (den // o.denominator), den)
+    limit = 1 << 63
+    fits = all(-limit <= n < limit for n in (view.scale_num, view.offset_num, view.den))
+    return view if fits else None
+
+
+def _codec_raw(sig: model.Signal, value: float) -> int | None:
+    """The raw value netcfg.runtime.codec gives a physical value (None when it has none, e.g. overflow)."""
+    q = (value - sig.offset) / sig.scale
+    return round(q) if math.isfinite(q) else None
 
 
 @dataclass(frozen=True)
@@ -154,6 +185,8 @@ def signal_view(
     minimum, maximum = _bound(sig.minimum), _bound(sig.maximum)
     lo: int | None = raw_lo
     hi: int | None = raw_hi
+    set_lo: int | None = None
+    set_hi: int | None = None
     if sig.is_float:
         kind, ctype, lo, hi = "float", "float" if sig.bits == 32 else "double", None, None
     elif is_integer:
@@ -171,11 +204,25 @@ def signal_view(
         hi = None if hi is not None and hi >= type_hi else hi
         minimum = maximum = None
     else:
-        kind, ctype = "scaled", "double"
-        # the rounded raw is held in an int64_t / uint64_t: only bounds inside that type need a test (unsigned:
-        # the pre-test q >= -0.5 already keeps it >= 0)
-        lo = raw_lo if sig.signed and sig.bits < 64 else None
-        hi = raw_hi if sig.bits < 64 else None
+        kind = "scaled"
+        ctype = f"{'' if sig.signed else 'u'}int{width}_t"
+        # the struct holds the raw value; pack accepts the raws the codec gives physical values inside
+        # [min, max] (its rounding is monotone, so they lie between the raws of min and max)
+        ends = [_codec_raw(sig, b) for b in (minimum, maximum) if b is not None]
+        if minimum is not None and ends[0] is not None:
+            bound = ends[0]
+            lo, hi = (max(raw_lo, bound), hi) if sig.scale > 0 else (lo, min(raw_hi, bound))
+        if maximum is not None and ends[-1] is not None:
+            bound = ends[-1]
+            lo, hi = (lo, min(raw_hi, bound)) if sig.scale > 0 else (max(raw_lo, bound), hi)
+        type_lo = -(1 << (width - 1)) if sig.signed else 0
+        type_hi = (1 << (width - 1)) - 1 if sig.signed else (1 << width) - 1
+        lo = None if lo is not None and lo <= type_lo else lo
+        hi = None if hi is not None and hi >= type_hi else hi
+        # the float setter holds the rounded raw in an int64_t / uint64_t: only bounds inside that type need a
+        # test (unsigned: the pre-test q >= -0.5 already keeps it >= 0)
+        set_lo = raw_lo if sig.signed and sig.bits < 64 else None
+        set_hi = raw_hi if sig.bits < 64 else None
     return SignalView(
         name=sig.name,
         start_bit=sig.start_bit,
@@ -197,6 +244,9 @@ def signal_view(
         # follows on the rounded integer. Unsigned: round() gives 0 down to -0.5 inclusive (half to even).
         q_lo=_double(raw_lo - 1) if sig.signed else "-0.5",
         q_hi=_double(raw_hi + 1),
+        set_lo=set_lo,
+        set_hi=set_hi,
+        fixed=fixed_point(sig.scale, sig.offset) if kind == "scaled" else None,
         unit=sig.unit,
         raw_only=raw_only,
         big_endian=sig.big_endian,
