@@ -22,23 +22,21 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from netcfg.sim.engine import NEVER
+from netcfg.spec.units import parse_instant_option
 
 if TYPE_CHECKING:
     from netcfg.sim.run import SimRun
-
-_UNITS = {"ns": 1, "us": 1_000, "ms": 1_000_000, "s": 1_000_000_000}
-_TIME = r"(\d+(?:\.\d+)?)\s*(ns|us|ms|s)"
-
 
 class FaultError(ValueError):
     pass
 
 
 def parse_time(text: str) -> int:
-    m = re.fullmatch(_TIME, text.strip())
-    if not m:
-        raise FaultError(f"'{text}' is not a time: write a number and a unit, e.g. 250us, 12.5ms, 2s")
-    return round(float(m.group(1)) * _UNITS[m.group(2)])
+    """A fault's instant in the one unit grammar of specs and command line (netcfg.spec.units)."""
+    try:
+        return parse_instant_option(text)
+    except ValueError as exc:
+        raise FaultError(f"fault time {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -64,17 +62,18 @@ class Fault:
         m = re.fullmatch(r"bit-error@([^:]+)(?::(\S+))?", t)
         if m:
             return Fault("bit-error", m.group(2), parse_time(m.group(1)))
-        m = re.fullmatch(r"(crash|lose):([^@]+)@(\S+)", t)
+        m = re.fullmatch(r"(crash|lose):([^@]+)@(.+)", t)
         if m:
             return Fault(m.group(1), m.group(2), parse_time(m.group(3)))
-        m = re.fullmatch(r"babble:([^@]+)@([^.=]+(?:\.\d+)?[a-z]+)(?:\.\.([^=]+))?(?:=(\S+))?", t)
+        m = re.fullmatch(r"babble:([^@]+)@([^=]+?)(?:=(\S+))?", t)
         if m:
-            start = parse_time(m.group(2))
-            until = parse_time(m.group(3)) if m.group(3) else NEVER
+            begin, dots, end = m.group(2).partition("..")
+            start = parse_time(begin)
+            until = parse_time(end) if dots else NEVER
             try:
-                ident = int(m.group(4), 0) if m.group(4) else 0
+                ident = int(m.group(3), 0) if m.group(3) else 0
             except ValueError:
-                raise FaultError(f"babble identifier '{m.group(4)}' is not a number: write e.g. =0x0 or =16") from None
+                raise FaultError(f"babble identifier '{m.group(3)}' is not a number: write e.g. =0x0 or =16") from None
             if not 0 <= ident <= 0x7FF:
                 raise FaultError(f"babble identifier {ident:#x} is not an 11-bit CAN identifier (0x000-0x7FF)")
             if until <= start:

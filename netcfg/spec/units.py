@@ -230,6 +230,18 @@ def parse_duration_option(text: str, max_ns: int = MAX_DURATION_NS) -> int:
     return d.ns
 
 
+def parse_instant_option(text: str, max_ns: int = MAX_DURATION_NS) -> int:
+    """An instant on the command line, counted from the start ('--fault crash:NODE@2s', '@12.5 ms', '@0'): the
+    duration grammar, zero allowed. -> nanoseconds. ValueError when not."""
+    t = text.strip()
+    d = parse_duration(0 if t == "0" else t)
+    if d.ns is None:
+        raise ValueError(f"{text!r}: give the time in ns, us, ms or s (EC only exists inside a spec)")
+    if d.ns > max_ns:
+        raise ValueError(f"{text!r}: a time must be at most {format_ns(max_ns)}")
+    return d.ns
+
+
 def parse_int_option(text: str, what: str, low: int, high: int) -> int:
     """A whole number on the command line (ASCII digits, within [low, high]). ValueError when not."""
     t = text.strip()
