@@ -316,6 +316,32 @@ def test_simulate_holds_its_trace_with_the_same_checker(tmp_path: Path) -> None:
         assert m["response_us"]["max"] == m["wcrt_us"] - 72, m["name"]
 
 
+def test_simulate_keeps_its_two_violation_lists_apart(tmp_path: Path) -> None:
+    """`violations` answers "did a measured range leave its analysed one" (one line per message or flow, beside
+    `exceeds_analysis`); `log_check.violations` is the written trace judged frame by frame by verify's checker,
+    in verify's own shape. One lost hip_l_state (ALLEX-2's TxPDO1 of node 1, every 20 ms SYNC) is a gap in the
+    trace, not a response beyond its bound: the first list stays empty, the second names the gap, and the lost
+    frame alone makes the exit code 1."""
+    log = tmp_path / "allex2.log"
+    proc = cli(
+        "simulate", str(SPECS / "allex2.yaml"), "--duration", "200ms", "--fault", "lose:hip_l_state@100ms",
+        "--log", str(log), "--format", "json",
+    )
+    assert proc.returncode == 1, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert doc["lost"] == 1
+    assert doc["violations"] == [] and doc["exceeds_analysis"] == []
+    check = doc["log_check"]
+    assert not check["ok"] and check["violation_count"] == len(check["violations"]) >= 1
+    for v in check["violations"]:
+        assert set(v) == {"kind", "message", "time_us", "detail"}  # verify's JSON contract
+    assert ("gap", "hip_l_state") in {(v["kind"], v["message"]) for v in check["violations"]}
+    _, report, _ = verify_json(str(SPECS / "allex2.yaml"), str(log))
+    assert [(v["kind"], v["message"]) for v in report["violations"]] == [
+        (v["kind"], v["message"]) for v in check["violations"]
+    ]
+
+
 def test_report_plots_are_deterministic(recorded: Path, cfg: runtime.RuntimeConfig, tmp_path: Path) -> None:
     from netcfg.verify.plots import draw
 

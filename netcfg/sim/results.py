@@ -123,7 +123,9 @@ def _bounds(res: RunResult, name: str, m: Message | None, unsync: bool = False) 
 
 
 def summary(res: RunResult) -> dict[str, Any]:
-    """The JSON document of `netcfg simulate --format json`."""
+    """The JSON document of `netcfg simulate --format json`. Its `violations` are one line per message or flow
+    whose measured range left the analysed one (`exceeds_analysis` names them); the trace judged frame by frame
+    is `log_check` (log_check below, added with --log), in verify's shape."""
     messages = []
     misses = 0
     exceeded = []  # messages and flows whose measured range leaves the analysed one
