@@ -34,6 +34,24 @@ def cfg() -> runtime.RuntimeConfig:
 
 
 @pytest.fixture(scope="module")
+def undeclared(tmp_path_factory: pytest.TempPathFactory) -> runtime.RuntimeConfig:
+    """specs/allex2.yaml without its `<joint>_command` flows: only hip_l_cmd is declared as sent by master.control
+    (the joint_command flow), the other five commands by no task, although the master sends them all alike."""
+    import yaml
+
+    from netcfg.check import analyse_spec
+    from netcfg.emit import runtime_json
+
+    spec = yaml.safe_load(ALLEX2.read_text(encoding="utf-8"))
+    spec["flows"] = [f for f in spec["flows"] if f["name"] in ("joint_feedback", "joint_command")]
+    path = tmp_path_factory.mktemp("undeclared") / "allex2.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    model, report = analyse_spec(path)
+    assert model is not None and report["ok"], report["errors"]
+    return runtime.parse(json.loads(runtime_json.emit(model, report)["runtime.json"]))
+
+
+@pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The simulated ALLEX-2 network's 8 s gait cycle as a candump -L log, recorded by `netcfg simulate --log`."""
     log = tmp_path_factory.mktemp("verify") / "gait.log"
@@ -443,13 +461,12 @@ def test_usage_problems(recorded: Path, tmp_path: Path) -> None:
 def test_jitter_inside_the_analysis_is_quiet_and_a_dropped_frame_is_one_gap(
     offsets: list[float], data: st.DataObject
 ) -> None:
-    """knee_l_cmd every 20 ms (no task is declared to send it), each frame moved by at most half the analysed
-    slack (worst-case response, which holds the release jitter, - best transmission time), so every interval
-    is within period +- slack: no gap, no warning. Without one frame (not the first or the last): exactly one gap
-    of one period, at the frame after it."""
+    """knee_l_cmd every 20 ms, each frame moved by at most half the analysed slack (worst-case response, which
+    holds the release jitter, - best transmission time), so every interval is within period +- slack: no gap, no
+    warning. Without one frame (not the first or the last): exactly one gap of one period, at the frame after it."""
     cfg = runtime.load(RUNTIME)
     cmd = cfg.message("knee_l_cmd")
-    assert cmd.period_ns is not None and cmd.wcrt_ns is not None and not cmd.sent_by
+    assert cmd.period_ns is not None and cmd.wcrt_ns is not None
     from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
     slack_ns = cmd.wcrt_ns - bits_to_ns(can_frame_bits(cmd.size, cmd.extended, "nominal"), 1_000_000)
@@ -467,13 +484,16 @@ def test_jitter_inside_the_analysis_is_quiet_and_a_dropped_frame_is_one_gap(
     assert about_cmd(report) == [("gap", (times[drop + 1] + 500) // 1000 - first)]
 
 
-def test_a_message_sent_by_a_task_may_stray_by_the_tasks_spread(recorded: Path, cfg: runtime.RuntimeConfig) -> None:
+def test_a_message_sent_by_a_task_may_stray_by_the_tasks_spread(
+    recorded: Path, cfg: runtime.RuntimeConfig, undeclared: runtime.RuntimeConfig
+) -> None:
     """hip_l_cmd goes out when master.control finishes (runtime.json's sent_by): control runs 10 ms after SYNC for
     225.8-8557.3 us (seed 000, Table 5). The analysis counts that spread as the command's release jitter, so its
     worst-case response from the nominal release holds it (Davis et al. 2007, eq. 13: R = J + w + C), and its
     interval may stray from 20 ms by R less its best transmission (8 bytes: 47 + 64 = 111 bits, 111 us at
-    1 Mbit/s). knee_l_cmd, sent the same way by the simulated master but declared by no task, has no such jitter
-    in its analysis, and its intervals draw a warning."""
+    1 Mbit/s). specs/allex2.yaml declares all six commands so (seed 000 section 4.4.1: the control step sends
+    every command frame): none draws a warning. Declared by no task (the `undeclared` variant), knee_l_cmd, sent
+    the same way by the simulated master, has no such jitter in its analysis, and its intervals draw a warning."""
     report = verify_log(cfg, recorded)
     by_name = {m["name"]: m for m in report["messages"]}
     cmd = cfg.message("hip_l_cmd")
@@ -481,17 +501,27 @@ def test_a_message_sent_by_a_task_may_stray_by_the_tasks_spread(recorded: Path, 
     assert cmd.wcrt_ns >= 8_557_300 - 225_800  # the control step's spread is inside the analysed response
     assert by_name["hip_l_cmd"]["analysed_jitter_us"] == pytest.approx((cmd.wcrt_ns - 111_000) / 1000)
     assert by_name["hip_l_cmd"]["warnings"] == 0
-    assert by_name["knee_l_cmd"]["warnings"] == 1 and report["ok"]
+    assert report["ok"] and report["warning_count"] == 0
+    assert all(by_name[m.name]["warnings"] == 0 for m in cfg.messages if m.name.endswith("_cmd"))
+    assert {m.name for m in cfg.messages if m.sent_by == ("master.control",)} == {
+        f"{joint}_cmd" for joint in ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r")
+    }
+    loose = {m["name"]: m for m in verify_log(undeclared, recorded)["messages"]}
+    assert loose["knee_l_cmd"]["warnings"] == 1 and loose["hip_l_cmd"]["warnings"] == 0
 
 
-def test_strict_makes_undeclared_jitter_a_violation(recorded: Path, cfg: runtime.RuntimeConfig) -> None:
-    """The five command RxPDOs that no task is declared to send (runtime.json's sent_by) stray beyond their own
-    analysed jitter in the simulated cycle (see the test above): with strict, one jitter violation each."""
-    undeclared = {m.name for m in cfg.messages if m.name.endswith("_cmd") and not m.sent_by}
-    assert len(undeclared) == 5
-    report = verify_log(cfg, recorded, strict=True)
-    assert {(v["kind"], v["message"]) for v in report["violations"]} == {("jitter", n) for n in undeclared}
+def test_strict_makes_undeclared_jitter_a_violation(
+    recorded: Path, cfg: runtime.RuntimeConfig, undeclared: runtime.RuntimeConfig
+) -> None:
+    """The five command RxPDOs that no task is declared to send in the `undeclared` variant (runtime.json's
+    sent_by) stray beyond their own analysed jitter in the simulated cycle (see the test above): with strict, one
+    jitter violation each. The spec as it is declares them, and strict finds nothing."""
+    loose = {m.name for m in undeclared.messages if m.name.endswith("_cmd") and not m.sent_by}
+    assert len(loose) == 5
+    report = verify_log(undeclared, recorded, strict=True)
+    assert {(v["kind"], v["message"]) for v in report["violations"]} == {("jitter", n) for n in loose}
     assert report["violation_count"] == 5 and not report["ok"]
+    assert verify_log(cfg, recorded, strict=True)["ok"]
 
 
 def test_a_progress_bar_only_on_a_terminal(monkeypatch: pytest.MonkeyPatch, recorded: Path) -> None:
