@@ -6,6 +6,7 @@ refused because '250' alone could mean anything; the error says which units are 
 
 from __future__ import annotations
 
+import difflib
 import re
 from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
@@ -36,7 +37,28 @@ RATE_UNITS: dict[str, int] = {
     "gbit/s": 1_000_000_000,
     "gbps": 1_000_000_000,
 }
+# the short forms people type for bit rates, in specs and on the command line alike: 500k, 1M (never milli-)
+SHORT_RATE_UNITS: dict[str, int] = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
 FREQ_UNITS: dict[str, int] = {"hz": 1, "khz": 1_000, "mhz": 1_000_000}
+# spellings that are not units here, with the unit meant (the error suggests it)
+_UNIT_ALIASES: dict[str, str] = {
+    "msec": "ms", "msecs": "ms", "millisecond": "ms", "milliseconds": "ms",
+    "usec": "us", "usecs": "us", "microsecond": "us", "microseconds": "us",
+    "nsec": "ns", "nsecs": "ns", "nanosecond": "ns", "nanoseconds": "ns",
+    "sec": "s", "secs": "s", "second": "s", "seconds": "s",
+    "kb/s": "kbit/s", "kbits/s": "kbit/s", "kbaud": "kbit/s", "mb/s": "Mbit/s", "mbits/s": "Mbit/s", "mbaud": "Mbit/s",
+    "baud": "bit/s", "bits/s": "bit/s",
+}
+
+
+def _unit_hint(unit: str, known: list[str]) -> str:
+    """" (did you mean 'ms'?)" for a unit that is a common spelling or close to a known one, else ""."""
+    meant = _UNIT_ALIASES.get(unit.lower())
+    if meant is None:
+        by_lower = {k.lower(): k for k in known}
+        close = difflib.get_close_matches(unit.lower(), list(by_lower), n=1, cutoff=0.6)
+        meant = by_lower[close[0]] if close else None
+    return f" (did you mean '{meant}'?)" if meant else ""
 EC_UNITS = ("ec", "ecs")
 MAX_DURATION_NS = 10**15  # about 11.6 days: longer periods are mistakes, and sums must stay in 64 bits
 MAX_EC_COUNT = 1_000_000
@@ -120,7 +142,8 @@ def parse_duration(value: Any) -> Duration:
         return Duration(ec=int(number))
     scale = TIME_UNITS_NS.get(unit) or TIME_UNITS_NS.get(key)
     if scale is None:
-        raise ValueError(f"unknown time unit '{unit}' in {value!r}; use ns, us, ms, s or EC")
+        hint = _unit_hint(unit, ["ns", "us", "ms", "s", "EC"])
+        raise ValueError(f"unknown time unit '{unit}' in {value!r}{hint}; use ns, us, ms, s or EC")
     ns = number * scale
     if ns > MAX_DURATION_NS:
         raise ValueError(f"{value!r} is longer than netcfg handles ({MAX_DURATION_NS // 10**9:,} s)")
@@ -133,9 +156,12 @@ def parse_duration(value: Any) -> Duration:
 
 def parse_bitrate(value: Any) -> int:
     number, unit = _split(value, "bit rate", "250 kbit/s")
-    scale = RATE_UNITS.get(unit.lower())
+    scale = RATE_UNITS.get(unit.lower()) or SHORT_RATE_UNITS.get(unit.lower())
     if scale is None:
-        raise ValueError(f"unknown bit-rate unit '{unit}' in {value!r}; use bit/s, kbit/s, Mbit/s or Gbit/s")
+        hint = _unit_hint(unit, ["bit/s", "kbit/s", "Mbit/s", "Gbit/s"])
+        raise ValueError(
+            f"unknown bit-rate unit '{unit}' in {value!r}{hint}; use bit/s, kbit/s, Mbit/s or Gbit/s (or 500k, 1M)"
+        )
     rate = number * scale
     if rate != rate.to_integral_value() or rate <= 0 or rate > MAX_BITRATE:
         raise ValueError(f"{value!r}: a bit rate must be a positive whole number of bit/s")
@@ -165,8 +191,8 @@ _DURATION_SCHEMA = {
 }
 _BITRATE_SCHEMA = {
     "type": "string",
-    "pattern": rf"^\s*{_NUMBER}\s*(?i:bit/s|bps|kbit/s|kbps|Mbit/s|Mbps|Gbit/s|Gbps)\s*$",
-    "description": "a bit rate with its unit, e.g. '250 kbit/s', '1 Mbit/s', '100 Mbit/s'",
+    "pattern": rf"^\s*{_NUMBER}\s*(?i:bit/s|bps|kbit/s|kbps|Mbit/s|Mbps|Gbit/s|Gbps|k|M|G)\s*$",
+    "description": "a bit rate with its unit, e.g. '250 kbit/s', '1 Mbit/s', '100 Mbit/s', or short: '500k', '1M'",
 }
 _FREQ_SCHEMA = {
     "type": "string",
@@ -208,11 +234,11 @@ OffsetField = Annotated[
 
 
 def parse_bitrate_option(text: str) -> int:
-    """A --bitrate: '500k', '1M', '250000' (bit/s) or any spec bit rate ('500 kbit/s'). ValueError when not."""
+    """A --bitrate: any spec bit rate ('500 kbit/s', '500k', '1M') or, on the command line only, a plain number of
+    bit/s ('250000'). ValueError when not."""
     short = text.strip()
-    scale = {"k": 1_000, "m": 1_000_000}.get(short[-1:].lower(), 0)
-    if scale or _NUMBER_ONLY.match(short):
-        number = parse_number(short[:-1] if scale else short, f"bit rate {text!r}") * (scale or 1)
+    if _NUMBER_ONLY.match(short):
+        number = parse_number(short, f"bit rate {text!r}")
         if number != number.to_integral_value() or not 0 < number <= MAX_BITRATE:
             raise ValueError(f"bit rate {text!r}: give a whole number of bit/s above 0, at most 1 Tbit/s")
         return int(number)
