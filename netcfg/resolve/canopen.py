@@ -130,8 +130,9 @@ class CanopenProtocol(CanProtocol):
         ident = m.id
         if pdo is not None and ident is None:
             node = self.r.spec_nodes[pdo.device_node]
-            if node.node_id is not None and node.node_id in cia301.NODE_IDS:
-                ident = cia301.default_pdo_cob_id(pdo.kind, pdo.number, node.node_id)
+            if node.node_id is None or node.node_id not in cia301.NODE_IDS:
+                return None  # a missing or wrong node id is reported at the node; the default follows once it is fixed
+            ident = cia301.default_pdo_cob_id(pdo.kind, pdo.number, node.node_id)
             if ident is None:
                 self.r.err(
                     "id-missing",
@@ -244,7 +245,8 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
         return None
     dpath = (*path, "device")
     if not on_canopen:
-        r.err("wrong-section", "device profiles describe CANopen devices; this node is on no CANopen bus", dpath)
+        if all(b in r.spec_buses for b in n.buses):  # an unknown bus is reported on its own
+            r.err("wrong-section", "device profiles describe CANopen devices; this node is on no CANopen bus", dpath)
         return None
     if isinstance(n.device, str):
         try:

@@ -211,7 +211,8 @@ class Resolver:
             elif on_canopen:
                 self.err("node-id", f"node '{n.name}' is on a CANopen bus and needs a node_id (1..127)", path)
             device = canopen.load_device(self, n, path, on_canopen)
-            if n.heartbeat is not None and not on_canopen:
+            # a node on a misspelt bus may well be on a CANopen one: the unknown bus is the one error
+            if n.heartbeat is not None and not on_canopen and all(b in self.spec_buses for b in n.buses):
                 self.err(
                     "wrong-section",
                     "heartbeat is a CANopen service; this node is on no CANopen bus",

@@ -28,7 +28,17 @@ def resolve_flows(r: Resolver) -> None:
                     node = r.model.nodes.get(node_name)
                     if node is None or task_name not in node.tasks:
                         hint = did_you_mean(ref, all_tasks(r))
-                        r.err("unknown-task", f"flow '{f.name}': '{ref}' is not a task (node.task){hint}", rpath)
+                        if node is None:
+                            why = f"there is no node '{node_name}'"
+                        elif node.tasks:
+                            why = f"node '{node_name}' has the tasks {', '.join(node.tasks)}"
+                        else:
+                            why = f"node '{node_name}' has no tasks: declare '{task_name}' under its tasks:"
+                        r.err(
+                            "unknown-task",
+                            f"flow '{f.name}': '{ref}' is not a task (node.task){hint}; {why}",
+                            rpath,
+                        )
                         ok = False
                     kinds.add("task")
                 elif ref in r.model.messages:

@@ -65,6 +65,8 @@ def resolve_pdo(
     devices = [(h, r.model.nodes[h].device) for h in holders if h in r.model.nodes]
     for h, dev in devices:
         if dev is None:
+            if r.spec_nodes[h].device is not None:
+                continue  # it names a device that could not be loaded: reported where it is named
             role = "produces" if kind == "tpdo" else "receives"
             r.err(
                 "no-device",
