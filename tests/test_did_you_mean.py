@@ -108,6 +108,6 @@ def test_simulator_fault_targets_get_a_suggestion() -> None:
     from tests.conftest import cli
 
     proc = cli("simulate", "specs/allex2.yaml", "--duration", "100ms", "--fault", "lose:can0_SYNK@10ms")
-    assert proc.returncode != 0 and "did you mean 'can0_SYNC'?" in proc.stderr, proc.stderr
+    assert proc.returncode == 2 and "did you mean 'can0_SYNC'?" in proc.stderr, proc.stderr  # 2: usage
     proc = cli("simulate", "specs/allex2.yaml", "--duration", "100ms", "--fault", "crash:knee_1@10ms")
-    assert proc.returncode != 0 and "did you mean 'knee_" in proc.stderr, proc.stderr
+    assert proc.returncode == 2 and "did you mean 'knee_" in proc.stderr, proc.stderr

@@ -364,7 +364,7 @@ def test_exact_stuffing_gives_each_frame_its_own_length() -> None:
 @pytest.mark.parametrize(
     ("args", "code", "text"),
     [
-        (["--fault", "crash:nobody@1s"], 1, "no node named 'nobody'"),
+        (["--fault", "crash:nobody@1s"], 2, "no node named 'nobody'"),  # a usage error, as an unreadable fault
         (["--fault", "melt@1s"], 2, "cannot read fault"),
         (["--duration", "ten seconds"], 2, "cannot read 'ten seconds' as a duration"),
         (["--log", "trace.txt"], 2, "trace formats are .log, .asc"),

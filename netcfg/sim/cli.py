@@ -188,7 +188,10 @@ def simulate_command(args: argparse.Namespace) -> int:
         return 2
     try:
         sc, res = run_once(cfg, opts)
-    except (FaultError, ValueError) as exc:
+    except FaultError as exc:  # a --fault naming what the system does not have: a usage error
+        print(f"netcfg: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
     if args.runs > 1:
