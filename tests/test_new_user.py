@@ -71,6 +71,13 @@ CASES: dict[str, tuple[dict[str, Any], Callable[[dict[str, Any]], None], str, st
     "time unit sec": (CAN, _set(("messages", 0, "period"), "1 sec"), "value-error", "did you mean 's'?"),
     "bit-rate unit kbits": (CAN, _set(("buses", 0, "bitrate"), "500 kbits"), "value-error", "did you mean 'kbit/s'?"),
     "bit-rate unit kbaud": (CAN, _set(("buses", 0, "bitrate"), "500 kbaud"), "value-error", "did you mean 'kbit/s'?"),
+    "a consumer not in a list": (
+        CAN, _set(("messages", 0, "consumers"), "motor"), "list-type", "write it as a list, e.g. [motor]"
+    ),
+    # 1 / 100 Hz = 10 ms
+    "a period in Hz": (CAN, _set(("messages", 0, "period"), "100 Hz"), "value-error", "frequency, not a time: "
+                       "write '10 ms', or 'rate: 100 Hz'"),
+    "9 bytes on classical CAN": (CAN, _set(("messages", 0, "size"), 9), "payload", "'protocol: can-fd'"),
     "flow step on a node without tasks": (
         CAN, _set(("flows", 0, "chain"), ["brain.plan", "cmd", "motor.ctrl"]), "unknown-task",
         "node 'brain' has no tasks: declare 'plan' under its tasks:",

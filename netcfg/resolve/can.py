@@ -27,7 +27,8 @@ class CanProtocol(BusProtocol):
         if size > CAN_MAX_PAYLOAD:
             self.r.err(
                 "payload",
-                f"{size} bytes do not fit a classical CAN frame (at most 8); split the message",
+                f"{size} bytes do not fit a classical CAN frame (at most 8); split the message"
+                + (", or make the bus 'protocol: can-fd' (up to 64 bytes)" if type(self) is CanProtocol else ""),
                 (*path, "size") if m.size is not None else path,
             )
 

@@ -173,6 +173,8 @@ def report_validation_errors(
             if kind == "literal_error" and isinstance(err.get("input"), str):
                 allowed = re.findall(r"'([^']*)'", str(err.get("ctx", {}).get("expected", "")))
                 text += did_you_mean(err["input"], allowed)
+            if kind == "list_type" and isinstance(err.get("input"), (str, int, float)):
+                text += f"; write it as a list, e.g. [{err['input']}]"  # `consumers: b` for `consumers: [b]`
             message = f"{_fmt_path(loc, data)}: {text}"
             pos = smap.at(loc)
         if loc in seen:  # a union reports one error per branch; keep the first

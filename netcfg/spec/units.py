@@ -141,6 +141,12 @@ def parse_duration(value: Any) -> Duration:
             raise ValueError(f"{value!r}: a count of elementary cycles must be a whole number, 0..{MAX_EC_COUNT:,}")
         return Duration(ec=int(number))
     scale = TIME_UNITS_NS.get(unit) or TIME_UNITS_NS.get(key)
+    if scale is None and key in FREQ_UNITS and number > 0:
+        period = Fraction(10**9) / (Fraction(number) * FREQ_UNITS[key])
+        meant = f"'{format_ns(int(period))}'" if period.denominator == 1 else "its period"
+        raise ValueError(
+            f"{value!r} is a frequency, not a time: write {meant}, or 'rate: {value}' where a rate is taken"
+        )
     if scale is None:
         hint = _unit_hint(unit, ["ns", "us", "ms", "s", "EC"])
         raise ValueError(f"unknown time unit '{unit}' in {value!r}{hint}; use ns, us, ms, s or EC")
