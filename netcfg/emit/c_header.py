@@ -347,6 +347,7 @@ class NodeView:
     messages: tuple[MessageView, ...]
     peers: tuple[PeerView, ...]  # other nodes this one exchanges UDP datagrams with
     big_endian: bool = False  # some payload has a big-endian (Motorola) signal: the header says how they sit
+    scaled: bool = False  # some payload has a scaled signal: the header says how its raw field reads
 
 
 def _description(obj: model.Described) -> str | None:
@@ -454,6 +455,7 @@ def node_view(m: model.Model, node: model.Node) -> NodeView | None:
         messages=tuple(messages),
         peers=tuple(sorted(peers.values(), key=lambda p: p.name)),
         big_endian=any(sig.big_endian for msg in messages for sig in msg.signals),
+        scaled=any(sig.kind == "scaled" for msg in messages for sig in msg.signals),
     )
 
 
