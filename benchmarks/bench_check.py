@@ -95,7 +95,8 @@ def write_dbc(model: Model, folder: Path) -> Path:
 def ratio(peer: list[float] | None, ours: list[float] | None) -> str:
     if not peer or not ours:
         return "-"
-    return f"{statistics.median(peer) / statistics.median(ours):,.0f}x"
+    r = statistics.median(peer) / statistics.median(ours)
+    return f"{r:,.1f}x" if r < 10 else f"{r:,.0f}x"
 
 
 def can_frames(model: Model) -> tuple[list[can_rta.CanFrame], int]:
