@@ -1,17 +1,21 @@
 """How long `netcfg check` takes, and how netcfg's CAN analysis compares with pyCPA's.
 
 Prints figures only (no assertions; the machine may be shared):
-  1. whole-process wall time of `python -m netcfg check --format json SPEC` (median, min, max of --runs runs)
-     on specs/large_plant.yaml and on random plain-CAN sets (benchmarks/random_can.py) of 100, 1,000 and
-     5,000 messages;
+  1. whole-process wall time and peak resident memory of `python -m netcfg check --format json SPEC` (median,
+     min, max of --runs runs; memory: the largest of the runs) on specs/large_plant.yaml and on random
+     plain-CAN sets (benchmarks/random_can.py) of 100, 1,000 and 5,000 messages; for the random sets also of
+     `netcfg check F.dbc --bitrate 500k` on the same set written as a DBC by netcfg's DBC emitter (cycle times
+     in whole ms, as DBC files carry them);
   2. in-process times: reading + resolving the spec, netcfg's whole analysis stage (netcfg.analyze), and its
      CAN response-time analysis alone (netcfg.timing.can_rta.analyse, Davis et al. 2007) on the spec's plain
      CAN bus (for large_plant: the 235-message bus `plant`);
   3. the peer, pyCPA (github.com/IDA-TUBS/pycpa, not on PyPI; it has no CAN-specific module, so its
      static-priority non-preemptive SPNPScheduler, the CAN bus of its examples, with cycle_time = one bit time
-     as Davis' tau) on the same frames in a fresh process (benchmarks/pycpa_can.py), the time ratio, and the
-     worst-case response times of a few messages from both tools. Set NETCFG_PEER_PYCPA to a pyCPA checkout
-     (the folder holding the `pycpa` package); its runs are capped at 1,000 messages and 120 s.
+     as Davis' tau) on the same frames in a fresh process (benchmarks/pycpa_can.py), and the ratios of its
+     analysis time to netcfg's analysis alone and to netcfg's whole `check` process (spec and DBC), all medians
+     of the same run; then the worst-case response times of a few messages from both tools. Set
+     NETCFG_PEER_PYCPA to a pyCPA checkout (the folder holding the `pycpa` package); its runs are capped at
+     1,000 messages and 120 s. Without it, netcfg's figures are printed alone.
 
     NETCFG_PEER_PYCPA=/path/to/pycpa python benchmarks/bench_check.py [--runs 5] [--sizes 100 1000 5000]
 """
@@ -63,14 +67,36 @@ def fmt(times: list[float] | None) -> str:
     return f"{med:.3f} [{min(times):.3f}-{max(times):.3f}]" if len(times) > 1 else f"{med:.3f}"
 
 
-def wall(spec: Path, runs: int) -> tuple[list[float], int]:
-    cmd = [sys.executable, "-m", "netcfg", "check", "--format", "json", str(spec)]
-    codes = []
+def wall(spec: Path, runs: int, *extra: str) -> tuple[list[float], int, float]:
+    """Whole-process `netcfg check`: (wall times, worst exit code, peak resident memory in MB over the runs)."""
+    cmd = [sys.executable, "-m", "netcfg", "check", "--format", "json", str(spec), *extra]
+    codes, peaks = [], []
 
     def once() -> None:
-        codes.append(subprocess.run(cmd, stdout=subprocess.DEVNULL, cwd=ROOT, check=False).returncode)
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, cwd=ROOT)
+        _, status, usage = os.wait4(proc.pid, 0)  # this child's own rusage: ru_maxrss in KiB on Linux
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        codes.append(proc.returncode)
+        peaks.append(usage.ru_maxrss / 1024)
 
-    return timed(once, runs)[0], max(codes)
+    return timed(once, runs)[0], max(codes), max(peaks)
+
+
+def write_dbc(model: Model, folder: Path) -> Path:
+    """The model's first plain-CAN bus as a DBC file, written by netcfg's own DBC emitter."""
+    from netcfg.emit import dbc
+
+    data = next(iter(dbc.emit(model, {}).values()))
+    path = folder / f"{model.system}.dbc"
+    path.write_bytes(data)
+    return path
+
+
+def ratio(peer: list[float] | None, ours: list[float] | None) -> str:
+    if not peer or not ours:
+        return "-"
+    r = statistics.median(peer) / statistics.median(ours)
+    return f"{r:,.1f}x" if r < 10 else f"{r:,.0f}x"
 
 
 def can_frames(model: Model) -> tuple[list[can_rta.CanFrame], int]:
@@ -114,30 +140,36 @@ def main() -> None:
         specs = [("large_plant", ROOT / "specs" / "large_plant.yaml")]
         specs += [(f"random_can_{n}", write_random_can(n, Path(tmp))) for n in args.sizes]
         for label, spec in specs:
-            check_times, code = wall(spec, args.runs)
+            check_times, code, peak_mb = wall(spec, args.runs)
             load_times, model = timed(partial(load_model, spec, Collector()), args.runs)
             assert model is not None, f"{spec} does not resolve"
             n_msgs = sum(len(b.messages) for b in model.buses.values())
             an_times, _ = timed(partial(analyze, model, Collector()), args.runs)
             rta_times: list[float] | None = None
             peer_times: list[float] | None = None
-            ratio = "-"
+            dbc_times: list[float] | None = None
+            dbc_cell = "-"
+            note = "-"
+            if label.startswith("random_can"):
+                dbc_times, dbc_code, dbc_mb = wall(write_dbc(model, Path(tmp)), args.runs, "--bitrate", "500k")
+                dbc_cell = f"{fmt(dbc_times)} (exit {dbc_code}, {dbc_mb:.0f} MB)"
             if any(b.protocol == "can" for b in model.buses.values()):
                 frames, tau = can_frames(model)
                 rta_times, ours = timed(partial(can_rta.analyse, frames, tau), args.runs)
                 if peer and n_msgs <= PEER_MAX_MESSAGES:
                     try:
                         peer_times, theirs = pycpa_analyse(frames, tau, peer, args.runs)
-                        ratio = f"{statistics.median(peer_times) / statistics.median(rta_times):,.0f}x"
                         compare.append((label, frames, ours, theirs))
                     except (RuntimeError, subprocess.TimeoutExpired) as exc:  # e.g. pyCPA's TimeoutException
-                        ratio = f"pyCPA failed: {str(exc)[:60]}"
+                        note = f"pyCPA failed: {str(exc)[:60]}"
                 elif peer:
-                    ratio = f"skipped (> {PEER_MAX_MESSAGES} messages)"
-            rows.append((label, n_msgs, f"{fmt(check_times)} (exit {code})", fmt(load_times), fmt(an_times),
-                         fmt(rta_times), fmt(peer_times), ratio))  # fmt: skip
-    headers = ("spec", "msgs", "netcfg check, process", "load+resolve", "analyze()", "CAN RTA", "pyCPA SPNP",
-               "pyCPA/RTA")  # fmt: skip
+                    note = f"skipped (> {PEER_MAX_MESSAGES} messages)"
+            rows.append((label, n_msgs, f"{fmt(check_times)} (exit {code}, {peak_mb:.0f} MB)", dbc_cell,
+                         fmt(load_times), fmt(an_times), fmt(rta_times), fmt(peer_times) if peer_times else note,
+                         ratio(peer_times, rta_times), ratio(peer_times, check_times),
+                         ratio(peer_times, dbc_times)))  # fmt: skip
+    headers = ("spec", "msgs", "netcfg check, process (peak RSS)", "check F.dbc, process (peak RSS)", "load+resolve",
+               "analyze()", "CAN RTA", "pyCPA SPNP", "pyCPA/RTA", "pyCPA/check", "pyCPA/check dbc")  # fmt: skip
     widths = [max(len(str(r[i])) for r in [headers, *rows]) for i in range(len(headers))]
     for r in [headers, tuple("-" * w for w in widths), *rows]:
         print("  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))))

@@ -7,6 +7,7 @@ Exit codes: 0 ok, 1 spec errors or not schedulable (simulate: a miss, a loss or 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import sys
@@ -89,6 +90,24 @@ def main(argv: list[str] | None = None) -> int:
     p_tune.add_argument("--format", choices=("text", "json"), default="text")
     p_tune.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k")
     args = parser.parse_args(argv)
+    if args.command not in BATCH_COMMANDS:
+        return _dispatch(args)
+    # A batch command builds one large object graph (YAML nodes, spec, model, report) that lives until it ends; with
+    # the default gen-0 threshold of 700 the collector walks it hundreds of times for garbage it rarely holds.
+    # 5,000-message check: a quarter less CPU, the same peak memory.
+    saved = gc.get_threshold()
+    gc.set_threshold(BATCH_GC_THRESHOLD, *saved[1:])
+    try:
+        return _dispatch(args)
+    finally:
+        gc.set_threshold(*saved)
+
+
+BATCH_COMMANDS = frozenset({"check", "build", "import"})
+BATCH_GC_THRESHOLD = 100_000  # allocations between gen-0 collections
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     try:
         if args.command == "check" and args.explain:
             from netcfg.explain import command as explain_command

@@ -84,6 +84,11 @@ def hex_id(value: int, width: int = 3) -> str:
     return f"0x{value:0{width}X}"
 
 
+def c_uint(value: int) -> str:
+    """An unsigned C integer constant of at least the value's width."""
+    return f"{'UINT32_C' if value < 4294967296 else 'UINT64_C'}({value})"
+
+
 @cache
 def environment() -> jinja2.Environment:
     folder = resources.files("netcfg.templates")
@@ -95,7 +100,9 @@ def environment() -> jinja2.Environment:
         lstrip_blocks=True,
         autoescape=False,
     )
-    env.filters.update(c_comment=c_comment, c_string=c_string, hex_id=hex_id, upper_ident=lambda s: str(s).upper())
+    env.filters.update(
+        c_comment=c_comment, c_string=c_string, c_uint=c_uint, hex_id=hex_id, upper_ident=lambda s: str(s).upper()
+    )
     return env
 
 

@@ -28,7 +28,7 @@ from fractions import Fraction
 from typing import Any
 
 from netcfg import model
-from netcfg.emit import render
+from netcfg.emit import environment, render
 from netcfg.runtime import codec, raw_signal_name
 from netcfg.timing.frames import canfd_dlc
 
@@ -414,7 +414,13 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
     )
 
 
-def node_view(m: model.Model, node: model.Node) -> NodeView | None:
+# a message's view and C block differ between nodes only in the direction: (bus, message, sends, receives)
+ViewKey = tuple[str, str, bool, bool]
+
+
+def node_view(m: model.Model, node: model.Node, views: dict[ViewKey, MessageView] | None = None) -> NodeView | None:
+    """The node's view; `views` caches the message views that other nodes share (a heartbeat every node hears)."""
+    views = {} if views is None else views
     buses = [m.buses[b] for b in node.buses]
     messages: list[MessageView] = []
     triggers: list[TriggerView] = []
@@ -424,7 +430,11 @@ def node_view(m: model.Model, node: model.Node) -> NodeView | None:
         for msg in bus.messages:
             if msg.producer != node.name and node.name not in msg.consumers:
                 continue
-            messages.append(message_view(msg, node.name, bus, ftt_views))
+            key = (bus.name, msg.name, msg.producer == node.name, node.name in msg.consumers)
+            view = views.get(key)
+            if view is None:
+                view = views[key] = message_view(msg, node.name, bus, ftt_views)
+            messages.append(view)
             if bus.protocol == "ethernet-udp":
                 for other in (msg.producer, *msg.consumers):
                     ip = m.nodes[other].ip
@@ -460,9 +470,21 @@ def node_view(m: model.Model, node: model.Node) -> NodeView | None:
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
+    """Each message's C block is rendered once per direction and pasted into every header that has it: on a
+    CANopen bus every node hears every heartbeat, so per-node rendering grows with the square of the nodes."""
     files = {}
+    views: dict[ViewKey, MessageView] = {}
+    blocks: dict[ViewKey, str] = {}
+    block_template = environment().get_template("node_message.h.j2")
     for node in m.nodes.values():
-        view = node_view(m, node)
-        if view is not None:
-            files[f"c/{node.name}.h"] = render("node.h.j2", node=view)
+        view = node_view(m, node, views)
+        if view is None:
+            continue
+        texts = []
+        for msg in view.messages:
+            key = (msg.bus, msg.name, msg.sends, msg.receives)
+            if key not in blocks:
+                blocks[key] = block_template.render(system=m.system, m=msg)
+            texts.append(blocks[key])
+        files[f"c/{node.name}.h"] = render("node.h.j2", node=view, message_blocks=texts)
     return files

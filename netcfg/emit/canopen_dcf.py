@@ -7,10 +7,13 @@ canopen/<node>.dcf describing a CANopen master whose RPDOs mirror the slave TPDO
 the slave RPDOs it produces. A node on several CANopen buses gets one folder per bus: canopen/<bus>/<node>.*.
 
 The files are rendered from one jinja2 template (templates/canopen_dcf.j2; `dcf` switches the DCF-only parts on)
-rather than with canopen.objectdictionary.export_eds: that exporter stamps the current date and time into [FileInfo]
-(ModificationDate/Time always, CreationDate/Time for a dictionary built in memory), so two builds differ; it writes
-Granularity as a boolean (1, not 8), has no NodeName, NetworkName or CANopenManager in [DeviceComissioning], and writes
-names unchecked. The canopen package stays the consumer that checks us: the tests load every file with import_od.
+up to the object sections, which are plain `keyword=value` lines written here (section_text): a device's objects that
+no node configures are written once per profile and the text is shared by every node with it (126 drives with one
+vendor EDS write each such section once). The files are made rather than with canopen.objectdictionary.export_eds: that
+exporter stamps the current date and time into [FileInfo] (ModificationDate/Time always, CreationDate/Time for a
+dictionary built in memory), so two builds differ; it writes Granularity as a boolean (1, not 8), has no NodeName,
+NetworkName or CANopenManager in [DeviceComissioning], and writes names unchecked. The canopen package stays the
+consumer that checks us: the tests load every file with import_od.
 
 Choices a reader may wonder about:
 - Values not known from the profile (e.g. the measured values of a drive, strings an EDS import drops) get no
@@ -47,6 +50,7 @@ MANDATORY = (0x1000, 0x1001, 0x1018)  # CiA 306 4.6.2: the mandatory objects of 
 MANUFACTURER = range(0x2000, 0x6000)  # CiA 301 table 43: manufacturer-specific profile area
 STANDARD_RATES = (10, 20, 50, 125, 250, 500, 800, 1000)  # kbit/s with a BaudRate_ keyword (CiA 306 4.6.1)
 PdoKind = Literal["rpdo", "tpdo"]
+_RPDO_COMM, _TPDO_COMM = cia301.pdo_comm_indices("rpdo"), cia301.pdo_comm_indices("tpdo")
 KINDS: tuple[PdoKind, PdoKind] = ("rpdo", "tpdo")
 
 # CiA 301 v4.2 7.5.2: names of the communication-area objects netcfg may have to name or create itself
@@ -112,7 +116,7 @@ class FileView:
     dummies: tuple[tuple[int, int], ...]
     comments: tuple[str, ...]
     groups: tuple[tuple[str, tuple[str, ...]], ...]  # the three object lists of CiA 306 4.6.2: name, indices
-    sections: tuple[Section, ...]  # every object's sections, by index
+    sections: tuple[Section | str, ...]  # every object's sections, by index; a str: shared sections as text
     commissioning: Commissioning
 
 
@@ -144,7 +148,7 @@ class _Obj:
 
 
 Dictionary = dict[int, _Obj]
-Known = dict[int, tuple[_Obj, list[Section]]]  # objects whose sections are made already
+Known = dict[int, tuple[_Obj, str]]  # objects whose sections are written already (the same in EDS and DCF)
 Cache = dict[tuple[int, int | None, int | None, int | None], "_Base"]
 
 
@@ -200,7 +204,30 @@ def file_names(model: Model) -> dict[tuple[str, str], dict[str, str]]:
 
 
 def _render(view: FileView, file_name: str, dcf: bool) -> bytes:
-    return render(TEMPLATE, f=view, file_name=file_name, dcf=dcf)
+    text = "".join(s if isinstance(s, str) else section_text(s, dcf) for s in view.sections)
+    return render(TEMPLATE, f=view, file_name=file_name, dcf=dcf, sections=text)
+
+
+def section_text(s: Section, dcf: bool) -> str:
+    """One object section (CiA 306 4.6.3): the keywords in the order of the standard's examples, then a blank line."""
+    lines = [f"[{s.section}]", f"ParameterName={s.name}", f"ObjectType={s.object_type}"]
+    if s.sub_number is not None:
+        lines.append(f"SubNumber={s.sub_number}")
+    else:
+        lines += [f"DataType={s.data_type}", f"AccessType={s.access}"]
+        if s.default is not None:
+            lines.append(f"DefaultValue={s.default}")
+        lines.append(f"PDOMapping={s.pdo}")
+        if dcf and s.value is not None:
+            lines.append(f"ParameterValue={s.value}")
+    return "\n".join(lines) + "\n\n"
+
+
+def _shared_text(index: int, obj: _Obj) -> str:
+    """The sections of an object no node configures: nothing in them is a ParameterValue, so EDS and DCF agree."""
+    sections = _sections(index, obj)
+    assert all(s.value is None for s in sections), f"0x{index:04X} has a configured value"
+    return "".join(section_text(s, dcf=True) for s in sections)
 
 
 # -- slaves with a device profile ----------------------------------------------------------------------------------
@@ -223,7 +250,7 @@ def _base(dev: DeviceProfile, cache: Cache) -> _Base:
             var.default, var.relative = offset, True
     _mandatory(od, dev)
     # the objects _device_view may change for one node are copied and rendered per node; the others are shared
-    known = {index: (obj, _sections(index, obj)) for index, obj in od.items() if not cia301.configured_from_bus(index)}
+    known = {i: (obj, _shared_text(i, obj)) for i, obj in od.items() if not cia301.configured_from_bus(i)}
     base = cache[key] = _Base(dev.objects, od, frozenset(dummies), known)
     return base
 
@@ -509,12 +536,15 @@ def _file_view(
     assert node.node_id is not None
     kbit = bus.bitrate // 1000
     lists: dict[str, list[str]] = {"MandatoryObjects": [], "OptionalObjects": [], "ManufacturerObjects": []}
-    sections: list[Section] = []
+    sections: list[Section | str] = []
     for index in sorted(od):
         group = "MandatoryObjects" if index in MANDATORY else "OptionalObjects"
         lists["ManufacturerObjects" if index in MANUFACTURER else group].append(f"0x{index:04X}")
         cached = known.get(index)
-        sections.extend(cached[1] if cached is not None and cached[0] is od[index] else _sections(index, od[index]))
+        if cached is not None and cached[0] is od[index]:
+            sections.append(cached[1])
+        else:
+            sections.extend(_sections(index, od[index]))
     groups = tuple((name, tuple(indices)) for name, indices in lists.items())
     return FileView(
         description=ini_text(description),
@@ -527,8 +557,8 @@ def _file_view(
         baudrates=tuple((rate, int(rate == kbit)) for rate in STANDARD_RATES),
         boot_master=int(master),
         boot_slave=int(not master),
-        nr_rx=sum(1 for i in od if i in cia301.pdo_comm_indices("rpdo")),
-        nr_tx=sum(1 for i in od if i in cia301.pdo_comm_indices("tpdo")),
+        nr_rx=sum(1 for i in od if i in _RPDO_COMM),
+        nr_tx=sum(1 for i in od if i in _TPDO_COMM),
         lss=0,
         dummies=tuple((k, int(k in dummies)) for k in cia301.DUMMY_INDICES),
         comments=tuple(ini_text(line, 255) for line in comments),
@@ -595,7 +625,7 @@ def _hex(index: int, sub: int) -> bool:
         return True
     if 0x1200 <= index < 0x1300:  # SDO parameters: two COB-IDs
         return sub in (1, 2)
-    if index in cia301.pdo_comm_indices("rpdo") or index in cia301.pdo_comm_indices("tpdo"):
+    if index in _RPDO_COMM or index in _TPDO_COMM:
         return sub == 1
     return index in cia301.PDO_PARAMETERS and sub > 0  # the mapping parameters: the rest of 0x1400-0x1BFF
 

@@ -64,6 +64,9 @@ def write_spec(data: Mapping[str, Any], comments: Mapping[Path, str] | None = No
     """YAML text of a spec; comments[path] is written on the line(s) before the item at path."""
     comments = comments or {}
     lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    # the paths with a comment somewhere below them: written as blocks, never inline (a set, as 126 nodes carry
+    # thousands of comments)
+    commented_inside = {p[:i] for p in comments for i in range(len(p))}
 
     def note(path: Path, indent: str) -> None:
         for line in comments.get(path, "").splitlines():
@@ -79,7 +82,7 @@ def write_spec(data: Mapping[str, Any], comments: Mapping[Path, str] | None = No
                     lines.append(f"{indent}{k}: {scalar(v, k)}")
                 elif not v:
                     lines.append(f"{indent}{k}: {'{}' if isinstance(v, dict) else '[]'}")
-                elif inline is not None and not any(p[: len(child)] == child and len(p) > len(child) for p in comments):
+                elif inline is not None and child not in commented_inside:
                     lines.append(f"{indent}{k}: {inline}")
                 else:
                     lines.append(f"{indent}{k}:")
@@ -92,7 +95,7 @@ def write_spec(data: Mapping[str, Any], comments: Mapping[Path, str] | None = No
                 inline = _inline(v, key)
                 if not isinstance(v, (dict, list)):
                     lines.append(f"{indent}- {scalar(v, key)}")
-                elif inline is not None and not any(p[: len(child)] == child and len(p) > len(child) for p in comments):
+                elif inline is not None and child not in commented_inside:
                     lines.append(f"{indent}- {inline}")
                 elif isinstance(v, dict):
                     sub: list[str] = []

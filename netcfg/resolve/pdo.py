@@ -154,7 +154,9 @@ def resolve_pdo(
                 continue
             found = dev.lookup(index, sub)
             where = f"device {dev.name} of '{h}' ({dev.source})"
-            has_subs = sub == 0 and any(i == index and k > 0 for i, k in dev.objects)
+            # the hint scans the whole dictionary: only for an object that is refused
+            refused = found is None or not found.pdo_mappable
+            has_subs = refused and sub == 0 and any(i == index and k > 0 for i, k in dev.objects)
             hint = f" (it has sub-indices: give '0x{index:04X}:1')" if has_subs else ""
             if found is None:
                 r.err("unknown-object", f"object 0x{index:04X}:{sub} does not exist in {where}{hint}", epath)

@@ -86,21 +86,21 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
     """Parse YAML text (one document). Syntax errors, duplicate keys, tags outside the accepted set, values that do
     not convert, too much nesting or size go to diags; returns (data, source map).
 
-    The limits are checked before the document is composed: size first (MAX_TEXT_CHARS), then nesting depth on the
-    token stream (MAX_DEPTH; the scanner is not recursive), so a hostile document costs one linear pass."""
+    The size is checked before the document is composed (MAX_TEXT_CHARS); libyaml composes up to 1,000 levels without
+    recursing in Python, and the walk over the composed nodes stops at MAX_DEPTH and after MAX_ITEMS values, so a
+    hostile document costs one linear pass."""
     smap = SourceMap(file)
     if len(text) > MAX_TEXT_CHARS:
         diags.add("too-large", f"the file is {len(text):,} characters; netcfg reads at most {MAX_TEXT_CHARS:,}",
                   Position(file, 1, 1))
         return None, smap
-    deep = _too_deep(text, file, MAX_DEPTH)
-    if deep is not None:
-        diags.add("yaml-syntax", f"the YAML is nested more than {MAX_DEPTH} levels deep; flatten it", deep)
-        return None, smap
     try:
         root = yaml.compose(text, Loader=_LOADER)
     except yaml.MarkedYAMLError as exc:
-        diags.add("yaml-syntax", _syntax_message(exc, text), _syntax_position(exc, file))
+        if exc.problem and "nesting depth" in exc.problem and exc.problem_mark is not None:  # libyaml's 1,000 levels
+            diags.add("yaml-syntax", _TOO_DEEP, Position(file, exc.problem_mark.line + 1, exc.problem_mark.column + 1))
+        else:
+            diags.add("yaml-syntax", _syntax_message(exc, text), _syntax_position(exc, file))
         return None, smap
     except yaml.YAMLError as exc:  # e.g. reader errors on binary input
         diags.add("yaml-syntax", f"cannot read YAML: {exc}", Position(file, 1, 1))
@@ -124,37 +124,22 @@ def load_yaml(text: str, file: str, diags: Collector) -> tuple[Any, SourceMap]:
         diags.add("yaml-syntax", "the YAML is nested too deep for a spec; flatten it", Position(file, 1, 1))
     except _TooBig as exc:
         diags.add("too-large", f"the spec expands to more than {MAX_ITEMS} items (through YAML aliases?)", exc.pos)
+    except _TooDeep as exc:
+        diags.add("yaml-syntax", _TOO_DEEP, exc.pos)
     return None, smap
 
 
-def _too_deep(text: str, file: str, limit: int) -> Position | None:
-    """Where nesting passes `limit` levels, None when it does not (a scanner error is left to the parser)."""
-    depth = 0
-    try:
-        for token in yaml.scan(text, Loader=_LOADER):
-            if isinstance(
-                token,
-                (
-                    yaml.FlowSequenceStartToken,
-                    yaml.FlowMappingStartToken,
-                    yaml.BlockSequenceStartToken,
-                    yaml.BlockMappingStartToken,
-                ),
-            ):
-                depth += 1
-                if depth > limit:
-                    return Position(file, token.start_mark.line + 1, token.start_mark.column + 1)
-            elif isinstance(token, (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)):
-                depth -= 1
-    except yaml.MarkedYAMLError as exc:  # libyaml's scanner stops at 1,000 flow levels before yielding a token
-        if exc.problem and "nesting depth" in exc.problem and exc.problem_mark is not None:
-            return Position(file, exc.problem_mark.line + 1, exc.problem_mark.column + 1)
-    except yaml.YAMLError:
-        pass  # a syntax error: the parser reports it with its context
-    return None
+_TOO_DEEP = f"the YAML is nested more than {MAX_DEPTH} levels deep; flatten it"
 
 
 class _TooBig(Exception):
+    def __init__(self, pos: Position) -> None:
+        self.pos = pos
+
+
+class _TooDeep(Exception):
+    """A mapping or list nested more than MAX_DEPTH levels (aliases count where they are used)."""
+
     def __init__(self, pos: Position) -> None:
         self.pos = pos
 
@@ -205,6 +190,8 @@ def _build(
         )
         return None
     if isinstance(node, yaml.MappingNode):
+        if len(path) >= MAX_DEPTH:  # the root mapping is level 1, at path ()
+            raise _TooDeep(_pos(file, node))
         own = sum(1 for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge")
         ctor.flatten_mapping(node)  # resolve YAML merge keys (<<): merged pairs first, then the mapping's own
         n_merged = len(node.value) - own
@@ -237,6 +224,8 @@ def _build(
             out[key] = _build(value_node, child, file, smap, ctor, diags, budget)
         return out
     if isinstance(node, yaml.SequenceNode):
+        if len(path) >= MAX_DEPTH:
+            raise _TooDeep(_pos(file, node))
         items = []
         for i, item in enumerate(node.value):
             child = (*path, i)

@@ -49,11 +49,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import lru_cache
-from typing import Literal
+from functools import cache, lru_cache
+from typing import TYPE_CHECKING, Literal
 
-import numpy as np
-from numpy.typing import NDArray
+if TYPE_CHECKING:  # numpy is imported by the batch functions only: check, import and build need none of it here
+    import numpy as np
+    from numpy.typing import NDArray
 
 Stuffing = Literal["worst", "nominal"]
 # can_frame_bits sees only a size, so "exact" (which needs the identifier and the data) has its own type and entry
@@ -183,9 +184,9 @@ def can_frame_bits_of(can_id: int, extended: bool, data: bytes, stuffing: FrameS
 
 # Stuffing as a finite-state machine for the vectorised path: state = 4 * last bit + (run length - 1), runs 1..4
 # (a fifth equal bit is followed by a stuff bit, which leaves a run of 1 of the other value).
-def _stuff_tables() -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-    nxt = np.zeros(16, dtype=np.uint8)
-    stuffed = np.zeros(16, dtype=np.uint8)
+def _stuff_tables() -> tuple[list[int], list[int]]:
+    nxt = [0] * 16
+    stuffed = [0] * 16
     for state in range(8):
         last, run = state >> 2, (state & 3) + 1
         for bit in (0, 1):
@@ -203,6 +204,14 @@ def _stuff_tables() -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
 _STUFF_NEXT, _STUFF_COUNT = _stuff_tables()
 
 
+@cache
+def _stuff_arrays() -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """The stuffing tables as arrays, for indexing with a whole column of states at once."""
+    import numpy as np
+
+    return np.array(_STUFF_NEXT, dtype=np.uint8), np.array(_STUFF_COUNT, dtype=np.uint8)
+
+
 def _stuff_state(bits: Sequence[int]) -> tuple[int, int]:
     """(state, stuff bits so far) after a prefix; the prefix starts with SOF, so there is always a last bit."""
     state, count = 0, 0
@@ -211,8 +220,8 @@ def _stuff_state(bits: Sequence[int]) -> tuple[int, int]:
             state = 4 * bit
             continue
         k = 2 * state + bit
-        count += int(_STUFF_COUNT[k])
-        state = int(_STUFF_NEXT[k])
+        count += _STUFF_COUNT[k]
+        state = _STUFF_NEXT[k]
     return state, count
 
 
@@ -224,6 +233,8 @@ def _crc_matrix(size: int) -> NDArray[np.float32]:
     crc(header + data) = crc(header + zeros) ^ crc(data): one matrix product gives every row's data term.
     float32 keeps the product on BLAS and is exact here (sums of at most 64 ones).
     """
+    import numpy as np
+
     nbits = 8 * size
     rows = np.zeros((nbits, 15), dtype=np.float32)
     for j in range(nbits):
@@ -239,6 +250,9 @@ def can_frame_bits_exact_batch(can_id: int, extended: bool, payloads: NDArray[np
     The header's bits and stuffing state are the same for every row and are computed once; data, CRC and the
     stuffing scan run column by column over all rows (bit arrays of shape (n, nbits)).
     """
+    import numpy as np
+
+    stuff_next, stuff_count = _stuff_arrays()
     payloads = np.asarray(payloads)
     if payloads.ndim != 2 or payloads.dtype != np.uint8:
         raise ValueError(f"payloads must be a 2-D uint8 array (n, size), got {payloads.dtype} {payloads.shape}")
@@ -258,8 +272,8 @@ def can_frame_bits_exact_batch(can_id: int, extended: bool, payloads: NDArray[np
     count = np.full(n, count0 + fixed, dtype=np.int64)
     for bits in tail:
         k = 2 * state + bits
-        count += _STUFF_COUNT[k]
-        state = _STUFF_NEXT[k]
+        count += stuff_count[k]
+        state = stuff_next[k]
     return count
 
 
@@ -397,6 +411,9 @@ def canfd_frame_bits_exact_batch(
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """canfd_frame_bits_exact for n payloads of one identifier: payloads (n, size) uint8 -> ((n,) bits at the
     nominal rate, (n,) bits at the data rate), the fields of FdFrameBits row by row."""
+    import numpy as np
+
+    stuff_next, stuff_count = _stuff_arrays()
     payloads = np.asarray(payloads)
     if payloads.ndim != 2 or payloads.dtype != np.uint8:
         raise ValueError(f"payloads must be a 2-D uint8 array (n, size), got {payloads.dtype} {payloads.shape}")
@@ -412,8 +429,8 @@ def canfd_frame_bits_exact_batch(
     count = np.full(n, count0, dtype=np.int64)
     for bits in np.ascontiguousarray(np.unpackbits(payloads, axis=1).T):
         k = 2 * state + bits
-        count += _STUFF_COUNT[k]
-        state = _STUFF_NEXT[k]
+        count += stuff_count[k]
+        state = stuff_next[k]
     fixed = _canfd_fixed_bits(length, extended)
     if not brs:
         return fixed.nominal + fixed.data + count, np.zeros(n, dtype=np.int64)
