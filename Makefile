@@ -30,6 +30,7 @@ lint: $(BIN)/.installed
 
 generated: $(BIN)/.installed
 	for spec in specs/*.yaml; do $(BIN)/netcfg build $$spec || exit 1; done
+	$(BIN)/python scripts/sim_fingerprints.py
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_check.py
