@@ -63,6 +63,18 @@ class SimOptions:
     eth_processing_ns: Mapping[str, tuple[int, int]] | None = None
 
 
+@dataclass(frozen=True)
+class _TaskPlan:
+    ref: str
+    node: str
+    bcet: int
+    wcet: int
+    tx_delay: int
+    sends: tuple[tuple[str, int], ...]  # (message, its minimum inter-arrival time if sporadic, else 0)
+    runs: list[tuple[int, int]]  # Scenario.task_runs of the task
+    trackers: tuple[FlowTracker, ...]
+
+
 class Scenario:
     def __init__(self, cfg: RuntimeConfig, opts: SimOptions) -> None:
         self.cfg = cfg
@@ -79,6 +91,9 @@ class Scenario:
         self.task_runs: dict[str, list[tuple[int, int]]] = {}
         self.sends: dict[str, list[str]] = {}  # task -> messages it sends as it finishes
         self._last_send: dict[str, int] = {}  # sporadic message -> when its task last sent it
+        self._plans: dict[int, _TaskPlan] = {}  # id(task) -> what its activations do (run_task)
+        self._on_trigger: dict[str, list[Task]] = {}  # trigger -> the tasks it activates that a flow follows
+        self._on_sync: dict[str, list[Task]] = {}  # bus -> the same for its SYNC
         # node clocks: a random phase within the node's shortest period (within a longer one, a node with an hourly
         # message would stay silent for most runs), a drift within +-drift_ppm
         self.clock: dict[str, NodeClock] = {}
@@ -151,28 +166,50 @@ class Scenario:
             return task.wcet_ns
         return int(self.rng.integers(task.bcet_ns, task.wcet_ns + 1))
 
+    def _plan(self, task: Task) -> _TaskPlan:
+        """What every activation of the task does, looked up once (the run's sends and flows are complete by its
+        first activation): tasks of fast loops run tens of thousands of times a simulated second."""
+        ref = task.ref
+        tx = self.cfg.node(task.node).tx_delay_ns
+        sends = []
+        for name in self.sends.get(ref, ()):
+            m = self.cfg.message(name)
+            sends.append((name, m.interval_ns if m.kind == "sporadic" and m.interval_ns else 0))
+        plan = _TaskPlan(
+            ref, task.node, task.bcet_ns, task.wcet_ns, tx, tuple(sends),
+            self.task_runs.setdefault(ref, []), tuple(self._flow_refs.get(ref, ())),
+        )
+        self._plans[id(task)] = plan
+        return plan
+
     def run_task(self, task: Task, start: int | None = None) -> None:
         """Activate a task now (or at `start`): it runs for a time between BCET and WCET."""
-        if start is not None and start > self.sim.now:
-            self.sim.at(start, lambda _: self.run_task(task))
+        sim = self.sim
+        t = sim.now
+        if start is not None and start > t:
+            sim.at(start, self._run_later, task)
             return
-        t = self.sim.now
-        if t >= self.crash_at.get(task.node, NEVER):
-            for name in self.sends.get(task.ref, ()):
+        plan = self._plans.get(id(task)) or self._plan(task)
+        if t >= self.crash_at.get(plan.node, NEVER):
+            for name, _ in plan.sends:
                 self.drop(name)  # what the task would have sent is lost with it
             return
-        end = t + self.exec_ns(task)
-        self.task_runs.setdefault(task.ref, []).append((t, end))
-        for tr in self._flow_refs.get(task.ref, ()):
-            tr.task_started(task.ref, t, end)
-        for name in self.sends.get(task.ref, ()):
-            send = end + self.cfg.node(task.node).tx_delay_ns
-            m = self.cfg.message(name)
-            if m.kind == "sporadic" and m.interval_ns:
-                if send < self._last_send.get(name, -NEVER) + m.interval_ns:
-                    continue  # too soon after the last one: this run raises no event
-                self._last_send[name] = send
-            self.sim.at(send, self._send_chained, name)
+        lo, hi = plan.bcet, plan.wcet
+        end = t + (hi if hi <= lo else int(self.rng.integers(lo, hi + 1)))  # exec_ns, inline
+        plan.runs.append((t, end))
+        for tr in plan.trackers:
+            tr.task_started(plan.ref, t, end)
+        if plan.sends:
+            send = end + plan.tx_delay
+            for name, sporadic in plan.sends:
+                if sporadic:
+                    if send < self._last_send.get(name, -NEVER) + sporadic:
+                        continue  # too soon after the last one: this run raises no event
+                    self._last_send[name] = send
+                sim.at(send, self._send_chained, name)
+
+    def _run_later(self, task: Task) -> None:
+        self.run_task(task)
 
     def task_ran(self, task: Task, start: int, end: int) -> None:
         """A task that code outside the simulator ran (the live CANopen master's computation), for its flows."""
@@ -183,10 +220,18 @@ class Scenario:
             tr.task_started(task.ref, start, end)
 
     def tasks_on_trigger(self, trigger: str) -> list[Task]:
-        return [self.cfg.task(ref) for ref in self.cfg.trigger(trigger).tasks if self._wanted(self.cfg.task(ref))]
+        known = self._on_trigger.get(trigger)
+        if known is None:  # asked at every trigger message: found once
+            tasks = (self.cfg.task(ref) for ref in self.cfg.trigger(trigger).tasks)
+            known = self._on_trigger[trigger] = [t for t in tasks if self._wanted(t)]
+        return known
 
     def tasks_on_sync(self, bus: str) -> list[Task]:
-        return [t for n in self.cfg.nodes for t in n.tasks if t.sync_bus == bus and self._wanted(t)]
+        known = self._on_sync.get(bus)
+        if known is None:  # asked at every SYNC: found once
+            known = [t for n in self.cfg.nodes for t in n.tasks if t.sync_bus == bus and self._wanted(t)]
+            self._on_sync[bus] = known
+        return known
 
     def tasks_on_message(self, message: str) -> list[Task]:
         return self._message_tasks.get(message, [])
