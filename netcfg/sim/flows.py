@@ -92,36 +92,55 @@ class FlowTracker:
             else None
         )
 
+        # per ref, each step it appears in: (step, the items of the step before it reads or None at the first step,
+        # its own item, whether the step is the last, whether it is the delivery step), looked up once
+        self._steps_of: dict[str, tuple[tuple[int, tuple[_Item, ...] | None, _Item, bool, bool], ...]] = {
+            ref: tuple(
+                (
+                    i,
+                    None if i == 0 else tuple(self.items[(i - 1, r)] for r in self.local[(i, ref)]),
+                    self.items[(i, ref)],
+                    i == last,
+                    i == self.delivery_step,
+                )
+                for i in steps
+            )
+            for ref, steps in self.where.items()
+        }
+
     def refs(self) -> Iterable[str]:
         return self.where.keys()
 
-    def _stamp(self, i: int, ref: str, t: int, origin: int) -> int | None:
-        if i == 0:
-            return origin
-        stamps = [self.items[(i - 1, r)].at(t) for r in self.local[(i, ref)]]
-        if any(s is None for s in stamps):
-            return None
-        return min(s for s in stamps if s is not None)
-
     def task_started(self, ref: str, start: int, end: int) -> None:
-        last = len(self.steps) - 1
-        for i in self.where.get(ref, ()):
-            stamp = self._stamp(i, ref, start, start)
+        for _, reads, item, last, _ in self._steps_of.get(ref, ()):
+            stamp = start if reads is None else _oldest(reads, start)
             if stamp is None:
                 continue
-            if i == last:
+            if last:
                 self.latency.reach(ref, stamp, start)
             else:
-                self.items[(i, ref)].add(end, stamp)
+                item.add(end, stamp)
 
     def message_delivered(self, name: str, release: int, end: int) -> None:
-        last = len(self.steps) - 1
-        for i in self.where.get(name, ()):
-            stamp = self._stamp(i, name, release, release)
+        for _, reads, item, last, delivery in self._steps_of.get(name, ()):
+            stamp = release if reads is None else _oldest(reads, release)
             if stamp is None:
                 continue
-            self.items[(i, name)].add(end, stamp)
-            if i == last:
+            item.add(end, stamp)
+            if last:
                 self.latency.reach(name, stamp, end)
-            if i == self.delivery_step and self.delivery is not None:
+            if delivery and self.delivery is not None:
                 self.delivery.reach(name, stamp, end)
+
+
+def _oldest(reads: tuple[_Item, ...], t: int) -> int | None:
+    """The oldest of the freshest stamps these items had at t; None if one had none yet."""
+    oldest = None
+    for item in reads:
+        i = bisect_right(item.times, t)
+        if not i:
+            return None
+        stamp = item.stamps[i - 1]
+        if oldest is None or stamp < oldest:
+            oldest = stamp
+    return oldest
