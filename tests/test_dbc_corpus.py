@@ -32,7 +32,7 @@ from netcfg.emit import c_header, runtime_json
 from netcfg.importers import ImportOptions
 from netcfg.model import Model
 from netcfg.runtime import RuntimeConfig, parse
-from netcfg.runtime.codec import Field, Number, decode, encode, present
+from netcfg.runtime.codec import Field, Number, decode, decoder, encode, present
 
 CORPUS = Path(__file__).resolve().parent / "data" / "dbc"
 FILES = sorted(p.name for p in CORPUS.glob("*.dbc"))
@@ -318,6 +318,36 @@ def test_codec_places_any_signal_as_cantools(case: tuple[CanMessage, Field, int]
     data = encode([f], 8, {"s": raw})
     assert data == msg.encode({"s": raw}, scaling=False)
     assert decode([f], data) == {"s": raw}
+    assert decoder([f])(data) == {"s": raw}  # the compiled decoder masters use
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 7), st.integers(1, 4), st.booleans(), st.booleans(), st.sampled_from([1, 0.5, 3]),
+                  st.sampled_from([0, -10, 2.5]), st.booleans()),
+        min_size=1, max_size=4,
+    ),
+    st.binary(min_size=8, max_size=8),
+)
+def test_the_compiled_decoder_reads_what_decode_reads(
+    shapes: list[tuple[int, int, bool, bool, float, float, bool]], payload: bytes
+) -> None:
+    """codec.decoder() (a layout worked out once) returns decode()'s values, key for key and type for type, for
+    signed, scaled, offset, Motorola and IEEE float fields over any payload (decode() is cantools' above)."""
+    fields = []
+    for k, (byte, size, signed, big, scale, offset, is_float) in enumerate(shapes):
+        if is_float:
+            fields.append(Field(f"f{k}", 0, 32, is_float=True))
+        elif big:
+            fields.append(Field(f"f{k}", 8 * byte + 7, 8 * min(size, 8 - byte), signed, scale=scale, offset=offset,
+                                big_endian=True))
+        else:
+            fields.append(Field(f"f{k}", 8 * byte, 8 * min(size, 8 - byte), signed, scale=scale, offset=offset))
+    want = decode(fields, payload)
+    got = decoder(fields)(payload)
+    assert list(got) == list(want)
+    assert [repr(v) for v in got.values()] == [repr(v) for v in want.values()]  # a NaN float equals itself here
 
 
 @pytest.mark.parametrize("name", FILES)

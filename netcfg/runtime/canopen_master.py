@@ -189,6 +189,7 @@ class MasterCycle:
         self._by_id = {(m.id, m.extended): m for m in tpdos}
         self._last: dict[str, dict[str, Number]] = {m.name: _rest_values(m) for m in self.rpdos}
         self._rpdo_names = {m.name for m in self.rpdos}
+        self._payloads: dict[str, bytes] = {}  # RxPDO -> its payload for the values in _last (_payload)
         self.syncs = 0  # SYNCs sent; the drives count theirs from NMT start, so "every n-th" agrees
 
     def _due(self, sync_number: int) -> tuple[Message, ...]:
@@ -232,7 +233,7 @@ class MasterCycle:
             for msg in self.rpdos:
                 if msg.kind == "periodic" or msg.name in on_demand:
                     try:
-                        bus.send(msg.to_can(**self._last[msg.name]))
+                        bus.send(msg.frame(self._payload(msg)))
                     except can.CanError:
                         unsent[msg.name] += 1
             written = clock.now()
@@ -346,7 +347,17 @@ class MasterCycle:
                 msg = self.cfg.message(name)  # an unknown name raises, with close matches
                 raise ValueError(f"'{msg.name}' is not an RxPDO this master sends on bus '{self.bus_name}'")
             self._last[name].update(fields)
+            self._payloads.pop(name, None)
         return set(asked)
+
+    def _payload(self, msg: Message) -> bytes:
+        """The RxPDO's payload for its last commanded values, encoded once per change of them, not every cycle."""
+        data = self._payloads.get(msg.name)
+        if data is None:
+            if not msg.is_can:
+                raise TypeError(f"message '{msg.name}' travels on {msg.protocol} bus '{msg.bus}', not CAN")
+            data = self._payloads[msg.name] = msg.encode(**self._last[msg.name])
+        return data
 
 
 def master_task_offset_ns(cfg: RuntimeConfig, bus: Bus) -> int | None:

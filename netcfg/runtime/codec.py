@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -208,3 +208,41 @@ def decode(fields: Iterable[Field], payload: bytes) -> dict[str, Number]:
         return {f.name: f.from_raw(_take(f, word)) for f in fields}
     raw_values = {f.name: f.from_raw(_take(f, word)) for f in fields}
     return {f.name: raw_values[f.name] for f in present(fields, raw_values)}
+
+
+def decoder(fields: Iterable[Field]) -> Callable[[bytes], dict[str, Number]]:
+    """decode() for these fields, with each field's layout worked out once: a master decodes the same messages
+    thousands of times a second. Plain little-endian integer fields (every CANopen PDO's) take a shift, a mask and
+    the sign; the others go through Field.from_raw, and multiplexed sets through decode() itself."""
+    fields = tuple(fields)
+    if any(f.mux for f in fields):
+        return lambda payload: decode(fields, payload)
+    # per field: name, the field for the general path (or None), start bit, mask, 2^bits if signed, its sign bit,
+    # and scale and offset (None when the value is the raw integer)
+    plan = [
+        (
+            f.name,
+            f if f.is_float or f.big_endian else None,
+            f.start_bit,
+            (1 << f.bits) - 1,
+            (1 << f.bits) if f.signed else 0,
+            f.bits - 1,
+            None if f.is_integer else (f.scale, f.offset),
+        )
+        for f in fields
+    ]
+
+    def run(payload: bytes) -> dict[str, Number]:
+        word = int.from_bytes(payload, "little")
+        out: dict[str, Number] = {}
+        for name, general, start, mask, wrap, top, linear in plan:
+            if general is not None:
+                out[name] = general.from_raw(_take(general, word))
+                continue
+            raw = (word >> start) & mask
+            if wrap and raw >> top:
+                raw -= wrap
+            out[name] = raw if linear is None else raw * linear[0] + linear[1]
+        return out
+
+    return run

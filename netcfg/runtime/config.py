@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import difflib
 import hashlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -149,14 +150,21 @@ class Message:
         """Payload -> physical values by field name. A CAN FD frame's padding bytes (beyond size) are ignored."""
         if len(data) != self.size and not (self.fd and len(data) == self.frame_size):
             raise CodecError(f"message '{self.name}' has {self.size} bytes of payload, got {len(data)}")
-        return codec.decode(self.fields, bytes(data[: self.size]))
+        return self._decode(bytes(data[: self.size]))
+
+    @cached_property
+    def _decode(self) -> Callable[[bytes], dict[str, Number]]:
+        return codec.decoder(self.fields)
 
     def to_can(self, **values: Number | str | bytes) -> can.Message:
         if not self.is_can:
             raise TypeError(f"message '{self.name}' travels on {self.protocol} bus '{self.bus}'; use encode_udp()")
+        return self.frame(self.encode(**values))
+
+    def frame(self, data: bytes) -> can.Message:
+        """The CAN frame carrying this payload (from encode()), as to_can() sends it."""
         import can  # only CAN masters need python-can
 
-        data = self.encode(**values)
         if self.fd:  # padded to the frame length, so that every receiver sees the DLC the analysis timed
             data += bytes([FD_PADDING]) * (self.frame_size - self.size)
             return can.Message(
