@@ -32,7 +32,8 @@ class Simulator:
 
     def at(self, t: int, fn: Callable[..., Any], arg: Any = None, priority: int = EARLY) -> None:
         """Call fn(arg) at virtual time t (never before now)."""
-        heapq.heappush(self._queue, (max(t, self.now), priority, next(self._seq), fn, arg))
+        now = self.now
+        heapq.heappush(self._queue, (t if t > now else now, priority, next(self._seq), fn, arg))
 
     def run_until(self, t_end: int, stop: Callable[[], bool] | None = None) -> None:
         """Run every event before t_end (or until stop() turns true after an event); then now = t_end."""
