@@ -206,7 +206,8 @@ class CanBus:
 
     # -- the loop ---------------------------------------------------------------------------------------
     def _wake(self, t: int) -> None:
-        t = max(t, self._free_at)
+        if t < self._free_at:
+            t = self._free_at
         if self._step_at is None or t < self._step_at:
             self._step_at = t
             self.sim.at(t, self._step, t, LATE)

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE, sync_every
-from netcfg.runtime import Bus
+from netcfg.runtime import Bus, Task
 from netcfg.runtime.canopen_master import CycleRecord, MasterCycle, MasterRun
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.stats import spread
@@ -57,6 +57,8 @@ class CanopenMaster:
         self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # SDO mode: drive -> instants of samples
         self.missing: dict[str, int] = {d: 0 for d in self.drives}
         self._sync_count = 0
+        self._answers: list[tuple[str, int, str, int]] | None = None  # TPDO, every n-th SYNC, producer, its delay
+        self._sync_tasks: list[tuple[Task, int]] = []  # tasks a SYNC starts, and how long after its reception
         self.sdo_timeouts: dict[str, int] = {}  # drive -> SDO transfers that timed out and were repeated
         self._cpu_free = 0  # the master's one processor, shared by the SDO loops
         self.run: MasterRun | None = None
@@ -133,14 +135,22 @@ class CanopenMaster:
         sc = self.sc
         self._sync_count += 1
         n = self._sync_count
-        for m in self.tpdos:
-            if n % self.every[m.name] == 0 and sc.alive(m.producer):
-                sc.sim.at(end + self._drive_delay(m.producer), self._tpdo, m.name)
-        for task in sc.tasks_on_sync(self.bus.name):
-            if task.node == self.master:
-                continue  # the master's computation, which the live master runs (work_s)
-            node = sc.cfg.node(task.node)
-            sc.run_task(task, end + node.rx_delay_ns + task.offset_ns)
+        answers = self._answers
+        if answers is None:  # who answers a SYNC and how late, looked up at the first one
+            answers = self._answers = [
+                (m.name, self.every[m.name], m.producer, self._drive_delay(m.producer)) for m in self.tpdos
+            ]
+            self._sync_tasks = [
+                (task, sc.cfg.node(task.node).rx_delay_ns + task.offset_ns)
+                for task in sc.tasks_on_sync(self.bus.name)
+                if task.node != self.master  # the master's computation, which the live master runs (work_s)
+            ]
+        at, alive = sc.sim.at, sc.alive
+        for name, every, producer, delay in answers:
+            if n % every == 0 and alive(producer):
+                at(end + delay, self._tpdo, name)
+        for task, after in self._sync_tasks:
+            sc.run_task(task, end + after)
 
     def _tpdo(self, name: str) -> None:
         self.sc.submit(name)

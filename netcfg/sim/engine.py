@@ -35,7 +35,7 @@ class Simulator:
         now = self.now
         heapq.heappush(self._queue, (t if t > now else now, priority, next(self._seq), fn, arg))
 
-    def run_until(self, t_end: int, stop: Callable[[], bool] | None = None) -> None:
+    def run_until(self, t_end: int, stop: Callable[[], object] | None = None) -> None:
         """Run every event before t_end (or until stop() turns true after an event); then now = t_end."""
         queue = self._queue
         pop = heapq.heappop

@@ -37,7 +37,7 @@ class Program:
         self._turn = threading.Semaphore(0)  # the program may run
         self._back = threading.Semaphore(0)  # the simulation may run
         self._token = 0  # a wake-up for an earlier wait is stale
-        self._ready: Callable[[], bool] | None = None
+        self._ready: Callable[[], object] | None = None
         self.done = False
         self.error: BaseException | None = None
 
@@ -63,7 +63,7 @@ class Program:
         self._turn.release()
         self._back.acquire()
 
-    def wait(self, until_ns: int, ready: Callable[[], bool] | None = None) -> None:
+    def wait(self, until_ns: int, ready: Callable[[], object] | None = None) -> None:
         """In the program's thread: let the simulation run until `until_ns`, or until ready() turns true."""
         sim = self.sc.sim
         if until_ns <= sim.now or (ready is not None and ready()):
@@ -167,10 +167,11 @@ class SimCanBus(can.BusABC):
             sim = self.sc.sim
             # at least 1 ns: a timeout left over from float arithmetic must still let time move on
             until = (1 << 62) if timeout is None else sim.now + (max(1, math.ceil(timeout * 1e9)) if timeout > 0 else 0)
+            ready = self._rx.__len__  # checked after every event: a bound built-in, not a lambda
             if self.host is not None:
-                self.host.wait(until, ready=lambda: bool(self._rx))
+                self.host.wait(until, ready=ready)
             else:
-                sim.run_until(until, stop=lambda: bool(self._rx))
+                sim.run_until(until, stop=ready)
         return self._rx.popleft() if self._rx else None
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
