@@ -41,6 +41,7 @@ class FttMaster:
         self.ecs = 0
         self.lost_ecs = 0
         self._got_tm = -1  # the last EC whose TM arrived
+        self._rx_delay = {n.name: n.rx_delay_ns for n in sc.cfg.nodes}  # read at every trigger message
         can.listen(self.tm, self._on_tm)
         can.gate = self._gate
 
@@ -118,10 +119,10 @@ class FttMaster:
             k -= 1  # cannot happen with a schedulable table; keep the EC the TM was sent for
         self._got_tm = k
         slot = self.ftt.slot(k)
+        rx = self._rx_delay
         for trig in slot.triggers:
             for task in self.sc.tasks_on_trigger(trig):
-                node = self.sc.cfg.node(task.node)
-                self.sc.run_task(task, end + node.rx_delay_ns)
+                self.sc.run_task(task, end + rx[task.node])
         if slot.messages:
             window = self.ec_start(k) + self.ftt.window_start(k)
             self.sc.sim.at(max(window, end), self._sync_window, slot.messages)

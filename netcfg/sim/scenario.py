@@ -331,13 +331,13 @@ class Scenario:
         self, m: Message, trackers: list[FlowTracker], tasks: list[Task]
     ) -> Callable[[int, int, int, bytes | None], None]:
         name = m.name
+        started = [(task, self.cfg.node(task.node).rx_delay_ns) for task in tasks]  # and after how long
 
         def deliver(end: int, _src: int, release: int, _data: bytes | None) -> None:
             for tr in trackers:
                 tr.message_delivered(name, release, end)
-            for task in tasks:
-                node = self.cfg.node(task.node)
-                self.run_task(task, end + node.rx_delay_ns)
+            for task, rx_delay in started:
+                self.run_task(task, end + rx_delay)
 
         return deliver
 
