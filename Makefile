@@ -36,6 +36,7 @@ bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_check.py
 	$(BIN)/python benchmarks/bench_build.py
 	$(BIN)/python benchmarks/bench_sim.py
+	$(BIN)/python benchmarks/soundness.py --specs 2500
 
 clean:
 	rm -rf $(VENV) build *.egg-info
