@@ -183,6 +183,16 @@ class Switch:
     latency_ns: int
 
 
+@dataclass(frozen=True)
+class BitErrors:
+    """At most `burst` errors at once plus one per `interval_ns` (Tindell and Burns' sporadic model); `ber` is the
+    environment's bit error rate the report rates that model against."""
+
+    burst: int
+    interval_ns: int
+    ber: float
+
+
 @dataclass
 class Bus:
     name: str
@@ -198,6 +208,7 @@ class Bus:
     description: str | None = None
     data_bitrate: int | None = None  # CAN FD: the data-phase rate
     clock_tolerance_ppm: int = 100  # CAN: senders' clocks within +-this of nominal (timing.clocks)
+    errors: BitErrors | None = None  # the error model the CAN analysis allows for; None: an error-free bus
     # FTT-CAN: the SRT and the EC-schedules of one macro-cycle, built once by the analysis; the emitters read it
     ftt_schedule: Schedule | None = None
 

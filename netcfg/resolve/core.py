@@ -166,6 +166,25 @@ class Resolver:
                 messages=[],
                 path=path,
             )
+            if b.errors is not None:
+                if b.protocol == "ethernet-udp":
+                    self.err(
+                        "wrong-section",
+                        f"'errors' is the CAN bit-error model; bus '{b.name}' is Ethernet, whose frames a bit error "
+                        "simply drops (model that with the messages' deadlines)",
+                        (*path, "errors"),
+                    )
+                else:
+                    ec_ns = b.ftt.ec.to_ns(None) if b.ftt is not None else None
+                    interval = b.errors.interval.to_ns(ec_ns)
+                    if interval is None or interval <= 0:
+                        self.err(
+                            "errors",
+                            "the error interval must be a time longer than 0, e.g. interval: 10ms",
+                            (*path, "errors", "interval"),
+                        )
+                    else:
+                        bus.errors = model.BitErrors(b.errors.burst, interval, b.errors.ber)
             if b.data_bitrate is not None and b.protocol != "can-fd":
                 self.err(
                     "wrong-section",

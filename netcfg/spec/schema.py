@@ -240,6 +240,24 @@ class EthernetParams(SpecModel):
     switches: list[Switch] = Field(default_factory=list)
 
 
+class ErrorModel(SpecModel):
+    """Bit errors the CAN analysis allows for: the sporadic model of Tindell and Burns (1994) and Punnekkat,
+    Hansson and Norstrom (2000). Each error costs an error frame and the retransmission of the frame it hit."""
+
+    burst: Int = Field(
+        0, ge=0, le=10_000, description="n: errors that may come together at any moment (default 0: none at once)"
+    )
+    interval: DurationField = Field(description="T_err: besides the burst, at most one error per interval")
+    ber: Float = Field(
+        1e-6,
+        gt=0,
+        lt=1,
+        description="the bit error rate of the bus's environment, against which the report rates the model: the "
+        "probability per hour that more errors come than the model allows (default 1e-6, pessimistic for a "
+        "shielded, well-terminated cable; set it to what your environment measures)",
+    )
+
+
 class Bus(SpecModel):
     name: Name
     protocol: Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp"]
@@ -259,6 +277,11 @@ class Bus(SpecModel):
     ftt: FttParams | None = None
     canopen: CanopenParams | None = None
     ethernet: EthernetParams | None = None
+    errors: ErrorModel | None = Field(
+        None,
+        description="CAN buses: the bit errors the response-time analysis allows for (burst, interval). Default: "
+        "none, and every report says that its bounds then assume an error-free bus",
+    )
     description: str | None = None
     import_: str | None = Field(
         None,

@@ -29,6 +29,7 @@ with J_c = 0 it is Palencia's count floor((J_j + phi)/T) + ceil((x - phi)/T)). C
 sender's clock, within +-tolerance of nominal, so a window of x real ns is counted as longest_local(x) ns of it
 and a distance d between two of its releases as at least shortest_real(d) real ns. Every bound here is also taken no
 larger than the offset-free one (both are sound), so without offsets the result is exactly can_rta.analyse's.
+Bit errors (can_rta's `errors`) add the same term E_m here: E_m(t) to the busy period, E_m(w_p + C_m) to w_p.
 A transaction whose unrolling passes MAX_JOBS jobs is analysed without offsets (its messages stay independent).
 """
 
@@ -41,6 +42,7 @@ from math import lcm
 import numpy as np
 
 from netcfg.timing import can_rta
+from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.can_rta import CanFrame, Response
 from netcfg.timing.clocks import longest_local, longest_real, shortest_real
 
@@ -128,12 +130,16 @@ class _Interference:
 
 
 def analyse(
-    frames: Sequence[CanFrame], tau_ns: int, offsets: Mapping[str, tuple[str, int]], tolerance_ppm: int = 0
+    frames: Sequence[CanFrame],
+    tau_ns: int,
+    offsets: Mapping[str, tuple[str, int]],
+    tolerance_ppm: int = 0,
+    errors: ErrorModel | None = None,
 ) -> dict[str, Response]:
     """Response time of every frame on one bus; `offsets` maps a message to (its sender, its offset) when it is
-    released at that offset of its sender's clock (periodic, not sent by a task). Never above can_rta.analyse.
-    Senders' clocks are within +-tolerance_ppm of nominal."""
-    plain = can_rta.analyse(frames, tau_ns, tolerance_ppm)
+    released at that offset of its sender's clock (periodic, not sent by a task); `errors` the bit errors allowed
+    for. Never above can_rta.analyse. Senders' clocks are within +-tolerance_ppm of nominal."""
+    plain = can_rta.analyse(frames, tau_ns, tolerance_ppm, errors)
     groups = transactions(frames, offsets)
     if not groups:
         return plain
@@ -143,7 +149,7 @@ def analyse(
         r = plain[f.name]
         if r.wcrt_ns is None:
             continue
-        bound = _with_offsets(f, frames, groups, grouped, r.blocking_ns, tau_ns, tolerance_ppm)
+        bound = _with_offsets(f, frames, groups, grouped, r.blocking_ns, tau_ns, tolerance_ppm, errors)
         if bound is not None and bound < r.wcrt_ns:
             out[f.name] = replace(r, wcrt_ns=bound)
     return out
@@ -157,8 +163,14 @@ def _with_offsets(
     blocking: int,
     tau: int,
     ppm: int,
+    errors: ErrorModel | None = None,
 ) -> int | None:
     key = m.priority_key
+    largest = max(g.c_ns for g in frames if g.priority_key <= key)  # the frames an error can make m wait for
+
+    def lost(x: int) -> int:
+        return errors.overhead(x, largest) if errors else 0
+
     free = [g for g in frames if g.name not in grouped and g.priority_key < key]  # independent hp messages
     fc = np.array([g.c_ns for g in free], dtype=np.int64)
     ft = np.array([g.t_ns or can_rta.ONE_SHOT for g in free], dtype=np.int64)
@@ -195,13 +207,15 @@ def _with_offsets(
         # m's instances: independent, as in Davis et al. 2007 with I_G in place of the offset-free terms
         t_m = m.t_ns or can_rta.ONE_SHOT
         busy = least_fixed_point(
-            blocking + m.c_ns, lambda t: blocking + foreign(t) + -(-local(t + m.j_ns) // t_m) * m.c_ns
+            blocking + m.c_ns, lambda t: blocking + foreign(t) + -(-local(t + m.j_ns) // t_m) * m.c_ns + lost(t)
         )
         if busy is None:
             return None
         worst = 0
         for q in range(max(1, -(-local(busy + m.j_ns) // t_m))):
-            w = least_fixed_point(blocking + q * m.c_ns, lambda x, q=q: blocking + q * m.c_ns + foreign(x + tau))
+            w = least_fixed_point(
+                blocking + q * m.c_ns, lambda x, q=q: blocking + q * m.c_ns + foreign(x + tau) + lost(x + m.c_ns)
+            )
             if w is None:
                 return None
             worst = max(worst, m.j_ns + w - shortest_real(q * t_m, ppm) + m.c_ns)
@@ -230,7 +244,7 @@ def _with_offsets(
 
         busy = least_fixed_point(
             blocking + m.c_ns,
-            lambda t, own_hp=own_hp, m_count=m_count: blocking + foreign(t) + own_hp(t) + m_count(t) * m.c_ns,
+            lambda t, own_hp=own_hp, m_count=m_count: blocking + foreign(t) + own_hp(t) + m_count(t) * m.c_ns + lost(t),
         )
         if busy is None:
             return None
@@ -241,7 +255,9 @@ def _with_offsets(
         for earlier, d in enumerate(instances):
             w = least_fixed_point(
                 blocking + earlier * m.c_ns,
-                lambda x, e=earlier, own_hp=own_hp: blocking + e * m.c_ns + foreign(x + tau) + own_hp(x + tau),
+                lambda x, e=earlier, own_hp=own_hp: (
+                    blocking + e * m.c_ns + foreign(x + tau) + own_hp(x + tau) + lost(x + m.c_ns)
+                ),
             )
             if w is None:
                 return None

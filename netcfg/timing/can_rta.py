@@ -20,6 +20,10 @@ is reported as such (`limit == "iterations"`) rather than computed for minutes.
 Priorities follow the arbitration field: a lower base identifier wins; at an equal 11-bit base, a standard
 frame beats an extended one (its RTR/IDE bits are dominant where the extended frame sends SRR/IDE recessive).
 
+Bit errors (`errors`, netcfg.timing.can_errors): an additive term E_m(t) = (n + ceil(t / T_err)) * (error frame +
+max over hep(m) of C) joins eq. 10 as E_m(t_m) and eq. 12 as E_m(w_m(q) + C_m) (an error may hit m itself), and the
+errors' long-run rate, one recovery per T_err, joins the utilisation test.
+
 Speed: in a fixed-point step, ceil(x / T_k) is 1 for every k with T_k - J_k >= x (x = w + tau or t), so
 those terms are a prefix sum of C; only the few messages with a shorter period need the ceiling. Keeping
 the messages sorted by T_k - J_k makes that set a prefix found by binary search, vectorised with numpy.
@@ -34,6 +38,7 @@ from typing import Literal
 
 import numpy as np
 
+from netcfg.timing.can_errors import ErrorModel, recovery_costs
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
 from netcfg.timing.frames import arbitration_key
 from netcfg.timing.load import compare_to_capacity
@@ -69,6 +74,7 @@ class Response:
     instances: int  # Q_m
     worst_instance: int  # the q that gave R_m
     limit: Limit | None = None  # set when wcrt_ns is None
+    error_ns: int = 0  # E_m in the worst instance's queuing delay (0 without an error model)
 
     def schedulable(self, deadline_ns: int | None) -> bool | None:
         if deadline_ns is None:
@@ -76,10 +82,13 @@ class Response:
         return self.wcrt_ns is not None and self.wcrt_ns <= deadline_ns
 
 
-def analyse(frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0) -> dict[str, Response]:
+def analyse(
+    frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0, errors: ErrorModel | None = None
+) -> dict[str, Response]:
     """Response time of every frame on one bus (all frames compete in arbitration). Periods are counted on their
     senders' clocks, each within +-tolerance_ppm of nominal (see clocks): a window of x real ns holds the releases
-    of longest_local(x) ns of a sender's time, and q periods of m last at least shortest_real(q T_m)."""
+    of longest_local(x) ns of a sender's time, and q periods of m last at least shortest_real(q T_m). `errors`: the
+    bit errors allowed for (None: an error-free bus)."""
     order = sorted(range(len(frames)), key=lambda i: frames[i].priority_key)
     fs = [frames[i] for i in order]
     n = len(fs)
@@ -97,6 +106,11 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0) -> 
     slack = np.where(periodic, shortest_real(np.where(periodic, t, 0), tolerance_ppm), t) - j
     slack_order = np.argsort(slack, kind="stable")
     slack_sorted = slack[slack_order]
+    recovery = recovery_costs(c.tolist(), errors) if errors else [0] * n
+
+    def lost(x: int, i: int) -> int:
+        """E_i(x): the time bit errors may take in a window of length x (real time, as the error model is)."""
+        return errors.overhead(x, recovery[i] - errors.error_frame_ns) if errors else 0
 
     def extra(x: int, upto: int) -> int:
         """sum over k < upto of (ceil((x + J_k) / T_k) - 1) * C_k, x + J_k on k's clock: the interference
@@ -117,16 +131,25 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0) -> 
     out: dict[str, Response] = {}
     for i, f in enumerate(fs):
         b = int(blocking[i])
-        hp_loads = (
+        hp_loads = [
             (int(ck) * PPM, int(tk) * (PPM - tolerance_ppm))
             for ck, tk, p in zip(c[: i + 1], t[: i + 1], periodic[: i + 1])
             if p
-        )
-        full = compare_to_capacity(float(utilisation[i]), hp_loads)
-        # exactly full with drifting clocks: the fastest clocks overload it, so no end is assumed
+        ]
+        approx = float(utilisation[i])
+        if errors:  # one recovery per T_err in the long run
+            hp_loads.append((recovery[i], errors.interval_ns))
+            approx += recovery[i] / errors.interval_ns
+        full = compare_to_capacity(approx, hp_loads)
+        # exactly full with drifting clocks: the fastest clocks overload it, so no end is assumed; with errors a
+        # burst on a full bus is never caught up
         if full > 0 or (
             full == 0
-            and (tolerance_ppm or not _ends_at_full_load(b, c[: i + 1], t[: i + 1], j[: i + 1], periodic[: i + 1]))
+            and (
+                tolerance_ppm
+                or errors is not None
+                or not _ends_at_full_load(b, c[: i + 1], t[: i + 1], j[: i + 1], periodic[: i + 1])
+            )
         ):
             out[f.name] = Response(f.name, None, b, None, 0, 0, "load")
             continue
@@ -134,7 +157,7 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0) -> 
         steps = 0
         busy = b + int(prefix_c[i + 1])
         while steps < MAX_ITERATIONS:
-            nxt = b + demand(busy, i + 1)
+            nxt = b + demand(busy, i + 1) + lost(busy, i)
             steps += 1
             if nxt == busy:
                 break
@@ -143,11 +166,11 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0) -> 
             out[f.name] = Response(f.name, None, b, None, 0, 0, "iterations")
             continue
         q_count = max(1, -(-longest_local(busy + int(j[i]), tolerance_ppm) // int(t[i])))
-        worst, worst_q, w = -1, 0, 0
+        worst, worst_q, worst_e, w = -1, 0, 0, 0
         for q in range(q_count):
             w = max(w, b + q * int(c[i]) + int(prefix_c[i]))
             while steps < MAX_ITERATIONS:  # eq. 12
-                nxt = b + q * int(c[i]) + demand(w + tau_ns, i)
+                nxt = b + q * int(c[i]) + demand(w + tau_ns, i) + lost(w + int(c[i]), i)
                 steps += 1
                 if nxt == w:
                     break
@@ -156,11 +179,11 @@ def analyse(frames: Sequence[CanFrame], tau_ns: int, tolerance_ppm: int = 0) -> 
                 break
             r = int(j[i]) + w - shortest_real(q * int(t[i]), tolerance_ppm) + int(c[i])
             if r > worst:
-                worst, worst_q = r, q
+                worst, worst_q, worst_e = r, q, lost(w + int(c[i]), i)
         if steps >= MAX_ITERATIONS:
             out[f.name] = Response(f.name, None, b, busy, q_count, 0, "iterations")
             continue
-        out[f.name] = Response(f.name, worst, b, busy, q_count, worst_q)
+        out[f.name] = Response(f.name, worst, b, busy, q_count, worst_q, error_ns=worst_e)
     return out
 
 
