@@ -11,7 +11,7 @@ from typing import Any
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
+from netcfg.timing import can_errors, can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
 
@@ -305,14 +305,52 @@ def release_offsets(m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]
     }
 
 
+def error_model(bus: model.Bus) -> can_errors.ErrorModel | None:
+    """The bus's bit-error model as the timing core takes it; None: an error-free bus."""
+    if bus.errors is None:
+        return None
+    return can_errors.ErrorModel.for_bus(bus.errors.burst, bus.errors.interval_ns, bus.bitrate)
+
+
+DEFAULT_BER = 1e-6  # the schema's default `ber`: what a bus without an error model is rated against
+
+
+def errors_section(bus: model.Bus, utilization: float) -> dict[str, Any]:
+    """The bus's error assumption and how likely its environment is to break it in an hour."""
+    em = error_model(bus)
+    ber = bus.errors.ber if bus.errors is not None else DEFAULT_BER
+    rate = can_errors.errors_per_second(ber, bus.bitrate, utilization)
+    p = can_errors.exceed_probability(rate, em.burst if em else None, em.interval_ns if em else 1)
+    out: dict[str, Any] = {
+        "model": None
+        if em is None
+        else {
+            "burst": em.burst,
+            "interval_us": us(em.interval_ns),
+            "error_frame_bits": can_errors.ERROR_FRAME_BITS,
+            "error_frame_us": us(em.error_frame_ns),
+        },
+        "assumption": (
+            "error-free bus: no bound allows for a bit error (set the bus's errors: to allow for them)"
+            if em is None
+            else f"at most {em.burst} error(s) at once, then one per {format_ns(em.interval_ns)}"
+        ),
+        "ber": ber,
+        "errors_per_hour": round(rate * 3600, 3),
+        "exceed_probability_per_hour": float(f"{p:.3g}"),
+    }
+    return out
+
+
 def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     timings, worst, nominal = load.can_bus_load(bus)
     # (nominal, worst-case) frame time of each message: without and with stuff bits
     frame_ns = {name: (t.nominal_ns, t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
+    errors = error_model(bus)
     plain = can_offsets.analyse(
-        rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus), bus.clock_tolerance_ppm
+        rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus), bus.clock_tolerance_ppm, errors
     )
     for msg in bus.messages:
         acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
@@ -323,6 +361,7 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
         **({"data_bitrate": bus.data_bitrate} if bus.data_bitrate is not None else {}),
         "utilization": round(worst, 6),
         "utilization_nominal": round(nominal, 6),
+        "errors": errors_section(bus, worst),
         "messages": rows,
     }
     if bus.ftt is not None:
@@ -343,6 +382,8 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             row["blocking_us"] = us(r.blocking_ns)
             row["busy_period_us"] = us(r.busy_period_ns)
             row["instances"] = r.instances
+            if errors is not None:
+                row["error_us"] = us(r.error_ns)
             if r.limit:
                 row["unbounded"] = r.limit
             acc.chained[msg.name] = acc.plain[msg.name]
@@ -370,7 +411,7 @@ def analyze_sync(
 ) -> dict[str, Any]:
     co = bus.canopen
     assert co is not None
-    cycles = canopen_sync.analyse(bus, {name: worst for name, (_, worst) in frame_ns.items()})
+    cycles = canopen_sync.analyse(bus, {name: worst for name, (_, worst) in frame_ns.items()}, error_model(bus))
     sync_msg = next(msg for msg in bus.messages if msg.implicit == "SYNC")
     loop = canopen_sync.master_loop(m, bus)
     acc.canopen[bus.name] = flows.SyncTimes(
@@ -394,6 +435,7 @@ def analyze_sync(
                 "slack_us": None if c.completion_ns is None else us(c.limit_ns - c.completion_ns),
                 "fits": c.completion_ns is not None and c.completion_ns <= c.limit_ns,
                 "blocking_us": us(c.blocking_ns),
+                **({"error_us": us(c.error_ns)} if bus.errors is not None else {}),
                 "sync_us": us(c.sync_ns),
                 "tpdos_us": us(c.tpdos_ns),
             }
@@ -504,9 +546,10 @@ def analyze_ftt(
     triggers = [t for t in m.triggers.values() if t.bus == bus.name]
     entries = ftt.srt(bus, triggers)
     try:
-        sched = ftt.build_schedule(bus, entries)
-        fastest = ftt.build_schedule(bus, entries, fastest=True)
-        envelope = ftt.envelope_schedule(bus, entries)
+        errors = error_model(bus)
+        sched = ftt.build_schedule(bus, entries, errors=errors)
+        fastest = ftt.build_schedule(bus, entries, fastest=True, errors=errors)
+        envelope = ftt.envelope_schedule(bus, entries, errors)
     except ftt.MacroCycleTooLong as exc:
         periods = sorted({e.period_ec for e in entries} | {e.fastest_period_ec for e in entries})
         diags.add(
@@ -529,12 +572,14 @@ def analyze_ftt(
     acc.ftt[bus.name] = flows.FttTimes(sched, frame_ns, {e.name: (e.period_ec, e.init_ec) for e in entries})
     for label, s in (("", sched), (" at some periods inside period_range", envelope)):
         for slot in s.slots:
-            if slot.sync_ns > s.lsw_ns:
+            need = slot.sync_ns + slot.allowance_ns
+            if need > s.lsw_ns:
+                allowance = f" with {slot.allowance_ns / 1000:g} us for bit errors" if slot.allowance_ns else ""
                 diags.add(
                     "lsw",
                     f"EC {slot.index}{label} of bus '{bus.name}': the synchronous messages "
-                    f"{', '.join(slot.messages)} need {slot.sync_ns / 1000:g} us, "
-                    f"{(slot.sync_ns - s.lsw_ns) / 1000:g} us more than the LSW of {s.lsw_ns / 1000:g} us; "
+                    f"{', '.join(slot.messages)} need {need / 1000:g} us{allowance}, "
+                    f"{(need - s.lsw_ns) / 1000:g} us more than the LSW of {s.lsw_ns / 1000:g} us; "
                     "move an offset or lengthen the LSW",
                     m.source.at((*bus.path, "ftt")),
                 )
@@ -543,7 +588,7 @@ def analyze_ftt(
     sync_worst: dict[str, int] = {}
     for slot in sched.slots:
         for name in slot.messages:
-            end = sched.completion(name, slot.index, frame_ns)[1]
+            end = sched.completion(name, slot.index, frame_ns)[1] + slot.allowance_ns  # retransmissions within
             sync_worst[name] = max(sync_worst.get(name, 0), end)
     async_msgs = [msg for msg in bus.messages if msg.window == "async"]
     async_frames = [
@@ -551,7 +596,7 @@ def analyze_ftt(
         for msg in async_msgs
     ]
     limited: set[str] = set()
-    async_worst = ftt.async_response_times(envelope, async_frames, limited, bus.clock_tolerance_ppm)
+    async_worst = ftt.async_response_times(envelope, async_frames, limited, bus.clock_tolerance_ppm, errors)
     for row, msg in zip(rows, bus.messages):
         if msg.window == "sync":
             wcrt = sync_worst.get(msg.name)
@@ -566,8 +611,8 @@ def analyze_ftt(
         row["wcrt_plain_can_us"] = us(acc.plain[msg.name].worst_ns)
         row["wcrt_plain_can_ns"] = acc.plain[msg.name].worst_ns  # exact, for runtime.json
         acc.chained[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, wcrt))
-    worst = max(sched.slots, key=lambda s: (s.sync_ns, -s.index))
-    worst_fast = max(fastest.slots, key=lambda s: (s.sync_ns, -s.index))
+    worst = max(sched.slots, key=lambda s: (s.sync_ns + s.allowance_ns, -s.index))
+    worst_fast = max(fastest.slots, key=lambda s: (s.sync_ns + s.allowance_ns, -s.index))
     tm_ns = sched.tm_ns
     return {
         "ec_us": us(bus.ftt.ec_ns),
@@ -583,13 +628,14 @@ def analyze_ftt(
             "index": worst.index,
             "sync_us": us(worst.sync_ns),
             "messages": list(worst.messages),
-            "fits": worst.sync_ns <= sched.lsw_ns,
+            "fits": worst.sync_ns + worst.allowance_ns <= sched.lsw_ns,
+            **({"error_allowance_us": us(worst.allowance_ns)} if errors is not None else {}),
         },
         "worst_ec_fastest": {
             "index": worst_fast.index,
             "sync_us": us(worst_fast.sync_ns),
             "messages": list(worst_fast.messages),
-            "fits": worst_fast.sync_ns <= fastest.lsw_ns,
+            "fits": worst_fast.sync_ns + worst_fast.allowance_ns <= fastest.lsw_ns,
         },
         "ecs": [
             {
@@ -600,6 +646,7 @@ def analyze_ftt(
                 "triggers": list(s.triggers),
                 "sync_us": us(s.sync_ns),
                 "async_us": us(s.async_ns),
+                **({"error_allowance_us": us(s.allowance_ns)} if errors is not None else {}),
             }
             for s in sched.slots
         ],

@@ -85,8 +85,11 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
         canopen["sync_completion_ns"] = sync_completion_ns  # the bound a master's read time is held against
     # CAN FD keys only on CAN FD buses and frames: files of the other protocols stay as they were
     fd = {"data_bitrate": b.data_bitrate} if b.protocol == "can-fd" else {}
+    # the error model only where the spec states one: files of error-free buses stay as they were
+    errors = {"errors": {"burst": b.errors.burst, "interval_ns": b.errors.interval_ns}} if b.errors else {}
     return {
         **fd,
+        **errors,
         "name": b.name,
         "protocol": b.protocol,
         "bitrate": b.bitrate,
@@ -147,6 +150,7 @@ def _ftt(m: model.Model, b: model.Bus) -> dict[str, Any] | None:
                 "mask": ftt.ec_schedule_mask(s),
                 "sync_ns": s.sync_ns,
                 "async_ns": s.async_ns,
+                **({"allowance_ns": s.allowance_ns} if s.allowance_ns else {}),
             }
             for s in sched.slots
         ],

@@ -15,8 +15,9 @@ Version 1 has grown without changing the meaning of any key, so it is still vers
 `eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
 `eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
 `safe_stop`, CANopen buses `sync_overflow` and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns`
-and `unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`. A file written
-before them still loads: their fields are then None (`sdo_init` None means "not stated", () means "nothing to
+and `unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`, CAN buses `errors`
+and FTT-CAN schedule slots `allowance_ns`. A file written before them still loads: their fields are then None (no
+`errors`: an error-free bus; no `allowance_ns`: 0; `sdo_init` None means "not stated", () means "nothing to
 write"; `sent_by` None: no task sends the message as it finishes, it runs free; no `windows` means the asynchronous
 window first), and a master falls back to what it did without them.
 """
@@ -30,6 +31,7 @@ from netcfg.runtime.config import (
     Bus,
     CanopenParams,
     EcSlot,
+    ErrorAssumption,
     EthernetParams,
     Flow,
     FlowStep,
@@ -61,6 +63,7 @@ __all__ = [
     "CanopenParams",
     "CodecError",
     "EcSlot",
+    "ErrorAssumption",
     "EthernetParams",
     "Flow",
     "FlowStep",

@@ -288,6 +288,15 @@ class EcSlot:
     mask: int  # the TM's EC-schedule: bit i set when FTT id i is due
     sync_ns: int
     async_ns: int
+    allowance_ns: int = 0  # the synchronous window's bit-error allowance: the window opens this much earlier
+
+
+@dataclass(frozen=True)
+class ErrorAssumption:
+    """At most `burst` bit errors at once plus one per `interval_ns`: what the bus's bounds allow for."""
+
+    burst: int
+    interval_ns: int
 
 
 @dataclass(frozen=True)
@@ -311,12 +320,12 @@ class FttParams:
         """Start of EC ec's synchronous window, from the EC start (as netcfg.timing.ftt.Schedule.window_start)."""
         if self.sync_first:
             return self.tm_ns
-        return self.ec_ns - self.slot(ec).sync_ns
+        return self.ec_ns - self.slot(ec).sync_ns - self.slot(ec).allowance_ns
 
     def async_window(self, ec: int) -> tuple[int, int]:
         """EC ec's asynchronous window, from the EC start: (start, end by which a frame must be done)."""
         if self.sync_first:
-            return self.tm_ns + self.slot(ec).sync_ns, self.ec_ns
+            return self.tm_ns + self.slot(ec).sync_ns + self.slot(ec).allowance_ns, self.ec_ns
         return 0, self.window_start(ec)
 
 
@@ -350,6 +359,7 @@ class Bus:
     ftt: FttParams | None
     ethernet: EthernetParams | None
     data_bitrate: int | None = None  # CAN FD: the data-phase rate
+    errors: ErrorAssumption | None = None  # the bit errors the analysis allowed for; None: an error-free bus
 
     @property
     def is_can(self) -> bool:

@@ -14,6 +14,7 @@ from netcfg.runtime.config import (
     Bus,
     CanopenParams,
     EcSlot,
+    ErrorAssumption,
     EthernetParams,
     Flow,
     FlowStep,
@@ -194,6 +195,7 @@ def _bus(d: dict[str, Any]) -> Bus:
         protocol=d["protocol"],
         bitrate=d["bitrate"],
         data_bitrate=d.get("data_bitrate"),
+        errors=None if d.get("errors") is None else ErrorAssumption(d["errors"]["burst"], d["errors"]["interval_ns"]),
         id_bits=d["id_bits"],
         nodes=_strs(d["nodes"]),
         canopen=None
@@ -254,6 +256,7 @@ def _ftt(d: dict[str, Any]) -> FttParams:
                 s["mask"],
                 s["sync_ns"],
                 s["async_ns"],
+                s.get("allowance_ns", 0),
             )
             for s in d["schedule"]
         ),

@@ -136,7 +136,8 @@ FTT = obj(
     srt=lst(obj(ftt_id=i(0, 10**6), name=name(), kind=enum("message", "trigger"), targets=lst(name()),
                 period_ec=i(1, 1_000_000), fastest_period_ec=i(1, 1_000_000), init_ec=i(0, 1_000_000))),
     schedule=lst(obj(ec=i(0, 1_000_000), ids=lst(i(0, 10**6)), messages=lst(name()), triggers=lst(name()),
-                     mask=i(0, 2**512), sync_ns=ns(), async_ns=ns())),
+                     mask=i(0, 2**512), sync_ns=ns(), async_ns=ns(),
+                     allowance_ns=ns(optional=True))),
 )
 ETHERNET = obj(
     null=True,
@@ -145,6 +146,7 @@ ETHERNET = obj(
 BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),
     canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET, data_bitrate=i(1, 10**12, optional=True),
+    errors=obj(null=True, optional=True, burst=i(0, 10_000), interval_ns=ns(1)),
 )
 TRIGGER = obj(
     name=name(), bus=name(), ftt_id=i(0, 10**6), period_ns=ns(1), interval_ns=ns(1, null=True), offset_ns=ns(),

@@ -101,7 +101,7 @@ class CanBus:
         self.record = Record()
         self.error_times: list[int] = []
         self.error_frames = 0
-        self.error_log: list[int] = []  # instants of bit errors that hit a frame (traces only)
+        self.error_log: list[int] = []  # instants of bit errors that hit a frame (traces; the error-model check)
         self.dropped: dict[int, int] = {}  # message index -> frames lost before reaching the bus
         self.babble: tuple[int, int, int] | None = None  # (source index, from, until)
         self.lose: dict[int, list[int]] = {}  # message index -> instants: the next frame queued after is lost
@@ -354,8 +354,7 @@ class CanBus:
                     ei += 1
                 if ei < en and errors[ei] < end - ifs:  # an error in the intermission spoils no frame
                     # a bit error: error frame, then the frame competes again (automatic retransmission)
-                    if keep_data:
-                        self.error_log.append(errors[ei])
+                    self.error_log.append(errors[ei])
                     t = busy = errors[ei] + self.error_ns
                     ei += 1
                     self.error_frames += 1

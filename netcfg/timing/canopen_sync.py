@@ -9,6 +9,8 @@ instance released late in one period and the next on time, so up to ceil((W + J)
 a window of length W (the CAN response-time analysis' interference term, Davis et al. 2007, eq. 8):
     W_k = B + C_SYNC + sum over TPDOs due in k of C + sum over others of ceil((W_k + J) / T) * C
 It must fit the synchronous window (0x1007), the master's read window and the communication cycle (0x1006).
+With a bit-error model (netcfg.timing.can_errors) W_k gains E(W_k) = (n + ceil(W_k / T_err)) * (error frame + the
+largest frame on the bus): any frame in the window may be hit and sent again.
 
 The master's own cycle (seed 000, Figure 7; MasterLoop) is modelled from the spec, as the live master
 (netcfg.runtime.canopen_master.MasterCycle) runs it: SYNC k is queued within the master's jitter (its wake-up latency)
@@ -24,6 +26,7 @@ from dataclasses import dataclass
 from math import lcm
 
 from netcfg import cia301, model
+from netcfg.timing.can_errors import ErrorModel
 
 MAX_CYCLES = 240 * 8
 
@@ -38,6 +41,7 @@ class SyncCycle:
     blocking_ns: int = 0  # the terms of W_k: a frame already on the bus,
     sync_ns: int = 0  # SYNC itself,
     tpdos_ns: int = 0  # the cycle's synchronous TPDOs; the rest of W_k is other frames released meanwhile
+    error_ns: int = 0  # E(W_k): what bit errors may take in the window
 
 
 @dataclass(frozen=True)
@@ -76,7 +80,7 @@ def sync_transmissions(bus: model.Bus) -> dict[str, int]:
     return out
 
 
-def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
+def analyse(bus: model.Bus, frame_ns: dict[str, int], errors: ErrorModel | None = None) -> list[SyncCycle]:
     co = bus.canopen
     assert co is not None
     sync_msg = next(m for m in bus.messages if m.implicit == "SYNC")
@@ -91,6 +95,11 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
     blocking = max(frame_ns.values(), default=0)
     others = [m for m in bus.messages if m is not sync_msg and m.name not in every]  # the same in every cycle
     rate = sum(frame_ns[m.name] / m.interval_ns for m in others if m.interval_ns)
+    if errors is not None:
+        rate += (errors.error_frame_ns + blocking) / errors.interval_ns  # one recovery per T_err
+
+    def lost(window: int) -> int:
+        return errors.overhead(window, blocking) if errors else 0
     out = []
     for k in range(cycles):
         due = tuple(name for name, n in every.items() if k % n == 0)
@@ -102,11 +111,11 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int]) -> list[SyncCycle]:
             continue
         w = fixed + sum(frame_ns[m.name] for m in others)
         while True:
-            nxt = fixed + sum(frame_ns[m.name] * _instances(w, m) for m in others)
+            nxt = fixed + sum(frame_ns[m.name] * _instances(w, m) for m in others) + lost(w)
             if nxt == w:
                 break
             w = nxt
-        out.append(SyncCycle(k, due, w, limit_ns, limit_name, **terms))
+        out.append(SyncCycle(k, due, w, limit_ns, limit_name, **terms, error_ns=lost(w)))
     return out
 
 

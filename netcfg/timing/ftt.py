@@ -15,15 +15,27 @@ traffic in FTT-CAN: analysis of the asynchronous messaging system", WFCS 2000: a
 the last instant an asynchronous frame could start in some EC waits for the windows that follow; its response
 is the time at which the asynchronous service, window by window, has carried its level-m workload
 W(t) = C_m + max lower-priority C + sum over hp of ceil((t + J_k) / T_k) * C_k.
+
+Bit errors (netcfg.timing.can_errors; the FTT-CAN treatment of Pedreiras and Almeida, "Fault tolerance in
+FTT-CAN", keeps retransmissions inside the window that needs them): each EC's synchronous window gets an error
+allowance A, the least fixed point of A = (n + ceil((S + A + e) / T_err)) * (e + largest frame of the window),
+with S its frames, e the error frame (an asynchronous frame hit just before the window may push its error frame
+into it; in the sync-first layout the TM, which opens the window, is one of its frames). The window opens A
+earlier (or the asynchronous window after it starts A later), so the window with its retransmissions still ends
+where the error-free one did, and it must fit the LSW with its allowance. Asynchronous messages add E(t), the
+errors' cost with the largest frame at or above their priority (or the TM, whose retransmission eats into the
+asynchronous window), to the workload their windows must serve.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 from math import lcm
 
 from netcfg import model
+from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
 from netcfg.timing.frames import arbitration_key, bits_to_ns, can_frame_bits
 
@@ -64,6 +76,7 @@ class EcSlot:
     ids: tuple[int, ...]  # FTT ids announced by the TM
     sync_ns: int  # synchronous window length (worst-case frames)
     async_ns: int  # what is left for the asynchronous window
+    allowance_ns: int = 0  # the synchronous window's bit-error allowance (0 on an error-free bus)
 
 
 @dataclass(frozen=True)
@@ -83,11 +96,13 @@ class Schedule:
         """Start of EC ec's synchronous window, from the EC start."""
         if self.sync_first:
             return self.tm_ns
-        return self.ec_ns - self.slots[ec % self.macro_cycle].sync_ns
+        slot = self.slots[ec % self.macro_cycle]
+        return self.ec_ns - slot.sync_ns - slot.allowance_ns
 
     def async_start(self, ec: int) -> int:
         """Start of EC ec's asynchronous window, from the EC start: after the TM, or after the synchronous window."""
-        return self.tm_ns + (self.slots[ec % self.macro_cycle].sync_ns if self.sync_first else 0)
+        slot = self.slots[ec % self.macro_cycle]
+        return self.tm_ns + (slot.sync_ns + slot.allowance_ns if self.sync_first else 0)
 
     def completion(self, name: str, ec: int, frame_ns: dict[str, tuple[int, int]]) -> tuple[int, int]:
         """(best, worst) end of message `name`'s frame in EC ec, from the EC start. frame_ns gives each
@@ -171,8 +186,36 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
     return sorted(out, key=lambda e: e.ftt_id)
 
 
-def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = False) -> Schedule:
-    """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs)."""
+def window_allowance(errors: ErrorModel | None, frames_ns: list[int], tm_ns: int, sync_first: bool) -> int:
+    """A synchronous window's bit-error allowance (the module's A); 0 for an empty window or an error-free bus."""
+    if errors is None or not frames_ns:
+        return 0
+    span = sum(frames_ns) + (tm_ns if sync_first else 0)
+    largest = max(*frames_ns, tm_ns if sync_first else 0)
+    allowance = errors.overhead(span + errors.error_frame_ns, largest)
+    while True:  # the allowance lengthens the window, which may then hold one more error
+        nxt = errors.overhead(span + allowance + errors.error_frame_ns, largest)
+        if nxt == allowance:
+            return allowance
+        allowance = nxt
+
+
+def _slot(
+    k: int, msgs: list[SrtEntry], trigs: list[SrtEntry], ec: int, tm: int, bus: model.Bus, errors: ErrorModel | None
+) -> EcSlot:
+    sync = sum(e.c_ns for e in msgs)
+    due = sorted(e.ftt_id for e in (*msgs, *trigs))
+    assert bus.ftt is not None
+    extra = window_allowance(errors, [e.c_ns for e in msgs], tm, bus.ftt.sync_first)
+    return EcSlot(
+        k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync - extra, extra
+    )
+
+
+def build_schedule(
+    bus: model.Bus, entries: list[SrtEntry], fastest: bool = False, errors: ErrorModel | None = None
+) -> Schedule:
+    """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs); `errors`: the bus's error model."""
     assert bus.ftt is not None
     ec = bus.ftt.ec_ns
     tm = tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
@@ -186,15 +229,11 @@ def build_schedule(bus: model.Bus, entries: list[SrtEntry], fastest: bool = Fals
     for k in range(macro):
         msgs = [e for e in by_can_id if e.due(k, e.fastest_period_ec if fastest else None)]
         trigs = [e for e in entries if e.kind == "trigger" and e.due(k, e.fastest_period_ec if fastest else None)]
-        sync = sum(e.c_ns for e in msgs)
-        due = sorted(e.ftt_id for e in (*msgs, *trigs))
-        slots.append(
-            EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
-        )
+        slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
     return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
 
 
-def envelope_schedule(bus: model.Bus, entries: list[SrtEntry]) -> Schedule:
+def envelope_schedule(bus: model.Bus, entries: list[SrtEntry], errors: ErrorModel | None = None) -> Schedule:
     """Every message that may be due in an EC at some admissible periods: each message of a period_range may run
     at any period of it (the master keeps its init EC), so EC k may carry it if some admissible period divides
     k - init. Its slots bound the synchronous window (LSW check) and the asynchronous supply of any EC whatever
@@ -224,11 +263,7 @@ def envelope_schedule(bus: model.Bus, entries: list[SrtEntry]) -> Schedule:
     for k in range(horizon):
         msgs = [e for e in by_can_id if may_be_due(e, k)]
         trigs = [e for e in entries if e.kind == "trigger" and may_be_due(e, k)]
-        sync = sum(e.c_ns for e in msgs)
-        due = sorted(e.ftt_id for e in (*msgs, *trigs))
-        slots.append(
-            EcSlot(k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync)
-        )
+        slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
     return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
 
 
@@ -254,15 +289,19 @@ MAX_ASYNC_STEPS = 20_000  # fixed-point steps per asynchronous message before it
 
 
 def async_response_times(
-    sched: Schedule, frames: list[AsyncFrame], limited: set[str] | None = None, tolerance_ppm: int = 0
+    sched: Schedule,
+    frames: list[AsyncFrame],
+    limited: set[str] | None = None,
+    tolerance_ppm: int = 0,
+    errors: ErrorModel | None = None,
 ) -> dict[str, int | None]:
     """Worst-case response of each asynchronous message over all ECs of the (envelope) schedule; None when
     unbounded: the level-m load, the message's own included, reaches the asynchronous supply, or the bound needs
     more than MAX_ASYNC_STEPS steps. As on plain CAN (Davis et al. 2007), every instance q of m in the level-m busy
     period is examined: w(q) = serve(B + (q + 1) C_m + sum over hp of ceil((w + J_k) / T_k) C_k),
-    R(q) = J_m + w(q) - q T_m. Asynchronous messages run on their senders' clocks, within +-tolerance_ppm of
-    the master's (clocks): windows of real time are counted as longest_local, q T_m as shortest_real. Messages
-    stopped by the step limit are added to `limited`."""
+    R(q) = J_m + w(q) - q T_m, with E(w) added to the demand under a bit-error model. Asynchronous messages run on
+    their senders' clocks, within +-tolerance_ppm of the master's (clocks): windows of real time are counted as
+    longest_local, q T_m as shortest_real. Messages stopped by the step limit are added to `limited`."""
     if not frames:
         return {}
     idle = max(f.c_ns for f in frames)  # inserted idle time before each synchronous window
@@ -276,22 +315,37 @@ def async_response_times(
     for i, f in enumerate(ordered):
         level = ordered[: i + 1]
         blocking = max((g.c_ns for g in ordered[i + 1 :]), default=0)
+        largest = max(sched.tm_ns, *(g.c_ns for g in level))  # what an error can make the window resend
         # exact: the level-m demand per macro-cycle against what the windows serve in one
         fastest = Fraction(PPM, PPM - tolerance_ppm)  # the fastest sender clocks release this much more often
-        if sum((Fraction(g.c_ns * cycle_ns, g.t_ns) * fastest for g in level if g.t_ns), Fraction(0)) >= cycle_supply:
+        demand = sum((Fraction(g.c_ns * cycle_ns, g.t_ns) * fastest for g in level if g.t_ns), Fraction(0))
+        if errors is not None:  # one recovery per T_err (real time)
+            demand += Fraction((errors.error_frame_ns + largest) * cycle_ns, errors.interval_ns)
+        if demand >= cycle_supply:
             out[f.name] = None
             continue
-        out[f.name] = _async_worst(sched, supply, f, ordered[:i], blocking, tolerance_ppm)
+
+        def lost(t: int, largest: int = largest) -> int:
+            return errors.overhead(t, largest) if errors else 0
+
+        out[f.name] = _async_worst(sched, supply, f, ordered[:i], blocking, tolerance_ppm, lost)
         if out[f.name] is None and limited is not None:
             limited.add(f.name)  # the load fits: only the step limit stopped the analysis
     return out
 
 
 def _async_worst(
-    sched: Schedule, supply: list[int], f: AsyncFrame, hp: list[AsyncFrame], blocking: int, ppm: int
+    sched: Schedule,
+    supply: list[int],
+    f: AsyncFrame,
+    hp: list[AsyncFrame],
+    blocking: int,
+    ppm: int,
+    lost: Callable[[int], int] = lambda _: 0,
 ) -> int | None:
     def hp_demand(t: int) -> int:
-        return sum(g.c_ns * (-(-longest_local(t + g.j_ns, ppm) // g.t_ns) if g.t_ns else 1) for g in hp)
+        """Higher-priority work released in a window of length t, and what bit errors take in it."""
+        return sum(g.c_ns * (-(-longest_local(t + g.j_ns, ppm) // g.t_ns) if g.t_ns else 1) for g in hp) + lost(t)
 
     steps = 0
     worst = 0
