@@ -17,12 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import model
-from netcfg.analyze import analysis_jitter, release_offsets, rta_frames
+from netcfg.analyze import analysis_jitter, error_model, release_offsets, rta_frames
 from netcfg.check import load_model
 from netcfg.diagnostics import Collector, sort_diagnostics
 from netcfg.importers import ImportOptions
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_offsets, can_rta, clocks, load
+from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.frames import bits_to_ns
 from netcfg.tune import round_step
 
@@ -48,8 +49,9 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
     tau = bits_to_ns(1, bus.bitrate)
     frames = rta_frames(bus.messages, timings, analysis_jitter(m))  # the release jitter check uses
     ppm = bus.clock_tolerance_ppm
-    plain = can_rta.analyse(frames, tau, ppm)
-    with_offsets = can_offsets.analyse(frames, tau, release_offsets(m, bus), ppm)
+    errors = error_model(bus)
+    plain = can_rta.analyse(frames, tau, ppm, errors)
+    with_offsets = can_offsets.analyse(frames, tau, release_offsets(m, bus), ppm, errors)
     me = next(f for f in frames if f.name == name)
     r = plain[name]
     t = timings[name]
@@ -71,7 +73,8 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         "jitter_us": _us(me.j_ns),
         "deadline_us": _us(me.d_ns),
         "blocking": _blocking(frames, me),
-        "error_term_us": None,  # the bus states no error model: no error frames are assumed
+        "error_term_us": None,  # None: the bus states no error model, no error frames are assumed
+        "error_term": None,
         "busy_period_us": _us(r.busy_period_ns),
         "instances": r.instances,
         "worst_instance": r.worst_instance,
@@ -86,6 +89,17 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         t_me = me.t_ns or can_rta.ONE_SHOT
         w = r.wcrt_ns - me.j_ns + clocks.shortest_real(q * t_me, ppm) - me.c_ns
         out["w_us"] = _us(w)
+        if errors is not None:
+            largest = max(f.c_ns for f in frames if f.priority_key <= me.priority_key)
+            out["error_term_us"] = _us(r.error_ns)
+            out["error_term"] = {
+                "burst": errors.burst,
+                "interval_us": _us(errors.interval_ns),
+                "window_us": _us(w + me.c_ns),
+                "errors": errors.errors_in(w + me.c_ns),
+                "error_frame_us": _us(errors.error_frame_ns),
+                "largest_frame_us": _us(largest),
+            }
         for f in sorted((f for f in frames if f.priority_key < me.priority_key), key=lambda f: f.priority_key):
             hits = -(-clocks.longest_local(w + f.j_ns + tau, ppm) // (f.t_ns or can_rta.ONE_SHOT))
             out["interferers"].append(
@@ -114,10 +128,15 @@ def _blocking(frames: list[can_rta.CanFrame], me: can_rta.CanFrame) -> dict[str,
 
 
 def _meets(
-    frames: list[can_rta.CanFrame], name: str, tau: int, offsets: dict[str, tuple[str, int]], ppm: int
+    frames: list[can_rta.CanFrame],
+    name: str,
+    tau: int,
+    offsets: dict[str, tuple[str, int]],
+    ppm: int,
+    errors: ErrorModel | None = None,
 ) -> int | None:
     """The bound of `name` in this variant of the bus, or None when it still misses its deadline."""
-    res = can_offsets.analyse(frames, tau, offsets, ppm)
+    res = can_offsets.analyse(frames, tau, offsets, ppm, errors)
     f = next(f for f in frames if f.name == name)
     r = res[name].wcrt_ns
     return r if r is not None and f.d_ns is not None and r <= f.d_ns else None
@@ -129,13 +148,14 @@ def one_change(
     """A free identifier for the message that makes it meet its deadline (the largest such, the least change in
     priority), else a longer period for the one interferer that needs the smallest slow-down."""
     offsets = release_offsets(m, bus)
+    errors = error_model(bus)
     taken = {(f.extended, f.id) for f in frames}
     others = [f for f in frames if f.name != me.name]
     for ident in range(me.id - 1, -1, -1):
         if (me.extended, ident) in taken:
             continue
         trial = [*others, replace(me, id=ident)]
-        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm)
+        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors)
         if r is not None:
             above = [f for f in others if f.priority_key > trial[-1].priority_key and f.priority_key < me.priority_key]
             passed = min(above, key=lambda f: f.priority_key).name if above else None
@@ -158,7 +178,7 @@ def one_change(
         for factor in (2, 3, 4, 5, 10, 20, 50, 100):
             period = f.t_ns * factor
             trial = [replace(g, t_ns=period, d_ns=max(g.d_ns or 0, period)) if g is f else g for g in frames]
-            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm)
+            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors)
             if r is not None:
                 if best is None or factor < best["factor"]:
                     best = {
@@ -194,7 +214,7 @@ def _offset_change(
     best: tuple[int, int] | None = None  # (bound, offset): the offset that leaves the most slack
     for o in range(0, me.t_ns, step):
         trial[me.name] = (producer, o)
-        r = _meets(frames, me.name, tau, trial, bus.clock_tolerance_ppm)
+        r = _meets(frames, me.name, tau, trial, bus.clock_tolerance_ppm, error_model(bus))
         if r is not None and (best is None or r < best[0]):
             best = (r, o)
     if best is None:
@@ -232,7 +252,10 @@ def text(doc: dict[str, Any]) -> str:
         lines.append(
             f"  busy period t = {doc['busy_period_us']:g} us: {doc['instances']} instance(s); the worst is q = {q}"
         )
-        lines.append(f"  queuing    w = B + q*C + sum of ceil((w + J_k + tau) / T_k) * C_k = {doc['w_us']:g} us, with:")
+        e_part = " + E(w + C)" if doc["error_term"] else ""
+        lines.append(
+            f"  queuing    w = B + q*C + sum of ceil((w + J_k + tau) / T_k) * C_k{e_part} = {doc['w_us']:g} us, with:"
+        )
         if doc["interferers"]:
             lines.append(f"    {'message':20} {'id':>6} {'C/us':>8} {'T/us':>10} {'J/us':>8} {'hits':>5} {'us':>9}")
             for x in doc["interferers"]:
@@ -242,7 +265,16 @@ def text(doc: dict[str, Any]) -> str:
                 )
         else:
             lines.append("    (no higher-priority message)")
-        lines.append("  error term none: the bus states no error model (no error frames assumed)")
+        e = doc["error_term"]
+        if e is None:
+            lines.append("  error term none: the bus states no error model (no error frames assumed)")
+        else:
+            lines.append(
+                f"  error term E(w + C) = (n + ceil((w + C) / T_err)) * (error frame + largest C at or above) = "
+                f"({e['burst']} + ceil({e['window_us']:g} / {e['interval_us']:g})) * ({e['error_frame_us']:g} + "
+                f"{e['largest_frame_us']:g}) = {e['errors']} * {e['error_frame_us'] + e['largest_frame_us']:g} = "
+                f"{doc['error_term_us']:g} us"
+            )
         lines.append(
             f"  R = J + w - q*T + C = {doc['jitter_us']:g} + {doc['w_us']:g} - {q}*{_num(doc['period_us'])} + "
             f"{f['c_us']:g} = {doc['wcrt_us']:g} us"

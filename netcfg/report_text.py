@@ -48,6 +48,22 @@ def table(headers: list[str], rows: list[list[str]], align: str, indent: str = "
     return [line(headers), line(["-" * w for w in widths]), *(line(r) for r in rows)]
 
 
+def errors_text(e: dict[str, Any]) -> str:
+    """One sentence on a CAN bus's bit-error assumption and how likely its environment is to break it in an hour."""
+    odds = (
+        f"at a bit error rate of {e['ber']:g}, about {e['errors_per_hour']:g} errors an hour hit frames, and the "
+        f"probability that an hour breaks that assumption is {'at most ' if e['model'] else ''}"
+        f"{e['exceed_probability_per_hour']:.3g}"
+    )
+    if e["model"] is None:
+        return f"bit errors: none assumed, every bound here holds for an error-free bus only; {odds}"
+    m = e["model"]
+    return (
+        f"bit errors: the bounds allow {e['assumption']} (each an error frame of up to {m['error_frame_bits']} bits, "
+        f"{m['error_frame_us']:g} us, and the frame sent again); {odds}"
+    )
+
+
 def render(report: dict[str, Any]) -> str:
     out: list[str] = []
     status = "OK" if report["ok"] else "FAILED"
@@ -64,6 +80,8 @@ def render(report: dict[str, Any]) -> str:
             f"utilisation {bus['utilization']:.1%} worst case"
             + (f", {bus['utilization_with_tm']:.1%} with the trigger message" if "ftt" in bus else "")
         )
+        if "errors" in bus:
+            out.append("  " + errors_text(bus["errors"]))
         rows = []
         for m in bus["messages"]:
             ident = f"0x{m['id']:X}" if m["id"] >= 0 else "-"

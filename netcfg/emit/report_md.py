@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from netcfg.emit import render
 from netcfg.model import Bus, Described, Model
-from netcfg.report_text import master_loop_text, num, rate
+from netcfg.report_text import errors_text, master_loop_text, num, rate
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -98,6 +98,10 @@ def cell(text: object) -> str:
     return one_line(text).replace("\\", "\\\\").replace("|", "\\|")
 
 
+def _sentence(text: str) -> str:
+    return text[:1].upper() + text[1:] + "."
+
+
 def _description(obj: Described | None) -> str | None:
     # free text from the spec; implicit messages (SYNC, heartbeats) are not in Model.messages and have none
     value = obj.description if obj is not None else None
@@ -159,6 +163,7 @@ def _bus_view(model: Model, b: dict[str, Any]) -> dict[str, Any]:
         "utilization": pct(b["utilization"]),
         "utilization_nominal": pct(b["utilization_nominal"]) if "utilization_nominal" in b else None,
         "utilization_with_tm": pct(b["utilization_with_tm"]) if "utilization_with_tm" in b else None,
+        "errors": _sentence(errors_text(b["errors"])) if "errors" in b else None,
         "ethernet": b["protocol"] == "ethernet-udp",
         "messages": _messages_table(model, b, ftt is not None),
         "ftt": _ftt_view(model, b) if ftt else None,
