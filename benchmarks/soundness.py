@@ -7,6 +7,11 @@ skipped (they promise nothing). Every accepted spec is simulated twice: once wit
 once at the critical instant (every clock at 0, no drift), and every message and flow must stay inside its
 analysed range. The tightness of a bound is the worst simulated figure over the bound.
 
+CAN, FTT-CAN and CANopen buses get a bit-error model one time in three (a burst of 0-2 errors, then one per 1-50
+ms); their runs are then hit about as hard as the model allows: the burst, a few tens of microseconds apart, at a
+random instant, then one error per interval (plus a microsecond, so that the errors meet the frames at every phase).
+A run whose errors left the model would be a fault of this pattern, and counts as a violation.
+
     .venv/bin/python benchmarks/soundness.py --specs 2500           # 10,000 specs; the tightness and run time
     .venv/bin/python benchmarks/soundness.py --specs 200 --protocol ftt-can
 
@@ -34,9 +39,11 @@ from hypothesis import strategies as st
 from netcfg import runtime
 from netcfg.check import analyse_spec
 from netcfg.emit.runtime_json import runtime_document
+from netcfg.sim.faults import Fault
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.results import summary
 from netcfg.sim.scenario import SimOptions
+from netcfg.timing.can_errors import first_breach
 
 PROTOCOLS = ("can", "ftt-can", "ethernet-udp", "canopen")
 US = 1_000
@@ -84,7 +91,29 @@ def can_spec(draw: st.DrawFn) -> dict[str, Any]:
         "messages": messages,
     }
     _add_flows(draw, spec)
+    _add_errors(draw, spec)
     return spec
+
+
+def _add_errors(draw: st.DrawFn, spec: dict[str, Any]) -> None:
+    """One time in three, the bus gets a bit-error model."""
+    if draw(st.integers(0, 2)) == 0:
+        spec["buses"][0]["errors"] = {"burst": draw(st.integers(0, 2)), "interval": f"{draw(st.integers(1, 50))} ms"}
+
+
+def error_pattern(spec: dict[str, Any], duration_ns: int, seed_value: int) -> tuple[Fault, ...]:
+    """Errors about as dense as the bus's model allows (none without one): its burst plus one, 37 us apart, at a
+    seeded instant in the first interval, then one per interval + 1 us."""
+    model = spec["buses"][0].get("errors")
+    if model is None:
+        return ()
+    interval = int(model["interval"].split()[0]) * 1_000_000
+    start = (seed_value * 7_919_113) % interval
+    times = [start + i * 37_000 for i in range(model["burst"] + 1)]
+    while times[-1] + interval + 1_000 < duration_ns:
+        times.append(times[-1] + interval + 1_000)
+    assert first_breach(times, model["burst"], interval) is None
+    return tuple(Fault("bit-error", None, t) for t in times)
 
 
 @st.composite
@@ -136,6 +165,7 @@ def ftt_spec(draw: st.DrawFn) -> dict[str, Any]:
         "messages": messages,
     }
     _add_flows(draw, spec, ftt_ids=ftt_id, ec_us=ec_ms * 1000)
+    _add_errors(draw, spec)
     return spec
 
 
@@ -211,7 +241,7 @@ def canopen_spec(draw: st.DrawFn) -> dict[str, Any]:
                     "pdo": {"tpdo": k, "transmission": draw(st.integers(1, 3)), "map": [[0x6064, 0x606C][k - 1]]},
                 }
             )
-    return {
+    spec: dict[str, Any] = {
         "system": "random_canopen",
         "buses": [
             {
@@ -225,6 +255,8 @@ def canopen_spec(draw: st.DrawFn) -> dict[str, Any]:
         + [{"name": d, "node_id": i + 1, "device": "epos4", "buses": ["can0"]} for i, d in enumerate(drives)],
         "messages": messages,
     }
+    _add_errors(draw, spec)
+    return spec
 
 
 def _us(text: str, ec_us: int) -> int:
@@ -330,16 +362,21 @@ def check_spec(spec: dict[str, Any], seed: int, duration_ns: int) -> Outcome:
     doc = json.loads(json.dumps(runtime_document(model, report)))
     cfg = runtime.parse(doc, "random")
     out = Outcome(True)
+    faults = error_pattern(spec, duration_ns, seed)
     runs = {
-        "random phases": SimOptions(duration_ns=duration_ns, seed=seed),
-        "critical instant": SimOptions(duration_ns=duration_ns, seed=seed, random_phase=False, drift_ppm=0.0),
+        "random phases": SimOptions(duration_ns=duration_ns, seed=seed, faults=faults),
+        "critical instant": SimOptions(
+            duration_ns=duration_ns, seed=seed, random_phase=False, drift_ppm=0.0, faults=faults
+        ),
     }
     if any(b.get("protocol") == "ftt-can" for b in spec["buses"]):  # the same bus as free-running CAN
-        runs["unsynchronised"] = SimOptions(duration_ns=duration_ns, seed=seed, mode="unsync")
+        runs["unsynchronised"] = SimOptions(duration_ns=duration_ns, seed=seed, mode="unsync", faults=faults)
     for label, opts in runs.items():
         _, res = run_once(cfg, opts)
         result = summary(res)
         out.violations += [f"{label}: {v}" for v in result["violations"]]
+        if result["outside_error_assumption"]:
+            out.violations.append(f"{label}: the injected errors left the bus's error model: {result['note']}")
         if result["deadline_misses"]:
             out.violations.append(f"{result['deadline_misses']} deadline misses in a schedulable spec")
         for m in result["messages"]:

@@ -145,6 +145,6 @@ def first_breach(error_ns: Sequence[int], burst: int | None, interval_ns: int) -
         g = error_ns[j] - j * interval_ns
         if g < best_g - burst * interval_ns:
             return Breach(error_ns[best_i], error_ns[j], j - best_i + 1)
-        if g > best_g:
+        if g >= best_g:  # on a tie the later error: the shorter window
             best_g, best_i = g, j
     return None
