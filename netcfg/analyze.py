@@ -123,13 +123,17 @@ def assumptions(bus: model.Bus) -> list[str]:
         ]
     out = [
         "every node queues its frames by priority (no FIFO transmit buffer, no priority inversion in the "
-        "controller); worst-case bit stuffing; no bus errors or retransmissions",
+        "controller); worst-case bit stuffing",
         "periodic messages released at most once per (fastest) period, sporadic ones at most once per minimum "
         "inter-arrival time, each at most its jitter late",
         f"every sender's clock within +-{bus.clock_tolerance_ppm} ppm of nominal (clock_tolerance): periods are "
         "counted at the fastest clocks"
         if bus.clock_tolerance_ppm
         else "every sender's clock exact (clock_tolerance 0): periods are counted as nominal",
+        "no bus errors, hence no retransmissions (the bus states no error model)"
+        if bus.errors is None
+        else f"at most {bus.errors.burst} bit error(s) at once, then at most one per "
+        f"{format_ns(bus.errors.interval_ns)}, each an error frame of up to 31 bits and a retransmission",
     ]
     if bus.ftt is not None:
         out += [

@@ -236,7 +236,9 @@ def synchronised(
                     outs.append(
                         (
                             k_lo * ec + s.completion(ref, k_lo, ftt.frame_ns)[0],
-                            k_hi * ec + s.completion(ref, k_hi, ftt.frame_ns)[1],
+                            k_hi * ec
+                            + s.completion(ref, k_hi, ftt.frame_ns)[1]
+                            + s.slots[k_hi % s.macro_cycle].allowance_ns,  # its retransmissions, within the window
                         )
                     )
                 elif step.kind == "message":
@@ -250,13 +252,21 @@ def synchronised(
                         a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
                     else:  # started by a message
                         a_lo, a_hi = lo, hi
+                    if task.trigger is not None:  # its trigger message may end late, sent again after errors
+                        a_hi += s.tm_delay_ns
                     busy = task_response(task, task_ns) or 0  # bounded: checked above
                     outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
             if step.kind == "message":
                 got = (lo, hi)
         runs.append((start, lo, hi, got))
-    return _freshest(runs, s.macro_cycle * ec)
+    out = _freshest(runs, s.macro_cycle * ec)
+    if out is None or not (first.kind == "task" and s.tm_delay_ns):
+        return out
+    # a flow started by a triggered task: its start may be as late as its trigger message, its data no later
+    (lat_lo, lat_hi), got_range = out
+    late = s.tm_delay_ns
+    return (lat_lo - late, lat_hi), (None if got_range is None else (got_range[0] - late, got_range[1]))
 
 
 Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (worst), last message's delivery

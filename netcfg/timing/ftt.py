@@ -87,6 +87,7 @@ class Schedule:
     entries: tuple[SrtEntry, ...]
     slots: tuple[EcSlot, ...]  # one per EC of the macro-cycle
     sync_first: bool = False  # the synchronous window right after the TM, the asynchronous one closing the EC
+    tm_delay_ns: int = 0  # how much later than tm_ns the TM may end, sent again after bit errors
 
     @property
     def macro_cycle(self) -> int:
@@ -200,6 +201,20 @@ def window_allowance(errors: ErrorModel | None, frames_ns: list[int], tm_ns: int
         allowance = nxt
 
 
+def tm_delay(errors: ErrorModel | None, tm_ns: int) -> int:
+    """How late bit errors may make the trigger message end: the least D with D = E(TM + D), each error costing an
+    error frame and the TM again (the EC starts with the bus free: the previous window ends by then, errors
+    included)."""
+    if errors is None:
+        return 0
+    delay = errors.overhead(tm_ns, tm_ns)
+    while True:
+        nxt = errors.overhead(tm_ns + delay, tm_ns)
+        if nxt == delay:
+            return delay
+        delay = nxt
+
+
 def _slot(
     k: int, msgs: list[SrtEntry], trigs: list[SrtEntry], ec: int, tm: int, bus: model.Bus, errors: ErrorModel | None
 ) -> EcSlot:
@@ -230,7 +245,7 @@ def build_schedule(
         msgs = [e for e in by_can_id if e.due(k, e.fastest_period_ec if fastest else None)]
         trigs = [e for e in entries if e.kind == "trigger" and e.due(k, e.fastest_period_ec if fastest else None)]
         slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
+    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first, tm_delay(errors, tm))
 
 
 def envelope_schedule(bus: model.Bus, entries: list[SrtEntry], errors: ErrorModel | None = None) -> Schedule:
@@ -264,7 +279,7 @@ def envelope_schedule(bus: model.Bus, entries: list[SrtEntry], errors: ErrorMode
         msgs = [e for e in by_can_id if may_be_due(e, k)]
         trigs = [e for e in entries if e.kind == "trigger" and may_be_due(e, k)]
         slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first)
+    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first, tm_delay(errors, tm))
 
 
 def ec_schedule_mask(slot: EcSlot) -> int:
