@@ -626,6 +626,7 @@ def analyze_ftt(
         "lsw_us": us(sched.lsw_ns),
         "master": bus.ftt.master,
         "windows": "sync-first" if sched.sync_first else "async-first",
+        **({"tm_error_delay_us": us(sched.tm_delay_ns)} if errors is not None else {}),
         "macro_cycle_ec": sched.macro_cycle,
         "srt": [srt_row(e) for e in entries],
         "worst_ec": {

@@ -207,7 +207,8 @@ def test_ftt_window_allowance_by_hand(tmp_path: Path) -> None:
     holds encoder1-3 (85 bits, 340 us each), velocity_linear (125 bits, 500 us) and velocity_angular (95 bits,
     380 us): 1,900 us (seed 002, Table 2). Its allowance A = (1 + ceil((1900 + A + 124) / 10000)) * (124 + 500) =
     2 * 624 = 1,248 us, stable. 1,900 + 1,248 = 3,148 us does not fit the 3 ms LSW: check says so. With an LSW of
-    4.5 ms it fits; the asynchronous window of EC 0 is then 5,000 - 420 (TM) - 1,900 - 1,248 = 1,432 us."""
+    4.5 ms it fits; the asynchronous window of EC 0 is then 5,000 - 420 (TM) - 1,900 - 1,248 = 1,432 us.
+    The TM (5 bytes: 55 + 10 * 5 = 105 bits, 420 us) may end D = E(420 + D) = (1 + 1) * (124 + 420) = 1,088 us late."""
     report = check_data(tmp_path, cambada_with_errors())
     lsw = [e["message"] for e in report["errors"] if e["code"] == "lsw"]
     assert lsw and "need 3148 us with 1248 us for bit errors, 148 us more than the LSW of 3000 us" in lsw[0]
@@ -215,6 +216,7 @@ def test_ftt_window_allowance_by_hand(tmp_path: Path) -> None:
     assert not report["errors"], report["errors"]
     ec0 = bus(report, "lowlevel")["ftt"]["ecs"][0]
     assert (ec0["sync_us"], ec0["error_allowance_us"], ec0["async_us"]) == (1900.0, 1248.0, 1432.0)
+    assert bus(report, "lowlevel")["ftt"]["tm_error_delay_us"] == 1088.0
 
 
 def test_canopen_sync_cycle_error_term(tmp_path: Path) -> None:
@@ -276,6 +278,22 @@ def test_simulated_errors_beyond_the_model_are_named(tmp_path: Path) -> None:
     assert check["within_assumption"] is False and check["exceeded"]["allowed"] == 1
     assert doc["outside_error_assumption"] is True
     assert "exceeded the error assumption" in doc["note"] and "not violations" in doc["note"]
+
+
+def test_cambada_with_an_error_model_keeps_to_its_bounds(tmp_path: Path) -> None:
+    """CAMBADA with n = 1, T_err = 10 ms and a 4.5 ms LSW (test_ftt_window_allowance_by_hand), at BER 1e-5: about
+    0.7 errors a second hit frames (2,431 an hour, check's figure), 20 s hold about 13, and the odds that two come
+    closer than the model allows in 20 s are below 1e-3 (0.0562 an hour). Synchronised and free-running runs stay
+    inside every bound, messages and flows, and say they kept to the assumption."""
+    cfg = runtime_of(tmp_path, cambada_with_errors("4.5 ms"))
+    for mode in ("auto", "unsync"):
+        _, res = run_once(
+            cfg, SimOptions(duration_ns=20_000 * MS, seed=3, mode=mode, faults=(Fault.parse("ber=1e-5"),))
+        )
+        doc = summary(res)
+        assert res.error_frames > 0
+        assert doc["outside_error_assumption"] is False
+        assert doc["violations"] == [] and doc["deadline_misses"] == 0
 
 
 @pytest.mark.parametrize("spec_name", ["cambada.yaml", "allex2.yaml"])

@@ -317,10 +317,18 @@ def text(doc: dict[str, Any]) -> str:
         lines += ["", f"  finding: {finding}"]
     if doc.get("error_checks"):
         lines.append("")
-        for c in doc["error_checks"]:
-            verdict = "within it" if c["within_assumption"] else "EXCEEDED: " + _breach_text(c)
+        by_bus: dict[str, list[dict[str, Any]]] = {}
+        for c in doc["error_checks"]:  # one per bus and run
+            by_bus.setdefault(c["bus"], []).append(c)
+        for name, checks in by_bus.items():
+            broken = [c for c in checks if not c["within_assumption"]]
+            runs = f" in {len(checks)} runs" if len(checks) > 1 else ""
+            verdict = "within it" if not broken else "EXCEEDED: " + _breach_text(broken[0])
+            if broken and len(checks) > 1:
+                verdict += f" (and {len(broken) - 1} more of the runs)" if len(broken) > 1 else " (one run)"
             lines.append(
-                f"  bit errors on bus {c['bus']}: {c['errors']} hit frames; assumed {c['assumption']}: {verdict}"
+                f"  bit errors on bus {name}: {sum(c['errors'] for c in checks)} hit frames{runs}; assumed "
+                f"{checks[0]['assumption']}: {verdict}"
             )
     if doc.get("violations"):
         lines += ["", "  outside the analysis:", *(f"    {v}" for v in doc["violations"])]
