@@ -325,7 +325,7 @@ def text(doc: dict[str, Any]) -> str:
             runs = f" in {len(checks)} runs" if len(checks) > 1 else ""
             verdict = "within it" if not broken else "EXCEEDED: " + _breach_text(broken[0])
             if broken and len(checks) > 1:
-                verdict += f" (and {len(broken) - 1} more of the runs)" if len(broken) > 1 else " (one run)"
+                verdict += f" (in {len(broken)} of the runs)"
             lines.append(
                 f"  bit errors on bus {name}: {sum(c['errors'] for c in checks)} hit frames{runs}; assumed "
                 f"{checks[0]['assumption']}: {verdict}"
