@@ -35,7 +35,8 @@ FRAMES = [
 
 
 def three_frame_spec(errors: dict[str, Any] | None) -> dict[str, Any]:
-    bus_: dict[str, Any] = {"name": "can0", "protocol": "can", "bitrate": "1 Mbit/s"}
+    # exact clocks: the figures below are worked at nominal periods
+    bus_: dict[str, Any] = {"name": "can0", "protocol": "can", "bitrate": "1 Mbit/s", "clock_tolerance": 0}
     if errors is not None:
         bus_["errors"] = errors
     return {
@@ -68,7 +69,7 @@ def test_error_term_by_hand() -> None:
     em = ErrorModel.for_bus(1, 10 * MS, 1_000_000)
     assert em.error_frame_ns == 31 * US
     clean = can_rta.analyse(FRAMES, 1 * US)
-    hit = can_rta.analyse(FRAMES, 1 * US, em)
+    hit = can_rta.analyse(FRAMES, 1 * US, errors=em)
     assert {n: r.wcrt_ns for n, r in clean.items()} == {"a": 270 * US, "b": 405 * US, "low": 405 * US}
     assert {n: r.wcrt_ns for n, r in hit.items()} == {"a": 602 * US, "b": 737 * US, "low": 737 * US}
     assert {n: r.error_ns for n, r in hit.items()} == {"a": 332 * US, "b": 332 * US, "low": 332 * US}
@@ -79,16 +80,16 @@ def test_error_term_grows_with_the_window() -> None:
     gives 301, E(436) = 166 gives 301 again: R = 301 + 135 = 436 us. Its busy period: t = 135 + 135 + E(t): from
     270, E(270) = 166 -> 436, E(436) = 166 -> 436 (one instance). With T_err = 190 us one 166 us recovery per
     190 us is 87.4 % of the bus, and with a's 13.5 % the load passes 100 %: no bound."""
-    r = can_rta.analyse(FRAMES, 1 * US, ErrorModel.for_bus(0, 500 * US, 1_000_000))["a"]
+    r = can_rta.analyse(FRAMES, 1 * US, errors=ErrorModel.for_bus(0, 500 * US, 1_000_000))["a"]
     assert (r.wcrt_ns, r.error_ns, r.busy_period_ns) == (436 * US, 166 * US, 436 * US)
-    over = can_rta.analyse(FRAMES, 1 * US, ErrorModel.for_bus(0, 190 * US, 1_000_000))["a"]
+    over = can_rta.analyse(FRAMES, 1 * US, errors=ErrorModel.for_bus(0, 190 * US, 1_000_000))["a"]
     assert over.wcrt_ns is None and over.limit == "load"
 
 
 def test_check_and_explain_show_the_error_term(tmp_path: Path) -> None:
     """The same three frames as a spec with errors {burst: 1, interval: 10ms}: check reports test_error_term_by_hand's
-    602 / 737 / 737 us, and --explain b derives E(w + C) = (1 + ceil(737 / 10000)) * (31 + 135) = 332 us. (Every
-    window here is far from a multiple of a period, so a clock tolerance on the periods would not change a count.)"""
+    602 / 737 / 737 us, and --explain b derives E(w + C) = (1 + ceil(737 / 10000)) * (31 + 135) = 332 us (the bus's
+    clocks exact, clock_tolerance 0, as in the hand calculation)."""
     report = check_data(tmp_path, three_frame_spec({"burst": 1, "interval": "10ms", "ber": 1e-6}))
     can0 = bus(report, "can0")
     assert [message(can0, n)["wcrt_us"] for n in ("a", "b", "low")] == [602.0, 737.0, 737.0]
