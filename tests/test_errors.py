@@ -308,3 +308,25 @@ def test_seed_systems_at_ber_1e5(spec_name: str, tmp_path: Path) -> None:
     assert doc["outside_error_assumption"] or doc["exceeds_analysis"] == []
     if doc["error_frames"]:
         assert doc["outside_error_assumption"] and "exceeded the error assumption" in doc["note"]
+
+
+def test_verify_holds_a_logs_error_frames_against_the_model(tmp_path: Path) -> None:
+    """netcfg verify's checker (which simulate --log uses too): error frames 50 us apart then 10 ms apart keep to
+    n = 1, T_err = 10 ms (2 errors in a window of 50 us+, 1 + 1 allowed); three within 100 us do not (1 + 1 allowed
+    again); on a bus without a model the first error frame is already outside."""
+    from netcfg.verify import check_frames
+
+    def kinds(spec: dict[str, Any], errors_us: list[int]) -> list[dict[str, Any]]:
+        cfg = runtime_of(tmp_path, spec)
+        a = cfg.message("a")
+        frames: list[tuple[Any, ...]] = [(i * 1_000_000, "can0", a.id, False, bytes(8)) for i in range(1, 60)]
+        frames += [(t * 1000, "can0", 0, False, b"", True) for t in errors_us]
+        report = check_frames(cfg, sorted(frames, key=lambda f: f[0]))
+        return [v for v in report["violations"] if v["kind"] == "error_frames"]
+
+    model = three_frame_spec({"burst": 1, "interval": "10ms"})
+    assert kinds(model, [5_000, 5_050, 15_100, 25_200]) == []
+    (breach,) = kinds(model, [5_000, 5_050, 5_100])
+    assert breach["detail"].startswith("3 error frames on bus can0 within 0.1 ms, where its error model allows 2")
+    (none,) = kinds(three_frame_spec(None), [5_000])
+    assert none["detail"].startswith("1 error frame(s) on bus can0: it states no error model")

@@ -24,7 +24,8 @@ What is a violation (each names the message, the log time and by how much):
 - `size`: a frame whose payload length is not the message's size (or a CAN FD or remote frame on its identifier).
 - `range`: a decoded signal outside the limits the spec gives it (one per signal, with the count and worst value).
 - `load`: a load window carried more bits than the analysis allows in any window of that length.
-- `error_frames`: the log has error frames (the analysis has no error model).
+- `error_frames`: a bus's error frames came faster than its error model allows (n + ceil(t / T_err) in any window
+  t, netcfg.timing.can_errors), or at all on a bus that states none: the analysis then does not bound the log.
 
 A periodic message's interval is compared with its period +- (worst-case response - its best transmission time)
 as well: the analysed response counts from the nominal release and holds the release jitter (for a message a task
@@ -44,6 +45,7 @@ from numpy.typing import NDArray
 
 from netcfg.cia301 import sync_every
 from netcfg.runtime import Bus, Message, RuntimeConfig
+from netcfg.timing.can_errors import first_breach
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 from netcfg.timing.load import exact_rate, rate_hz
 from netcfg.verify.canopen import ServiceLog
@@ -60,7 +62,6 @@ DEFAULT_WINDOW_US = 100_000
 # how far a sender's clock may run slow against the recorder's: crystal oscillators are specified within about
 # +-100 ppm (the simulator's default drift bound is 50 ppm)
 DEFAULT_CLOCK_TOLERANCE_PPM = 100.0
-
 
 
 class VerifyError(ValueError):
@@ -166,7 +167,8 @@ class Checker:
         }
         self.frames = 0
         self.error_frames = 0
-        self.first_error_t = 0
+        self.error_ns: list[list[int]] = [[] for _ in self.buses]  # per bus: its error frames' instants
+        self.unplaced_error_ns: list[int] = []  # error frames without a channel: held against every bus
         self.first_t: int | None = None
         self.last_t: int | None = None
         self.window_bits: list[NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in self.buses]
@@ -270,12 +272,12 @@ class Checker:
         self.last_t = int(t[-1])
         self.frames += n
         err = (batch.flags & ERROR) != 0
-        if err.any():
-            if not self.error_frames:
-                self.first_error_t = int(t[err][0])
-            self.error_frames += int(err.sum())
         keep = ~err
         bus = self._buses_of(batch.channel)
+        if err.any():
+            self.error_frames += int(err.sum())
+            for ti, b in zip(t[err].tolist(), bus[err].tolist()):
+                (self.error_ns[b] if b >= 0 else self.unplaced_error_ns).append(ti * 1000)
         if (bus[keep] < 0).any():
             raise VerifyError(
                 f"the log's frames name no channel and the system has {len(self.buses)} CAN buses; say which "
@@ -358,10 +360,12 @@ class Checker:
                 early = iv < st.min_gap_us - st.slack_us
                 for k in np.flatnonzero(early)[:MAX_VIOLATIONS]:
                     self._violation(
-                        "early", st, int(ends[k]),
+                        "early",
+                        st,
+                        int(ends[k]),
                         f"{iv[k] / 1000:.3f} ms after the previous frame; the analysis assumes at least "
                         f"{st.min_gap_us / 1000:.3f} ms (less {st.slack_us:.0f} us jitter), "
-                        f"{(st.min_gap_us - st.slack_us - iv[k]) :.0f} us sooner",
+                        f"{(st.min_gap_us - st.slack_us - iv[k]):.0f} us sooner",
                     )
         # response from the SYNC (TM) before each frame
         if st.response_ref is not None and st.bus in self._ref_state:
@@ -383,7 +387,9 @@ class Checker:
                         when = t[ok]
                         for k in np.flatnonzero(resp > st.wcrt_us)[:MAX_VIOLATIONS]:
                             self._violation(
-                                "late", st, int(when[k]),
+                                "late",
+                                st,
+                                int(when[k]),
                                 f"{resp[k]:.0f} us after {st.response_ref.upper()}; the analysed worst case is "
                                 f"{st.wcrt_us:.0f} us, {resp[k] - st.wcrt_us:.0f} us late",
                             )
@@ -402,7 +408,9 @@ class Checker:
             missing = int(periods[k] - 1)
             st.missing += missing
             self._violation(
-                "gap", st, int(ends[k]),
+                "gap",
+                st,
+                int(ends[k]),
                 f"{missing} period{'s' if missing > 1 else ''} missing: {iv[k] / 1000:.3f} ms since the previous "
                 f"frame, period {period / 1000:g} ms",
             )
@@ -473,6 +481,25 @@ class Checker:
             else:
                 rec[0] += count
 
+    def _error_check(self, bus: Bus, times_ns: list[int]) -> None:
+        """A bus's error frames against its error model (none stated: no error at all)."""
+        model = bus.errors
+        breach = first_breach(times_ns, model.burst if model else None, model.interval_ns if model else 1)
+        if breach is None:
+            return
+        if model is None:
+            detail = (
+                f"{len(times_ns)} error frame(s) on bus {bus.name}: it states no error model, so the analysis "
+                "assumes none (retransmissions are not in it)"
+            )
+        else:
+            allowed = model.burst + (breach.last_ns - breach.first_ns) // model.interval_ns + 1
+            detail = (
+                f"{breach.count} error frames on bus {bus.name} within {(breach.last_ns - breach.first_ns) / 1e6:g} "
+                f"ms, where its error model allows {allowed}: the analysis does not bound this log"
+            )
+        self._violation("error_frames", None, breach.first_ns // 1000, detail)
+
     def _violation(self, kind: str, st: _MessageState | None, t: int, detail: str) -> None:
         self.violation_count[kind] = self.violation_count.get(kind, 0) + 1
         if st is not None:
@@ -507,7 +534,9 @@ class Checker:
                 if trailing >= 1:
                     st.missing += trailing
                     self._violation(
-                        "gap", st, end,
+                        "gap",
+                        st,
+                        end,
                         f"{trailing} period{'s' if trailing > 1 else ''} missing at the end of the log: last frame "
                         f"{(end - st.last_t) / 1000:.3f} ms before it, period {st.period_us / 1000:g} ms",
                     )
@@ -527,24 +556,27 @@ class Checker:
             if st.bad_size:
                 count, first, length = st.bad_size
                 self._violation(
-                    "size", st, first,
+                    "size",
+                    st,
+                    first,
                     f"{count} frame(s) with {length} bytes (or CAN FD / remote); the message has {m.size}",
                 )
             for name, (count, first, worst) in st.range_out.items():
                 sig = next(s for s in m.signals if s.name == name)
                 self._violation(
-                    "range", st, first,
+                    "range",
+                    st,
+                    first,
                     f"signal {name} outside [{_g(sig.minimum)}, {_g(sig.maximum)}] in {count} frame(s), "
                     f"worst {worst:g}{' ' + sig.unit if sig.unit else ''}",
                 )
-        if self.error_frames:
-            self._violation(
-                "error_frames", None, self.first_error_t,
-                f"{self.error_frames} error frame(s): the analysis has no error model (retransmissions are not in it)",
-            )
+        for b, bus_ in enumerate(self.buses):
+            self._error_check(bus_, sorted(self.error_ns[b] + self.unplaced_error_ns))
         for (b, i, x), (count, first) in sorted(self.unknown.items(), key=lambda kv: (kv[1][1], kv[0])):
             self._violation(
-                "unknown_id", None, first,
+                "unknown_id",
+                None,
+                first,
                 f"id {_id_text(i, x)} on bus {self.buses[b].name} is not in the configuration ({count} frame(s))",
             )
         buses = [self._bus_report(b) for b in range(len(self.buses))]
@@ -586,7 +618,9 @@ class Checker:
         short = needed - st.count - st.missing
         if short > 0:
             self._violation(
-                "rate", st, st.last_t,
+                "rate",
+                st,
+                st.last_t,
                 f"{st.count} frames over {span / 1e6:.6f} s; a {st.period_us / 1000:g} ms period needs at least "
                 f"{needed} ({short} more than the gaps explain; mean period {span / max(st.count - 1, 1) / 1000:.3f} "
                 f"ms, clock tolerance {self.clock_tolerance * 1e6:g} ppm)",
@@ -642,7 +676,9 @@ class Checker:
         for w in over[:MAX_VIOLATIONS]:
             assert self.first_t is not None
             self._violation(
-                "load", None, self.first_t + (int(w) + 1) * self.window_us,
+                "load",
+                None,
+                self.first_t + (int(w) + 1) * self.window_us,
                 f"bus {bus.name}: load {load[w]:.1%} in the {self.window_us / 1000:g} ms window ending here; the "
                 f"analysis allows at most {bound:.1%} in any such window (utilisation {analysed:.1%})",
             )
@@ -695,8 +731,11 @@ class Checker:
         assert co is not None
         window = co.sync_window_ns
         in_window = [
-            {"name": st.msg.name, "response_max_us": st.resp_max,
-             "inside_window": None if window is None or st.resp_max is None else st.resp_max * 1000 <= window}
+            {
+                "name": st.msg.name,
+                "response_max_us": st.resp_max,
+                "inside_window": None if window is None or st.resp_max is None else st.resp_max * 1000 <= window,
+            }
             for st in self.states
             if st.bus == b and st.response_ref == "sync"
         ]
@@ -723,10 +762,28 @@ def _trigger_message(bus: Bus) -> Message:
     ftt = bus.ftt
     assert ftt is not None
     return Message(
-        name=f"{bus.name}_TM", bus=bus.name, protocol=bus.protocol, producer=ftt.master, consumers=(), id=ftt.tm_id,
-        extended=False, size=ftt.tm_size, kind="periodic", period_ns=ftt.ec_ns, interval_ns=ftt.ec_ns, offset_ns=0,
-        deadline_ns=None, jitter_ns=0, rate_hz=None, window=None, ftt_id=None, udp=None, pdo=None, signals=(),
-        implicit="TM", wcrt_ns=None,
+        name=f"{bus.name}_TM",
+        bus=bus.name,
+        protocol=bus.protocol,
+        producer=ftt.master,
+        consumers=(),
+        id=ftt.tm_id,
+        extended=False,
+        size=ftt.tm_size,
+        kind="periodic",
+        period_ns=ftt.ec_ns,
+        interval_ns=ftt.ec_ns,
+        offset_ns=0,
+        deadline_ns=None,
+        jitter_ns=0,
+        rate_hz=None,
+        window=None,
+        ftt_id=None,
+        udp=None,
+        pdo=None,
+        signals=(),
+        implicit="TM",
+        wcrt_ns=None,
     )
 
 
