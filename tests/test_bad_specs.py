@@ -96,6 +96,8 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "can_payload_over_8.yaml": (17, "payload", "at most 8"),
     "can_id_over_11_bits.yaml": (16, "id-range", "11 bits"),
     "can_bitrate_too_high.yaml": (6, "bitrate", "at most 1 Mbit/s"),
+    "errors_interval_zero.yaml": (7, "errors", "interval must be a time longer than 0"),
+    "errors_ber_above_one.yaml": (9, "less-than", "less than 1"),
     "producer_not_on_bus.yaml": (18, "not-on-bus", "node 'a' is not on bus 'can1'"),
     "name_path_traversal.yaml": (2, "value-error", "not a safe name"),
     "name_comment_close.yaml": (13, "value-error", "not a safe name"),
