@@ -132,8 +132,9 @@ def assumptions(bus: model.Bus) -> list[str]:
         else "every sender's clock exact (clock_tolerance 0): periods are counted as nominal",
         "no bus errors, hence no retransmissions (the bus states no error model)"
         if bus.errors is None
-        else f"at most {bus.errors.burst} bit error(s) at once, then at most one per "
-        f"{format_ns(bus.errors.interval_ns)}, each an error frame of up to 31 bits and a retransmission",
+        else "bit errors: "
+        + can_errors.describe(bus.errors.burst, format_ns(bus.errors.interval_ns))
+        + ", each an error frame of up to 31 bits and a retransmission",
     ]
     if bus.ftt is not None:
         out += [
@@ -337,7 +338,7 @@ def errors_section(bus: model.Bus, utilization: float) -> dict[str, Any]:
         "assumption": (
             "error-free bus: no bound allows for a bit error (set the bus's errors: to allow for them)"
             if em is None
-            else f"at most {em.burst} error(s) at once, then one per {format_ns(em.interval_ns)}"
+            else can_errors.describe(em.burst, format_ns(em.interval_ns))
         ),
         "ber": ber,
         "errors_per_hour": round(rate * 3600, 3),

@@ -160,6 +160,9 @@ def test_probability_by_hand() -> None:
     assert exceed_probability(0.1, 1, 1 * MS) == pytest.approx(1.8e-6, rel=1e-3)
     assert exceed_probability(0.1, None, 1 * MS) == 1.0
     assert exceed_probability(2000.0, 3, 1 * MS) == 1.0  # two errors per T_err on average: the model cannot hold
+    # lambda * T_err = 0.999 with n = 2 and 1,000 s intervals: m = 1 alone gives 3.6 * P(Poisson(0.999) >= 3) =
+    # 3.6 * 0.080 = 0.29, m = 2 adds 3.6 * P(Poisson(1.998) >= 4) = 3.6 * 0.142 = 0.51, ...: the bound passes 1 at once
+    assert exceed_probability(0.000999, 2, 1_000_000 * MS) == 1.0
 
 
 def test_probability_bounds_a_monte_carlo_count() -> None:

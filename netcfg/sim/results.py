@@ -16,7 +16,7 @@ import numpy as np
 from netcfg.runtime import ErrorAssumption, Message, RuntimeConfig
 from netcfg.sim.scenario import Scenario
 from netcfg.sim.stats import stats_us
-from netcfg.timing.can_errors import first_breach
+from netcfg.timing.can_errors import describe, first_breach
 
 HIST_BINS = 40
 
@@ -127,9 +127,7 @@ def error_check(bus: str, hits: list[int], model: ErrorAssumption | None) -> dic
     out: dict[str, Any] = {
         "bus": bus,
         "errors": len(hits),
-        "assumption": "error-free bus"
-        if model is None
-        else f"at most {model.burst} error(s) at once, then one per {model.interval_ns / 1000:g} us",
+        "assumption": "error-free bus" if model is None else describe(model.burst, f"{model.interval_ns / 1000:g} us"),
         "within_assumption": breach is None,
     }
     if breach is not None:

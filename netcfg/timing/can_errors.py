@@ -41,7 +41,7 @@ from netcfg.timing.frames import bits_to_ns
 
 ERROR_FRAME_BITS = 31  # the longest error frame and its recovery, at the nominal bit rate
 HOUR_NS = 3_600_000_000_000
-MAX_TERMS = 1_000_000  # of the series over m; it converges geometrically when lambda * T_err < 1
+MAX_TERMS = 10_000  # of the series over m; it converges geometrically when lambda * T_err < 1
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,13 @@ class ErrorModel:
     def rate(self) -> tuple[int, int]:
         """(errors per T_err, T_err): the long-run error rate the model allows, 1 per T_err, as a (C, T) load."""
         return 1, self.interval_ns
+
+
+def describe(burst: int, interval: str) -> str:
+    """The model in words, for reports: 'at most 2 errors at once, then one per 10 ms'."""
+    if burst == 0:
+        return f"at most one error per {interval}"
+    return f"at most {burst} error{'s' if burst > 1 else ''} at once, then one per {interval}"
 
 
 def recovery_costs(c_by_priority: Sequence[int], model: ErrorModel) -> list[int]:
@@ -94,13 +101,16 @@ def exceed_probability(rate_per_s: float, burst: int | None, interval_ns: int, h
     per_interval = rate_per_s * interval_ns / 1e9  # lambda * T_err
     if per_interval >= 1:
         return 1.0
+    starts = rate_per_s * span_s  # expected errors in the span: each may start an excess
     total = 0.0
     for m in range(1, MAX_TERMS):
         term = poisson_tail(per_interval * m, m + burst)
         total += term
+        if starts * total >= 1:
+            return 1.0  # the bound says nothing more
         if term <= total * 1e-15:
-            break
-    return min(1.0, rate_per_s * span_s * total)
+            return starts * total
+    return 1.0  # not converged within MAX_TERMS (lambda * T_err a hair under 1): no bound below 1
 
 
 def poisson_tail(mean: float, k: int) -> float:
