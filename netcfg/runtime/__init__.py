@@ -13,7 +13,6 @@ written through one unsigned field `<message>_raw` spanning its payload, the sam
 
 Version 1 has grown without changing the meaning of any key, so it is still version 1: nodes gained `identity`,
 `eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
-`eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
 `safe_stop`, CANopen buses `sync_overflow` and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns`
 and `unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`, CAN buses `errors`
 and FTT-CAN schedule slots `allowance_ns`. A file written before them still loads: their fields are then None (no
