@@ -327,13 +327,16 @@ def async_response_times(
     cycle_ns = sched.ec_ns * sched.macro_cycle
     ordered = sorted(frames, key=lambda f: arbitration_key(f.can_id, f.extended))
     out: dict[str, int | None] = {}
+    fastest = Fraction(PPM, PPM - tolerance_ppm)  # the fastest sender clocks release this much more often
+    level_demand = Fraction(0)  # exact, kept as a running sum over the messages so far (the level-m set)
     for i, f in enumerate(ordered):
         level = ordered[: i + 1]
         blocking = max((g.c_ns for g in ordered[i + 1 :]), default=0)
         largest = max(sched.tm_ns, *(g.c_ns for g in level))  # what an error can make the window resend
         # exact: the level-m demand per macro-cycle against what the windows serve in one
-        fastest = Fraction(PPM, PPM - tolerance_ppm)  # the fastest sender clocks release this much more often
-        demand = sum((Fraction(g.c_ns * cycle_ns, g.t_ns) * fastest for g in level if g.t_ns), Fraction(0))
+        if f.t_ns:
+            level_demand += Fraction(f.c_ns * cycle_ns, f.t_ns) * fastest
+        demand = level_demand
         if errors is not None:  # one recovery per T_err (real time)
             demand += Fraction((errors.error_frame_ns + largest) * cycle_ns, errors.interval_ns)
         if demand >= cycle_supply:
@@ -358,9 +361,15 @@ def _async_worst(
     ppm: int,
     lost: Callable[[int], int] = lambda _: 0,
 ) -> int | None:
+    demand_at: dict[int, int] = {}  # every start of the macro-cycle revisits the same windows
+
     def hp_demand(t: int) -> int:
         """Higher-priority work released in a window of length t, and what bit errors take in it."""
-        return sum(g.c_ns * (-(-longest_local(t + g.j_ns, ppm) // g.t_ns) if g.t_ns else 1) for g in hp) + lost(t)
+        if (known := demand_at.get(t)) is None:
+            known = demand_at[t] = sum(
+                g.c_ns * (-(-longest_local(t + g.j_ns, ppm) // g.t_ns) if g.t_ns else 1) for g in hp
+            ) + lost(t)
+        return known
 
     steps = 0
     worst = 0
