@@ -23,37 +23,95 @@ window first), and a master falls back to what it did without them.
 
 from __future__ import annotations
 
-from netcfg.runtime.codec import CodecError
-from netcfg.runtime.config import (
-    CAN_PROTOCOLS,  # noqa: F401  (not in __all__; kept importable from here)
-    FD_PADDING,  # noqa: F401
-    Bus,
-    CanopenParams,
-    EcSlot,
-    ErrorAssumption,
-    EthernetParams,
-    Flow,
-    FlowStep,
-    FttParams,
-    Message,
-    Node,
-    NodeIdentity,
-    Pdo,
-    PdoEntry,
-    RuntimeConfig,
-    SdoWrite,
-    Signal,
-    SrtEntry,
-    Switch,
-    SwitchPort,
-    Task,
-    Trigger,
-    UdpPorts,
-    UnknownNameError,
-    interpolation_period,
-    raw_signal_name,
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from netcfg.runtime.codec import CodecError
+    from netcfg.runtime.config import (
+        CAN_PROTOCOLS,  # noqa: F401  (not in __all__; kept importable from here)
+        FD_PADDING,  # noqa: F401
+        Bus,
+        CanopenParams,
+        EcSlot,
+        ErrorAssumption,
+        EthernetParams,
+        Flow,
+        FlowStep,
+        FttParams,
+        Message,
+        Node,
+        NodeIdentity,
+        Pdo,
+        PdoEntry,
+        RuntimeConfig,
+        SdoWrite,
+        Signal,
+        SrtEntry,
+        Switch,
+        SwitchPort,
+        Task,
+        Trigger,
+        UdpPorts,
+        UnknownNameError,
+        interpolation_period,
+        raw_signal_name,
+    )
+    from netcfg.runtime.loader import FORMAT, SUPPORTED_VERSIONS, RuntimeConfigError, load, parse, read_document
+
+# The names below load their module on first use (PEP 562): netcfg.runtime.codec alone (the DBC importer's
+# payload layout) then costs no dataclasses, hashing or difflib it does not use.
+_HOME: dict[str, str] = {"CodecError": "netcfg.runtime.codec"}
+_HOME.update(
+    dict.fromkeys(
+        (
+            "CAN_PROTOCOLS",
+            "FD_PADDING",
+            "Bus",
+            "CanopenParams",
+            "EcSlot",
+            "ErrorAssumption",
+            "EthernetParams",
+            "Flow",
+            "FlowStep",
+            "FttParams",
+            "Message",
+            "Node",
+            "NodeIdentity",
+            "Pdo",
+            "PdoEntry",
+            "RuntimeConfig",
+            "SdoWrite",
+            "Signal",
+            "SrtEntry",
+            "Switch",
+            "SwitchPort",
+            "Task",
+            "Trigger",
+            "UdpPorts",
+            "UnknownNameError",
+            "interpolation_period",
+            "raw_signal_name",
+        ),
+        "netcfg.runtime.config",
+    )
 )
-from netcfg.runtime.loader import FORMAT, SUPPORTED_VERSIONS, RuntimeConfigError, load, parse, read_document
+_HOME.update(
+    dict.fromkeys(
+        ("FORMAT", "SUPPORTED_VERSIONS", "RuntimeConfigError", "load", "parse", "read_document"),
+        "netcfg.runtime.loader",
+    )
+)
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(home), name)
+    globals()[name] = value  # later look-ups find it directly
+    return value
+
 
 __all__ = [
     "FORMAT",
@@ -89,3 +147,7 @@ __all__ = [
     "raw_signal_name",
     "read_document",
 ]
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_HOME})
