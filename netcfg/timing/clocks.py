@@ -11,14 +11,15 @@ arithmetic and work elementwise on numpy integer arrays (x * ppm stays within in
 
 from __future__ import annotations
 
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-import numpy as np
+if TYPE_CHECKING:  # the arithmetic below works on arrays without numpy imported: resolve never loads it
+    import numpy as np
 
 PPM = 1_000_000
 DEFAULT_TOLERANCE_PPM = 100  # node clocks run within +-100 ppm of nominal unless the bus says otherwise
 
-Ns = TypeVar("Ns", int, np.ndarray)
+Ns = TypeVar("Ns", int, "np.ndarray")
 
 
 def longest_local(x: Ns, ppm: int) -> Ns:
