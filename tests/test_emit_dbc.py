@@ -16,6 +16,9 @@ from conftest import SPECS, load_spec
 
 import netcfg.runtime as rt
 from netcfg.build import build
+from netcfg.check import load_model
+from netcfg.diagnostics import Collector
+from netcfg.emit import dbc
 from netcfg.emit.dbc import sanitise
 
 ALL_SPECS = sorted(p.name for p in SPECS.glob("*.yaml"))
@@ -183,6 +186,44 @@ def test_dbc_is_identical_across_builds(outputs: dict[str, Path], tmp_path: Path
     first = outputs["large_plant.yaml"]
     for path in sorted((first / "dbc").glob("*.dbc")):
         assert (again / "dbc" / path.name).read_bytes() == path.read_bytes(), path.name
+
+
+LONG_NODE_SPEC = """
+system: long_names
+buses:
+  - {name: body, protocol: can, bitrate: 500 kbit/s}
+nodes:
+  - {name: a_gateway_with_a_name_of_forty_chars_x, buses: [body]}
+  - {name: dash, buses: [body]}
+messages:
+  - {name: status, id: 0x100, producer: a_gateway_with_a_name_of_forty_chars_x, consumers: [dash], size: 2,
+     period: 10 ms}
+"""
+
+
+@pytest.mark.parametrize("spec", ALL_SPECS)
+def test_dbc_text_is_what_cantools_writes_with_the_nodes(spec: str) -> None:
+    """dbc_text writes the nodes' BU_ line itself and lets cantools write the rest without them (cantools'
+    rename pass over nodes x frames x receivers is a no-op for netcfg's names); the expected text is cantools'
+    own writer given the whole database, nodes included."""
+    model = load_model(SPECS / spec, Collector())
+    assert model is not None
+    for bus in (b for b in model.buses.values() if b.is_can):
+        assert dbc.dbc_text(model, bus) == dbc.write(dbc.database(model, bus)), bus.name
+
+
+def test_a_node_name_cantools_shortens_takes_cantools_whole_writer(tmp_path: Path) -> None:
+    """A 38-character node name is over cantools' 32 (it writes the first 32 characters and keeps the long name
+    in a SystemNodeLongSymbol attribute), so the nodes go through cantools' writer as they are."""
+    spec = tmp_path / "long.yaml"
+    spec.write_text(LONG_NODE_SPEC, encoding="utf-8")
+    model = load_model(spec, Collector())
+    assert model is not None
+    bus = model.buses["body"]
+    text = dbc.dbc_text(model, bus)
+    assert text == dbc.write(dbc.database(model, bus))
+    assert "\r\nBU_: a_gateway_with_a_name_of_forty_c dash\r\n" in text
+    assert "SystemNodeLongSymbol" in text
 
 
 def test_comments_cannot_break_the_dbc_syntax() -> None:

@@ -54,10 +54,33 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     files = {}
     for bus in m.buses.values():
         if bus.is_can:
-            # cantools' default re-sorts signals in the comment section; keep the start-bit order of the messages
-            text = database(m, bus).as_dbc_string(sort_signals=None, sort_attribute_signals=None)
-            files[f"dbc/{bus.name}.dbc"] = text.encode(ENCODING, errors="replace")
+            files[f"dbc/{bus.name}.dbc"] = dbc_text(m, bus).encode(ENCODING, errors="replace")
     return files
+
+
+CANTOOLS_SHORT_NAME = 32  # cantools shortens longer names as it writes (keeping the long one as an attribute)
+_NO_NODES = "\r\nBU_: \r\n"  # the node line cantools writes for a database without nodes
+
+
+def write(db: cdb.Database) -> str:
+    # cantools' default re-sorts signals in the comment section; keep the start-bit order of the messages
+    return db.as_dbc_string(sort_signals=None, sort_attribute_signals=None)
+
+
+def dbc_text(m: model.Model, bus: model.Bus) -> str:
+    """The bus's DBC file as cantools writes it.
+
+    Before writing, cantools renames every node throughout every frame's sender and receiver lists: nodes x
+    frames x receivers steps, most of the writing on a CANopen bus of 127 nodes whose heartbeats every node
+    receives. For netcfg's names, which are DBC names already, that pass changes nothing; so when no node name is
+    long enough for cantools to shorten, it writes the database without its nodes and their one line, `BU_:`, is
+    filled in. Nodes carry no comment or attribute here, so the bytes are those of the long way (a test compares)."""
+    if any(len(name) > CANTOOLS_SHORT_NAME for name in bus.nodes):
+        return write(database(m, bus))
+    text = write(database(m, bus, with_nodes=False))
+    if text.count(_NO_NODES) != 1:  # a cantools that writes the line differently: take the long way
+        return write(database(m, bus))
+    return text.replace(_NO_NODES, f"\r\nBU_: {' '.join(bus.nodes)}\r\n")
 
 
 SEND_TYPES = ["Cyclic", "Spontaneous", "NoMsgSendType"]  # GenMsgSendType's values, in enum order
@@ -74,13 +97,13 @@ _EXACT_MS = {
 }
 
 
-def database(m: model.Model, bus: model.Bus) -> cdb.Database:
+def database(m: model.Model, bus: model.Bus, with_nodes: bool = True) -> cdb.Database:
     messages = [_message(m, msg) for msg in bus.messages]
     tm = _trigger_message(m, bus)
     if tm is not None:
         messages.append(tm)
     messages.sort(key=lambda x: (x.is_extended_frame, x.frame_id, x.name))
-    nodes = [cdb.Node(name) for name in bus.nodes]
+    nodes = [cdb.Node(name) for name in bus.nodes] if with_nodes else []
     # DBName (Vector's database attribute) carries the bus name; cantools writes Baudrate itself from the Bus
     db_name = DbcAttributeDefinition("DBName", default_value="", type_name="STRING")
     specifics = DbcSpecifics(
