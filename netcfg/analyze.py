@@ -11,7 +11,7 @@ from typing import Any
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_errors, can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
+from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
 
@@ -255,6 +255,11 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
                     "steps of the analysis: the traffic at its priority is so close to 100% of the capacity that "
                     "its busy period is too long to follow"
                 )
+            elif row["wcrt_us"] is None and row.get("unbounded") == "fifo":
+                text = (
+                    f"message '{msg.name}' has no bounded worst-case response time: its sender's FIFO transmit "
+                    "queue can hold two of its frames at once (a member waits longer than its period)"
+                )
             elif row["wcrt_us"] is None:
                 text = (
                     f"message '{msg.name}' has no bounded worst-case response time: the traffic at its "
@@ -347,6 +352,86 @@ def errors_section(bus: model.Bus, utilization: float) -> dict[str, Any]:
     return out
 
 
+def fifo_senders(m: model.Model, bus: model.Bus) -> dict[str, str]:
+    """Message -> its node, for every message sent through a FIFO transmit queue on this bus."""
+    return {msg.name: msg.producer for msg in bus.messages if m.nodes[msg.producer].tx_queue.fifo}
+
+
+def bus_responses(
+    m: model.Model, bus: model.Bus, frames: list[can_rta.CanFrame], tau: int
+) -> can_fifo.FifoAnalysis:
+    """Every message's response on a CAN bus: FIFO queues (can_fifo) around the priority-queued analysis, with
+    release offsets (can_offsets) for the priority-queued senders that keep them."""
+    fifo_of = fifo_senders(m, bus)
+    offsets = {name: o for name, o in release_offsets(m, bus).items() if name not in fifo_of}
+    ppm, errors = bus.clock_tolerance_ppm, error_model(bus)
+    return can_fifo.analyse(
+        frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors
+    )
+
+
+def tx_queue_rows(m: model.Model, bus: model.Bus, fifo: can_fifo.FifoAnalysis) -> list[dict[str, Any]]:
+    """Each FIFO transmit queue on the bus: its bound and its backlog. Under the analysis's premise (each member
+    sent within its period) at most one instance of each member is queued at a time: the backlog is their number."""
+    rows = []
+    for node, q in fifo.queues.items():
+        spec = m.nodes[node].tx_queue
+        rows.append(
+            {
+                "node": node,
+                "policy": spec.policy,
+                "depth": spec.depth,
+                "on_full": spec.on_full,
+                "messages": list(q.members),
+                "backlog_max": None if q.queue_ns is None else len(q.members),
+                "lowest": q.lowest,
+                "blocking_us": us(q.blocking_ns),
+                "queued_us": us(q.queued_ns),
+                "interference_us": us(q.interference_ns),
+                "queue_us": us(q.queue_ns),
+                **({"unbounded": q.limit} if q.limit else {}),
+            }
+        )
+    return rows
+
+
+def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:
+    """A FIFO that can hold more frames than its depth: with drop, frames are lost (a warning); with block, the
+    sending task waits for a slot, which no task bound here includes (an error)."""
+    for row in rows:
+        node = m.nodes[row["node"]]
+        backlog = row["backlog_max"]
+        if backlog is not None and backlog <= row["depth"]:
+            continue
+        held = "an unbounded number of" if backlog is None else f"up to {backlog}"
+        at = m.source.at((*node.path, "tx_queue"))
+        if row["on_full"] == "drop":
+            diags.add(
+                "tx-queue",
+                f"node '{node.name}' can have {held} frames in its FIFO transmit queue on bus '{bus.name}', more "
+                f"than its depth of {row['depth']}: frames will be dropped; raise the depth or send fewer messages",
+                at,
+                "warning",
+            )
+        else:
+            diags.add(
+                "tx-queue",
+                f"node '{node.name}' can have {held} frames in its FIFO transmit queue on bus '{bus.name}', more "
+                f"than its depth of {row['depth']}: its sending task blocks, which its response time does not "
+                "include; raise the depth, send fewer messages or use on_full: drop",
+                at,
+            )
+    fifo_async = [msg for msg in bus.messages if msg.window == "async" and m.nodes[msg.producer].tx_queue.fifo]
+    if bus.ftt is not None and fifo_async:
+        diags.add(
+            "tx-queue",
+            f"bus '{bus.name}': the FTT-CAN asynchronous-window analysis assumes priority transmit queues; the FIFO "
+            "queues are analysed as plain CAN only (wcrt_plain_can_us)",
+            m.source.at(bus.path),
+            "warning",
+        )
+
+
 def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     timings, worst, nominal = load.can_bus_load(bus)
     # (nominal, worst-case) frame time of each message: without and with stuff bits
@@ -354,9 +439,8 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
     errors = error_model(bus)
-    plain = can_offsets.analyse(
-        rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus), bus.clock_tolerance_ppm, errors
-    )
+    fifo = bus_responses(m, bus, rta_frames(bus.messages, timings, acc), tau)
+    plain = fifo.responses
     for msg in bus.messages:
         acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
     out: dict[str, Any] = {
@@ -392,6 +476,13 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             if r.limit:
                 row["unbounded"] = r.limit
             acc.chained[msg.name] = acc.plain[msg.name]
+    queues = tx_queue_rows(m, bus, fifo)
+    if queues:
+        out["tx_queues"] = queues
+        check_tx_queues(m, bus, queues, diags)
+        for row in rows:
+            if row["name"] in fifo.effective_jitter_ns:
+                row["tx_queue"] = "fifo"
     if bus.canopen is not None:
         out["sync"] = analyze_sync(m, bus, frame_ns, diags, acc)
     if bus.ftt is None and load.can_bus_overloaded(bus, timings, worst):
