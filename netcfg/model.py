@@ -53,7 +53,7 @@ class TxQueue:
         return self.policy == "fifo"
 
 
-@dataclass(frozen=True)
+@dataclass
 class Node:
     name: str
     node_id: int | None
