@@ -106,12 +106,12 @@ def _analyze_once(m: model.Model, diags: Collector, acc: _Analysis) -> dict[str,
         else:
             buses.append(analyze_can(m, bus, diags, acc))
     for row, bus in zip(buses, m.buses.values()):
-        row["assumes"] = assumptions(bus)
+        row["assumes"] = assumptions(bus, tuple(q["node"] for q in row.get("tx_queues", ())))
     nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
     return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
 
 
-def assumptions(bus: model.Bus) -> list[str]:
+def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
     """What the bounds of this bus rest on, in the user's terms (the README explains each)."""
     if bus.protocol == "ethernet-udp":
         return [
@@ -121,9 +121,16 @@ def assumptions(bus: model.Bus) -> list[str]:
             "adds to the jitter seen downstream",
             "no frame loss and no other traffic than the spec's",
         ]
+    queues = (
+        "every node queues its frames by priority (no FIFO transmit buffer, no priority inversion in the controller)"
+    )
+    if fifo_nodes:
+        queues = (
+            f"{', '.join(fifo_nodes)} queue{'s' if len(fifo_nodes) == 1 else ''} frames in FIFO order (at most one "
+            "frame of each message in the queue at a time), every other node by priority"
+        )
     out = [
-        "every node queues its frames by priority (no FIFO transmit buffer, no priority inversion in the "
-        "controller); worst-case bit stuffing",
+        f"{queues}; worst-case bit stuffing",
         "periodic messages released at most once per (fastest) period, sporadic ones at most once per minimum "
         "inter-arrival time, each at most its jitter late",
         f"every sender's clock within +-{bus.clock_tolerance_ppm} ppm of nominal (clock_tolerance): periods are "
@@ -524,6 +531,11 @@ def analyze_sync(
         completion_ns=[c.completion_ns for c in cycles],
         master=loop,
         release_delay_ns={msg.name: m.nodes[msg.producer].tx_delay_ns for msg in bus.messages},
+        ahead_of_sync=frozenset(
+            msg.name
+            for msg in bus.messages
+            if msg.producer == co.sync_producer and msg is not sync_msg and m.nodes[msg.producer].tx_queue.fifo
+        ),
     )
     check_master_loop(m, bus, loop, diags)
     rows = []
