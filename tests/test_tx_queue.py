@@ -190,3 +190,27 @@ def test_runtime_json_carries_the_queue(tmp_path: Path) -> None:
     nodes = {n["name"]: n["tx_queue"] for n in doc["nodes"]}
     assert nodes["host"] == {"policy": "fifo", "depth": 4, "on_full": "drop"}
     assert nodes["drive"] == {"policy": "priority", "depth": 10, "on_full": "block"}
+
+
+def test_explain_shows_the_queue_term(tmp_path: Path) -> None:
+    """--explain high restates test_fifo_bound_by_hand: high and low in the queue (270 us), blocking by log (135),
+    mid once (135): w = 135 + 270 - 135 + 135 = 405, R = 405 + 135 = 540 us. With a deadline of 300 us it misses,
+    and the one change is the queue: by priority its bound is B + C = 270 us. --explain mid shows high as an
+    interferer with the FIFO's jitter R - C = 405 us."""
+    data = _spec()
+    data["messages"][1]["deadline"] = "300 us"
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    proc = cli("check", str(tmp_path / "s.yaml"), "--explain", "high", "--format", "json")
+    assert proc.returncode == 1, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert doc["queue"]["node"] == "host" and doc["queue"]["lowest"] == "low"
+    assert [x["name"] for x in doc["queue"]["frames"]] == ["high", "low"]
+    assert (doc["queue"]["queued_us"], doc["queue"]["c_min_us"], doc["w_us"], doc["wcrt_us"]) == (270, 135, 405, 540)
+    assert doc["blocking"] == {"by": "log", "us": 135.0}
+    assert [(x["name"], x["hits"]) for x in doc["interferers"]] == [("mid", 1)]
+    assert doc["fix"]["kind"] == "queue" and doc["fix"]["wcrt_us"] == 270.0
+    text = cli("check", str(tmp_path / "s.yaml"), "--explain", "high").stdout
+    assert "R = J + w + C_MIN = 0 + 405 + 135 = 540 us" in text
+    mid = json.loads(cli("check", str(tmp_path / "s.yaml"), "--explain", "mid", "--format", "json").stdout)
+    assert [(x["name"], x["jitter_us"]) for x in mid["interferers"]] == [("high", 405.0)]
+    assert mid["wcrt_us"] == 405.0
