@@ -430,12 +430,12 @@ def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], 
             )
     fifo_async = [msg for msg in bus.messages if msg.window == "async" and m.nodes[msg.producer].tx_queue.fifo]
     if bus.ftt is not None and fifo_async:
+        node = m.nodes[fifo_async[0].producer]
         diags.add(
             "tx-queue",
-            f"bus '{bus.name}': the FTT-CAN asynchronous-window analysis assumes priority transmit queues; the FIFO "
-            "queues are analysed as plain CAN only (wcrt_plain_can_us)",
-            m.source.at(bus.path),
-            "warning",
+            f"node '{node.name}' sends asynchronous FTT-CAN messages ('{fifo_async[0].name}') through a FIFO transmit "
+            "queue, which the asynchronous-window analysis does not cover: give it tx_queue: priority",
+            m.source.at((*node.path, "tx_queue")),
         )
 
 
