@@ -214,3 +214,28 @@ def test_explain_shows_the_queue_term(tmp_path: Path) -> None:
     mid = json.loads(cli("check", str(tmp_path / "s.yaml"), "--explain", "mid", "--format", "json").stdout)
     assert [(x["name"], x["jitter_us"]) for x in mid["interferers"]] == [("high", 405.0)]
     assert mid["wcrt_us"] == 405.0
+
+
+def test_ftt_can_asynchronous_fifo_senders_are_refused(tmp_path: Path) -> None:
+    """CAMBADA's kicker sends battery_status in the asynchronous window; the window analysis (Pedreiras and Almeida)
+    assumes priority queues, so a FIFO there is refused at the node's tx_queue rather than analysed wrongly."""
+    from conftest import load_spec
+
+    data = load_spec("cambada.yaml")
+    kicker = next(n for n in data["nodes"] if n["name"] == "kicker")
+    kicker["tx_queue"] = "fifo"
+    report = check_data(tmp_path, data)
+    assert [e["code"] for e in report["errors"]] == ["tx-queue"]
+    assert "kicker" in report["errors"][0]["message"] and "battery_status" in report["errors"][0]["message"]
+
+
+def test_can_fd_fifo_uses_the_same_bound(tmp_path: Path) -> None:
+    """The inversion spec on a CAN FD bus (1 Mbit/s arbitration, 2 Mbit/s data, frames without bit-rate switch): the
+    FIFO bound has the same terms, each frame at its CAN FD worst-case time (the report's tx_us, from the timing
+    core): high = B (log) + C_high + C_low + C_mid (once), as in test_fifo_bound_by_hand."""
+    data = _spec()
+    data["buses"][0].update(protocol="can-fd", data_bitrate="2 Mbit/s")
+    can0 = bus(check_data(tmp_path, data), "can0")
+    c = {m["name"]: m["tx_us"] for m in can0["messages"]}
+    assert message(can0, "high")["wcrt_us"] == c["log"] + c["high"] + c["low"] + c["mid"]
+    assert message(can0, "low")["wcrt_us"] == message(can0, "high")["wcrt_us"]
