@@ -335,6 +335,13 @@ def text(doc: dict[str, Any]) -> str:
             )
     for bus, reports in doc.get("protocols", {}).items():
         lines += ["", *_protocol_text(bus, reports[0])]
+    for q in doc.get("tx_queues", ()):
+        how = "dropped" if q["on_full"] == "drop" else "blocked their writer"
+        lines += [
+            "",
+            f"  bus {q['bus']}: {q['node']}'s FIFO transmit queue held up to {q['max_backlog']} of {q['depth']} frames"
+            + (f"; {q['overflows']} frames found it full and {how}" if q["overflows"] else ""),
+        ]
     for finding in doc.get("findings", []):
         lines += ["", f"  finding: {finding}"]
     if doc.get("error_checks"):
