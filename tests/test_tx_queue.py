@@ -87,6 +87,29 @@ def test_fifo_bound_by_hand() -> None:
     assert got == {"low": 540 * US, "high": 540 * US, "mid": 405 * US, "log": 540 * US}
 
 
+def test_an_unbounded_fifo_leaves_everything_below_it_unbounded() -> None:
+    """FIFO A = {a1 0x010 every 300 us, a2 0x020}, FIFO B = {b1 0x030, b2 0x040}, priority node P = {hp 0x001,
+    lp 0x100}; all 135 us frames. A: B_A = 135 (a frame below 0x020), w = 135 + 270 - 135 + hp (135, once) = 405,
+    R = 540 us > a1's period of 300 us: two a1 frames can be queued, no bound. B's lowest (0x040) is below a1, which
+    now reaches arbitration at no bounded time: no bound either; nor lp, below a1. hp, above both queues, keeps its
+    bound: blocking by one frame + itself = 270 us."""
+    tau = US
+    frames = [
+        can_rta.CanFrame("a1", 0x010, False, C8, 300 * US),
+        can_rta.CanFrame("a2", 0x020, False, C8, 10_000 * US),
+        can_rta.CanFrame("b1", 0x030, False, C8, 10_000 * US),
+        can_rta.CanFrame("b2", 0x040, False, C8, 10_000 * US),
+        can_rta.CanFrame("hp", 0x001, False, C8, 10_000 * US),
+        can_rta.CanFrame("lp", 0x100, False, C8, 10_000 * US),
+    ]
+    fifo_of = {"a1": "A", "a2": "A", "b1": "B", "b2": "B"}
+    res = can_fifo.analyse(frames, tau, fifo_of, lambda fs: can_rta.analyse(fs, tau))
+    assert res.queues["A"].limit == "fifo" and res.queues["A"].interference_ns == 135 * US
+    assert res.queues["B"].queue_ns is None and res.queues["B"].limit == "fifo"
+    got = {name: r.wcrt_ns for name, r in res.responses.items()}
+    assert got == {"a1": None, "a2": None, "b1": None, "b2": None, "hp": 270 * US, "lp": None}
+
+
 def test_priority_inversion_that_the_priority_queue_analysis_misses(tmp_path: Path) -> None:
     """The spec analysed with a priority queue on host gives high B + C = 135 + 135 = 270 us (Davis et al. 2007:
     it can only wait for one lower-priority frame). Through the FIFO it can wait behind low, which loses to mid:

@@ -107,7 +107,22 @@ def analyse(
     out = priority(effective)
     # a FIFO without a bound reaches arbitration at no bounded time: every frame below its highest-priority member
     # can meet it any number of times
-    unbounded = [(min(f.priority_key for f in groups[q.node]), q.limit) for q in queues.values() if q.queue_ns is None]
+    top = {node: min(f.priority_key for f in members) for node, members in groups.items()}
+    bottom = {node: max(f.priority_key for f in members) for node, members in groups.items()}
+    # ... and so is another FIFO whose lowest-priority message is below that member, and so on
+    spreading = True
+    while spreading:
+        spreading = False
+        for node, q in sorted(queues.items()):
+            hit = [
+                u.limit
+                for other, u in sorted(queues.items())
+                if other != node and u.queue_ns is None and top[other] < bottom[node]
+            ]
+            if q.queue_ns is not None and hit:
+                queues[node] = replace(q, queue_ns=None, limit=hit[0])
+                spreading = True
+    unbounded = [(top[node], q.limit) for node, q in sorted(queues.items()) if q.queue_ns is None]
     for f in frames:
         q_node = fifo_of.get(f.name)
         if q_node is not None:
@@ -115,8 +130,8 @@ def analyse(
             r = None if q.queue_ns is None else f.j_ns + q.queue_ns
             out[f.name] = Response(f.name, r, q.blocking_ns, None, 1, 0, q.limit)
             continue
-        for top, limit in unbounded:
-            if f.priority_key > top and out[f.name].wcrt_ns is not None:
+        for highest, limit in unbounded:
+            if f.priority_key > highest and out[f.name].wcrt_ns is not None:
                 out[f.name] = replace(out[f.name], wcrt_ns=None, limit=limit)
     return FifoAnalysis(out, queues, {name: jitter[name] for name in fifo_of if name in jitter})
 
