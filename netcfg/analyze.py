@@ -428,15 +428,22 @@ def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], 
                 "include; raise the depth, send fewer messages or use on_full: drop",
                 at,
             )
-    fifo_async = [msg for msg in bus.messages if msg.window == "async" and m.nodes[msg.producer].tx_queue.fifo]
-    if bus.ftt is not None and fifo_async:
-        node = m.nodes[fifo_async[0].producer]
-        diags.add(
-            "tx-queue",
-            f"node '{node.name}' sends asynchronous FTT-CAN messages ('{fifo_async[0].name}') through a FIFO transmit "
-            "queue, which the asynchronous-window analysis does not cover: give it tx_queue: priority",
-            m.source.at((*node.path, "tx_queue")),
-        )
+    if bus.ftt is None:
+        return
+    # FTT-CAN's analyses order a node's frames by identifier: the asynchronous window's (priority queues) and the
+    # synchronous window's (several synchronous frames of one node in one EC); a FIFO with one synchronous message
+    # changes neither
+    for row in rows:
+        node = m.nodes[row["node"]]
+        sent = [msg for msg in bus.messages if msg.producer == node.name]
+        if any(msg.window == "async" for msg in sent) or len(sent) > 1:
+            diags.add(
+                "tx-queue",
+                f"node '{node.name}' sends {', '.join(repr(msg.name) for msg in sent)} through a FIFO transmit "
+                f"queue on FTT-CAN bus '{bus.name}', whose window analyses assume frames leave in identifier "
+                "order: give it tx_queue: priority",
+                m.source.at((*node.path, "tx_queue")),
+            )
 
 
 def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:

@@ -240,8 +240,9 @@ def test_explain_shows_the_queue_term(tmp_path: Path) -> None:
 
 
 def test_ftt_can_asynchronous_fifo_senders_are_refused(tmp_path: Path) -> None:
-    """CAMBADA's kicker sends battery_status in the asynchronous window; the window analysis (Pedreiras and Almeida)
-    assumes priority queues, so a FIFO there is refused at the node's tx_queue rather than analysed wrongly."""
+    """CAMBADA's kicker sends battery_status in the asynchronous window; the window analyses (Pedreiras and Almeida)
+    order a node's frames by identifier, so a FIFO there is refused at the node's tx_queue rather than analysed
+    wrongly."""
     from conftest import load_spec
 
     data = load_spec("cambada.yaml")
