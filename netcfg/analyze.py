@@ -163,7 +163,10 @@ def activation(m: model.Model, task: model.Task, acc: _Analysis) -> tuple[int | 
     if task.trigger is not None:
         return m.triggers[task.trigger].interval_ns, 0
     if task.sync_bus is not None and task.sync_bus in acc.canopen:
-        sync = acc.canopen[task.sync_bus].sync  # the SYNC frame may be held up by arbitration
+        loop = acc.canopen[task.sync_bus].master
+        if loop is not None and task.node == loop.node:  # the SYNC producer's loop keeps k T + offset (MasterLoop)
+            return task.period_ns, loop.jitter_ns
+        sync = acc.canopen[task.sync_bus].sync  # the SYNC frame may be held up by arbitration (or a FIFO queue)
         return task.period_ns, None if sync.worst_ns is None else sync.worst_ns - sync.best_ns
     return task.period_ns, 0
 
