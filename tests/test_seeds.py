@@ -239,9 +239,9 @@ def test_allex2_fifo_master(tmp_path: Path) -> None:
     longest other frame below 0x306, a heartbeat (1 byte: 65 us). Other nodes' frames above 0x306: the twelve
     synchronous TPDOs, 6 x 135 + 6 x 115 (6 bytes) = 1,500 us, once each (periods of 20 ms). ECRTS 2011, section 4:
     w = 65 + 1,315 - 55 + 1,500 = 2,825 us, R = w + C_MIN = 2,880 us for every frame of the queue (plus a member's own
-    jitter: hip_l_cmd's, sent as master.control ends, is the task's spread: the control step starts within
+    jitter: the RxPDO1s', sent as master.control ends, is the task's spread: the control step starts within
     master_jitter = 13 us of its instant on the master's own clock, whatever SYNC's delay, and runs 225.8 .. 8,557.3
-    us, so it responds within 13 + 8,557.3 = 8,570.3 us and hip_l_cmd's bound is 8,570.3 - 225.8 + 2,880 =
+    us, so it responds within 13 + 8,557.3 = 8,570.3 us and each command's bound is 8,570.3 - 225.8 + 2,880 =
     11,224.5 us). At most 13 frames queued, within the depth of 16; with SocketCAN's default of 10 the write can
     block, which check refuses."""
     report = check(SPECS / "allex2.yaml")
@@ -251,11 +251,12 @@ def test_allex2_fifo_master(tmp_path: Path) -> None:
         "master", 16, "block", "ankle_r_interp", 13
     )
     assert (q["blocking_us"], q["queued_us"], q["interference_us"], q["queue_us"]) == (65.0, 1315.0, 1500.0, 2880.0)
-    for name in ("can0_SYNC", "knee_l_cmd", "ankle_r_interp"):
+    for name in ("can0_SYNC", "hip_l_interp", "ankle_r_interp"):
         assert message(can0, name)["wcrt_us"] == 2880.0
     master = next(n for n in report["nodes"] if n["name"] == "master")
     assert master["tasks"][0]["wcrt_us"] == 8570.3
-    assert message(can0, "hip_l_cmd")["wcrt_us"] == 11224.5
+    for joint in ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r"):
+        assert message(can0, f"{joint}_cmd")["wcrt_us"] == 11224.5
     data = load_spec("allex2.yaml")
     data["nodes"][0]["tx_queue"] = "fifo"  # SocketCAN's default txqueuelen, 10
     refused = check_data(tmp_path, data)
