@@ -263,3 +263,25 @@ def test_can_fd_fifo_uses_the_same_bound(tmp_path: Path) -> None:
     c = {m["name"]: m["tx_us"] for m in can0["messages"]}
     assert message(can0, "high")["wcrt_us"] == c["log"] + c["high"] + c["low"] + c["mid"]
     assert message(can0, "low")["wcrt_us"] == message(can0, "high")["wcrt_us"]
+
+
+def test_a_fifo_bound_with_bit_errors_by_hand() -> None:
+    """test_fifo_bound_by_hand with at most one bit error per 10 ms (no burst): each error costs an error frame of 31
+    bits (31 us at 1 Mbit/s) and the resending of the longest frame on the bus (135 us), and a window up to 10 ms
+    holds ceil(t / 10 ms) = 1 of them: w = 135 + 270 - 135 + 135 (mid, once: ceil((571 + 1) / 997) = 1) + 166 =
+    571 us, R = 571 + 135 = 706 us."""
+    from netcfg.timing.can_errors import ErrorModel
+
+    tau = US
+    frames = [
+        can_rta.CanFrame("low", 0x300, False, C8, 10_000 * US),
+        can_rta.CanFrame("high", 0x010, False, C8, 10_000 * US),
+        can_rta.CanFrame("mid", 0x100, False, C8, 997 * US),
+        can_rta.CanFrame("log", 0x400, False, C8, 701 * US),
+    ]
+    errors = ErrorModel.for_bus(0, 10_000 * US, 1_000_000)
+    res = can_fifo.analyse(
+        frames, tau, {"low": "host", "high": "host"}, lambda fs: can_rta.analyse(fs, tau, 0, errors), 0, errors
+    )
+    assert res.queues["host"].queue_ns == 706 * US
+    assert res.responses["high"].wcrt_ns == 706 * US
