@@ -47,6 +47,9 @@ from netcfg.timing.can_errors import first_breach
 
 PROTOCOLS = ("can", "ftt-can", "ethernet-udp", "canopen")
 US = 1_000
+# transmit queues of CAN nodes: mostly by priority; FIFO ones at SocketCAN's default depth, or shallow ones whose
+# writer blocks (check refuses those that can fill up, so only the ones that cannot are simulated)
+TX_QUEUES = st.sampled_from(["priority", "priority", "fifo", {"policy": "fifo", "depth": 2}])
 
 
 def _names(prefix: str, n: int) -> list[str]:
@@ -87,7 +90,7 @@ def can_spec(draw: st.DrawFn) -> dict[str, Any]:
     spec = {
         "system": "random_can",
         "buses": [{"name": "can0", "protocol": "can", "bitrate": bitrate}],
-        "nodes": [{"name": n, "buses": ["can0"]} for n in nodes],
+        "nodes": [{"name": n, "buses": ["can0"], "tx_queue": draw(TX_QUEUES)} for n in nodes],
         "messages": messages,
     }
     _add_flows(draw, spec)
@@ -251,7 +254,7 @@ def canopen_spec(draw: st.DrawFn) -> dict[str, Any]:
                 "canopen": {"sync_period": f"{period_ms} ms"},
             }
         ],
-        "nodes": [{"name": "master", "role": "master", "node_id": 127, "buses": ["can0"]}]
+        "nodes": [{"name": "master", "role": "master", "node_id": 127, "buses": ["can0"], "tx_queue": draw(TX_QUEUES)}]
         + [{"name": d, "node_id": i + 1, "device": "epos4", "buses": ["can0"]} for i, d in enumerate(drives)],
         "messages": messages,
     }

@@ -11,7 +11,7 @@ from typing import Any
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_errors, can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
+from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
 
 
@@ -106,12 +106,12 @@ def _analyze_once(m: model.Model, diags: Collector, acc: _Analysis) -> dict[str,
         else:
             buses.append(analyze_can(m, bus, diags, acc))
     for row, bus in zip(buses, m.buses.values()):
-        row["assumes"] = assumptions(bus)
+        row["assumes"] = assumptions(bus, tuple(q["node"] for q in row.get("tx_queues", ())))
     nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
     return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
 
 
-def assumptions(bus: model.Bus) -> list[str]:
+def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
     """What the bounds of this bus rest on, in the user's terms (the README explains each)."""
     if bus.protocol == "ethernet-udp":
         return [
@@ -121,9 +121,16 @@ def assumptions(bus: model.Bus) -> list[str]:
             "adds to the jitter seen downstream",
             "no frame loss and no other traffic than the spec's",
         ]
+    queues = (
+        "every node queues its frames by priority (no FIFO transmit buffer, no priority inversion in the controller)"
+    )
+    if fifo_nodes:
+        queues = (
+            f"{', '.join(fifo_nodes)} queue{'s' if len(fifo_nodes) == 1 else ''} frames in FIFO order (at most one "
+            "frame of each message in the queue at a time), every other node by priority"
+        )
     out = [
-        "every node queues its frames by priority (no FIFO transmit buffer, no priority inversion in the "
-        "controller); worst-case bit stuffing",
+        f"{queues}; worst-case bit stuffing",
         "periodic messages released at most once per (fastest) period, sporadic ones at most once per minimum "
         "inter-arrival time, each at most its jitter late",
         f"every sender's clock within +-{bus.clock_tolerance_ppm} ppm of nominal (clock_tolerance): periods are "
@@ -156,7 +163,10 @@ def activation(m: model.Model, task: model.Task, acc: _Analysis) -> tuple[int | 
     if task.trigger is not None:
         return m.triggers[task.trigger].interval_ns, 0
     if task.sync_bus is not None and task.sync_bus in acc.canopen:
-        sync = acc.canopen[task.sync_bus].sync  # the SYNC frame may be held up by arbitration
+        loop = acc.canopen[task.sync_bus].master
+        if loop is not None and task.node == loop.node:  # the SYNC producer's loop keeps k T + offset (MasterLoop)
+            return task.period_ns, loop.jitter_ns
+        sync = acc.canopen[task.sync_bus].sync  # the SYNC frame may be held up by arbitration (or a FIFO queue)
         return task.period_ns, None if sync.worst_ns is None else sync.worst_ns - sync.best_ns
     return task.period_ns, 0
 
@@ -255,6 +265,11 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
                     "steps of the analysis: the traffic at its priority is so close to 100% of the capacity that "
                     "its busy period is too long to follow"
                 )
+            elif row["wcrt_us"] is None and row.get("unbounded") == "fifo":
+                text = (
+                    f"message '{msg.name}' has no bounded worst-case response time: its sender's FIFO transmit "
+                    "queue can hold two of its frames at once (a member waits longer than its period)"
+                )
             elif row["wcrt_us"] is None:
                 text = (
                     f"message '{msg.name}' has no bounded worst-case response time: the traffic at its "
@@ -347,6 +362,93 @@ def errors_section(bus: model.Bus, utilization: float) -> dict[str, Any]:
     return out
 
 
+def fifo_senders(m: model.Model, bus: model.Bus) -> dict[str, str]:
+    """Message -> its node, for every message sent through a FIFO transmit queue on this bus."""
+    return {msg.name: msg.producer for msg in bus.messages if m.nodes[msg.producer].tx_queue.fifo}
+
+
+def bus_responses(
+    m: model.Model, bus: model.Bus, frames: list[can_rta.CanFrame], tau: int
+) -> can_fifo.FifoAnalysis:
+    """Every message's response on a CAN bus: FIFO queues (can_fifo) around the priority-queued analysis, with
+    release offsets (can_offsets) for the priority-queued senders that keep them."""
+    fifo_of = fifo_senders(m, bus)
+    offsets = {name: o for name, o in release_offsets(m, bus).items() if name not in fifo_of}
+    ppm, errors = bus.clock_tolerance_ppm, error_model(bus)
+    return can_fifo.analyse(
+        frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors
+    )
+
+
+def tx_queue_rows(m: model.Model, bus: model.Bus, fifo: can_fifo.FifoAnalysis) -> list[dict[str, Any]]:
+    """Each FIFO transmit queue on the bus: its bound and its backlog. Under the analysis's premise (each member
+    sent within its period) at most one instance of each member is queued at a time: the backlog is their number."""
+    rows = []
+    for node, q in fifo.queues.items():
+        spec = m.nodes[node].tx_queue
+        rows.append(
+            {
+                "node": node,
+                "policy": spec.policy,
+                "depth": spec.depth,
+                "on_full": spec.on_full,
+                "messages": list(q.members),
+                "backlog_max": None if q.queue_ns is None else len(q.members),
+                "lowest": q.lowest,
+                "blocking_us": us(q.blocking_ns),
+                "queued_us": us(q.queued_ns),
+                "interference_us": us(q.interference_ns),
+                "queue_us": us(q.queue_ns),
+                **({"unbounded": q.limit} if q.limit else {}),
+            }
+        )
+    return rows
+
+
+def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:
+    """A FIFO that can hold more frames than its depth: with drop, frames are lost (a warning); with block, the
+    sending task waits for a slot, which no task bound here includes (an error)."""
+    for row in rows:
+        node = m.nodes[row["node"]]
+        backlog = row["backlog_max"]
+        if backlog is not None and backlog <= row["depth"]:
+            continue
+        held = "an unbounded number of" if backlog is None else f"up to {backlog}"
+        at = m.source.at((*node.path, "tx_queue"))
+        if row["on_full"] == "drop":
+            diags.add(
+                "tx-queue",
+                f"node '{node.name}' can have {held} frames in its FIFO transmit queue on bus '{bus.name}', more "
+                f"than its depth of {row['depth']}: frames will be dropped; raise the depth or send fewer messages",
+                at,
+                "warning",
+            )
+        else:
+            diags.add(
+                "tx-queue",
+                f"node '{node.name}' can have {held} frames in its FIFO transmit queue on bus '{bus.name}', more "
+                f"than its depth of {row['depth']}: its sending task blocks, which its response time does not "
+                "include; raise the depth, send fewer messages or use on_full: drop",
+                at,
+            )
+    if bus.ftt is None:
+        return
+    # FTT-CAN's analyses order a node's frames by identifier: the asynchronous window's (priority queues) and the
+    # synchronous window's (several synchronous frames of one node in one EC); a FIFO with one synchronous message
+    # changes neither
+    for row in rows:
+        node = m.nodes[row["node"]]
+        sent = [msg for msg in bus.messages if msg.producer == node.name]
+        if any(msg.window == "async" for msg in sent) or len(sent) > 1:
+            diags.add(
+                "tx-queue",
+                f"node '{node.name}' sends {', '.join(repr(msg.name) for msg in sent)} through a FIFO transmit "
+                f"queue on FTT-CAN bus '{bus.name}', whose window analyses assume frames leave in identifier "
+                "order: give it tx_queue: priority",
+                m.source.at((*node.path, "tx_queue")),
+            )
+
+
 def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
     timings, worst, nominal = load.can_bus_load(bus)
     # (nominal, worst-case) frame time of each message: without and with stuff bits
@@ -354,9 +456,8 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
     errors = error_model(bus)
-    plain = can_offsets.analyse(
-        rta_frames(bus.messages, timings, acc), tau, release_offsets(m, bus), bus.clock_tolerance_ppm, errors
-    )
+    fifo = bus_responses(m, bus, rta_frames(bus.messages, timings, acc), tau)
+    plain = fifo.responses
     for msg in bus.messages:
         acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
     out: dict[str, Any] = {
@@ -392,6 +493,13 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
             if r.limit:
                 row["unbounded"] = r.limit
             acc.chained[msg.name] = acc.plain[msg.name]
+    queues = tx_queue_rows(m, bus, fifo)
+    if queues:
+        out["tx_queues"] = queues
+        check_tx_queues(m, bus, queues, diags)
+        for row in rows:
+            if row["name"] in fifo.effective_jitter_ns:
+                row["tx_queue"] = "fifo"
     if bus.canopen is not None:
         out["sync"] = analyze_sync(m, bus, frame_ns, diags, acc)
     if bus.ftt is None and load.can_bus_overloaded(bus, timings, worst):
@@ -433,6 +541,11 @@ def analyze_sync(
         completion_ns=[c.completion_ns for c in cycles],
         master=loop,
         release_delay_ns={msg.name: m.nodes[msg.producer].tx_delay_ns for msg in bus.messages},
+        ahead_of_sync=frozenset(
+            msg.name
+            for msg in bus.messages
+            if msg.producer == co.sync_producer and msg is not sync_msg and m.nodes[msg.producer].tx_queue.fifo
+        ),
     )
     check_master_loop(m, bus, loop, diags)
     rows = []

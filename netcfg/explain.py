@@ -17,12 +17,12 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import model
-from netcfg.analyze import analysis_jitter, error_model, release_offsets, rta_frames
+from netcfg.analyze import analysis_jitter, bus_responses, error_model, fifo_senders, release_offsets, rta_frames
 from netcfg.check import load_model
 from netcfg.diagnostics import Collector, sort_diagnostics
 from netcfg.importers import ImportOptions
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_offsets, can_rta, clocks, load
+from netcfg.timing import can_fifo, can_offsets, can_rta, clocks, load
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.frames import bits_to_ns
 from netcfg.tune import round_step
@@ -47,12 +47,17 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         raise NotExplained(f"'{name}' is on Ethernet bus '{bus.name}'; --explain derives CAN response times")
     timings, _, _ = load.can_bus_load(bus)
     tau = bits_to_ns(1, bus.bitrate)
-    frames = rta_frames(bus.messages, timings, analysis_jitter(m))  # the release jitter check uses
+    given = rta_frames(bus.messages, timings, analysis_jitter(m))  # the release jitter check uses
     ppm = bus.clock_tolerance_ppm
     errors = error_model(bus)
+    fifo = bus_responses(m, bus, given, tau)
+    # FIFO-queued frames reach arbitration up to their queue's bound late: other frames see that as jitter
+    frames = [replace(f, j_ns=fifo.effective_jitter_ns.get(f.name, f.j_ns)) for f in given]
     plain = can_rta.analyse(frames, tau, ppm, errors)
     with_offsets = can_offsets.analyse(frames, tau, release_offsets(m, bus), ppm, errors)
-    me = next(f for f in frames if f.name == name)
+    plain.update({n: fifo.responses[n] for n in fifo.effective_jitter_ns})
+    with_offsets = {**with_offsets, **fifo.responses}
+    me = next(f for f in given if f.name == name)
     r = plain[name]
     t = timings[name]
     out: dict[str, Any] = {
@@ -84,7 +89,10 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         "w_us": None,
     }
     bound = with_offsets[name].wcrt_ns
-    if r.wcrt_ns is not None:
+    queue = next((q for q in fifo.queues.values() if name in q.members), None)
+    if queue is not None:
+        out.update(_fifo_terms(m, frames, queue, tau, ppm))
+    elif r.wcrt_ns is not None:
         q = r.worst_instance
         t_me = me.t_ns or can_rta.ONE_SHOT
         w = r.wcrt_ns - me.j_ns + clocks.shortest_real(q * t_me, ppm) - me.c_ns
@@ -115,8 +123,88 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
             )
     out["meets"] = None if me.d_ns is None else bound is not None and bound <= me.d_ns
     out["slack_us"] = None if me.d_ns is None or bound is None else _us(me.d_ns - bound)
-    out["fix"] = None if out["meets"] in (None, True) else one_change(m, bus, frames, me, tau)
+    if out["meets"] in (None, True):
+        out["fix"] = None
+    elif queue is not None:
+        out["fix"] = _priority_queue(m, bus, given, me, queue, tau)
+    else:
+        out["fix"] = one_change(m, bus, given, me, tau)
     return out
+
+
+def _fifo_terms(
+    m: model.Model, frames: list[can_rta.CanFrame], q: can_fifo.FifoQueue, tau: int, ppm: int
+) -> dict[str, Any]:
+    """The FIFO bound's terms (Davis, Kollmann, Pollex, Slomka 2011): the frames that can be ahead in the queue,
+    the blocking and the other nodes' frames above the queue's lowest-priority message, with their hits."""
+    by_name = {f.name: f for f in frames}
+    lowest = by_name[q.lowest]
+    out: dict[str, Any] = {
+        "queue": {
+            "node": q.node,
+            "depth": m.nodes[q.node].tx_queue.depth,
+            "on_full": m.nodes[q.node].tx_queue.on_full,
+            "lowest": q.lowest,
+            "frames": [{"name": n, "id": by_name[n].id, "c_us": _us(by_name[n].c_ns)} for n in q.members],
+            "queued_us": _us(q.queued_ns),
+            "c_min_us": _us(q.c_min_ns),
+            "queue_us": _us(q.queue_ns),
+            "unbounded": q.limit,
+        },
+        "blocking": _blocking([f for f in frames if f.name not in q.members], lowest),
+        "busy_period_us": None,
+        "instances": 1,
+        "worst_instance": 0,
+        "interferers": [],
+    }
+    if q.queue_ns is None:
+        return out
+    w = q.queue_ns - q.c_min_ns
+    out["w_us"] = _us(w)
+    for f in sorted(
+        (f for f in frames if f.priority_key < lowest.priority_key and f.name not in q.members),
+        key=lambda f: f.priority_key,
+    ):
+        hits = -(-clocks.longest_local(w + f.j_ns + tau, ppm) // (f.t_ns or can_rta.ONE_SHOT))
+        out["interferers"].append(
+            {
+                "name": f.name,
+                "id": f.id,
+                "c_us": _us(f.c_ns),
+                "period_us": _us(f.t_ns),
+                "jitter_us": _us(f.j_ns),
+                "hits": hits,
+                "us": _us(hits * f.c_ns),
+            }
+        )
+    return out
+
+
+def _priority_queue(
+    m: model.Model,
+    bus: model.Bus,
+    frames: list[can_rta.CanFrame],
+    me: can_rta.CanFrame,
+    q: can_fifo.FifoQueue,
+    tau: int,
+) -> dict[str, Any] | None:
+    """A FIFO member's bound does not depend on its identifier; the change that matters is the queue itself."""
+    fifo_of = {n: node for n, node in fifo_senders(m, bus).items() if node != q.node}
+    offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
+    ppm = bus.clock_tolerance_ppm
+    errors = error_model(bus)
+    res = can_fifo.analyse(
+        frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors
+    )
+    r = res.responses[me.name].wcrt_ns
+    if r is None or me.d_ns is None or r > me.d_ns:
+        return None
+    return {
+        "kind": "queue",
+        "wcrt_us": _us(r),
+        "text": f"queue the frames of '{q.node}' by priority (tx_queue: priority, a controller with a mailbox per "
+        f"message): the bound of '{me.name}' becomes {r / 1000:g} us <= {me.d_ns / 1000:g} us",
+    }
 
 
 def _blocking(frames: list[can_rta.CanFrame], me: can_rta.CanFrame) -> dict[str, Any]:
@@ -134,9 +222,12 @@ def _meets(
     offsets: dict[str, tuple[str, int]],
     ppm: int,
     errors: ErrorModel | None = None,
+    fifo_of: dict[str, str] | None = None,
 ) -> int | None:
     """The bound of `name` in this variant of the bus, or None when it still misses its deadline."""
-    res = can_offsets.analyse(frames, tau, offsets, ppm, errors)
+    res = can_fifo.analyse(
+        frames, tau, fifo_of or {}, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors
+    ).responses
     f = next(f for f in frames if f.name == name)
     r = res[name].wcrt_ns
     return r if r is not None and f.d_ns is not None and r <= f.d_ns else None
@@ -147,7 +238,8 @@ def one_change(
 ) -> dict[str, Any] | None:
     """A free identifier for the message that makes it meet its deadline (the largest such, the least change in
     priority), else a longer period for the one interferer that needs the smallest slow-down."""
-    offsets = release_offsets(m, bus)
+    fifo_of = fifo_senders(m, bus)
+    offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
     errors = error_model(bus)
     taken = {(f.extended, f.id) for f in frames}
     others = [f for f in frames if f.name != me.name]
@@ -155,7 +247,7 @@ def one_change(
         if (me.extended, ident) in taken:
             continue
         trial = [*others, replace(me, id=ident)]
-        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors)
+        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of)
         if r is not None:
             above = [f for f in others if f.priority_key > trial[-1].priority_key and f.priority_key < me.priority_key]
             passed = min(above, key=lambda f: f.priority_key).name if above else None
@@ -178,7 +270,7 @@ def one_change(
         for factor in (2, 3, 4, 5, 10, 20, 50, 100):
             period = f.t_ns * factor
             trial = [replace(g, t_ns=period, d_ns=max(g.d_ns or 0, period)) if g is f else g for g in frames]
-            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors)
+            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of)
             if r is not None:
                 if best is None or factor < best["factor"]:
                     best = {
@@ -214,7 +306,7 @@ def _offset_change(
     best: tuple[int, int] | None = None  # (bound, offset): the offset that leaves the most slack
     for o in range(0, me.t_ns, step):
         trial[me.name] = (producer, o)
-        r = _meets(frames, me.name, tau, trial, bus.clock_tolerance_ppm, error_model(bus))
+        r = _meets(frames, me.name, tau, trial, bus.clock_tolerance_ppm, error_model(bus), fifo_senders(m, bus))
         if r is not None and (best is None or r < best[0]):
             best = (r, o)
     if best is None:
@@ -245,7 +337,9 @@ def text(doc: dict[str, Any]) -> str:
             else "0 us: no lower-priority frame"
         ),
     ]
-    if doc["wcrt_us"] is None:
+    if doc.get("queue"):
+        lines.extend(_fifo_text(doc))
+    elif doc["wcrt_us"] is None:
         lines.append("  no bounded response: the messages at and above its priority load the bus to 100 % or more")
     else:
         q = doc["worst_instance"]
@@ -298,6 +392,42 @@ def text(doc: dict[str, Any]) -> str:
             )
         )
     return "\n".join(lines)
+
+
+def _fifo_text(doc: dict[str, Any]) -> list[str]:
+    """The FIFO bound (Davis, Kollmann, Pollex, Slomka 2011) in the shape of the priority-queue derivation."""
+    q = doc["queue"]
+    lines = [
+        f"  queue      '{q['node']}' sends through a FIFO (depth {q['depth']}, {q['on_full']} when full); any of its "
+        f"frames can be ahead, each once, and while one heads the queue it loses to every frame above "
+        f"'{q['lowest']}', the queue's lowest-priority message (ECRTS 2011, section 4):",
+        f"    {'in the queue':20} {'id':>6} {'C/us':>8}",
+        *(f"    {x['name']:20} {_hex(x['id']):>6} {x['c_us']:>8g}" for x in q["frames"]),
+        f"    sum of C = {q['queued_us']:g} us; C_MIN = {q['c_min_us']:g} us",
+    ]
+    if q["queue_us"] is None:
+        why = {
+            "fifo": "a member waits longer than its period, so two of its frames can be queued at once",
+            "load": "the other nodes' frames above its lowest-priority message load the bus to 100 % or more",
+        }.get(q["unbounded"] or "", "the bound needs too many steps of the analysis")
+        return [*lines, f"  no bounded response: {why}"]
+    lines.append(
+        f"  queuing    w = B + sum of C - C_MIN + sum of ceil((w + J_k + tau) / T_k) * C_k = {doc['w_us']:g} us, with:"
+    )
+    if doc["interferers"]:
+        lines.append(f"    {'message':20} {'id':>6} {'C/us':>8} {'T/us':>10} {'J/us':>8} {'hits':>5} {'us':>9}")
+        for x in doc["interferers"]:
+            lines.append(
+                f"    {x['name']:20} {_hex(x['id']):>6} {x['c_us']:>8g} {_num(x['period_us']):>10} "
+                f"{x['jitter_us']:>8g} {x['hits']:>5} {x['us']:>9g}"
+            )
+    else:
+        lines.append("    (no other node's frame above the queue's lowest-priority message)")
+    lines.append(
+        f"  R = J + w + C_MIN = {doc['jitter_us']:g} + {doc['w_us']:g} + {q['c_min_us']:g} = {doc['wcrt_us']:g} us "
+        "(the same queuing bound for every frame of the queue)"
+    )
+    return lines
 
 
 def _hex(ident: int) -> str:

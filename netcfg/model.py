@@ -40,6 +40,19 @@ class Task:
         return f"{self.node}.{self.name}"
 
 
+@dataclass(frozen=True)
+class TxQueue:
+    """A node's CAN transmit queue (spec: tx_queue)."""
+
+    policy: Literal["priority", "fifo"] = "priority"
+    depth: int = 10  # frames a FIFO holds (SocketCAN's default txqueuelen)
+    on_full: Literal["block", "drop"] = "block"
+
+    @property
+    def fifo(self) -> bool:
+        return self.policy == "fifo"
+
+
 @dataclass
 class Node:
     name: str
@@ -59,6 +72,7 @@ class Node:
     on_loss: str = "stop_all"  # stop_all | stop_node | continue
     on_emcy: str = "stop_all"
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
+    tx_queue: TxQueue = TxQueue()
 
 
 @dataclass(frozen=True)

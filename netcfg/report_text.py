@@ -111,6 +111,8 @@ def render(report: dict[str, Any]) -> str:
                 f"(window {num(s['window_us'])} us, read window {num(s['read_window_us'])} us)"
             )
             out.append(f"  master: {master_loop_text(s['master'])}")
+        for q in bus.get("tx_queues", ()):
+            out.append(f"  transmit queue of {q['node']}: {tx_queue_text(q)}")
         if bus.get("assumes"):
             out.append("  the bounds assume:")
             out.extend(f"    - {a}" for a in bus["assumes"])
@@ -189,3 +191,15 @@ def render_ftt(f: dict[str, Any]) -> list[str]:
         table(["FTT id", "entry", "type", "producer", "period/EC", "init/EC", "C/us"], rows, "rlllrrr", indent="    ")
     )
     return out
+
+
+def tx_queue_text(q: dict[str, Any]) -> str:
+    """A FIFO transmit queue's bound and its terms (Davis, Kollmann, Pollex, Slomka 2011), in one line."""
+    head = f"FIFO, depth {q['depth']}, {q['on_full']} when full, {len(q['messages'])} messages"
+    if q["queue_us"] is None:
+        return f"{head}; no bound ({q.get('unbounded')})"
+    return (
+        f"{head} sharing one bound of {num(q['queue_us'])} us (blocking {num(q['blocking_us'])} + the whole queue "
+        f"{num(q['queued_us'])} + other nodes' frames above {q['lowest']} {num(q['interference_us'])}); at most "
+        f"{q['backlog_max']} frames queued"
+    )

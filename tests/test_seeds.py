@@ -159,7 +159,8 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     longer fit: 840 us too late. The load, 2365 bits per 4 ms + 390 per 100 ms = 0.60, is still fine. And the
     master cannot keep the cycle either: its control step starts 2500 us after SYNC, up to 13 us late
     (master_jitter), and writes for up to 8557.3 us (Table 5): done 11,070.3 us after SYNC, long after the next SYNC
-    is due at 4000 us. Its processor is over its capacity too: that task (WCET 8557.3 us, every 4 ms) needs 214 %."""
+    is due at 4000 us. Its processor is over its capacity too: that task (WCET 8557.3 us, every 4 ms) needs 214 %.
+    SYNC itself, behind the master's FIFO, can take 2880 us (test_allex2_fifo_master): 380 us past the window."""
     data = load_spec("allex2.yaml")
     data["buses"][0]["canopen"].update(sync_period="4 ms", sync_window="2500 us", read_window="2500 us")
     data["nodes"][0]["tasks"][0]["offset"] = "2500 us"  # the master's control step follows the read window
@@ -170,7 +171,10 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     code, report = cli_json("check", str(path))
     assert code == 1
-    assert sorted(e["code"] for e in report["errors"]) == ["cpu-overload", "master-cycle", "sync-cycle"]
+    assert sorted(e["code"] for e in report["errors"]) == ["cpu-overload", "deadline", "master-cycle", "sync-cycle"]
+    # SYNC behind the master's FIFO transmit queue: 2880 us (test_allex2_fifo_master), past the 2.5 ms window
+    late_sync = next(e for e in report["errors"] if e["code"] == "deadline")
+    assert "'can0_SYNC' can take 2880 us, 380 us past its deadline of 2500 us" in late_sync["message"]
     assert any("needs 213.9% of its processor" in e["message"] for e in report["errors"])
     err = next(e for e in report["errors"] if e["code"] == "sync-cycle")
     assert "SYNC cycle 0" in err["message"] and "3340 us after SYNC, 840 us too late" in err["message"]
@@ -180,33 +184,84 @@ def test_allex2_shrinking_the_sync_period_fails_with_the_cycle_and_margin(tmp_pa
     assert master["file"] == str(path) and master["line"] >= 1
 
 
-def test_allex2_sync_driven_flows_are_deterministic() -> None:
+def test_allex2_sync_driven_flows_are_deterministic(tmp_path: Path) -> None:
     """SYNC-driven CANopen makes the exoskeleton's loops deterministic (issue 3, item 5). At 1 Mbit/s SYNC is
-    47 bits nominal (47 us) and 190 us at worst (its response time: blocked by one 135-bit frame, then 55 bits).
-    The master's loop (seed 000, Figure 7, with the spec's timing): SYNC k is queued within master_jitter = 13 us
-    (section 5.2: 20.013 ms instead of 20 ms per sample) of k x 20 ms, so drives receive it 47 .. 190 + 13 = 203 us
-    after k x 20 ms; the control step starts 10,000 .. 10,013 us after k x 20 ms (its offset, plus the jitter).
+    47 bits nominal (47 us); at worst it waits behind the master's FIFO transmit queue: 2,880 us
+    (test_allex2_fifo_master). The master's loop (seed 000, Figure 7, with the spec's timing): SYNC k is queued within
+    master_jitter = 13 us (section 5.2: 20.013 ms instead of 20 ms per sample) of k x 20 ms, so drives receive it
+    47 .. 2,880 + 13 = 2,893 us after k x 20 ms; the control step starts 10,000 .. 10,013 us after k x 20 ms (its
+    offset, plus the jitter).
 
-    joint_feedback: hip_l's TxPDO1 samples at SYNC reception (47 .. 203 us). Worst: sampled at 47 us, used at
-    10,013 us: 9,966 us. Best: sampled at 203 us, used at 10,000 us: 9,797 us. Unsynchronised, the master could
+    joint_feedback: hip_l's TxPDO1 samples at SYNC reception (47 .. 2,893 us). Worst: sampled at 47 us, used at
+    10,013 us: 9,966 us. Best: sampled at 2,893 us, used at 10,000 us: 7,107 us. Unsynchronised, the master could
     sample up to a whole 20 ms period late, 20,002 us on a clock 100 ppm slow (the analysis' clock tolerance):
-    111 us (nominal 8-byte frame) .. 20,002 + 325 us (TxPDO1's response time: SYNC 190 us, then hip_l's TxPDO1,
-    135 bits = 135 us: 190 + 135 = 325 us).
-    joint_command: control starts at 10,000 .. 10,013 us and runs 225.8 .. 8,557.3 us (Table 5, writing), RxPDO1
-    takes 111 .. 1,135 us (done by 19,705.3 us, before the next SYNC), the drive applies it at the next SYNC
-    (20,047 .. 20,203 us): worst 20,203 - 10,000 = 10,203 us, best 20,047 - 10,013 = 10,034 us.
-    Unsynchronised, the drive applies it at once: 225.8 (Table 5 writing, min) + 111 (nominal RxPDO1) = 336.8 us
-    at best; at worst the command waits a whole SYNC period (20,002 us with the clock tolerance) + 8,557.3 (Table 5
-    writing, max) + 1,135 (RxPDO1's worst-case response) = 29,694.3 us."""
-    flows = {f["name"]: f for f in check(SPECS / "allex2.yaml")["flows"]}
-    for name, bounds in (("joint_feedback", (9_797.0, 9_966.0)), ("joint_command", (10_034.0, 10_203.0))):
-        sync = flows[name]["synchronised"]
-        assert (sync["latency_min_us"], sync["latency_max_us"]) == bounds, name
-        assert flows[name]["mode"] == "synchronised"
-    unsync = flows["joint_feedback"]["unsynchronised"]
-    assert (unsync["latency_min_us"], unsync["latency_max_us"]) == (111.0, 20_327.0)
-    unsync = flows["joint_command"]["unsynchronised"]
-    assert (unsync["latency_min_us"], unsync["latency_max_us"]) == (336.8, 29_694.3)
+    111 us (nominal 8-byte frame) .. 20,002 + 325 us (TxPDO1's response time: blocked by one 135-bit frame, SYNC's
+    55 bits, then hip_l's TxPDO1, 135 bits: 135 + 55 + 135 = 325 us).
+    joint_command: control starts at 10,000 .. 10,013 us and runs 225.8 .. 8,557.3 us (Table 5, writing); its
+    RxPDO1 goes into the master's FIFO before the next SYNC does (the writes are done by 18,570.3 us), so the drive
+    has it before that SYNC and applies it then (20,047 .. 22,893 us): worst 22,893 - 10,000 = 12,893 us, best
+    20,047 - 10,013 = 10,034 us. Unsynchronised, the drive applies it at once: 225.8 (Table 5 writing, min) + 111
+    (nominal RxPDO1) = 336.8 us at best; at worst the command waits a whole SYNC period (20,002 us with the clock
+    tolerance) + 8,557.3 (Table 5 writing, max) + 2,880 (RxPDO1's response through the FIFO) = 31,439.3 us.
+
+    With a priority-queued master (a controller with a mailbox per frame) SYNC takes at most 190 us (blocked by one
+    135-bit frame, then its 55 bits), drives receive it 47 .. 203 us after k x 20 ms: joint_feedback 10,000 - 203 =
+    9,797 .. 9,966 us; joint_command's RxPDO1 takes 111 .. 1,135 us (done by 19,705.3 us, before the next SYNC):
+    20,203 - 10,000 = 10,203 us at worst, 10,034 at best; unsynchronised 336.8 .. 20,002 + 8,557.3 + 1,135 =
+    29,694.3 us."""
+    priority = load_spec("allex2.yaml")
+    priority["nodes"][0]["tx_queue"] = "priority"
+    for report, sync_bounds, unsync_bounds in (
+        (
+            check(SPECS / "allex2.yaml"),
+            {"joint_feedback": (7_107.0, 9_966.0), "joint_command": (10_034.0, 12_893.0)},
+            {"joint_feedback": (111.0, 20_327.0), "joint_command": (336.8, 31_439.3)},
+        ),
+        (
+            check_data(tmp_path, priority),
+            {"joint_feedback": (9_797.0, 9_966.0), "joint_command": (10_034.0, 10_203.0)},
+            {"joint_feedback": (111.0, 20_327.0), "joint_command": (336.8, 29_694.3)},
+        ),
+    ):
+        flows = {f["name"]: f for f in report["flows"]}
+        for name, bounds in sync_bounds.items():
+            sync = flows[name]["synchronised"]
+            assert (sync["latency_min_us"], sync["latency_max_us"]) == bounds, name
+            assert flows[name]["mode"] == "synchronised"
+            unsync = flows[name]["unsynchronised"]
+            assert (unsync["latency_min_us"], unsync["latency_max_us"]) == unsync_bounds[name], name
+
+
+def test_allex2_fifo_master(tmp_path: Path) -> None:
+    """The master sends through SocketCAN's FIFO queue (depth 16 in the spec). Its queue holds SYNC (0x080, 0 bytes:
+    55 bits worst), six RxPDO1 (8 bytes: 135) and six RxPDO2 (2 bytes: 55 + 20 = 75): sum of C = 55 + 6 x 135 +
+    6 x 75 = 1,315 us at 1 Mbit/s, C_MIN = 55 us (SYNC); its lowest message ankle_r_interp (0x306). Blocking: the
+    longest other frame below 0x306, a heartbeat (1 byte: 65 us). Other nodes' frames above 0x306: the twelve
+    synchronous TPDOs, 6 x 135 + 6 x 115 (6 bytes) = 1,500 us, once each (periods of 20 ms). ECRTS 2011, section 4:
+    w = 65 + 1,315 - 55 + 1,500 = 2,825 us, R = w + C_MIN = 2,880 us for every frame of the queue (plus a member's own
+    jitter: the RxPDO1s', sent as master.control ends, is the task's spread: the control step starts within
+    master_jitter = 13 us of its instant on the master's own clock, whatever SYNC's delay, and runs 225.8 .. 8,557.3
+    us, so it responds within 13 + 8,557.3 = 8,570.3 us and each command's bound is 8,570.3 - 225.8 + 2,880 =
+    11,224.5 us). At most 13 frames queued, within the depth of 16; with SocketCAN's default of 10 the write can
+    block, which check refuses."""
+    report = check(SPECS / "allex2.yaml")
+    can0 = bus(report, "can0")
+    (q,) = can0["tx_queues"]
+    assert (q["node"], q["depth"], q["on_full"], q["lowest"], q["backlog_max"]) == (
+        "master", 16, "block", "ankle_r_interp", 13
+    )
+    assert (q["blocking_us"], q["queued_us"], q["interference_us"], q["queue_us"]) == (65.0, 1315.0, 1500.0, 2880.0)
+    for name in ("can0_SYNC", "hip_l_interp", "ankle_r_interp"):
+        assert message(can0, name)["wcrt_us"] == 2880.0
+    master = next(n for n in report["nodes"] if n["name"] == "master")
+    assert master["tasks"][0]["wcrt_us"] == 8570.3
+    for joint in ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r"):
+        assert message(can0, f"{joint}_cmd")["wcrt_us"] == 11224.5
+    data = load_spec("allex2.yaml")
+    data["nodes"][0]["tx_queue"] = "fifo"  # SocketCAN's default txqueuelen, 10
+    refused = check_data(tmp_path, data)
+    assert [e["code"] for e in refused["errors"]] == ["tx-queue"]
+    assert "up to 13 frames" in refused["errors"][0]["message"]
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -12,7 +12,7 @@ from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
 from netcfg.emit import render
-from netcfg.model import Bus, Described, Model
+from netcfg.model import Bus, Described, Model, Node
 from netcfg.report_text import errors_text, master_loop_text, num, rate
 
 if TYPE_CHECKING:
@@ -146,10 +146,38 @@ def _nodes_table(model: Model) -> dict[str, Any]:
                 address,
                 ", ".join(node.buses),
                 ", ".join(node.tasks) or "-",
+                _tx_queue(model, node),
                 cell(_description(node)) or "-",
             ]
         )
-    return _table(["node", "role", "node id / IP", "buses", "tasks", "description"], "llllll", rows)
+    headers = ["node", "role", "node id / IP", "buses", "tasks", "CAN transmit queue", "description"]
+    return _table(headers, "lllllll", rows)
+
+
+def _tx_queue(model: Model, node: Node) -> str:
+    if all(model.buses[b].protocol == "ethernet-udp" for b in node.buses):
+        return "-"
+    q = node.tx_queue
+    return f"FIFO, depth {q.depth}, {q.on_full} when full" if q.fifo else "priority"
+
+
+def _tx_queues_view(b: dict[str, Any]) -> list[str]:
+    """One sentence per FIFO transmit queue on the bus: its shared bound and the terms that make it up."""
+    out = []
+    for q in b.get("tx_queues", ()):
+        bound = (
+            f"**{num(q['queue_us'])} us** from queuing to the end of the frame (blocking {num(q['blocking_us'])} + "
+            f"every frame of the queue {num(q['queued_us'])} + other nodes' frames above {cell(q['lowest'])}, its "
+            f"lowest-priority message, {num(q['interference_us'])}), plus each message's own release jitter; at most "
+            f"{q['backlog_max']} frames queued at once"
+            if q["queue_us"] is not None
+            else "**no bound** (" + cell(q.get("unbounded")) + ")"
+        )
+        out.append(
+            f"{cell(q['node'])}: FIFO, depth {q['depth']}, {q['on_full']} when full; its {len(q['messages'])} "
+            f"messages share one bound: {bound}"
+        )
+    return out
 
 
 def _bus_view(model: Model, b: dict[str, Any]) -> dict[str, Any]:
@@ -169,6 +197,7 @@ def _bus_view(model: Model, b: dict[str, Any]) -> dict[str, Any]:
         "ftt": _ftt_view(model, b) if ftt else None,
         "sync": _sync_view(model, bus, b) if "sync" in b else None,
         "links": _links_view(b) if "links" in b else None,
+        "tx_queues": _tx_queues_view(b),
     }
     return view
 

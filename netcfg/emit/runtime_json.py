@@ -182,6 +182,7 @@ def _node(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[str, 
         "on_loss": n.on_loss,
         "on_emcy": n.on_emcy,
         "safe_stop": n.safe_stop,
+        "tx_queue": {"policy": n.tx_queue.policy, "depth": n.tx_queue.depth, "on_full": n.tx_queue.on_full},
         "tx_delay_ns": n.tx_delay_ns,
         "rx_delay_ns": n.rx_delay_ns,
         "tasks": [

@@ -282,6 +282,7 @@ class Resolver:
                 tx_delay_ns=self.ns(n.tx_delay, (*path, "tx_delay"), None) or 0,
                 rx_delay_ns=self.ns(n.rx_delay, (*path, "rx_delay"), None) or 0,
                 scheduling=n.scheduling,
+                tx_queue=_tx_queue(n.tx_queue),
             )
 
     def resolve_task(self, node: str, t: schema.Task, path: Path, ec: int | None) -> model.Task:
@@ -701,3 +702,10 @@ def _last_byte(s: model.Signal) -> int:
     from netcfg.runtime.codec import last_byte
 
     return last_byte(s.start_bit, s.bits, s.big_endian)
+
+
+def _tx_queue(q: str | schema.TxQueue) -> model.TxQueue:
+    """`tx_queue: fifo` is the FIFO with its defaults; the mapping form states depth and on_full."""
+    if isinstance(q, str):
+        return model.TxQueue(policy=q)  # type: ignore[arg-type]
+    return model.TxQueue(policy=q.policy, depth=q.depth, on_full=q.on_full)

@@ -202,6 +202,20 @@ class Task:
 
 
 @dataclass(frozen=True)
+class TxQueue:
+    """How a node hands frames to its CAN controller: in priority order, or FIFO with a depth and what a send into
+    a full queue does (block the writer, or drop the frame)."""
+
+    policy: str = "priority"  # priority | fifo
+    depth: int = 10
+    on_full: str = "block"  # block | drop
+
+    @property
+    def fifo(self) -> bool:
+        return self.policy == "fifo"
+
+
+@dataclass(frozen=True)
 class Node:
     name: str
     node_id: int | None
@@ -226,6 +240,8 @@ class Node:
     on_loss: str = "stop_all"  # stop_all | stop_node | continue
     on_emcy: str = "stop_all"
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
+    # CAN transmit queue; a file written before this key: priority-queued
+    tx_queue: TxQueue = TxQueue()
 
     def task(self, name: str) -> Task:
         return _lookup({t.name: t for t in self.tasks}, name, f"task of node '{self.name}'")

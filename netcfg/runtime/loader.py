@@ -32,6 +32,7 @@ from netcfg.runtime.config import (
     SwitchPort,
     Task,
     Trigger,
+    TxQueue,
     UdpPorts,
 )
 from netcfg.runtime.schema import check_document
@@ -301,6 +302,7 @@ def _node(d: dict[str, Any]) -> Node:
         on_loss=d.get("on_loss", "stop_all"),
         on_emcy=d.get("on_emcy", "stop_all"),
         safe_stop=d.get("safe_stop", "quick_stop"),
+        tx_queue=TxQueue(**d["tx_queue"]) if d.get("tx_queue") else TxQueue(),
     )
 
 

@@ -122,6 +122,7 @@ NODE = obj(
     on_loss=F("enum", choices=("stop_all", "stop_node", "continue"), optional=True),
     on_emcy=F("enum", choices=("stop_all", "stop_node", "continue"), optional=True),
     safe_stop=F("enum", choices=("quick_stop", "disable_operation"), optional=True),
+    tx_queue=obj(optional=True, policy=enum("priority", "fifo"), depth=i(1, 1_000_000), on_full=enum("block", "drop")),
     sdo_init=lst(obj(index=i(0, U16), sub=i(0, U8), data_type=i(1, U16), value=i(-(2**63), 2**64 - 1)),
                  null=True, optional=True),
 )

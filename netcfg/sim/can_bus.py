@@ -10,6 +10,7 @@ or another event is due.
 from __future__ import annotations
 
 import heapq
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -55,6 +56,18 @@ class CanSource:
     gated: bool = False  # FTT-CAN asynchronous traffic: only inside the asynchronous window
     fd: bool = False  # CAN FD: arbitration and tail at the bus's bit rate, the data phase (brs) at its data rate
     brs: bool = False
+
+
+@dataclass
+class TxFifo:
+    """A node's FIFO transmit queue: only its head competes in arbitration; the rest wait behind it in order."""
+
+    depth: int
+    drop: bool  # a frame queued into a full FIFO is dropped (counted); otherwise its writer blocks until a slot
+    behind: deque[Pending] = field(default_factory=deque)  # queued after the head, in order
+    size: int = 0  # frames queued, the head included
+    max_size: int = 0  # the largest backlog seen
+    overflows: int = 0  # frames that found the queue full (dropped, or their writer blocked)
 
 
 # Free-running sources, expanded a chunk at a time: (t0, t1) -> (release instants, source indices) of every
@@ -107,6 +120,8 @@ class CanBus:
         self.lose: dict[int, list[int]] = {}  # message index -> instants: the next frame queued after is lost
         self.retries: dict[int, int] = {}  # message index -> retransmissions after bit errors
         self._pending: list[Pending] = []
+        self.fifos: list[TxFifo] = []
+        self._fifo_of: list[int] = []  # per source: its FIFO's index, -1 when priority-queued
         self._seq = 0
         self._rel_t: list[int] = []
         self._rel_src: list[int] = []
@@ -145,7 +160,17 @@ class CanBus:
         self.by_name[name] = src
         self._keys.append(src.key)
         self._durs.append(src.dur_ns)
+        self._fifo_of.append(-1)
         return src.index
+
+    def fifo_queue(self, producer: str, depth: int, drop: bool) -> TxFifo:
+        """The sources of `producer` (added so far) share one FIFO transmit queue from now on."""
+        q = TxFifo(depth, drop)
+        for src in self.sources:
+            if src.producer == producer:
+                self._fifo_of[src.index] = len(self.fifos)
+        self.fifos.append(q)
+        return q
 
     def add_stream(self, stream: Stream) -> None:
         self.streams.append(stream)
@@ -164,8 +189,35 @@ class CanBus:
         if data is None and self.stuffing == "exact" and self.sources[source].size:
             data = self.sim.rng.integers(0, 256, self.sources[source].size, dtype=np.uint8).tobytes()
         self._seq += 1
-        heapq.heappush(self._pending, (self.sources[source].key, now, self._seq, source, data))
+        self._enqueue((self.sources[source].key, now, self._seq, source, data))
         self._wake(now)
+
+    def _enqueue(self, item: Pending) -> None:
+        """A frame reaches its node's transmit queue: priority-queued frames all compete; a FIFO's only at its head."""
+        qi = self._fifo_of[item[3]]
+        if qi < 0:
+            heapq.heappush(self._pending, item)
+            return
+        q = self.fifos[qi]
+        if q.size >= q.depth:
+            q.overflows += 1
+            if q.drop:
+                self.drop(item[3])
+                return
+            # a blocked writer puts its frame in as soon as a slot frees: the order stays the order of the writes
+        q.size += 1
+        q.max_size = max(q.max_size, q.size)
+        if q.size == 1:
+            heapq.heappush(self._pending, item)
+        else:
+            q.behind.append(item)
+
+    def _dequeue(self, source: int) -> None:
+        """The head of a FIFO left the queue (sent or lost): the next frame moves up to arbitration."""
+        q = self.fifos[self._fifo_of[source]]
+        q.size -= 1
+        if q.behind:
+            heapq.heappush(self._pending, q.behind.popleft())
 
     def drop(self, source: int) -> None:
         """A frame that never reached the bus (its sender crashed, a scripted loss): counted, not sent."""
@@ -179,6 +231,12 @@ class CanBus:
                 kept.append(item)
             else:
                 self.drop(item[3])
+                if self._fifo_of[item[3]] >= 0:  # its node's whole FIFO goes with it
+                    q = self.fifos[self._fifo_of[item[3]]]
+                    for behind in q.behind:
+                        self.drop(behind[3])
+                    q.behind.clear()
+                    q.size = 0
         heapq.heapify(kept)
         self._pending = kept
         # releases the bus has not reached yet, although due: the sender had queued them, and loses them too
@@ -197,7 +255,7 @@ class CanBus:
 
     def pending_count(self) -> dict[int, int]:
         out: dict[int, int] = {}
-        for item in self._pending:
+        for item in [*self._pending, *(b for q in self.fifos for b in q.behind)]:
             out[item[3]] = out.get(item[3], 0) + 1
         for i in range(self._rel_i, len(self._rel_t)):
             if self._rel_t[i] < self.sim.now:
@@ -298,6 +356,8 @@ class CanBus:
         ifs = self.ifs_ns
         streams = bool(self.streams)
         chunk_end = self._chunk_end
+        fifo_of = self._fifo_of
+        fifos = bool(self.fifos)
         busy = self._free_at
         t = max(sim.now, busy)  # the next arbitration instant
         while True:
@@ -321,7 +381,10 @@ class CanBus:
             while ri < rn and rel_t[ri] <= t:
                 s = rel_src[ri]
                 seq += 1
-                push(pending, (keys[s], rel_t[ri], seq, s, rel_data[ri]))
+                if fifos and fifo_of[s] >= 0:
+                    self._enqueue((keys[s], rel_t[ri], seq, s, rel_data[ri]))
+                else:
+                    push(pending, (keys[s], rel_t[ri], seq, s, rel_data[ri]))
                 ri += 1
             item: Pending | None
             if babble is not None and babble[1] <= t < babble[2] and (not pending or keys[babble[0]] < pending[0][0]):
@@ -347,6 +410,8 @@ class CanBus:
                 continue
             release, m, data = item[1], item[3], item[4]
             if lose and m in lose and self._lost(m, release):
+                if fifos and fifo_of[m] >= 0:
+                    self._dequeue(m)
                 continue
             end = t + (self._duration(sources[m], data) if exact else durs[m])
             if ei < en:
@@ -362,6 +427,8 @@ class CanBus:
                     if item[2] >= 0:  # a babbler's frame is not queued: it simply comes back
                         push(pending, (item[0], release, item[2], m, data))
                     continue
+            if fifos and fifo_of[m] >= 0 and item[2] >= 0:
+                self._dequeue(m)
             rec_msg.append(m)
             rec_resp.append(end - release)
             if keep_data:

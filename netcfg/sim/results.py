@@ -41,6 +41,8 @@ class RunResult:
     protocols: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # bus -> one report per run
     error_model: bool = False  # bit errors were injected
     error_checks: list[dict[str, Any]] = field(default_factory=list)  # per CAN bus and run: errors vs. the model
+    # FIFO transmit queues: (bus, node) -> the largest backlog seen and the frames that found the queue full
+    tx_queues: dict[tuple[str, str], dict[str, Any]] = field(default_factory=dict)
     wall_s: float = 0.0
 
     def merge(self, other: RunResult) -> RunResult:
@@ -63,6 +65,16 @@ class RunResult:
         out.protocols = {k: self.protocols.get(k, []) + other.protocols.get(k, []) for k in buses}
         out.error_model = self.error_model or other.error_model
         out.error_checks = self.error_checks + other.error_checks
+        for key in sorted(set(self.tx_queues) | set(other.tx_queues)):
+            a, b = self.tx_queues.get(key), other.tx_queues.get(key)
+            if a is None or b is None:
+                out.tx_queues[key] = dict(a or b or {})
+                continue
+            out.tx_queues[key] = {
+                **a,
+                "max_backlog": max(a["max_backlog"], b["max_backlog"]),
+                "overflows": a["overflows"] + b["overflows"],
+            }
         out.wall_s = self.wall_s + other.wall_s
         return out
 
@@ -94,6 +106,16 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
         res.error_frames += can.error_frames
         if res.error_model:
             res.error_checks.append(error_check(can.name, can.error_log, cfg.bus(can.name).errors))
+        node_queues = [n for n in cfg.nodes if n.tx_queue.fifo and can.name in n.buses]
+        for node, q in zip(node_queues, can.fifos):
+            res.tx_queues[(can.name, node.name)] = {
+                "bus": can.name,
+                "node": node.name,
+                "depth": q.depth,
+                "on_full": "drop" if q.drop else "block",
+                "max_backlog": q.max_size,
+                "overflows": q.overflows,
+            }
     for name, n in sc.lost.items():  # losses no bus saw (a crashed task's Ethernet sends)
         res.lost[name] = res.lost.get(name, 0) + n
     for bus, driver in sc.protocols.items():
@@ -228,6 +250,8 @@ def summary(res: RunResult) -> dict[str, Any]:
         "outside_error_assumption": outside_error_assumption(res),
         "protocols": res.protocols if res.runs == 1 else {k: v[:1] for k, v in res.protocols.items()},
     }
+    if res.tx_queues:
+        out["tx_queues"] = [res.tx_queues[key] for key in sorted(res.tx_queues)]
     if res.wall_s > 0:
         out["speed"] = {
             "wall_s": round(res.wall_s, 3),
@@ -311,6 +335,13 @@ def text(doc: dict[str, Any]) -> str:
             )
     for bus, reports in doc.get("protocols", {}).items():
         lines += ["", *_protocol_text(bus, reports[0])]
+    for q in doc.get("tx_queues", ()):
+        how = "dropped" if q["on_full"] == "drop" else "blocked their writer"
+        lines += [
+            "",
+            f"  bus {q['bus']}: {q['node']}'s FIFO transmit queue held up to {q['max_backlog']} of {q['depth']} frames"
+            + (f"; {q['overflows']} frames found it full and {how}" if q["overflows"] else ""),
+        ]
     for finding in doc.get("findings", []):
         lines += ["", f"  finding: {finding}"]
     if doc.get("error_checks"):

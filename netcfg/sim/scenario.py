@@ -277,6 +277,9 @@ class Scenario:
             gated = ftt is not None and m.window != "sync"
             src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs)
             self.msg_source[m.name] = (can, src)
+        for node in self.cfg.nodes:
+            if node.tx_queue.fifo and bus.name in node.buses:
+                can.fifo_queue(node.name, node.tx_queue.depth, node.tx_queue.on_full == "drop")
         driver: object | None = None
         if ftt is not None:
             from netcfg.sim.ftt import FttMaster

@@ -312,6 +312,25 @@ class EdsDevice(SpecModel):
     eds: str = Field(description="path of a vendor EDS file, relative to the spec")
 
 
+class TxQueue(SpecModel):
+    """How a node hands its frames to the CAN controller."""
+
+    policy: Literal["priority", "fifo"] = Field(
+        "priority",
+        description="priority: the highest-priority pending frame always enters arbitration next (the classical "
+        "analysis's assumption: a controller with enough mailboxes); fifo: frames go in the order they were "
+        "queued (a Linux master's SocketCAN queue, a controller's FIFO mailbox)",
+    )
+    depth: Int = Field(
+        10, ge=1, le=1_000_000, description="frames the FIFO holds (SocketCAN's default txqueuelen is 10)"
+    )
+    on_full: Literal["block", "drop"] = Field(
+        "block",
+        description="what a send into a full FIFO does: block the sending task until a slot frees (a task that "
+        "writes a socket), or drop the frame (counted)",
+    )
+
+
 class Node(SpecModel):
     name: Name
     node_id: Int | None = Field(None, description="CANopen node id 1..127, or an FTT-CAN/CAN station number")
@@ -350,6 +369,11 @@ class Node(SpecModel):
     )
     id_range: tuple[Int, Int] | None = Field(
         None, description="CAN: [lowest, highest] identifier this node may send with; `netcfg tune` stays inside it"
+    )
+    tx_queue: Literal["priority", "fifo"] | TxQueue = Field(
+        "priority",
+        description="CAN: the node's transmit queue: priority (default) or fifo (depth 10, on_full: block), or "
+        "{policy, depth, on_full}",
     )
     description: str | None = None
 

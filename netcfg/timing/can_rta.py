@@ -46,8 +46,9 @@ from netcfg.timing.load import compare_to_capacity
 ONE_SHOT = 1 << 60  # "period" of an on-demand message: it interferes at most once per busy period
 MAX_ITERATIONS = 20_000  # fixed-point steps per message (busy period and every instance together)
 
-# why a response time is None: the load reaches the capacity, or the bound needs more than MAX_ITERATIONS
-Limit = Literal["load", "iterations"]
+# why a response time is None: the load reaches the capacity, or the bound needs more than MAX_ITERATIONS, or a
+# FIFO transmit queue can hold two instances of one message (can_fifo)
+Limit = Literal["load", "iterations", "fifo"]
 
 
 @dataclass(frozen=True)

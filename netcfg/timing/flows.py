@@ -309,6 +309,9 @@ class SyncTimes:
     completion_ns: list[int | None]  # per cycle of the SYNC-cycle analysis: the last synchronous TPDO's end
     master: MasterLoop | None = None  # the SYNC producer's cycle; None: an ideal master (no jitter, no SYNC task)
     release_delay_ns: dict[str, int] = field(default_factory=dict)  # message -> its producer's queueing delay
+    # messages the SYNC producer queues in the FIFO transmit queue SYNC goes through: one written before a SYNC
+    # is queued leaves the queue before that SYNC does, so its consumers have it by that SYNC's reception
+    ahead_of_sync: frozenset[str] = frozenset()
 
 
 def synchronised_canopen(
@@ -372,6 +375,10 @@ def synchronised_canopen(
     starts = []
     # a start instant may come this much later than the one taken (the data's age is measured from it in a run)
     spread = 0
+    def before_next_sync(ref: str, r: int) -> int | None:
+        """The cycle whose SYNC is certain to follow a message queued at r through the SYNC producer's FIFO."""
+        return r // period + 1 if ref in st.ahead_of_sync else None
+
     for k in range(2 * hyper):
         if first.kind == "task" and m.task(head).sync_bus == bus:
             early, late = activation(m.task(head))
@@ -387,28 +394,38 @@ def synchronised_canopen(
         # the worst case from the earliest start, the best case from the latest
         lo, hi = start + spread, start
         got: tuple[int, int] | None = None
+        by_sync: int | None = None  # the previous step's data is at its consumers by this cycle's SYNC
         for i, step in enumerate(flow.steps):
             last = i == len(flow.steps) - 1
             outs = []
-            for ref in step.refs:
-                if step.kind == "message":
-                    if ref in st.every:
-                        outs.append((tpdo_end(ref, lo, False), tpdo_end(ref, hi, True)))
-                    else:
-                        d = chained[ref]
-                        outs.append((lo + d.best_ns, hi + (d.worst_ns or 0)))
-                else:
+            ahead = [before_next_sync(ref, hi) for ref in step.refs] if step.kind == "message" else []
+            for ref, k_sync in zip(step.refs, ahead):
+                if ref in st.every:
+                    outs.append((tpdo_end(ref, lo, False), tpdo_end(ref, hi, True)))
+                    continue
+                d = chained[ref]
+                end = hi + (d.worst_ns or 0)
+                if k_sync is not None:  # sent before SYNC k, which ends by k * period + s_worst
+                    end = min(end, k_sync * period + s_worst)
+                outs.append((lo + d.best_ns, end))
+            if step.kind == "task":
+                for ref in step.refs:
                     task = m.task(ref)
                     if task.sync_bus == bus:
                         a_lo = on_sync(1, activation(task), lo, False)[1]
                         a_hi = on_sync(1, activation(task), hi, True)[1]
+                        if by_sync is not None:
+                            a_hi = min(a_hi, by_sync * period + activation(task)[1])
                     else:  # started by a message
                         a_lo, a_hi = lo, hi
                     busy = task_response(task, task_ns) or 0  # bounded: checked above
                     outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
+            by_sync = None
             if step.kind == "message":
                 got = (lo, hi)
+                if ahead and all(k is not None for k in ahead):
+                    by_sync = max(k for k in ahead if k is not None)
         # runs hold ends relative to the start taken: the best case's, which began `spread` later, is moved back
         runs.append((start, lo - spread, hi, None if got is None else (got[0] - spread, got[1])))
     return _freshest(runs, hyper * period)
