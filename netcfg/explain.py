@@ -350,15 +350,7 @@ def text(doc: dict[str, Any]) -> str:
         lines.append(
             f"  queuing    w = B + q*C + sum of ceil((w + J_k + tau) / T_k) * C_k{e_part} = {doc['w_us']:g} us, with:"
         )
-        if doc["interferers"]:
-            lines.append(f"    {'message':20} {'id':>6} {'C/us':>8} {'T/us':>10} {'J/us':>8} {'hits':>5} {'us':>9}")
-            for x in doc["interferers"]:
-                lines.append(
-                    f"    {x['name']:20} {_hex(x['id']):>6} {x['c_us']:>8g} {_num(x['period_us']):>10} "
-                    f"{x['jitter_us']:>8g} {x['hits']:>5} {x['us']:>9g}"
-                )
-        else:
-            lines.append("    (no higher-priority message)")
+        lines.extend(_interferer_lines(doc, "(no higher-priority message)"))
         e = doc["error_term"]
         if e is None:
             lines.append("  error term none: the bus states no error model (no error frames assumed)")
@@ -394,6 +386,20 @@ def text(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _interferer_lines(doc: dict[str, Any], none: str) -> list[str]:
+    """The interferers' table of a derivation, or `none` when there are none."""
+    if not doc["interferers"]:
+        return [f"    {none}"]
+    return [
+        f"    {'message':20} {'id':>6} {'C/us':>8} {'T/us':>10} {'J/us':>8} {'hits':>5} {'us':>9}",
+        *(
+            f"    {x['name']:20} {_hex(x['id']):>6} {x['c_us']:>8g} {_num(x['period_us']):>10} "
+            f"{x['jitter_us']:>8g} {x['hits']:>5} {x['us']:>9g}"
+            for x in doc["interferers"]
+        ),
+    ]
+
+
 def _fifo_text(doc: dict[str, Any]) -> list[str]:
     """The FIFO bound (Davis, Kollmann, Pollex, Slomka 2011) in the shape of the priority-queue derivation."""
     q = doc["queue"]
@@ -414,15 +420,7 @@ def _fifo_text(doc: dict[str, Any]) -> list[str]:
     lines.append(
         f"  queuing    w = B + sum of C - C_MIN + sum of ceil((w + J_k + tau) / T_k) * C_k = {doc['w_us']:g} us, with:"
     )
-    if doc["interferers"]:
-        lines.append(f"    {'message':20} {'id':>6} {'C/us':>8} {'T/us':>10} {'J/us':>8} {'hits':>5} {'us':>9}")
-        for x in doc["interferers"]:
-            lines.append(
-                f"    {x['name']:20} {_hex(x['id']):>6} {x['c_us']:>8g} {_num(x['period_us']):>10} "
-                f"{x['jitter_us']:>8g} {x['hits']:>5} {x['us']:>9g}"
-            )
-    else:
-        lines.append("    (no other node's frame above the queue's lowest-priority message)")
+    lines.extend(_interferer_lines(doc, "(no other node's frame above the queue's lowest-priority message)"))
     lines.append(
         f"  R = J + w + C_MIN = {doc['jitter_us']:g} + {doc['w_us']:g} + {q['c_min_us']:g} = {doc['wcrt_us']:g} us "
         "(the same queuing bound for every frame of the queue)"
