@@ -433,10 +433,11 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple
     )
     with_errors.sort()
     mid_errors = with_errors[len(with_errors) // 2] if with_errors else 0.0
-    line += (
-        f"\n  of them {error_specs[0]} accepted specs with an error model, hit as hard as it allows: tightness over "
-        f"{len(with_errors)} messages and flows: median {mid_errors:.3f}, max {max(with_errors, default=0.0):.3f}"
-    )
+    if error_specs[0]:  # Ethernet specs have no error model
+        line += (
+            f"\n  of them {error_specs[0]} accepted specs with an error model, hit as hard as it allows: tightness "
+            f"over {len(with_errors)} messages and flows: median {mid_errors:.3f}, max {max(with_errors):.3f}"
+        )
     return tally["failures"], line
 
 
