@@ -456,6 +456,19 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
     tau = bits_to_ns(1, bus.bitrate)
     errors = error_model(bus)
+    if errors is not None:
+        largest = max([t.tx_ns for t in timings.values()] + ([bus_tm_and_ec(bus)[0]] if bus.ftt else []), default=0)
+        recovery = errors.error_frame_ns + largest
+        if recovery >= errors.interval_ns:
+            diags.add(
+                "error-model",
+                f"bus '{bus.name}': one bit error costs up to {format_ns(recovery)} (a "
+                f"{format_ns(errors.error_frame_ns)} error frame and its longest frame sent again), not less than "
+                "the error model's interval of "
+                f"{format_ns(errors.interval_ns)}: errors at that rate could keep the bus busy for ever and no bound "
+                "holds; lengthen errors.interval",
+                m.source.at((*bus.path, "errors", "interval")),
+            )
     fifo = bus_responses(m, bus, rta_frames(bus.messages, timings, acc), tau)
     plain = fifo.responses
     for msg in bus.messages:

@@ -459,8 +459,8 @@ def test_arm_canfd_flow_bounds_by_hand() -> None:
     joint1.apply, unsynchronised (each node on its own clock). Best: sample BCET 10 + joint1_state without stuff
     bits 28 + (1 + 5 + 64 + 27 + 1) / 5 = 47.6 + control BCET 50 + arm_command without stuff bits
     28 + (1 + 5 + 512 + 32 + 1) / 5 = 138.2, up to the start of apply: 245.8 us. Worst: sample WCET 20 +
-    joint1_state's WCRT 282.8 + one control period waited, on a clock within 100 ppm (netcfg.timing.flows'
-    CLOCK_TOLERANCE_PPM), 1000 + 0.1 + control WCET 150 + arm_command's WCRT 226.2 = 1679.1 us."""
+    joint1_state's WCRT 282.8 + one control period waited, on a clock within the bus's 100 ppm
+    (clock_tolerance), 1000 + 0.1 + control WCET 150 + arm_command's WCRT 226.2 = 1679.1 us."""
     report = check(SPECS / "arm_canfd.yaml")
     (f,) = report["flows"]
     assert (f["latency_min_us"], f["latency_max_us"]) == (pytest.approx(245.8), pytest.approx(1679.1))

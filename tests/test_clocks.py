@@ -52,3 +52,15 @@ def test_exactly_full_with_drifting_clocks_is_unbounded() -> None:
     assert can_rta.analyse(frames, US)["m"].wcrt_ns == 2000 * US
     fast = can_rta.analyse(frames, US, tolerance_ppm=100)["m"]
     assert fast.wcrt_ns is None and fast.limit == "load"
+
+
+def test_long_windows_do_not_overflow() -> None:
+    """A window of 10^15 ns (the longest duration a spec takes) at 10,000 ppm: x * ppm = 10^19 is past int64, so
+    the arithmetic must not form it. ceil(10^15 / 0.99) = 1,010,101,010,101,011 ns, the same for a Python integer
+    and an int64 array."""
+    import numpy as np
+
+    x = 10**15
+    assert clocks.longest_local(x, 10_000) == 1_010_101_010_101_011
+    assert int(clocks.longest_local(np.array([x], dtype=np.int64), 10_000)[0]) == 1_010_101_010_101_011
+    assert clocks.shortest_real(x, 10_000) == 990_000_000_000_000

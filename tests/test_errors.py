@@ -340,3 +340,15 @@ def test_verify_holds_a_logs_error_frames_against_the_model(tmp_path: Path) -> N
     assert breach["detail"].startswith("3 error frames on bus can0 within 0.1 ms, where its error model allows 2")
     (none,) = kinds(three_frame_spec(None), [5_000])
     assert none["detail"].startswith("1 error frame(s) on bus can0: it states no error model")
+
+
+def test_an_error_model_no_bus_can_recover_from_is_refused(tmp_path: Path) -> None:
+    """CAMBADA at 250 kbit/s with one error every 500 us: an error frame is 31 bits = 124 us and its longest frame
+    (an 8-byte one, 125 bits at worst = 500 us) is sent again, 624 us per error, more than the interval: the
+    errors alone could occupy the bus for ever. check says so at errors.interval (it used to iterate the FTT-CAN
+    window allowance for ever)."""
+    data = load_spec("cambada.yaml")
+    data["buses"][0]["errors"] = {"interval": "500 us"}
+    report = check_data(tmp_path, data)
+    (err,) = [e for e in report["errors"] if e["code"] == "error-model"]
+    assert "624 us" in err["message"] and "500 us" in err["message"] and err["line"] > 1

@@ -27,6 +27,7 @@ from math import lcm
 
 from netcfg import cia301, model
 from netcfg.timing.can_errors import ErrorModel
+from netcfg.timing.clocks import PPM, longest_local
 
 MAX_CYCLES = 240 * 8
 
@@ -94,7 +95,8 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int], errors: ErrorModel | None 
     limit_ns, limit_name = min(limits)
     blocking = max(frame_ns.values(), default=0)
     others = [m for m in bus.messages if m is not sync_msg and m.name not in every]  # the same in every cycle
-    rate = sum(frame_ns[m.name] / m.interval_ns for m in others if m.interval_ns)
+    ppm = bus.clock_tolerance_ppm  # other messages' senders count their periods on their own clocks
+    rate = sum(frame_ns[m.name] / m.interval_ns for m in others if m.interval_ns) * PPM / (PPM - ppm)
     if errors is not None:
         rate += (errors.error_frame_ns + blocking) / errors.interval_ns  # one recovery per T_err
 
@@ -111,7 +113,7 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int], errors: ErrorModel | None 
             continue
         w = fixed + sum(frame_ns[m.name] for m in others)
         while True:
-            nxt = fixed + sum(frame_ns[m.name] * _instances(w, m) for m in others) + lost(w)
+            nxt = fixed + sum(frame_ns[m.name] * _instances(w, m, ppm) for m in others) + lost(w)
             if nxt == w:
                 break
             w = nxt
@@ -119,8 +121,9 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int], errors: ErrorModel | None 
     return out
 
 
-def _instances(window_ns: int, m: model.Message) -> int:
-    """Instances of `m` released inside a window of this length: ceil((W + J) / T); once for an aperiodic one."""
+def _instances(window_ns: int, m: model.Message, ppm: int) -> int:
+    """Instances of `m` released inside a window of this length: ceil((W + J) / T), W + J counted on its sender's
+    clock (within +-ppm); once for an aperiodic one."""
     if not m.interval_ns:
         return 1
-    return -(-(window_ns + m.jitter_ns) // m.interval_ns)
+    return -(-longest_local(window_ns + m.jitter_ns, ppm) // m.interval_ns)

@@ -92,6 +92,7 @@ def unsynchronised(
     refresh: int | None = None  # how often the data reaching this step is renewed
     delivery: tuple[int, int | None] | None = None
     prev: model.FlowStep | None = None
+    ppm = clock_tolerance(m)
     for i, step in enumerate(flow.steps):
         last = i == len(flow.steps) - 1
         outs: list[tuple[int, int | None]] = []
@@ -102,13 +103,13 @@ def unsynchronised(
                 d = chained[ref]
                 wait = 0
                 if msg.kind == "periodic" and i and (ref in scheduled or not _sent_by_producer(m, msg, prev)):
-                    wait = _sampling(message_period(msg), refresh)
+                    wait = _sampling(message_period(msg), refresh, ppm)
                 outs.append((lo + d.best_ns, _add(_add(hi, wait), d.worst_ns)))
                 periods.append(message_period(msg) or 0)
             else:
                 task = m.task(ref)
                 period = task_period(m, task)
-                wait = _sampling(period, refresh) if i and task.on_message is None else 0
+                wait = _sampling(period, refresh, ppm) if i and task.on_message is None else 0
                 start_hi = _add(hi, wait)
                 end_hi = _add(start_hi, task_response(task, task_ns))
                 outs.append((lo, start_hi) if last else (lo + task.bcet_ns, end_hi))
@@ -123,18 +124,20 @@ def unsynchronised(
     return (lo, hi), delivery
 
 
-CLOCK_TOLERANCE_PPM = clocks.DEFAULT_TOLERANCE_PPM  # flows cross nodes and buses: the default tolerance
+def clock_tolerance(m: model.Model) -> int:
+    """The clock tolerance a flow's waits count: flows cross nodes and buses, so the largest any bus states."""
+    return max((b.clock_tolerance_ppm for b in m.buses.values()), default=clocks.DEFAULT_TOLERANCE_PPM)
 
 
-def _sampling(consumer_period: int | None, refresh: int | None) -> int:
+def _sampling(consumer_period: int | None, refresh: int | None, ppm: int) -> int:
     """Worst sampling delay of a free-running consumer: up to one of its periods, and never more than the
     input's renewal period (a slower consumer always reads data renewed within that period: its age counts).
-    Both periods run on a node's own clock, so in real time they may be CLOCK_TOLERANCE_PPM longer."""
+    Both periods run on a node's own clock, so in real time they may be `ppm` longer."""
     candidates = [p for p in (consumer_period, refresh) if p]
     if not candidates:
         return 0
     wait = min(candidates)
-    return clocks.longest_real(wait, CLOCK_TOLERANCE_PPM)
+    return clocks.longest_real(wait, ppm)
 
 
 def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> bool:

@@ -194,11 +194,15 @@ def window_allowance(errors: ErrorModel | None, frames_ns: list[int], tm_ns: int
     span = sum(frames_ns) + (tm_ns if sync_first else 0)
     largest = max(*frames_ns, tm_ns if sync_first else 0)
     allowance = errors.overhead(span + errors.error_frame_ns, largest)
-    while True:  # the allowance lengthens the window, which may then hold one more error
+    if errors.error_frame_ns + largest >= errors.interval_ns:
+        return allowance  # one recovery outlasts the interval: no fixed point, and check refuses the model
+    for _ in range(MAX_ASYNC_STEPS):  # the allowance lengthens the window, which may then hold one more error
         nxt = errors.overhead(span + allowance + errors.error_frame_ns, largest)
         if nxt == allowance:
-            return allowance
+            break
         allowance = nxt
+    # no fixed point when one recovery outlasts the error interval: check refuses that model (error-model)
+    return allowance
 
 
 def tm_delay(errors: ErrorModel | None, tm_ns: int) -> int:
@@ -208,11 +212,14 @@ def tm_delay(errors: ErrorModel | None, tm_ns: int) -> int:
     if errors is None:
         return 0
     delay = errors.overhead(tm_ns, tm_ns)
-    while True:
+    if errors.error_frame_ns + tm_ns >= errors.interval_ns:
+        return delay  # as in window_allowance
+    for _ in range(MAX_ASYNC_STEPS):  # as window_allowance: bounded, check refuses a model without a fixed point
         nxt = errors.overhead(tm_ns + delay, tm_ns)
         if nxt == delay:
-            return delay
+            break
         delay = nxt
+    return delay
 
 
 def _slot(
