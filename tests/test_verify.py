@@ -544,3 +544,26 @@ def test_a_progress_bar_only_on_a_terminal(monkeypatch: pytest.MonkeyPatch, reco
         assert sum(len(b) for b in batches) > 0
         verify_cli._progress_done()
         assert ("100% of the log" in stream.getvalue()) is shown
+
+
+def test_the_rate_check_takes_the_bus_clock_tolerance(tmp_path: Path) -> None:
+    """A sender 4,000 ppm slow sends a 10 ms message 998 times in 10 s: a bus that allows +-5,000 ppm
+    (clock_tolerance) expects at least floor(9.994 s x (1 - 0.005) / 10 ms) + 1 = 995 of them, so the log is inside
+    the analysis; with the default 100 ppm it needs 1,000, and the same log breaks the rate check."""
+    spec = tmp_path / "tol.yaml"
+    text = (
+        "system: tol\n"
+        "buses:\n  - {name: can0, protocol: can, bitrate: 500k, clock_tolerance: 5000}\n"
+        "nodes:\n  - {name: a, buses: [can0]}\n  - {name: b, buses: [can0]}\n"
+        "messages:\n"
+        "  - {name: m1, id: 0x100, producer: a, consumers: [b], size: 8, period: 1 ms}\n"
+        "  - {name: m2, id: 0x200, producer: b, consumers: [a], size: 8, period: 10 ms}\n"
+    )
+    spec.write_text(text, encoding="utf-8")
+    log = tmp_path / "drift.log"
+    sim = cli("simulate", str(spec), "--duration", "10s", "--drift", "4000", "--seed", "3", "--log", str(log))
+    assert sim.returncode == 0, sim.stderr
+    assert cli("verify", str(spec), str(log)).returncode == 0
+    spec.write_text(text.replace("clock_tolerance: 5000", "clock_tolerance: 100"), encoding="utf-8")
+    strict = cli("verify", str(spec), str(log), "--format", "json")
+    assert strict.returncode == 1 and "rate" in json.loads(strict.stdout)["violations_by_kind"]

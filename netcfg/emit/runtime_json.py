@@ -24,6 +24,7 @@ from netcfg.emit import canopen_dcf
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
 from netcfg.timing import flows, ftt
+from netcfg.timing.clocks import DEFAULT_TOLERANCE_PPM
 
 FORMAT = "netcfg-runtime"
 VERSION = 1  # bump when a key changes meaning or disappears; netcfg.runtime.SUPPORTED_VERSIONS must follow
@@ -87,9 +88,12 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
     fd = {"data_bitrate": b.data_bitrate} if b.protocol == "can-fd" else {}
     # the error model only where the spec states one: files of error-free buses stay as they were
     errors = {"errors": {"burst": b.errors.burst, "interval_ns": b.errors.interval_ns}} if b.errors else {}
+    # the senders' clock tolerance only where the spec changes the default, for the same reason
+    tolerance = {"clock_tolerance_ppm": b.clock_tolerance_ppm} if b.clock_tolerance_ppm != DEFAULT_TOLERANCE_PPM else {}
     return {
         **fd,
         **errors,
+        **tolerance,
         "name": b.name,
         "protocol": b.protocol,
         "bitrate": b.bitrate,

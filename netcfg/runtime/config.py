@@ -49,6 +49,9 @@ def interpolation_period(period_ns: int) -> tuple[int, int] | None:
 # --- the configuration ----------------------------------------------------------------------------------------
 
 
+
+DEFAULT_CLOCK_TOLERANCE_PPM = 100  # a bus without clock_tolerance_ppm: its senders' clocks within +-100 ppm
+
 @dataclass(frozen=True)
 class Signal(Field):
     """A codec field with its unit (layout, byte order, multiplexing and value names: netcfg.runtime.codec)."""
@@ -376,6 +379,7 @@ class Bus:
     ethernet: EthernetParams | None
     data_bitrate: int | None = None  # CAN FD: the data-phase rate
     errors: ErrorAssumption | None = None  # the bit errors the analysis allowed for; None: an error-free bus
+    clock_tolerance_ppm: int = DEFAULT_CLOCK_TOLERANCE_PPM  # senders' clocks within +-this, as analysed
 
     @property
     def is_can(self) -> bool:

@@ -11,6 +11,7 @@ from typing import Any
 
 from netcfg.inputs import InputError, JsonInputError, parse_json, read_input_text
 from netcfg.runtime.config import (
+    DEFAULT_CLOCK_TOLERANCE_PPM,
     Bus,
     CanopenParams,
     EcSlot,
@@ -196,6 +197,7 @@ def _bus(d: dict[str, Any]) -> Bus:
         protocol=d["protocol"],
         bitrate=d["bitrate"],
         data_bitrate=d.get("data_bitrate"),
+        clock_tolerance_ppm=d.get("clock_tolerance_ppm", DEFAULT_CLOCK_TOLERANCE_PPM),
         errors=None if d.get("errors") is None else ErrorAssumption(d["errors"]["burst"], d["errors"]["interval_ns"]),
         id_bits=d["id_bits"],
         nodes=_strs(d["nodes"]),

@@ -148,6 +148,7 @@ BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),
     canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET, data_bitrate=i(1, 10**12, optional=True),
     errors=obj(null=True, optional=True, burst=i(0, 10_000), interval_ns=ns(1)),
+    clock_tolerance_ppm=i(0, 10_000, optional=True),
 )
 TRIGGER = obj(
     name=name(), bus=name(), ftt_id=i(0, 10**6), period_ns=ns(1), interval_ns=ns(1, null=True), offset_ns=ns(),

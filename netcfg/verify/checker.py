@@ -59,10 +59,6 @@ __all__ = ["MAX_VIOLATIONS", "Checker", "VerifyError"]
 MAX_VIOLATIONS = 1000  # kept in detail; more are counted
 HIST_BINS = 60
 DEFAULT_WINDOW_US = 100_000
-# how far a sender's clock may run slow against the recorder's: crystal oscillators are specified within about
-# +-100 ppm (the simulator's default drift bound is 50 ppm)
-DEFAULT_CLOCK_TOLERANCE_PPM = 100.0
-
 
 class VerifyError(ValueError):
     """The configuration and the log cannot be matched (e.g. which bus a channel is); a usage problem."""
@@ -116,10 +112,10 @@ class Checker:
         bus: str | Mapping[str, str] | None = None,
         window_us: int = DEFAULT_WINDOW_US,
         strict: bool = False,
-        clock_tolerance_ppm: float = DEFAULT_CLOCK_TOLERANCE_PPM,
+        clock_tolerance_ppm: float | None = None,
     ) -> None:
         self.cfg = cfg
-        self.clock_tolerance = clock_tolerance_ppm / 1e6
+        self.clock_tolerance_ppm = clock_tolerance_ppm  # None: each bus's, as the analysis took it
         self._table = ChannelTable()
         self.channels = channels if channels is not None else self._table.names
         self.strict = strict
@@ -614,7 +610,10 @@ class Checker:
         whose period is longer than configured. The sender's clock may run slow by the clock tolerance."""
         assert st.period_us is not None and st.first_t is not None and st.last_t is not None
         span = st.last_t - st.first_t
-        needed = int(np.floor((span * (1 - self.clock_tolerance) - st.slack_us) / st.period_us)) + 1
+        ppm = self.clock_tolerance_ppm
+        if ppm is None:
+            ppm = self.buses[st.bus].clock_tolerance_ppm
+        needed = int(np.floor((span * (1 - ppm / 1e6) - st.slack_us) / st.period_us)) + 1
         short = needed - st.count - st.missing
         if short > 0:
             self._violation(
@@ -623,7 +622,7 @@ class Checker:
                 st.last_t,
                 f"{st.count} frames over {span / 1e6:.6f} s; a {st.period_us / 1000:g} ms period needs at least "
                 f"{needed} ({short} more than the gaps explain; mean period {span / max(st.count - 1, 1) / 1000:.3f} "
-                f"ms, clock tolerance {self.clock_tolerance * 1e6:g} ppm)",
+                f"ms, clock tolerance {ppm:g} ppm)",
             )
 
     def _since(self, t: int) -> int:
