@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import pytest
 import yaml
 from conftest import bus, check_data, cli, message
 
@@ -285,3 +286,24 @@ def test_a_fifo_bound_with_bit_errors_by_hand() -> None:
     )
     assert res.queues["host"].queue_ns == 706 * US
     assert res.responses["high"].wcrt_ns == 706 * US
+
+
+@pytest.mark.parametrize(
+    ("queue", "expected"),
+    [
+        ({"depth": 16, "on_full": "drop"}, "depth and on_full describe a FIFO queue: add 'policy: fifo'"),
+        ({"policy": "fifo", "depth": 0}, "greater than or equal to 1"),
+        ("fifa", "did you mean 'fifo'?"),
+    ],
+)
+def test_a_mistaken_tx_queue_gets_one_error(tmp_path: Path, queue: Any, expected: str) -> None:
+    """Each mistake is named once: depth without a FIFO used to be ignored silently, and the word and the mapping
+    forms each reported the same mistake."""
+    data = {
+        "system": "q",
+        "buses": [{"name": "can0", "protocol": "can", "bitrate": "500k"}],
+        "nodes": [{"name": "a", "buses": ["can0"], "tx_queue": queue}, {"name": "b", "buses": ["can0"]}],
+        "messages": [{"name": "m1", "id": 0x100, "producer": "a", "consumers": ["b"], "size": 8, "period": "1 ms"}],
+    }
+    (err,) = check_data(tmp_path, data)["errors"]
+    assert expected in err["message"]

@@ -704,8 +704,6 @@ def _last_byte(s: model.Signal) -> int:
     return last_byte(s.start_bit, s.bits, s.big_endian)
 
 
-def _tx_queue(q: str | schema.TxQueue) -> model.TxQueue:
-    """`tx_queue: fifo` is the FIFO with its defaults; the mapping form states depth and on_full."""
-    if isinstance(q, str):
-        return model.TxQueue(policy=q)  # type: ignore[arg-type]
+def _tx_queue(q: schema.TxQueue) -> model.TxQueue:
+    """`tx_queue: fifo` arrives as the mapping {policy: fifo} with its defaults."""
     return model.TxQueue(policy=q.policy, depth=q.depth, on_full=q.on_full)

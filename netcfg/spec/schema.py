@@ -330,6 +330,13 @@ class TxQueue(SpecModel):
         "writes a socket), or drop the frame (counted)",
     )
 
+    @model_validator(mode="after")
+    def _fifo_fields_need_a_fifo(self) -> TxQueue:
+        given = sorted(self.model_fields_set & {"depth", "on_full"})
+        if self.policy == "priority" and given:
+            raise ValueError(f"{' and '.join(given)} describe a FIFO queue: add 'policy: fifo' (default: priority)")
+        return self
+
 
 class Node(SpecModel):
     name: Name
@@ -370,8 +377,15 @@ class Node(SpecModel):
     id_range: tuple[Int, Int] | None = Field(
         None, description="CAN: [lowest, highest] identifier this node may send with; `netcfg tune` stays inside it"
     )
-    tx_queue: Literal["priority", "fifo"] | TxQueue = Field(
-        "priority",
+    # the word form is read as the mapping's policy, so a mistake gets the mapping's message alone, not one per form
+    tx_queue: Annotated[
+        TxQueue,
+        BeforeValidator(
+            lambda v: {"policy": v} if isinstance(v, str) else v,
+            json_schema_input_type=Literal["priority", "fifo"] | TxQueue,
+        ),
+    ] = Field(
+        default_factory=lambda: TxQueue.model_validate({}),
         description="CAN: the node's transmit queue: priority (default) or fifo (depth 10, on_full: block), or "
         "{policy, depth, on_full}",
     )
