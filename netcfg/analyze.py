@@ -398,6 +398,7 @@ def tx_queue_rows(m: model.Model, bus: model.Bus, fifo: can_fifo.FifoAnalysis) -
                 "blocking_us": us(q.blocking_ns),
                 "queued_us": us(q.queued_ns),
                 "interference_us": us(q.interference_ns),
+                "error_us": us(q.error_ns),
                 "queue_us": us(q.queue_ns),
                 **({"unbounded": q.limit} if q.limit else {}),
             }

@@ -91,7 +91,7 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
     bound = with_offsets[name].wcrt_ns
     queue = next((q for q in fifo.queues.values() if name in q.members), None)
     if queue is not None:
-        out.update(_fifo_terms(m, frames, queue, tau, ppm))
+        out.update(_fifo_terms(m, frames, queue, tau, ppm, errors))
     elif r.wcrt_ns is not None:
         q = r.worst_instance
         t_me = me.t_ns or can_rta.ONE_SHOT
@@ -133,7 +133,12 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
 
 
 def _fifo_terms(
-    m: model.Model, frames: list[can_rta.CanFrame], q: can_fifo.FifoQueue, tau: int, ppm: int
+    m: model.Model,
+    frames: list[can_rta.CanFrame],
+    q: can_fifo.FifoQueue,
+    tau: int,
+    ppm: int,
+    errors: ErrorModel | None,
 ) -> dict[str, Any]:
     """The FIFO bound's terms (Davis, Kollmann, Pollex, Slomka 2011): the frames that can be ahead in the queue,
     the blocking and the other nodes' frames above the queue's lowest-priority message, with their hits."""
@@ -161,6 +166,16 @@ def _fifo_terms(
         return out
     w = q.queue_ns - q.c_min_ns
     out["w_us"] = _us(w)
+    if errors is not None:  # E(w + C_MIN), the largest frame of the bus resent (can_fifo)
+        out["error_term_us"] = _us(q.error_ns)
+        out["error_term"] = {
+            "burst": errors.burst,
+            "interval_us": _us(errors.interval_ns),
+            "window_us": _us(q.queue_ns),
+            "errors": errors.errors_in(q.queue_ns),
+            "error_frame_us": _us(errors.error_frame_ns),
+            "largest_frame_us": _us(max(f.c_ns for f in frames)),
+        }
     for f in sorted(
         (f for f in frames if f.priority_key < lowest.priority_key and f.name not in q.members),
         key=lambda f: f.priority_key,
@@ -351,16 +366,7 @@ def text(doc: dict[str, Any]) -> str:
             f"  queuing    w = B + q*C + sum of ceil((w + J_k + tau) / T_k) * C_k{e_part} = {doc['w_us']:g} us, with:"
         )
         lines.extend(_interferer_lines(doc, "(no higher-priority message)"))
-        e = doc["error_term"]
-        if e is None:
-            lines.append("  error term none: the bus states no error model (no error frames assumed)")
-        else:
-            lines.append(
-                f"  error term E(w + C) = (n + ceil((w + C) / T_err)) * (error frame + largest C at or above) = "
-                f"({e['burst']} + ceil({e['window_us']:g} / {e['interval_us']:g})) * ({e['error_frame_us']:g} + "
-                f"{e['largest_frame_us']:g}) = {e['errors']} * {e['error_frame_us'] + e['largest_frame_us']:g} = "
-                f"{doc['error_term_us']:g} us"
-            )
+        lines.append(_error_line(doc, "w + C", "largest C at or above"))
         lines.append(
             f"  R = J + w - q*T + C = {doc['jitter_us']:g} + {doc['w_us']:g} - {q}*{_num(doc['period_us'])} + "
             f"{f['c_us']:g} = {doc['wcrt_us']:g} us"
@@ -384,6 +390,19 @@ def text(doc: dict[str, Any]) -> str:
             )
         )
     return "\n".join(lines)
+
+
+def _error_line(doc: dict[str, Any], window: str, largest: str) -> str:
+    """The error term's derivation E(window), or that the bus assumes no errors."""
+    e = doc["error_term"]
+    if e is None:
+        return "  error term none: the bus states no error model (no error frames assumed)"
+    return (
+        f"  error term E({window}) = (n + ceil(({window}) / T_err)) * (error frame + {largest}) = "
+        f"({e['burst']} + ceil({e['window_us']:g} / {e['interval_us']:g})) * ({e['error_frame_us']:g} + "
+        f"{e['largest_frame_us']:g}) = {e['errors']} * {e['error_frame_us'] + e['largest_frame_us']:g} = "
+        f"{doc['error_term_us']:g} us"
+    )
 
 
 def _interferer_lines(doc: dict[str, Any], none: str) -> list[str]:
@@ -418,9 +437,12 @@ def _fifo_text(doc: dict[str, Any]) -> list[str]:
         }.get(q["unbounded"] or "", "the bound needs too many steps of the analysis")
         return [*lines, f"  no bounded response: {why}"]
     lines.append(
-        f"  queuing    w = B + sum of C - C_MIN + sum of ceil((w + J_k + tau) / T_k) * C_k = {doc['w_us']:g} us, with:"
+        "  queuing    w = B + sum of C - C_MIN + sum of ceil((w + J_k + tau) / T_k) * C_k"
+        + (" + E(w + C_MIN)" if doc["error_term"] else "")
+        + f" = {doc['w_us']:g} us, with:"
     )
     lines.extend(_interferer_lines(doc, "(no other node's frame above the queue's lowest-priority message)"))
+    lines.append(_error_line(doc, "w + C_MIN", "the bus's largest frame"))
     lines.append(
         f"  R = J + w + C_MIN = {doc['jitter_us']:g} + {doc['w_us']:g} + {q['c_min_us']:g} = {doc['wcrt_us']:g} us "
         "(the same queuing bound for every frame of the queue)"

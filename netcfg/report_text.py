@@ -200,6 +200,8 @@ def tx_queue_text(q: dict[str, Any]) -> str:
         return f"{head}; no bound ({q.get('unbounded')})"
     return (
         f"{head} sharing one bound of {num(q['queue_us'])} us (blocking {num(q['blocking_us'])} + the whole queue "
-        f"{num(q['queued_us'])} + other nodes' frames above {q['lowest']} {num(q['interference_us'])}); at most "
+        f"{num(q['queued_us'])} + other nodes' frames above {q['lowest']} {num(q['interference_us'])}"
+        + (f" + bit errors {num(q['error_us'])}" if q.get("error_us") else "")
+        + "); at most "
         f"{q['backlog_max']} frames queued"
     )

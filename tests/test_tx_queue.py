@@ -307,3 +307,18 @@ def test_a_mistaken_tx_queue_gets_one_error(tmp_path: Path, queue: Any, expected
     }
     (err,) = check_data(tmp_path, data)["errors"]
     assert expected in err["message"]
+
+
+def test_a_fifo_bound_shows_its_error_term(tmp_path: Path) -> None:
+    """ALLEX-2's master FIFO with one error burst and one error per 10 ms: the bound's terms are blocking 65 +
+    the whole queue 1,315 + other nodes' frames above ankle_r_interp 1,500 (six 135 us TPDO1s, six 115 us
+    TPDO2s) + E(w + C_MIN); with w + C_MIN = 3,212 us, E = (1 + ceil(3,212 / 10,000)) x (31 us error frame + the
+    bus's longest frame, 135 us) = 2 x 166 = 332 us, so the bound is 65 + 1,315 + 1,500 + 332 = 3,212 us. The
+    error term is its own figure (it was counted as other nodes' frames), and each member's row carries it."""
+    data = yaml.safe_load((Path(__file__).parent.parent / "specs" / "allex2.yaml").read_text(encoding="utf-8"))
+    data["buses"][0]["errors"] = {"burst": 1, "interval": "10 ms"}
+    report = check_data(tmp_path, data)
+    (q,) = bus(report, "can0")["tx_queues"]
+    assert (q["blocking_us"], q["queued_us"], q["interference_us"], q["error_us"]) == (65, 1315, 1500, 332)
+    assert q["queue_us"] == 3212
+    assert message(bus(report, "can0"), "hip_l_cmd")["error_us"] == 332

@@ -168,7 +168,9 @@ def _tx_queues_view(b: dict[str, Any]) -> list[str]:
         bound = (
             f"**{num(q['queue_us'])} us** from queuing to the end of the frame (blocking {num(q['blocking_us'])} + "
             f"every frame of the queue {num(q['queued_us'])} + other nodes' frames above {cell(q['lowest'])}, its "
-            f"lowest-priority message, {num(q['interference_us'])}), plus each message's own release jitter; at most "
+            f"lowest-priority message, {num(q['interference_us'])}"
+            + (f" + bit errors {num(q['error_us'])}" if q.get("error_us") else "")
+            + "), plus each message's own release jitter; at most "
             f"{q['backlog_max']} frames queued at once"
             if q["queue_us"] is not None
             else "**no bound** (" + cell(q.get("unbounded")) + ")"

@@ -60,6 +60,7 @@ class FifoQueue:
     interference_ns: int | None  # the other nodes' frames that win arbitration meanwhile
     queue_ns: int | None  # R_x: queued to sent, for every member
     limit: Limit | None = None
+    error_ns: int = 0  # E(w + C_MIN): the bus's bit-error term in w (0 without an error model)
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,7 @@ def analyse(
         if q_node is not None:
             q = queues[q_node]
             r = None if q.queue_ns is None else f.j_ns + q.queue_ns
-            out[f.name] = Response(f.name, r, q.blocking_ns, None, 1, 0, q.limit)
+            out[f.name] = Response(f.name, r, q.blocking_ns, None, 1, 0, q.limit, error_ns=q.error_ns)
             continue
         for highest, limit in unbounded:
             if f.priority_key > highest and out[f.name].wcrt_ns is not None:
@@ -174,7 +175,8 @@ def _queue(
     else:
         return replace(q, limit="iterations")
     r = w + c_min
-    q = replace(q, interference_ns=w - base, queue_ns=r)  # interference includes the error term, if any
+    lost = errors.overhead(w + c_min, longest) if errors is not None else 0
+    q = replace(q, interference_ns=w - base - lost, queue_ns=r, error_ns=lost)
     # the paper's premise: one instance of each member at most in the queue, each sent within its period
     if any(f.t_ns is not None and f.j_ns + r > shortest_real(f.t_ns, ppm) for f in members):
         return replace(q, queue_ns=None, limit="fifo")
