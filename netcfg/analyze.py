@@ -265,10 +265,17 @@ def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]],
                     "steps of the analysis: the traffic at its priority is so close to 100% of the capacity that "
                     "its busy period is too long to follow"
                 )
-            elif row["wcrt_us"] is None and row.get("unbounded") == "fifo":
+            elif row["wcrt_us"] is None and row.get("unbounded") == "fifo" and row.get("tx_queue") == "fifo":
                 text = (
                     f"message '{msg.name}' has no bounded worst-case response time: its sender's FIFO transmit "
-                    "queue can hold two of its frames at once (a member waits longer than its period)"
+                    "queue has no bound (one of its messages, or of a FIFO above it, waits longer than its period, so "
+                    "two of its frames can be queued at once)"
+                )
+            elif row["wcrt_us"] is None and row.get("unbounded") == "fifo":
+                text = (
+                    f"message '{msg.name}' has no bounded worst-case response time: another node's FIFO transmit "
+                    "queue with a message above it has no bound (a member waits longer than its period), so its "
+                    "frames reach arbitration at no bounded time; see that queue in the bus's tx_queues"
                 )
             elif row["wcrt_us"] is None:
                 text = (
