@@ -483,9 +483,13 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
         _, after = analyse_spec(tmp, ImportOptions(bitrate) if is_dbc else None)
         if after["errors"]:
             tmp.unlink()
+            print(
+                f"netcfg: the tuned spec would still be refused, so nothing was written; its errors, at the lines "
+                f"{output} would have (the search assumes priority transmit queues and no bit errors):",
+                file=sys.stderr,
+            )
             for d in after["errors"]:
                 print(f"{output}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
-            print("netcfg: the tuned spec would still be refused; nothing was written", file=sys.stderr)
             return 1
         os.replace(tmp, output)
     except OSError as exc:
