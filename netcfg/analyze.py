@@ -342,11 +342,22 @@ def error_model(bus: model.Bus) -> can_errors.ErrorModel | None:
 DEFAULT_BER = 1e-6  # the schema's default `ber`: what a bus without an error model is rated against
 
 
-def errors_section(bus: model.Bus, utilization: float) -> dict[str, Any]:
-    """The bus's error assumption and how likely its environment is to break it in an hour."""
+def errors_section(
+    bus: model.Bus, utilization: float, timings: dict[str, load.FrameTiming] | None = None
+) -> dict[str, Any]:
+    """The bus's error assumption and how likely its environment is to break it in an hour. A bit error can hit
+    any bit on the wire: on CAN FD the data phase sends more bits per second than the nominal rate, so there they
+    are counted frame by frame."""
     em = error_model(bus)
     ber = bus.errors.ber if bus.errors is not None else DEFAULT_BER
     rate = can_errors.errors_per_second(ber, bus.bitrate, utilization)
+    if bus.protocol == "can-fd" and timings is not None:
+        bits_per_s = sum(
+            timings[msg.name].bits_worst * 1e9 / msg.interval_ns
+            for msg in bus.messages
+            if msg.interval_ns and msg.kind != "on-demand"
+        )
+        rate = max(rate, ber * bits_per_s)
     p = can_errors.exceed_probability(rate, em.burst if em else None, em.interval_ns if em else 1)
     out: dict[str, Any] = {
         "model": None
@@ -488,7 +499,7 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
         **({"data_bitrate": bus.data_bitrate} if bus.data_bitrate is not None else {}),
         "utilization": round(worst, 6),
         "utilization_nominal": round(nominal, 6),
-        "errors": errors_section(bus, worst + (_tm_load(bus) if bus.ftt is not None else 0.0)),
+        "errors": errors_section(bus, worst + (_tm_load(bus) if bus.ftt is not None else 0.0), timings),
         "messages": rows,
     }
     if bus.ftt is not None:

@@ -464,3 +464,12 @@ def test_arm_canfd_flow_bounds_by_hand() -> None:
     report = check(SPECS / "arm_canfd.yaml")
     (f,) = report["flows"]
     assert (f["latency_min_us"], f["latency_max_us"]) == (pytest.approx(245.8), pytest.approx(1679.1))
+
+
+def test_bit_errors_counted_over_every_bit_on_a_fd_bus() -> None:
+    """A bit error can hit any bit on the wire. arm_canfd sends one 64-byte FD frame (34 nominal + 678 data bits
+    at worst) and nine 8-byte ones (34 + 113 bits) every ms: 712 + 9 x 147 = 2,035 bits per ms, 2.035 Mbit/s,
+    more than its 1 Mbit/s nominal rate; at a BER of 1e-6 that is 2.035 errors a second, 7,326 an hour (taken at
+    the nominal rate times the load it was 2,444)."""
+    errors = bus(check(SPECS / "arm_canfd.yaml"), "arm")["errors"]
+    assert errors["errors_per_hour"] == pytest.approx(2_035_000 * 1e-6 * 3600)
