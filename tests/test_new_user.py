@@ -13,8 +13,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
-from tests.conftest import check_data
+from tests.conftest import ROOT, check_data
 
 CANOPEN: dict[str, Any] = {
     "system": "arm",
@@ -113,3 +114,15 @@ def test_short_bit_rates_read_in_the_spec_as_on_the_command_line(written: str, b
     spec["buses"][0]["bitrate"] = written
     report = check_data(tmp_path, spec)
     assert report["errors"] == [] and report["buses"][0]["bitrate"] == bits
+
+
+def test_transmit_queue_and_clock_tolerance_on_ethernet_are_named_as_without_effect(tmp_path: Path) -> None:
+    """Both belong to the CAN analysis: on an Ethernet bus or a node on no CAN bus they change nothing, which a
+    warning says (an Ethernet bus's `errors:` is refused outright, it has no model to apply there)."""
+    data = yaml.safe_load((ROOT / "specs" / "ntua_sahr.yaml").read_text(encoding="utf-8"))
+    data["buses"][0]["clock_tolerance"] = 50
+    data["nodes"][0]["tx_queue"] = "fifo"
+    report = check_data(tmp_path, data)
+    texts = [w["message"] for w in report["warnings"]]
+    assert any("'clock_tolerance' is counted by the CAN analysis" in t for t in texts)
+    assert any("is on no CAN bus: its tx_queue has no effect" in t for t in texts)

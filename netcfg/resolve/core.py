@@ -185,6 +185,13 @@ class Resolver:
                         )
                     else:
                         bus.errors = model.BitErrors(b.errors.burst, interval, b.errors.ber)
+            if "clock_tolerance" in b.model_fields_set and b.protocol == "ethernet-udp":
+                self.warn(
+                    "wrong-section",
+                    f"'clock_tolerance' is counted by the CAN analysis; bus '{b.name}' is Ethernet, where it has no "
+                    "effect (flows take the largest of the CAN buses'): remove it",
+                    (*path, "clock_tolerance"),
+                )
             if b.data_bitrate is not None and b.protocol != "can-fd":
                 self.err(
                     "wrong-section",
@@ -284,6 +291,14 @@ class Resolver:
                 scheduling=n.scheduling,
                 tx_queue=_tx_queue(n.tx_queue),
             )
+            on_can = any(sb.name in n.buses and sb.protocol != "ethernet-udp" for sb in self.spec.buses)
+            if n.tx_queue.policy == "fifo" and not on_can:
+                self.warn(
+                    "wrong-section",
+                    f"node '{n.name}' is on no CAN bus: its tx_queue has no effect (Ethernet's queues are the switches'"
+                    " egress FIFOs): remove it",
+                    (*path, "tx_queue"),
+                )
 
     def resolve_task(self, node: str, t: schema.Task, path: Path, ec: int | None) -> model.Task:
         period = self.ns(t.period, (*path, "period"), ec)

@@ -125,8 +125,9 @@ def unsynchronised(
 
 
 def clock_tolerance(m: model.Model) -> int:
-    """The clock tolerance a flow's waits count: flows cross nodes and buses, so the largest any bus states."""
-    return max((b.clock_tolerance_ppm for b in m.buses.values()), default=clocks.DEFAULT_TOLERANCE_PPM)
+    """The clock tolerance a flow's waits count: flows cross nodes and buses, so the largest any CAN bus states
+    (the default where there is none)."""
+    return max((b.clock_tolerance_ppm for b in m.buses.values() if b.is_can), default=clocks.DEFAULT_TOLERANCE_PPM)
 
 
 def _sampling(consumer_period: int | None, refresh: int | None, ppm: int) -> int:
