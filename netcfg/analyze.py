@@ -148,7 +148,8 @@ def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
             "the master keeps an exact EC grid; triggered tasks start when the trigger message ends; synchronous "
             "messages are queued at their window's start and go out in identifier order",
             "inside a period_range the master may use any period, keeping the message's init EC",
-            "an asynchronous frame starts only if it ends before the next window (inserted idle time)",
+            "an asynchronous frame starts only if it ends before the next window (inserted idle time), a resend "
+            "after a bit error too",
         ]
     return out
 
