@@ -55,7 +55,10 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
     frames = [replace(f, j_ns=fifo.effective_jitter_ns.get(f.name, f.j_ns)) for f in given]
     plain = can_rta.analyse(frames, tau, ppm, errors)
     with_offsets = can_offsets.analyse(frames, tau, release_offsets(m, bus), ppm, errors)
-    plain.update({n: fifo.responses[n] for n in fifo.effective_jitter_ns})
+    # FIFO members, and frames an unbounded FIFO above them leaves unbounded, take the FIFO analysis' verdict
+    plain.update(
+        {n: r for n, r in fifo.responses.items() if n in fifo.effective_jitter_ns or r.limit == "fifo"}
+    )
     with_offsets = {**with_offsets, **fifo.responses}
     me = next(f for f in given if f.name == name)
     r = plain[name]
@@ -84,6 +87,7 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         "instances": r.instances,
         "worst_instance": r.worst_instance,
         "wcrt_us": _us(r.wcrt_ns),
+        "unbounded": r.limit,
         "wcrt_with_offsets_us": _us(with_offsets[name].wcrt_ns),
         "interferers": [],
         "w_us": None,
@@ -354,6 +358,11 @@ def text(doc: dict[str, Any]) -> str:
     ]
     if doc.get("queue"):
         lines.extend(_fifo_text(doc))
+    elif doc["wcrt_us"] is None and doc["unbounded"] == "fifo":
+        lines.append(
+            "  no bounded response: another node's FIFO transmit queue with a message above it has no bound, so its"
+            " frames reach arbitration at no bounded time (the bus's tx_queues in check say which)"
+        )
     elif doc["wcrt_us"] is None:
         lines.append("  no bounded response: the messages at and above its priority load the bus to 100 % or more")
     else:

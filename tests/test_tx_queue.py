@@ -322,3 +322,21 @@ def test_a_fifo_bound_shows_its_error_term(tmp_path: Path) -> None:
     assert (q["blocking_us"], q["queued_us"], q["interference_us"], q["error_us"]) == (65, 1315, 1500, 332)
     assert q["queue_us"] == 3212
     assert message(bus(report, "can0"), "hip_l_cmd")["error_us"] == 332
+
+
+def test_a_frame_below_an_unbounded_fifo_says_why(tmp_path: Path) -> None:
+    """wrong_order.yaml with its ECU sending through a FIFO: the ECU's messages wait longer than their periods, so
+    its queue has no bound (the paper's premise fails), and every frame below its highest-priority message can meet
+    it any number of times. motor_status (0x101, from the motor) is such a frame: check says another node's FIFO is
+    the cause and drops the figures of the discarded bound; --explain says the same instead of deriving a bound."""
+    data = yaml.safe_load((Path(__file__).parent.parent / "examples" / "wrong_order.yaml").read_text(encoding="utf-8"))
+    next(n for n in data["nodes"] if n["name"] == "ecu")["tx_queue"] = "fifo"
+    spec = tmp_path / "wo.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    report = check_data(tmp_path, data)
+    row = message(bus(report, "body"), "motor_status")
+    assert (row["wcrt_us"], row["busy_period_us"], row["instances"], row["unbounded"]) == (None, None, 0, "fifo")
+    text = next(e["message"] for e in report["errors"] if "'motor_status'" in e["message"])
+    assert "another node's FIFO transmit queue" in text
+    explained = cli("check", str(spec), "--explain", "motor_status")
+    assert "another node's FIFO transmit queue with a message above it has no bound" in explained.stdout

@@ -133,7 +133,16 @@ def analyse(
             continue
         for highest, limit in unbounded:
             if f.priority_key > highest and out[f.name].wcrt_ns is not None:
-                out[f.name] = replace(out[f.name], wcrt_ns=None, limit=limit)
+                # the figures of the discarded bound go with it
+                out[f.name] = replace(
+                    out[f.name],
+                    wcrt_ns=None,
+                    limit=limit,
+                    busy_period_ns=None,
+                    instances=0,
+                    worst_instance=0,
+                    error_ns=0,
+                )
     return FifoAnalysis(out, queues, {name: jitter[name] for name in fifo_of if name in jitter})
 
 
