@@ -6,8 +6,6 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from netcfg.runtime import RuntimeConfig
 from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker
 from netcfg.verify.frames import ERROR, EXTENDED, PAYLOAD_COLUMNS, Batch, ChannelTable
@@ -62,14 +60,5 @@ def check_frames(
         lengths.append(len(data))
         payload += bytes(data[:PAYLOAD_COLUMNS]).ljust(PAYLOAD_COLUMNS, b"\0")
     checker = Checker(cfg, table.names, window_us=window_us)
-    checker.feed(
-        Batch(
-            np.array(t, np.int64),
-            np.array(ch, np.int32),
-            np.array(ids, np.int64),
-            np.array(flags, np.uint8),
-            np.array(lengths, np.int16),
-            np.frombuffer(bytes(payload), np.uint8).reshape(len(t), PAYLOAD_COLUMNS).copy(),
-        )
-    )
+    checker.feed(Batch.of_columns(t, ch, ids, flags, lengths, bytes(payload)))
     return checker.finish()

@@ -37,6 +37,20 @@ class Batch:
         return len(self.t_us)
 
     @staticmethod
+    def of_columns(
+        t: list[int], ch: list[int], ids: list[int], flags: list[int], lengths: list[int], payload: bytes
+    ) -> Batch:
+        """A batch from per-frame lists and the payloads, each padded to PAYLOAD_COLUMNS bytes, end to end."""
+        return Batch(
+            np.array(t, np.int64),
+            np.array(ch, np.int32),
+            np.array(ids, np.int64),
+            np.array(flags, np.uint8),
+            np.array(lengths, np.int16),
+            np.frombuffer(payload, np.uint8).reshape(len(t), PAYLOAD_COLUMNS).copy(),
+        )
+
+    @staticmethod
     def empty() -> Batch:
         return Batch(
             np.empty(0, np.int64),
@@ -91,12 +105,4 @@ def batch_from_messages(messages: Iterable[object], channels: ChannelTable) -> B
         # a remote frame carries a DLC but no data
         lengths.append(int(msg.dlc) if msg.is_remote_frame else len(data))  # type: ignore[attr-defined]
         payload += data[:PAYLOAD_COLUMNS].ljust(PAYLOAD_COLUMNS, b"\0")
-    n = len(t)
-    return Batch(
-        np.array(t, np.int64),
-        np.array(ch, np.int32),
-        np.array(ids, np.int64),
-        np.array(flags, np.uint8),
-        np.array(lengths, np.int16),
-        np.frombuffer(bytes(payload), np.uint8).reshape(n, PAYLOAD_COLUMNS).copy(),
-    )
+    return Batch.of_columns(t, ch, ids, flags, lengths, bytes(payload))
