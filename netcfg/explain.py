@@ -112,19 +112,7 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
                 "error_frame_us": _us(errors.error_frame_ns),
                 "largest_frame_us": _us(largest),
             }
-        for f in sorted((f for f in frames if f.priority_key < me.priority_key), key=lambda f: f.priority_key):
-            hits = -(-clocks.longest_local(w + f.j_ns + tau, ppm) // (f.t_ns or can_rta.ONE_SHOT))
-            out["interferers"].append(
-                {
-                    "name": f.name,
-                    "id": f.id,
-                    "c_us": _us(f.c_ns),
-                    "period_us": _us(f.t_ns),
-                    "jitter_us": _us(f.j_ns),
-                    "hits": hits,
-                    "us": _us(hits * f.c_ns),
-                }
-            )
+        out["interferers"] = _interferers([f for f in frames if f.priority_key < me.priority_key], w, tau, ppm)
     out["meets"] = None if me.d_ns is None else bound is not None and bound <= me.d_ns
     out["slack_us"] = None if me.d_ns is None or bound is None else _us(me.d_ns - bound)
     if out["meets"] in (None, True):
@@ -180,12 +168,18 @@ def _fifo_terms(
             "error_frame_us": _us(errors.error_frame_ns),
             "largest_frame_us": _us(max(f.c_ns for f in frames)),
         }
-    for f in sorted(
-        (f for f in frames if f.priority_key < lowest.priority_key and f.name not in q.members),
-        key=lambda f: f.priority_key,
-    ):
+    above = [f for f in frames if f.priority_key < lowest.priority_key and f.name not in q.members]
+    out["interferers"] = _interferers(above, w, tau, ppm)
+    return out
+
+
+def _interferers(above: list[can_rta.CanFrame], w: int, tau: int, ppm: int) -> list[dict[str, Any]]:
+    """Each higher-priority frame's releases in the queuing window w + tau (on its sender's clock, as can_rta
+    counts them), in priority order."""
+    out = []
+    for f in sorted(above, key=lambda f: f.priority_key):
         hits = -(-clocks.longest_local(w + f.j_ns + tau, ppm) // (f.t_ns or can_rta.ONE_SHOT))
-        out["interferers"].append(
+        out.append(
             {
                 "name": f.name,
                 "id": f.id,
