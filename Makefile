@@ -11,6 +11,7 @@ $(BIN)/.installed: pyproject.toml
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	$(BIN)/python -m compileall -q netcfg
+	$(BIN)/python -c "import netcfg.emit; netcfg.emit.precompile_templates()"  # jinja compiles them once, not per build
 	touch $@
 
 demo: $(BIN)/.installed
