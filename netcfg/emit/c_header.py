@@ -414,12 +414,18 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
     )
 
 
-# a message's view and C block differ between nodes only in the direction: (bus, message, sends, receives)
+# a message's view differs between nodes only in the direction: (bus, message, sends, receives)
 ViewKey = tuple[str, str, bool, bool]
 
 
-def node_view(m: model.Model, node: model.Node, views: dict[ViewKey, MessageView] | None = None) -> NodeView | None:
-    """The node's view; `views` caches the message views that other nodes share (a heartbeat every node hears)."""
+def node_view(
+    m: model.Model,
+    node: model.Node,
+    views: dict[ViewKey, MessageView] | None = None,
+    on_bus: dict[str, dict[str, list[model.Message]]] | None = None,
+) -> NodeView | None:
+    """The node's view; `views` caches the message views that other nodes share (a heartbeat every node hears),
+    `on_bus` the messages each node sends or receives per bus (messages_by_node)."""
     views = {} if views is None else views
     buses = [m.buses[b] for b in node.buses]
     messages: list[MessageView] = []
@@ -427,9 +433,8 @@ def node_view(m: model.Model, node: model.Node, views: dict[ViewKey, MessageView
     peers: dict[str, PeerView] = {}
     for bus in buses:
         ftt_views = _ftt_entries(m, bus)
-        for msg in bus.messages:
-            if msg.producer != node.name and node.name not in msg.consumers:
-                continue
+        mine = messages_by_node(bus) if on_bus is None else on_bus[bus.name]
+        for msg in mine.get(node.name, ()):
             key = (bus.name, msg.name, msg.producer == node.name, node.name in msg.consumers)
             view = views.get(key)
             if view is None:
@@ -441,10 +446,10 @@ def node_view(m: model.Model, node: model.Node, views: dict[ViewKey, MessageView
                     if other != node.name and ip is not None and other not in peers:
                         peers[other] = PeerView(other, ip, _ip_u32(ip) or 0)
         for t in m.triggers.values():
-            mine = tuple(r for r in t.tasks if r.split(".", 1)[0] == node.name)
-            if t.bus == bus.name and mine:
-                others = tuple(r for r in t.tasks if r not in mine)
-                triggers.append(TriggerView(t.name, t.bus, ftt_views[t.name], mine, others, _description(t)))
+            tasks = tuple(r for r in t.tasks if r.split(".", 1)[0] == node.name)
+            if t.bus == bus.name and tasks:
+                others = tuple(r for r in t.tasks if r not in tasks)
+                triggers.append(TriggerView(t.name, t.bus, ftt_views[t.name], tasks, others, _description(t)))
     on_ftt = any(b.ftt is not None for b in buses)
     if not messages and not on_ftt:
         return None
@@ -469,22 +474,37 @@ def node_view(m: model.Model, node: model.Node, views: dict[ViewKey, MessageView
     )
 
 
+def messages_by_node(bus: model.Bus) -> dict[str, list[model.Message]]:
+    """node -> the bus's messages it sends or receives, in the bus's order: one pass over the bus instead of one
+    per node (127 nodes that all hear 127 heartbeats)."""
+    out: dict[str, list[model.Message]] = {}
+    for msg in bus.messages:
+        for name in dict.fromkeys((msg.producer, *msg.consumers)):
+            out.setdefault(name, []).append(msg)
+    return out
+
+
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
-    """Each message's C block is rendered once per direction and pasted into every header that has it: on a
-    CANopen bus every node hears every heartbeat, so per-node rendering grows with the square of the nodes."""
+    """Each message's C body is rendered once and pasted into every header that has it, after a heading line that
+    says whether that node sends or receives it: on a CANopen bus every node hears every heartbeat, so per-node
+    rendering grows with the square of the nodes."""
     files = {}
     views: dict[ViewKey, MessageView] = {}
-    blocks: dict[ViewKey, str] = {}
-    block_template = environment().get_template("node_message.h.j2")
+    on_bus = {bus.name: messages_by_node(bus) for bus in m.buses.values()}
+    headings: dict[ViewKey, str] = {}
+    bodies: dict[tuple[str, str], str] = {}
+    block = environment().get_template("node_message.h.j2").module  # its macros: heading(m), body(system, m)
     for node in m.nodes.values():
-        view = node_view(m, node, views)
+        view = node_view(m, node, views, on_bus)
         if view is None:
             continue
-        texts = []
+        texts: list[str] = []
         for msg in view.messages:
             key = (msg.bus, msg.name, msg.sends, msg.receives)
-            if key not in blocks:
-                blocks[key] = block_template.render(system=m.system, m=msg)
-            texts.append(blocks[key])
-        files[f"c/{node.name}.h"] = render("node.h.j2", node=view, message_blocks=texts)
+            if key not in headings:
+                headings[key] = block.heading(msg)  # type: ignore[attr-defined]
+            if key[:2] not in bodies:
+                bodies[key[:2]] = block.body(m.system, msg)  # type: ignore[attr-defined]
+            texts += (headings[key], bodies[key[:2]])
+        files[f"c/{node.name}.h"] = render("node.h.j2", node=view, message_blocks="".join(texts))
     return files
