@@ -142,6 +142,7 @@ class BusYmlImporter:
         self.messages: list[dict[str, Any]] = []
         self.auto_cob_id = FIRST_AUTO_COB_ID
         self.auto_ids: dict[tuple[str, str, int], int] = {}
+        self.device_files: dict[int, DeviceFile] = {}  # id of a parsed object dictionary -> its one DeviceFile
         self.sync_us = 0
 
     # -- diagnostics and small readers ---------------------------------------------------------------------------
@@ -514,7 +515,11 @@ class BusYmlImporter:
                      dcf.path)
             return None, None
         try:
-            return DeviceFile(object_dictionary(file)), file  # parsed once, shared with resolve's device profiles
+            od = object_dictionary(file)  # parsed once, shared with resolve's device profiles
+            device = self.device_files.get(id(od))
+            if device is None:
+                device = self.device_files[id(od)] = DeviceFile(od)  # it keeps od, so the id stays its own
+            return device, file
         except OSError:
             raise
         except EdsError as exc:

@@ -24,10 +24,15 @@ class Slot:
 
 
 class DeviceFile:
+    """One parsed DCF/EDS, shared by every slave that names it: it keeps what it looked up (a bus of 126 identical
+    drives asks the same questions 126 times), and only $NODEID differs between the slaves."""
+
     def __init__(self, od: Any) -> None:
         self.od = od
         self.comments: str = getattr(od, "comments", "") or ""
         self.node_id: int | None = getattr(od, "node_id", None)
+        self._raw: dict[tuple[int, int], tuple[int, bool] | None] = {}
+        self._numbers: dict[str, list[int]] = {}
 
     def has(self, index: int, sub: int) -> bool:
         if index not in self.od:
@@ -36,11 +41,21 @@ class DeviceFile:
         return sub == 0 if not hasattr(obj, "subindices") else sub in obj
 
     def _value(self, index: int, sub: int, node_id: int) -> int | None:
+        key = (index, sub)
+        if key not in self._raw:
+            self._raw[key] = self._read(index, sub)
+        parsed = self._raw[key]
+        if parsed is None:
+            return None
+        value, relative = parsed
+        return value + node_id if relative else value
+
+    def _read(self, index: int, sub: int) -> tuple[int, bool] | None:
         if not self.has(index, sub):
             return None
         var = self.od[index] if not hasattr(self.od[index], "subindices") else self.od[index][sub]
         raw = getattr(var, "value_raw", None) or getattr(var, "default_raw", None)
-        return _raw_int(raw, node_id) if isinstance(raw, str) else None
+        return _raw_int(raw) if isinstance(raw, str) else None
 
     def slot(self, kind: str, number: int, node_id: int) -> Slot | None:
         comm = cia301.pdo_comm_index(kind, number)
@@ -63,16 +78,21 @@ class DeviceFile:
         )
 
     def slots(self, kind: str) -> list[int]:
-        return [n for n in range(1, cia301.MAX_PDOS + 1) if cia301.pdo_comm_index(kind, n) in self.od]
+        if kind not in self._numbers:
+            self._numbers[kind] = [
+                n for n in range(1, cia301.MAX_PDOS + 1) if cia301.pdo_comm_index(kind, n) in self.od
+            ]
+        return self._numbers[kind]
 
 
 _RAW = re.compile(r"^(?:\$NODEID\+)?(-?0X[0-9A-F]+|-?[0-9]+)(?:\+\$NODEID)?$")
 
 
-def _raw_int(raw: str, node_id: int) -> int | None:
-    """A CiA 306 integer value; '$NODEID+x' adds the node id (as dcfgen does with the bus.yml's node_id)."""
+def _raw_int(raw: str) -> tuple[int, bool] | None:
+    """A CiA 306 integer value, and whether '$NODEID+' adds the node id to it (as dcfgen does with the bus.yml's
+    node_id)."""
     text = raw.replace(" ", "").upper()
     m = _RAW.match(text)
     if m is None:
         return None
-    return int(m.group(1), 0) + (node_id if "$NODEID" in text else 0)
+    return int(m.group(1), 0), "$NODEID" in text
