@@ -27,7 +27,6 @@ Choices a reader may wonder about:
 
 from __future__ import annotations
 
-import dataclasses
 import re
 import unicodedata
 from collections.abc import Iterable
@@ -165,16 +164,19 @@ class _Base:
 
 
 def _copy(obj: _Obj) -> _Obj:
-    return _Obj({k: dataclasses.replace(v) for k, v in obj.subs.items()}, obj.name, obj.object_type)
+    # the constructor, not dataclasses.replace: a third of the time, for 134 entries per drive
+    subs = {k: _Var(v.name, v.data_type, v.access, v.pdo, v.default, v.relative, v.value) for k, v in obj.subs.items()}
+    return _Obj(subs, obj.name, obj.object_type)
 
 
 def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
     files: dict[str, bytes] = {}
     cache: Cache = {}
+    pdos = {bus.name: device_pdos(bus) for bus in model.buses.values() if bus.canopen is not None}
     for (bus_name, name), paths in file_names(model).items():
         bus, node = model.buses[bus_name], model.nodes[name]
         if node.device is not None:
-            view = _device_view(model, bus, node, node.device, cache)
+            view = _device_view(model, bus, node, node.device, cache, pdos[bus_name].get(name, []))
         else:
             view = _master_view(model, bus, node)
         for ext, path in paths.items():
@@ -255,7 +257,22 @@ def _base(dev: DeviceProfile, cache: Cache) -> _Base:
     return base
 
 
-def _device_view(model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: Cache) -> FileView:
+def device_pdos(bus: Bus) -> dict[str, list[Message]]:
+    """node -> the bus's PDOs whose device side it is (the producer of a TPDO, a consumer of an RPDO), in the bus's
+    order: one pass over the bus instead of one per node."""
+    out: dict[str, list[Message]] = {}
+    for m in bus.messages:
+        p = m.pdo
+        if p is not None:
+            for name in [m.producer] if p.kind == "tpdo" else dict.fromkeys(m.consumers):
+                out.setdefault(name, []).append(m)
+    return out
+
+
+def _device_view(
+    model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: Cache, pdos: list[Message]
+) -> FileView:
+    """pdos: the node's PDOs on the bus (device_pdos)."""
     assert bus.canopen is not None and node.node_id is not None
     nid = node.node_id
     base = _base(dev, cache)
@@ -274,9 +291,9 @@ def _device_view(model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: 
         _var(od, 0x1017, NAMES[0x1017], U16, "rw", 0).configure(node.heartbeat_ns // 1_000_000)
     # PDOs: every slot the device has, the configured ones from the spec's messages, the others disabled
     slots: dict[tuple[str, int], Message] = {}
-    for m in bus.messages:
+    for m in pdos:
         p = m.pdo
-        if p is not None and (m.producer == node.name if p.kind == "tpdo" else node.name in m.consumers):
+        if p is not None:
             slots.setdefault((p.kind, p.number), m)
             dummies.update(e.index for e in p.entries if cia301.is_dummy(e.index, e.sub))
     comments = [f"netcfg configuration of node {node.name} (node id {nid}) on bus {bus.name}, system {model.system}"]
