@@ -4,14 +4,15 @@ bus.yml.
 
     python benchmarks/bench_build.py [--runs N] [--peer-runs N] [--eds FILE]
 
-1. every example spec: median [min-max] wall time in seconds, the number and size of the files written;
+1. every example spec: median [min-max] wall and CPU time in seconds, the number and size of the files written;
 2. 126 maxon EPOS4 drives (node ids 1-126, master 127, 1 Mbit/s, SYNC every 100 ms; per drive RPDO1 and two
    TPDOs of two objects each, synchronous, and a 100 ms heartbeat), written as a bus.yml in dcfgen's own layout
    next to the vendor's EDS: `netcfg import bus-yml` then `netcfg build` (two processes, their times added per
    run) beside `dcfgen -r` (Lely's dcf-tools, the `dcf-tools` dev dependency: installed beside this Python or
-   on PATH), with each side's peak resident memory and the ratio of the medians. The EDS is the vendor's file
-   (--eds, default ../shared/devices/maxon_epos4_50-5.eds beside the project); without it that part is
-   skipped, and without dcfgen netcfg's figures are printed alone.
+   on PATH), with each side's CPU time (user + system, from the process's own accounting: less moved by other
+   jobs on a shared machine than the wall time), peak resident memory and the ratios of the medians. The EDS
+   is the vendor's file (--eds, default ../shared/devices/maxon_epos4_50-5.eds beside the project); without it
+   that part is skipped, and without dcfgen netcfg's figures are printed alone.
 
 No assertions; the machine may be shared, so compare the ratios of one run.
 """
@@ -34,8 +35,9 @@ VENDOR_EDS = ROOT.parent / "shared" / "devices" / "maxon_epos4_50-5.eds"
 DRIVES = 126
 
 
-def run(cmd: list[str], cwd: Path) -> tuple[float, float]:
-    """(wall time in s, peak resident memory in MB) of one process; it must succeed."""
+def run(cmd: list[str], cwd: Path) -> tuple[float, float, float]:
+    """(wall time in s, CPU time in s (user + system), peak resident memory in MB) of one process; it must
+    succeed."""
     start = time.perf_counter()
     proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     assert proc.stderr is not None
@@ -45,7 +47,7 @@ def run(cmd: list[str], cwd: Path) -> tuple[float, float]:
     proc.stderr.close()
     if os.waitstatus_to_exitcode(status) != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {err.decode(errors='replace').strip().splitlines()[-1:]}")
-    return elapsed, usage.ru_maxrss / 1024
+    return elapsed, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
 
 
 def span(times: list[float]) -> str:
@@ -82,13 +84,15 @@ def find_dcfgen() -> str | None:
 
 
 def bench_specs(runs: int, tmp: Path) -> None:
-    print(f"{'spec':<12} {'time':>22} {'files':>6} {'bytes':>10}")
+    print(f"{'spec':<12} {'time':>22} {'CPU':>22} {'files':>6} {'bytes':>10}")
     for name in SPECS:
         out = tmp / name
         cmd = [sys.executable, "-m", "netcfg", "build", str(ROOT / "specs" / f"{name}.yaml"), "-o", str(out)]
-        times = [run(cmd, ROOT)[0] for _ in range(runs)]
+        measured = [run(cmd, ROOT) for _ in range(runs)]
+        times, cpu = [m[0] for m in measured], [m[1] for m in measured]
         files = [p for p in out.rglob("*") if p.is_file()]
-        print(f"{name:<12} {span(times):>22} {len(files):>6} {sum(p.stat().st_size for p in files):>10,}")
+        size = sum(p.stat().st_size for p in files)
+        print(f"{name:<12} {span(times):>22} {span(cpu):>22} {len(files):>6} {size:>10,}")
 
 
 def bench_drives(runs: int, peer_runs: int, eds: Path, tmp: Path) -> None:
@@ -97,28 +101,32 @@ def bench_drives(runs: int, peer_runs: int, eds: Path, tmp: Path) -> None:
     shutil.copy(eds, work / "epos4.eds")
     (work / "bus.yml").write_text(drives_bus_yml(), encoding="utf-8")
     netcfg = [sys.executable, "-m", "netcfg"]
-    ours, ours_mb = [], 0.0
+    ours, ours_cpu, ours_mb = [], [], 0.0
     for i in range(runs):
         spec, out = work / f"spec{i}.yaml", work / f"out{i}"
-        t_import, mb_import = run([*netcfg, "import", "bus-yml", "bus.yml", "-o", str(spec)], work)
-        t_build, mb_build = run([*netcfg, "build", str(spec), "-o", str(out)], work)
+        t_import, cpu_import, mb_import = run([*netcfg, "import", "bus-yml", "bus.yml", "-o", str(spec)], work)
+        t_build, cpu_build, mb_build = run([*netcfg, "build", str(spec), "-o", str(out)], work)
         ours.append(t_import + t_build)
+        ours_cpu.append(cpu_import + cpu_build)
         ours_mb = max(ours_mb, mb_import, mb_build)
     written = sum(1 for p in (work / "out0").rglob("*") if p.is_file())
-    print(f"\n{DRIVES} EPOS4 drives from one bus.yml ({eds.name}); seconds, median [min-max]; peak RSS")
-    print(f"  netcfg import bus-yml + build: {span(ours)}, {ours_mb:.0f} MB, {written} files")
+    print(f"\n{DRIVES} EPOS4 drives from one bus.yml ({eds.name}); seconds, median [min-max]; CPU; peak RSS")
+    print(f"  netcfg import bus-yml + build: {span(ours)}, CPU {span(ours_cpu)}, {ours_mb:.0f} MB, {written} files")
     dcfgen = find_dcfgen()
     if dcfgen is None:
         print("  peer Lely dcfgen not found (pip install dcf-tools); netcfg's figure alone")
         return
-    theirs, theirs_mb = [], 0.0
+    theirs, theirs_cpu, theirs_mb = [], [], 0.0
     for i in range(peer_runs):
         (work / f"lely{i}").mkdir()
-        elapsed, mb = run([dcfgen, "-r", "-d", f"lely{i}", "bus.yml"], work)
+        elapsed, cpu, mb = run([dcfgen, "-r", "-d", f"lely{i}", "bus.yml"], work)
         theirs.append(elapsed)
+        theirs_cpu.append(cpu)
         theirs_mb = max(theirs_mb, mb)
-    print(f"  Lely dcfgen -r:                {span(theirs)}, {theirs_mb:.0f} MB")
-    print(f"  dcfgen / netcfg: {statistics.median(theirs) / statistics.median(ours):.1f}x")
+    print(f"  Lely dcfgen -r:                {span(theirs)}, CPU {span(theirs_cpu)}, {theirs_mb:.0f} MB")
+    wall = statistics.median(theirs) / statistics.median(ours)
+    cpu_ratio = statistics.median(theirs_cpu) / statistics.median(ours_cpu)
+    print(f"  dcfgen / netcfg: {wall:.1f}x (wall), {cpu_ratio:.1f}x (CPU)")
 
 
 def main() -> None:
