@@ -7,12 +7,13 @@ canopen/<node>.dcf describing a CANopen master whose RPDOs mirror the slave TPDO
 the slave RPDOs it produces. A node on several CANopen buses gets one folder per bus: canopen/<bus>/<node>.*.
 
 The files are rendered from one jinja2 template (templates/canopen_dcf.j2; `dcf` switches the DCF-only parts on)
-up to the object sections, which are plain `keyword=value` lines written here (section_text): a device's objects that
-no node configures are written once per profile and the text is shared by every node with it (126 drives with one
-vendor EDS write each such section once). The files are made rather than with canopen.objectdictionary.export_eds: that
-exporter stamps the current date and time into [FileInfo] (ModificationDate/Time always, CreationDate/Time for a
-dictionary built in memory), so two builds differ; it writes Granularity as a boolean (1, not 8), has no NodeName,
-NetworkName or CANopenManager in [DeviceComissioning], and writes names unchecked. The canopen package stays the
+up to the object lists and sections, which are plain `keyword=value` lines written here (object_lists_text,
+section_text): a device's objects that no node configures are written once per profile and the text is shared by
+every node with it (126 drives with one vendor EDS write each such section once). The files are made rather than
+with canopen.objectdictionary.export_eds: that exporter stamps the current date and time into [FileInfo]
+(ModificationDate/Time always, CreationDate/Time for a dictionary built in memory), so two builds differ; it writes
+Granularity as a boolean (1, not 8), has no NodeName, NetworkName or CANopenManager in [DeviceComissioning], and
+writes names unchecked. The canopen package stays the
 consumer that checks us: the tests load every file with import_od.
 
 Choices a reader may wonder about:
@@ -207,7 +208,20 @@ def file_names(model: Model) -> dict[tuple[str, str], dict[str, str]]:
 
 def _render(view: FileView, file_name: str, dcf: bool) -> bytes:
     text = "".join(s if isinstance(s, str) else section_text(s, dcf) for s in view.sections)
-    return render(TEMPLATE, f=view, file_name=file_name, dcf=dcf, sections=text)
+    lists = object_lists_text(view.groups)
+    return render(TEMPLATE, f=view, file_name=file_name, dcf=dcf, object_lists=lists, sections=text)
+
+
+@lru_cache(maxsize=64)
+def object_lists_text(groups: tuple[tuple[str, tuple[str, ...]], ...]) -> str:
+    """[MandatoryObjects], [OptionalObjects], [ManufacturerObjects] (CiA 306 4.6.2), each followed by a blank line:
+    the same for every node with one profile, so written once for them all."""
+    parts = []
+    for group, indices in groups:
+        parts.append(f"[{group}]\nSupportedObjects={len(indices)}\n")
+        parts.extend(f"{k}={index}\n" for k, index in enumerate(indices, 1))
+        parts.append("\n")
+    return "".join(parts)
 
 
 def section_text(s: Section, dcf: bool) -> str:
