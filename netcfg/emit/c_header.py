@@ -21,6 +21,7 @@ TRIG_<trigger>_*.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass
@@ -414,8 +415,9 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
     )
 
 
-# a message's view differs between nodes only in the direction: (bus, message, sends, receives)
-ViewKey = tuple[str, str, bool, bool]
+# a message's view differs between nodes only in the direction: (bus, message, sends, receives); (bus, message)
+# holds the first view made of it, the others are copies with their direction
+ViewKey = tuple[str, str, bool, bool] | tuple[str, str]
 
 
 def node_view(
@@ -438,7 +440,12 @@ def node_view(
             key = (bus.name, msg.name, msg.producer == node.name, node.name in msg.consumers)
             view = views.get(key)
             if view is None:
-                view = views[key] = message_view(msg, node.name, bus, ftt_views)
+                first = views.get(key[:2])
+                if first is None:
+                    view = views[key[:2]] = message_view(msg, node.name, bus, ftt_views)
+                else:  # the signals' views are the same: only the direction is this node's
+                    view = dataclasses.replace(first, sends=key[2], receives=key[3])
+                views[key] = view
             messages.append(view)
             if bus.protocol == "ethernet-udp":
                 for other in (msg.producer, *msg.consumers):
