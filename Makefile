@@ -34,6 +34,7 @@ generated: $(BIN)/.installed
 	$(BIN)/python scripts/sim_fingerprints.py
 
 bench: $(BIN)/.installed
+	$(BIN)/python -c "import netcfg.emit; netcfg.emit.precompile_templates()"  # templates edited since installing
 	$(BIN)/python benchmarks/bench_check.py
 	$(BIN)/python benchmarks/bench_build.py
 	$(BIN)/python benchmarks/bench_sim.py
