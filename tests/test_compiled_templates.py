@@ -64,3 +64,11 @@ def test_loading_templates_writes_nothing(tmp_path: Path) -> None:
     env = jinja2.Environment(loader=jinja2.DictLoader({"t.j2": "{{ x }}"}), bytecode_cache=cache)
     assert env.get_template("t.j2").render(x=2) == "2"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_damaged_compiled_file_is_compiled_from_its_source(tmp_path: Path) -> None:
+    """A file cut short after jinja's header (its checksum cannot be read) is passed over, not a crash."""
+    cache = emit.CompiledTemplates(tmp_path)
+    cache.path("t.j2").write_bytes(jinja2.bccache.bc_magic + b"\x80")
+    env = jinja2.Environment(loader=jinja2.DictLoader({"t.j2": "{{ x }}"}), bytecode_cache=cache)
+    assert env.get_template("t.j2").render(x=3) == "3"

@@ -111,7 +111,10 @@ class CompiledTemplates(jinja2.BytecodeCache):
             data = self.path(bucket.key).read_bytes()
         except OSError:
             return
-        bucket.bytecode_from_string(data)
+        try:
+            bucket.bytecode_from_string(data)
+        except Exception:  # a damaged file (jinja checks the header, not the rest): compile from the source
+            bucket.reset()
 
     def dump_bytecode(self, bucket: jinja2.bccache.Bucket) -> None:
         pass  # never written while netcfg runs; precompile_templates writes them
