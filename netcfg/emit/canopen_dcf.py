@@ -13,8 +13,8 @@ every node with it (126 drives with one vendor EDS write each such section once)
 with canopen.objectdictionary.export_eds: that exporter stamps the current date and time into [FileInfo]
 (ModificationDate/Time always, CreationDate/Time for a dictionary built in memory), so two builds differ; it writes
 Granularity as a boolean (1, not 8), has no NodeName, NetworkName or CANopenManager in [DeviceComissioning], and
-writes names unchecked. The canopen package stays the
-consumer that checks us: the tests load every file with import_od.
+writes names unchecked. The canopen package stays the consumer that checks us: the tests load every file with
+import_od.
 
 Choices a reader may wonder about:
 - Values not known from the profile (e.g. the measured values of a drive, strings an EDS import drops) get no
