@@ -31,8 +31,9 @@ the messages sorted by T_k - J_k makes that set a prefix found by binary search,
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from itertools import chain
 from math import lcm
 from typing import Literal
 
@@ -132,14 +133,16 @@ def analyse(
     out: dict[str, Response] = {}
     for i, f in enumerate(fs):
         b = int(blocking[i])
-        hp_loads = [
+        # lazy: the exact sum is formed only when the float one lies too close to 1 (building the pairs for every
+        # message made the analysis quadratic in Python objects: 0.11 s instead of 0.02 s for 1,000 messages)
+        hp_loads: Iterable[tuple[int, int]] = (
             (int(ck) * PPM, int(tk) * (PPM - tolerance_ppm))
             for ck, tk, p in zip(c[: i + 1], t[: i + 1], periodic[: i + 1])
             if p
-        ]
+        )
         approx = float(utilisation[i])
         if errors:  # one recovery per T_err in the long run
-            hp_loads.append((recovery[i], errors.interval_ns))
+            hp_loads = chain(hp_loads, [(recovery[i], errors.interval_ns)])
             approx += recovery[i] / errors.interval_ns
         full = compare_to_capacity(approx, hp_loads)
         # exactly full with drifting clocks: the fastest clocks overload it, so no end is assumed; with errors a
