@@ -25,19 +25,20 @@ max over hep(m) of C) joins eq. 10 as E_m(t_m) and eq. 12 as E_m(w_m(q) + C_m) (
 errors' long-run rate, one recovery per T_err, joins the utilisation test.
 
 Speed: in a fixed-point step, ceil(x / T_k) is 1 for every k with T_k - J_k >= x (x = w + tau or t), so
-those terms are a prefix sum of C; only the few messages with a shorter period need the ceiling. Keeping
-the messages sorted by T_k - J_k makes that set a prefix found by binary search, vectorised with numpy.
+those terms are a prefix sum of C; only the messages with a shorter period need the ceiling. Messages of one
+period and jitter share that ceiling, so they are kept as one class (sorted by T_k - J_k, with a prefix sum of
+C over its members in priority order): a step costs one term per class of shorter period, and a bus has a
+handful of periods. Plain Python integers: exact at any size, and `check` loads no numpy.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from bisect import bisect_left
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from itertools import chain
+from itertools import accumulate, chain
 from math import lcm
 from typing import Literal
-
-import numpy as np
 
 from netcfg.timing.can_errors import ErrorModel, recovery_costs
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
@@ -46,6 +47,9 @@ from netcfg.timing.load import compare_to_capacity
 
 ONE_SHOT = 1 << 60  # "period" of an on-demand message: it interferes at most once per busy period
 MAX_ITERATIONS = 20_000  # fixed-point steps per message (busy period and every instance together)
+# a bus with more classes of (period, jitter) than this sums its interference with numpy, per message: Python's
+# loop over classes costs about 0.2 us a class and step, numpy's about 0.01 us a message plus 0.05 s to import it
+MANY_CLASSES = 512
 
 # why a response time is None: the load reaches the capacity, or the bound needs more than MAX_ITERATIONS, or a
 # FIFO transmit queue can hold two instances of one message (can_fifo)
@@ -96,51 +100,41 @@ def analyse(
     n = len(fs)
     if n == 0:
         return {}
-    c = np.array([f.c_ns for f in fs], dtype=np.int64)
-    t = np.array([f.t_ns or ONE_SHOT for f in fs], dtype=np.int64)
-    j = np.array([f.j_ns for f in fs], dtype=np.int64)
-    prefix_c = np.concatenate(([0], np.cumsum(c)))  # prefix_c[i] = sum of C over hp(i)
-    periodic = t < ONE_SHOT
+    c = [f.c_ns for f in fs]
+    t = [f.t_ns or ONE_SHOT for f in fs]
+    j = [f.j_ns for f in fs]
+    prefix_c = list(accumulate(c, initial=0))  # prefix_c[i] = sum of C over hp(i)
+    periodic = [tk < ONE_SHOT for tk in t]
     # utilisation of hp(i) + i at the fastest clocks, approximately
-    utilisation = np.cumsum(np.where(periodic, c / t, 0.0)) * (PPM / (PPM - tolerance_ppm))
-    blocking = np.concatenate((np.maximum.accumulate(c[::-1])[::-1][1:], [0]))  # max C over lp(i)
-    # ceil(longest_local(x + J_k) / T_k) > 1 needs x > shortest_real(T_k) - J_k: "short" messages first
-    slack = np.where(periodic, shortest_real(np.where(periodic, t, 0), tolerance_ppm), t) - j
-    slack_order = np.argsort(slack, kind="stable")
-    slack_sorted = slack[slack_order]
-    recovery = recovery_costs(c.tolist(), errors) if errors else [0] * n
+    fast = PPM / (PPM - tolerance_ppm)
+    utilisation = [u * fast for u in accumulate(ck / tk if p else 0.0 for ck, tk, p in zip(c, t, periodic))]
+    blocking = [*reversed(list(accumulate(reversed(c[1:]), max))), 0]  # max C over lp(i)
+    classes = _interference_classes(c, t, j, periodic, tolerance_ppm)
+    recovery = recovery_costs(c, errors) if errors else [0] * n
 
     def lost(x: int, i: int) -> int:
         """E_i(x): the time bit errors may take in a window of length x (real time, as the error model is)."""
         return errors.overhead(x, recovery[i] - errors.error_frame_ns) if errors else 0
 
-    def extra(x: int, upto: int) -> int:
-        """sum over k < upto of (ceil((x + J_k) / T_k) - 1) * C_k, x + J_k on k's clock: the interference
-        beyond one instance each."""
-        cut = int(np.searchsorted(slack_sorted, x, side="left"))
-        if cut == 0:
-            return 0
-        ks = slack_order[:cut]
-        ks = ks[ks < upto]
-        if ks.size == 0:
-            return 0
-        return int(((-(-longest_local(x + j[ks], tolerance_ppm) // t[ks])) - 1) @ c[ks])
+    extra = (
+        _extra_by_class(classes, tolerance_ppm)
+        if len(classes) <= MANY_CLASSES
+        else _extra_vectorised(c, t, j, periodic, tolerance_ppm)
+    )
 
     def demand(x: int, upto: int) -> int:
         """Eq. 10's right-hand side without blocking: sum over k < upto of ceil((x + J_k) / T_k) * C_k."""
-        return int(prefix_c[upto]) + extra(x, upto)
+        return prefix_c[upto] + extra(x, upto)
 
     out: dict[str, Response] = {}
     for i, f in enumerate(fs):
-        b = int(blocking[i])
+        b = blocking[i]
         # lazy: the exact sum is formed only when the float one lies too close to 1 (building the pairs for every
         # message made the analysis quadratic in Python objects: 0.11 s instead of 0.02 s for 1,000 messages)
         hp_loads: Iterable[tuple[int, int]] = (
-            (int(ck) * PPM, int(tk) * (PPM - tolerance_ppm))
-            for ck, tk, p in zip(c[: i + 1], t[: i + 1], periodic[: i + 1])
-            if p
+            (c[k] * PPM, t[k] * (PPM - tolerance_ppm)) for k in range(i + 1) if periodic[k]
         )
-        approx = float(utilisation[i])
+        approx = utilisation[i]
         if errors:  # one recovery per T_err in the long run
             hp_loads = chain(hp_loads, [(recovery[i], errors.interval_ns)])
             approx += recovery[i] / errors.interval_ns
@@ -159,7 +153,7 @@ def analyse(
             continue
         # level-i busy period (eq. 10), starting from a lower bound of its least fixed point
         steps = 0
-        busy = b + int(prefix_c[i + 1])
+        busy = b + prefix_c[i + 1]
         while steps < MAX_ITERATIONS:
             nxt = b + demand(busy, i + 1) + lost(busy, i)
             steps += 1
@@ -169,21 +163,21 @@ def analyse(
         else:
             out[f.name] = Response(f.name, None, b, None, 0, 0, "iterations")
             continue
-        q_count = max(1, -(-longest_local(busy + int(j[i]), tolerance_ppm) // int(t[i])))
+        q_count = max(1, -(-longest_local(busy + j[i], tolerance_ppm) // t[i]))
         worst, worst_q, worst_e, w = -1, 0, 0, 0
         for q in range(q_count):
-            w = max(w, b + q * int(c[i]) + int(prefix_c[i]))
+            w = max(w, b + q * c[i] + prefix_c[i])
             while steps < MAX_ITERATIONS:  # eq. 12
-                nxt = b + q * int(c[i]) + demand(w + tau_ns, i) + lost(w + int(c[i]), i)
+                nxt = b + q * c[i] + demand(w + tau_ns, i) + lost(w + c[i], i)
                 steps += 1
                 if nxt == w:
                     break
                 w = nxt
             else:
                 break
-            r = int(j[i]) + w - shortest_real(q * int(t[i]), tolerance_ppm) + int(c[i])
+            r = j[i] + w - shortest_real(q * t[i], tolerance_ppm) + c[i]
             if r > worst:
-                worst, worst_q, worst_e = r, q, lost(w + int(c[i]), i)
+                worst, worst_q, worst_e = r, q, lost(w + c[i], i)
         if steps >= MAX_ITERATIONS:
             out[f.name] = Response(f.name, None, b, busy, q_count, 0, "iterations")
             continue
@@ -191,13 +185,85 @@ def analyse(
     return out
 
 
-def _ends_at_full_load(b: int, c: np.ndarray, t: np.ndarray, j: np.ndarray, periodic: np.ndarray) -> bool:
+def _ends_at_full_load(b: int, c: list[int], t: list[int], j: list[int], periodic: list[bool]) -> bool:
     """At a utilisation of exactly 1, eq. 10 has a fixed point iff it has one at or below the hyperperiod L:
     its right-hand side is at least t + B + (jitter and one-shot terms) everywhere, and equals L at L when those
-    are 0; the iteration from below then reaches it. Python integers: L may not fit in 64 bits."""
-    hyper = lcm(*(int(tk) for tk, p in zip(t, periodic) if p))
-    need = b + sum(-(-(hyper + int(jk)) // int(tk)) * int(ck) for ck, tk, jk in zip(c, t, j))
+    are 0; the iteration from below then reaches it."""
+    hyper = lcm(*(tk for tk, p in zip(t, periodic) if p))
+    need = b + sum(-(-(hyper + jk) // tk) * ck for ck, tk, jk in zip(c, t, j))
     return need <= hyper
+
+
+@dataclass(frozen=True)
+class _Class:
+    """Messages of one period and jitter: in a window of x they are all released ceil((x + J) / T) times."""
+
+    slack: int  # a window longer than this holds a second release of each (see `analyse`)
+    t: int
+    j: int
+    members: list[int]  # their priority ranks, ascending
+    prefix_c: list[int]  # prefix_c[r] = sum of C over the first r members
+
+
+def _extra_by_class(classes: list[_Class], tolerance_ppm: int) -> Callable[[int, int], int]:
+    def extra(x: int, upto: int) -> int:
+        """sum over k < upto of (ceil((x + J_k) / T_k) - 1) * C_k, x + J_k on k's clock: the interference
+        beyond one instance each."""
+        total = 0
+        for cls in classes:
+            if cls.slack >= x:
+                break
+            members = bisect_left(cls.members, upto)
+            if members:
+                total += (-(-longest_local(x + cls.j, tolerance_ppm) // cls.t) - 1) * cls.prefix_c[members]
+        return total
+
+    return extra
+
+
+def _extra_vectorised(
+    c: list[int], t: list[int], j: list[int], periodic: list[bool], tolerance_ppm: int
+) -> Callable[[int, int], int]:
+    """The same sum over messages sorted by slack, with numpy: for buses of many distinct periods (5,000 distinct
+    periods: 0.8 s against 3.9 s by class)."""
+    import numpy as np
+
+    c_arr, t_arr, j_arr = (np.array(v, dtype=np.int64) for v in (c, t, j))
+    slack = np.array([shortest_real(tk, tolerance_ppm) if p else tk for tk, p in zip(t, periodic)], dtype=np.int64)
+    slack -= j_arr
+    slack_order = np.argsort(slack, kind="stable")
+    slack_sorted = slack[slack_order]
+
+    def extra(x: int, upto: int) -> int:
+        cut = int(np.searchsorted(slack_sorted, x, side="left"))
+        ks = slack_order[:cut]
+        ks = ks[ks < upto]
+        if ks.size == 0:
+            return 0
+        return int(((-(-longest_local(x + j_arr[ks], tolerance_ppm) // t_arr[ks])) - 1) @ c_arr[ks])
+
+    return extra
+
+
+def _interference_classes(
+    c: list[int], t: list[int], j: list[int], periodic: list[bool], tolerance_ppm: int
+) -> list[_Class]:
+    """The messages grouped by (T, J), ordered by slack: a fixed-point step pays per class, not per message
+    (a bus has a handful of periods)."""
+    ranks: dict[tuple[int, int], list[int]] = {}
+    for k, key in enumerate(zip(t, j)):
+        ranks.setdefault(key, []).append(k)
+    classes = [
+        _Class(
+            (shortest_real(tk, tolerance_ppm) if periodic[ks[0]] else tk) - jk,
+            tk,
+            jk,
+            ks,
+            list(accumulate((c[k] for k in ks), initial=0)),
+        )
+        for (tk, jk), ks in ranks.items()
+    ]
+    return sorted(classes, key=lambda cls: cls.slack)
 
 
 def tindell_1994(frames: Sequence[CanFrame], tau_ns: int) -> dict[str, int | None]:
