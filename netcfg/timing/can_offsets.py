@@ -38,13 +38,15 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from math import lcm
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from netcfg.timing import can_rta
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.can_rta import CanFrame, Response
 from netcfg.timing.clocks import longest_local, longest_real, shortest_real
+
+if TYPE_CHECKING:  # numpy is imported where a bus has transactions: a bus without offsets is analysed without it
+    import numpy as np
 
 MAX_JOBS = 512  # jobs of one unrolled transaction
 MAX_STEPS = 20_000  # fixed-point steps per message before the offset-free bound is kept
@@ -71,7 +73,11 @@ def transactions(frames: Sequence[CanFrame], offsets: Mapping[str, tuple[str, in
         if f.name in offsets and f.t_ns:
             node, offset = offsets[f.name]
             by_node.setdefault(node, []).append((f, offset))
-    out = []
+    out: list[Transaction] = []
+    if not any(len(members) > 1 for members in by_node.values()):
+        return out
+    import numpy as np
+
     for node in sorted(by_node):
         members = by_node[node]
         if len(members) < 2:
@@ -106,7 +112,7 @@ def _counts(distance: np.ndarray, jitter: np.ndarray, period: int, window: np.nd
     """Releases at distance + n*period (any integer n) with -jitter <= d < window: how many, elementwise."""
     first = -((jitter + distance) // period)  # ceil((-jitter - distance) / period)
     last = -(-(window - distance) // period) - 1  # ceil((window - distance) / period) - 1
-    return np.maximum(last - first + 1, 0)
+    return (last - first + 1).clip(min=0)
 
 
 class _Interference:
@@ -165,6 +171,8 @@ def _with_offsets(
     ppm: int,
     errors: ErrorModel | None = None,
 ) -> int | None:
+    import numpy as np
+
     key = m.priority_key
     largest = max(g.c_ns for g in frames if g.priority_key <= key)  # the frames an error can make m wait for
 
