@@ -174,7 +174,7 @@ ObjectRef = Annotated[
 
 
 class SpecModel(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
 
 class FttParams(SpecModel):
