@@ -31,6 +31,7 @@ _SCALAR_TAGS = {
     "tag:yaml.org,2002:str",
 }
 _TIMESTAMP = "tag:yaml.org,2002:timestamp"
+_STR = "tag:yaml.org,2002:str"
 
 
 class SourceMap:
@@ -182,7 +183,9 @@ def _build(
     budget[0] -= 1
     if budget[0] < 0:
         raise _TooBig(_pos(file, node))
-    if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and node.tag not in _PLAIN_TAGS:
+    if isinstance(node, yaml.ScalarNode):
+        return _scalar(node, file, ctor, diags)
+    if node.tag not in _PLAIN_TAGS:
         diags.add(
             "yaml-value",
             f"cannot read this value: YAML tags such as '{node.tag}' are not allowed in a spec",
@@ -198,10 +201,10 @@ def _build(
         out: dict[Any, Any] = {}
         merged_keys: set[str] = set()
         for pair_no, (key_node, value_node) in enumerate(node.value):
-            reported = len(diags.errors)
+            reported = len(diags.items)
             key = _build_key(key_node, file, ctor, diags)
-            if len(diags.errors) > reported:
-                continue  # a key that does not convert: already reported
+            if len(diags.items) > reported:
+                continue  # a key that does not convert: already reported (every diagnostic here is an error)
             if not isinstance(key, (str, int)):
                 kind = "a list or mapping" if isinstance(key, yaml.Node) else type(key).__name__
                 diags.add("yaml-key", f"keys must be plain words, not {kind}", _pos(file, key_node))
@@ -239,6 +242,8 @@ def _scalar(node: yaml.Node, file: str, ctor: yaml.SafeLoader, diags: Collector)
     """One scalar of the accepted tag set; a value its tag cannot take (`!!int abc`) or too long a number is an
     error at its position, never an exception."""
     tag = node.tag
+    if tag == _STR:  # most scalars: the text as it is (what SafeLoader's str constructor returns)
+        return node.value
     if tag == _TIMESTAMP:
         return str(node.value)
     if tag not in _SCALAR_TAGS or not isinstance(node, yaml.ScalarNode):
