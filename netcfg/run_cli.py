@@ -19,7 +19,6 @@ import argparse
 import json
 import math
 import os
-import signal
 import sys
 import tempfile
 from collections.abc import Callable, Iterator
@@ -270,6 +269,8 @@ def _run(
 def _stop_on_signals() -> Iterator[Callable[[Callable[[str], None]], None]]:
     """Ctrl-C (SIGINT) and SIGTERM end the cycle after the current iteration, then the safe stop runs; installed
     only once the cycle is about to start (`arm`), restored afterwards. A second Ctrl-C interrupts at once."""
+    import signal  # here: the command line imports this module for its options on every command
+
     previous: dict[int, Any] = {}
 
     def arm(stop: Callable[[str], None]) -> None:

@@ -8,7 +8,6 @@ file is refused here, naming its object, instead of surfacing later as a crash o
 from __future__ import annotations
 
 import io
-import logging
 import re
 from functools import lru_cache
 from pathlib import Path
@@ -42,6 +41,8 @@ def read_od(path: Path, node_id: int | None = None) -> Any:
         raise EdsError(str(exc)) from exc
     stream = io.StringIO(text)
     stream.name = str(path)  # canopen picks the format by the name's suffix
+    import logging  # with canopen, only when a device file is read: a spec without one loads neither
+
     logging.getLogger("canopen").setLevel(logging.ERROR)
     try:
         od = canopen.import_od(stream, node_id)
