@@ -6,13 +6,18 @@ diagnostics at the source position of the message, bus or flow they concern.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, canopen_sync, cpu, ethernet, flows, ftt, load
+from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, flows, load
 from netcfg.timing.frames import bits_to_ns, can_frame_bits
+
+# The analyses of FTT-CAN, CANopen's SYNC cycle, Ethernet and node CPUs are imported by the functions that run them:
+# a spec that has none of these loads none of them.
+if TYPE_CHECKING:
+    from netcfg.timing import canopen_sync, ethernet, ftt
 
 
 def us(ns: float | int | None) -> float | None:
@@ -174,6 +179,8 @@ def activation(m: model.Model, task: model.Task, acc: _Analysis) -> tuple[int | 
 
 def analyze_node(m: model.Model, node: model.Node, acc: _Analysis, diags: Collector) -> dict[str, Any]:
     """Response time of each task on the node's processor; a node above 100 % is an error."""
+    from netcfg.timing import cpu
+
     tasks = []
     unbounded_input = set()
     for task in node.tasks.values():
@@ -554,6 +561,8 @@ def _tm_load(bus: model.Bus) -> float:
 
 def bus_tm_and_ec(bus: model.Bus) -> tuple[int, int]:
     """FTT-CAN: the trigger message's worst-case time and the EC, in ns."""
+    from netcfg.timing import ftt
+
     assert bus.ftt is not None
     return ftt.tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate), bus.ftt.ec_ns
 
@@ -561,6 +570,8 @@ def bus_tm_and_ec(bus: model.Bus) -> tuple[int, int]:
 def analyze_sync(
     m: model.Model, bus: model.Bus, frame_ns: dict[str, tuple[int, int]], diags: Collector, acc: _Analysis
 ) -> dict[str, Any]:
+    from netcfg.timing import canopen_sync
+
     co = bus.canopen
     assert co is not None
     cycles = canopen_sync.analyse(bus, {name: worst for name, (_, worst) in frame_ns.items()}, error_model(bus))
@@ -699,6 +710,8 @@ def analyze_ftt(
     diags: Collector,
     acc: _Analysis,
 ) -> dict[str, Any]:
+    from netcfg.timing import ftt
+
     assert bus.ftt is not None
     triggers = [t for t in m.triggers.values() if t.bus == bus.name]
     entries = ftt.srt(bus, triggers)
@@ -830,6 +843,8 @@ def srt_row(e: ftt.SrtEntry) -> dict[str, Any]:
 
 
 def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis) -> dict[str, Any]:
+    from netcfg.timing import ethernet
+
     timings = {msg.name: load.udp_timing(msg, bus.bitrate) for msg in bus.messages}
     links, delays = ethernet.analyse(bus, m.nodes, acc.extra_jitter)
     f_max = ethernet.max_min_frame_rate(bus.bitrate)

@@ -16,7 +16,6 @@ from netcfg.resolve.suggest import did_you_mean, nodes_on_bus
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.units import Duration, format_ns
-from netcfg.timing.ftt import tm_time_ns
 
 
 class FttProtocol(CanProtocol):
@@ -41,6 +40,8 @@ class FttProtocol(CanProtocol):
             return
         ec = f.ec.ns
         lsw = self.r.ns(f.lsw, (*fpath, "lsw"), ec)
+        from netcfg.timing.ftt import tm_time_ns  # here: resolving a spec without FTT-CAN loads no FTT-CAN analysis
+
         tm_ns = tm_time_ns(f.tm_size, b.id_bits == 29, b.bitrate)
         if lsw is not None and lsw + tm_ns > ec:
             self.r.err(

@@ -18,11 +18,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from itertools import pairwise
 from math import lcm
+from typing import TYPE_CHECKING
 
 from netcfg import model
 from netcfg.timing import clocks
-from netcfg.timing.canopen_sync import MasterLoop
-from netcfg.timing.ftt import Schedule
+
+if TYPE_CHECKING:  # only in annotations: a spec without FTT-CAN or CANopen loads neither analysis
+    from netcfg.timing.canopen_sync import MasterLoop
+    from netcfg.timing.ftt import Schedule
 
 
 @dataclass(frozen=True)
