@@ -1,8 +1,9 @@
 """How long `netcfg check` takes, and how netcfg's CAN analysis compares with pyCPA's.
 
 Prints figures only (no assertions; the machine may be shared):
-  1. whole-process wall time and peak resident memory of `python -m netcfg check --format json SPEC` (median,
-     min, max of --runs runs; memory: the largest of the runs) on specs/large_plant.yaml and on random
+  1. whole-process wall time, CPU time (user + system) and peak resident memory of
+     `python -m netcfg check --format json SPEC` (median, min, max of --runs runs; CPU: the median; memory: the
+     largest of the runs) on specs/large_plant.yaml and on random
      plain-CAN sets (benchmarks/random_can.py) of 100, 1,000 and 5,000 messages; for the random sets also of
      `netcfg check F.dbc --bitrate 500k` on the same set written as a DBC by netcfg's DBC emitter (cycle times
      in whole ms, as DBC files carry them);
@@ -13,7 +14,8 @@ Prints figures only (no assertions; the machine may be shared):
      static-priority non-preemptive SPNPScheduler, the CAN bus of its examples, with cycle_time = one bit time
      as Davis' tau) on the same frames in a fresh process (benchmarks/pycpa_can.py), and the ratios of its
      analysis time to netcfg's analysis alone and to netcfg's whole `check` process (spec and DBC), all medians
-     of the same run; then the worst-case response times of a few messages from both tools. Set
+     of the same run, of wall time and, in parentheses, of CPU time (which a loaded machine disturbs less);
+     then the worst-case response times of a few messages from both tools. Set
      NETCFG_PEER_PYCPA to a pyCPA checkout (the folder holding the `pycpa` package); its runs are capped at
      1,000 messages and 120 s. Without it, netcfg's figures are printed alone.
 
@@ -75,22 +77,24 @@ import os, subprocess, sys, time
 start = time.perf_counter()
 proc = subprocess.Popen(sys.argv[1:], stdout=subprocess.DEVNULL)
 _, status, usage = os.wait4(proc.pid, 0)
-print(time.perf_counter() - start, os.waitstatus_to_exitcode(status), usage.ru_maxrss)
+print(time.perf_counter() - start, os.waitstatus_to_exitcode(status), usage.ru_maxrss, usage.ru_utime + usage.ru_stime)
 """
 
 
-def wall(spec: Path, runs: int, *extra: str) -> tuple[list[float], int, float]:
-    """Whole-process `netcfg check`: (wall times, worst exit code, peak resident memory in MB over the runs)."""
+def wall(spec: Path, runs: int, *extra: str) -> tuple[list[float], int, float, list[float]]:
+    """Whole-process `netcfg check`: (wall times, worst exit code, peak resident memory in MB over the runs, CPU
+    times)."""
     cmd = [sys.executable, "-m", "netcfg", "check", "--format", "json", str(spec), *extra]
-    times, codes, peaks = [], [], []
+    times, codes, peaks, cpu = [], [], [], []
     for _ in range(runs):
         gc.collect()
         out = subprocess.run([sys.executable, "-c", _LAUNCHER, *cmd], capture_output=True, text=True, cwd=ROOT)
-        elapsed, code, peak_kib = out.stdout.split()
+        elapsed, code, peak_kib, cpu_s = out.stdout.split()
         times.append(float(elapsed))
         codes.append(int(code))
         peaks.append(int(peak_kib) / 1024)
-    return times, max(codes), max(peaks)
+        cpu.append(float(cpu_s))
+    return times, max(codes), max(peaks), cpu
 
 
 def write_dbc(model: Model, folder: Path) -> Path:
@@ -110,14 +114,24 @@ def ratio(peer: list[float] | None, ours: list[float] | None) -> str:
     return f"{r:,.1f}x" if r < 10 else f"{r:,.0f}x"
 
 
+def ratios(peer: tuple[list[float], list[float]] | None, ours: tuple[list[float], list[float]] | None) -> str:
+    """Wall-time ratio, and CPU-time ratio in parentheses."""
+    if not peer or not ours:
+        return "-"
+    return f"{ratio(peer[0], ours[0])} ({ratio(peer[1], ours[1])})"
+
+
 def can_frames(model: Model) -> tuple[list[can_rta.CanFrame], int]:
     """The frames of the first plain-CAN bus (large_plant: `plant`) and its bit time."""
     bus = next(b for b in model.buses.values() if b.protocol == "can")
     return rta_frames(bus.messages, load.can_bus_load(bus)[0]), bits_to_ns(1, bus.bitrate)
 
 
-def pycpa_analyse(frames: list[can_rta.CanFrame], tau_ns: int, peer: str, runs: int) -> tuple[list[float], Any]:
-    """pyCPA on the same frames, in a fresh process (benchmarks/pycpa_can.py): (times, wcrt per message)."""
+def pycpa_analyse(
+    frames: list[can_rta.CanFrame], tau_ns: int, peer: str, runs: int
+) -> tuple[tuple[list[float], list[float]], Any]:
+    """pyCPA on the same frames, in a fresh process (benchmarks/pycpa_can.py): ((wall times, CPU times), wcrt per
+    message)."""
     ordered = sorted(frames, key=lambda f: f.priority_key)
     job = {"tau": tau_ns, "frames": [(f.name, f.c_ns, f.t_ns or can_rta.ONE_SHOT, f.j_ns) for f in ordered]}
     proc = subprocess.run(
@@ -132,7 +146,7 @@ def pycpa_analyse(frames: list[can_rta.CanFrame], tau_ns: int, peer: str, runs: 
     if proc.returncode:
         raise RuntimeError((proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"])[-1])
     out = json.loads(proc.stdout)
-    return out["times"], out["wcrt"]
+    return (out["times"], out["cpu"]), out["wcrt"]
 
 
 def main() -> None:
@@ -151,19 +165,20 @@ def main() -> None:
         specs = [("large_plant", ROOT / "specs" / "large_plant.yaml")]
         specs += [(f"random_can_{n}", write_random_can(n, Path(tmp))) for n in args.sizes]
         for label, spec in specs:
-            check_times, code, peak_mb = wall(spec, args.runs)
+            check_times, code, peak_mb, check_cpu = wall(spec, args.runs)
             load_times, model = timed(partial(load_model, spec, Collector()), args.runs)
             assert model is not None, f"{spec} does not resolve"
             n_msgs = sum(len(b.messages) for b in model.buses.values())
             an_times, _ = timed(partial(analyze, model, Collector()), args.runs)
             rta_times: list[float] | None = None
-            peer_times: list[float] | None = None
-            dbc_times: list[float] | None = None
+            peer_times: tuple[list[float], list[float]] | None = None
+            dbc_times: tuple[list[float], list[float]] | None = None
             dbc_cell = "-"
             note = "-"
             if label.startswith("random_can"):
-                dbc_times, dbc_code, dbc_mb = wall(write_dbc(model, Path(tmp)), args.runs, "--bitrate", "500k")
-                dbc_cell = f"{fmt(dbc_times)} (exit {dbc_code}, {dbc_mb:.0f} MB)"
+                dbc_wall, dbc_code, dbc_mb, dbc_cpu = wall(write_dbc(model, Path(tmp)), args.runs, "--bitrate", "500k")
+                dbc_times = (dbc_wall, dbc_cpu)
+                dbc_cell = f"{fmt(dbc_wall)}, CPU {statistics.median(dbc_cpu):.3f} (exit {dbc_code}, {dbc_mb:.0f} MB)"
             if any(b.protocol == "can" for b in model.buses.values()):
                 frames, tau = can_frames(model)
                 rta_times, ours = timed(partial(can_rta.analyse, frames, tau), args.runs)
@@ -175,12 +190,14 @@ def main() -> None:
                         note = f"pyCPA failed: {str(exc)[:60]}"
                 elif peer:
                     note = f"skipped (> {PEER_MAX_MESSAGES} messages)"
-            rows.append((label, n_msgs, f"{fmt(check_times)} (exit {code}, {peak_mb:.0f} MB)", dbc_cell,
-                         fmt(load_times), fmt(an_times), fmt(rta_times), fmt(peer_times) if peer_times else note,
-                         ratio(peer_times, rta_times), ratio(peer_times, check_times),
-                         ratio(peer_times, dbc_times)))  # fmt: skip
-    headers = ("spec", "msgs", "netcfg check, process (peak RSS)", "check F.dbc, process (peak RSS)", "load+resolve",
-               "analyze()", "CAN RTA", "pyCPA SPNP", "pyCPA/RTA", "pyCPA/check", "pyCPA/check dbc")  # fmt: skip
+            check_cell = f"{fmt(check_times)}, CPU {statistics.median(check_cpu):.3f} (exit {code}, {peak_mb:.0f} MB)"
+            peer_cell = f"{fmt(peer_times[0])}, CPU {statistics.median(peer_times[1]):.3f}" if peer_times else note
+            rows.append((label, n_msgs, check_cell, dbc_cell, fmt(load_times), fmt(an_times), fmt(rta_times),
+                         peer_cell, ratio(peer_times[0] if peer_times else None, rta_times),
+                         ratios(peer_times, (check_times, check_cpu)), ratios(peer_times, dbc_times)))  # fmt: skip
+    headers = ("spec", "msgs", "netcfg check, process: wall, CPU (peak RSS)", "check F.dbc, process", "load+resolve",
+               "analyze()", "CAN RTA", "pyCPA SPNP: wall, CPU", "pyCPA/RTA", "pyCPA/check (CPU)",
+               "pyCPA/check dbc (CPU)")  # fmt: skip
     widths = [max(len(str(r[i])) for r in [headers, *rows]) for i in range(len(headers))]
     for r in [headers, tuple("-" * w for w in widths), *rows]:
         print("  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
