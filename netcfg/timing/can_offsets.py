@@ -118,23 +118,28 @@ def _counts(distance: np.ndarray, jitter: np.ndarray, period: int, window: np.nd
 
 
 class _Interference:
-    """I_G(x) of one other transaction for one analysed message: its jobs above that priority."""
+    """I_G(x) of one other transaction for the messages below its first `count` jobs (jobs are in priority order,
+    so those are the jobs above such a message). Messages between the same two jobs of G share one, and the values
+    it computed: the fixed points of neighbouring messages revisit the same windows."""
 
-    def __init__(self, tr: Transaction, key: int, ppm: int) -> None:
-        hp = tr.key < key
+    def __init__(self, tr: Transaction, count: int, ppm: int) -> None:
         self.period = tr.hyperperiod_ns
         self.ppm = ppm
-        self.c = tr.c_ns[hp]
-        self.j = longest_local(tr.j_ns[hp], ppm)
-        o = tr.offset_ns[hp]
+        self.c = tr.c_ns[:count]
+        self.j = longest_local(tr.j_ns[:count], ppm)
+        o = tr.offset_ns[:count]
         self.distance = (o[None, :] - o[:, None]) % self.period  # [candidate, job]
         self.jc = self.j[:, None]
+        self.at: dict[int, int] = {}
 
     def __call__(self, x: int) -> int:
         if self.c.size == 0:
             return 0
+        if (known := self.at.get(x)) is not None:
+            return known
         n = _counts(self.distance, self.j[None, :], self.period, longest_local(x + self.jc, self.ppm))
-        return int((n @ self.c).max())
+        self.at[x] = value = int((n @ self.c).max())
+        return value
 
 
 def analyse(
@@ -152,12 +157,13 @@ def analyse(
     if not groups:
         return plain
     grouped = {name for tr in groups for name in tr.names}
+    interference: dict[tuple[int, int], _Interference] = {}  # by (transaction, jobs above the message)
     out = dict(plain)
     for f in frames:
         r = plain[f.name]
         if r.wcrt_ns is None:
             continue
-        bound = _with_offsets(f, frames, groups, grouped, r.blocking_ns, tau_ns, tolerance_ppm, errors)
+        bound = _with_offsets(f, frames, groups, grouped, r.blocking_ns, tau_ns, tolerance_ppm, errors, interference)
         if bound is not None and bound < r.wcrt_ns:
             out[f.name] = replace(r, wcrt_ns=bound)
     return out
@@ -172,6 +178,7 @@ def _with_offsets(
     tau: int,
     ppm: int,
     errors: ErrorModel | None = None,
+    interference: dict[tuple[int, int], _Interference] | None = None,
 ) -> int | None:
     import numpy as np
 
@@ -186,7 +193,14 @@ def _with_offsets(
     ft = np.array([g.t_ns or can_rta.ONE_SHOT for g in free], dtype=np.int64)
     fj = np.array([g.j_ns for g in free], dtype=np.int64)
     own = next((tr for tr in groups if m.name in tr.names), None)
-    others = [_Interference(tr, key, ppm) for tr in groups if tr is not own]
+    shared = {} if interference is None else interference
+    others = []
+    for g, tr in enumerate(groups):
+        if tr is not own:
+            count = int(np.searchsorted(tr.key, key, side="left"))  # its jobs above m
+            if (known := shared.get((g, count))) is None:
+                known = shared[g, count] = _Interference(tr, count, ppm)
+            others.append(known)
 
     def local(x: int) -> int:
         return longest_local(x, ppm)
