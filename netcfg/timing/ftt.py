@@ -336,7 +336,11 @@ def async_response_times(
     out: dict[str, int | None] = {}
     fastest = Fraction(PPM, PPM - tolerance_ppm)  # the fastest sender clocks release this much more often
     level_demand = Fraction(0)  # exact, kept as a running sum over the messages so far (the level-m set)
+    # the messages so far by (period, jitter), with their C summed: they are released alike in any window
+    classes: dict[tuple[int | None, int], int] = {}
     for i, f in enumerate(ordered):
+        hp = list(classes.items())
+        classes[f.t_ns, f.j_ns] = classes.get((f.t_ns, f.j_ns), 0) + f.c_ns
         level = ordered[: i + 1]
         blocking = max((g.c_ns for g in ordered[i + 1 :]), default=0)
         largest = max(sched.tm_ns, *(g.c_ns for g in level))  # what an error can make the window resend
@@ -353,7 +357,7 @@ def async_response_times(
         def lost(t: int, largest: int = largest) -> int:
             return errors.overhead(t, largest) if errors else 0
 
-        out[f.name] = _async_worst(sched, supply, f, ordered[:i], blocking, tolerance_ppm, lost)
+        out[f.name] = _async_worst(sched, supply, f, hp, blocking, tolerance_ppm, lost)
         if out[f.name] is None and limited is not None:
             limited.add(f.name)  # the load fits: only the step limit stopped the analysis
     return out
@@ -363,7 +367,7 @@ def _async_worst(
     sched: Schedule,
     supply: list[int],
     f: AsyncFrame,
-    hp: list[AsyncFrame],
+    hp: list[tuple[tuple[int | None, int], int]],
     blocking: int,
     ppm: int,
     lost: Callable[[int], int] = lambda _: 0,
@@ -371,10 +375,11 @@ def _async_worst(
     demand_at: dict[int, int] = {}  # every start of the macro-cycle revisits the same windows
 
     def hp_demand(t: int) -> int:
-        """Higher-priority work released in a window of length t, and what bit errors take in it."""
+        """Higher-priority work released in a window of length t, and what bit errors take in it (`hp`: the
+        higher-priority messages as ((period, jitter), their C summed))."""
         if (known := demand_at.get(t)) is None:
             known = demand_at[t] = sum(
-                g.c_ns * (-(-longest_local(t + g.j_ns, ppm) // g.t_ns) if g.t_ns else 1) for g in hp
+                c * (-(-longest_local(t + j, ppm) // period) if period else 1) for (period, j), c in hp
             ) + lost(t)
         return known
 
