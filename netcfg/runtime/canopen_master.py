@@ -38,6 +38,7 @@ library, python-can, canopen, netcfg.runtime and netcfg.cia301 (the standard's n
 from __future__ import annotations
 
 import gc
+import math
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping
 
@@ -80,6 +81,8 @@ __all__ = [
     "interpolation_period",
 ]
 
+
+DUE_PATTERNS = 240  # the due TxPDOs of at most this many SYNCs in a row are remembered (transmission types 1-240)
 
 FrameHook = Callable[[can.Message, float], object]  # a frame the cycle does not take, and the clock time it came
 CycleHook = Callable[[CycleRecord], bool | None]  # after each cycle; False ends the run there
@@ -186,14 +189,25 @@ class MasterCycle:
             if m.pdo is not None and m.pdo.transmission != 0 and (every := cia301.sync_every(m.pdo.transmission))
         }
         self.expected = tuple(m for m in tpdos if m.name in self._every)
+        self._due_every = math.lcm(*self._every.values())  # the pattern of due TxPDOs repeats this often
+        self._due_at: dict[int, tuple[str, ...]] = {}  # sync_number % _due_every -> due TxPDOs (_due)
         self._by_id = {(m.id, m.extended): m for m in tpdos}
         self._last: dict[str, dict[str, Number]] = {m.name: _rest_values(m) for m in self.rpdos}
         self._rpdo_names = {m.name for m in self.rpdos}
-        self._payloads: dict[str, bytes] = {}  # RxPDO -> its payload for the values in _last (_payload)
+        self._frames: dict[str, can.Message] = {}  # RxPDO -> its frame for the values in _last (_frame)
         self.syncs = 0  # SYNCs sent; the drives count theirs from NMT start, so "every n-th" agrees
 
-    def _due(self, sync_number: int) -> tuple[Message, ...]:
-        return tuple(m for m in self.expected if sync_number % self._every[m.name] == 0)
+    def _due(self, sync_number: int) -> tuple[str, ...]:
+        """The names of the TxPDOs due at this SYNC. The answer repeats every lcm(n) SYNCs, so it is worked out
+        once per phase of that pattern (when the pattern is at most DUE_PATTERNS SYNCs long)."""
+        cached = self._due_every <= DUE_PATTERNS
+        phase = sync_number % self._due_every
+        due = self._due_at.get(phase) if cached else None
+        if due is None:
+            due = tuple(m.name for m in self.expected if sync_number % self._every[m.name] == 0)
+            if cached:
+                self._due_at[phase] = due
+        return due
 
     def run(self, cycles: int, *, until_s: float | None = None) -> MasterRun:
         """Run `cycles` iterations, or fewer: none starts at or after the clock time `until_s`.
@@ -233,7 +247,7 @@ class MasterCycle:
             for msg in self.rpdos:
                 if msg.kind == "periodic" or msg.name in on_demand:
                     try:
-                        bus.send(msg.frame(self._payload(msg)))
+                        bus.send(self._frame(msg))
                     except can.CanError:
                         unsent[msg.name] += 1
             written = clock.now()
@@ -261,7 +275,7 @@ class MasterCycle:
             sync_sent = clock.now()
             self.syncs += 1
             due = self._due(self.syncs)
-            pending = {m.name for m in due}
+            pending = set(due)
             arrivals: dict[str, float] = {}
             values: dict[str, dict[str, Number]] = {}
             deadline = sync_sent + self.read_window_s
@@ -297,7 +311,7 @@ class MasterCycle:
                 pending.discard(got.name)
             read_done = clock.now()
             # storage: kept in memory until the run ends, as the paper does; missing frames stay missing
-            missing = tuple(m.name for m in due if m.name not in arrivals)
+            missing = tuple(name for name in due if name not in arrivals)
             previous = values
             processed = clock.now()
             processing = processed - start
@@ -313,7 +327,7 @@ class MasterCycle:
                 sync_sent=sync_sent,
                 read_done=read_done,
                 end=end,
-                due=tuple(m.name for m in due),
+                due=due,
                 arrivals=arrivals,
                 values=values,
                 missing=missing,
@@ -347,17 +361,18 @@ class MasterCycle:
                 msg = self.cfg.message(name)  # an unknown name raises, with close matches
                 raise ValueError(f"'{msg.name}' is not an RxPDO this master sends on bus '{self.bus_name}'")
             self._last[name].update(fields)
-            self._payloads.pop(name, None)
+            self._frames.pop(name, None)
         return set(asked)
 
-    def _payload(self, msg: Message) -> bytes:
-        """The RxPDO's payload for its last commanded values, encoded once per change of them, not every cycle."""
-        data = self._payloads.get(msg.name)
-        if data is None:
+    def _frame(self, msg: Message) -> can.Message:
+        """The RxPDO's frame for its last commanded values, encoded once per change of them, not every cycle (a
+        bus's send() only reads the frame it is given)."""
+        frame = self._frames.get(msg.name)
+        if frame is None:
             if not msg.is_can:
                 raise TypeError(f"message '{msg.name}' travels on {msg.protocol} bus '{msg.bus}', not CAN")
-            data = self._payloads[msg.name] = msg.encode(**self._last[msg.name])
-        return data
+            frame = self._frames[msg.name] = msg.frame(msg.encode(**self._last[msg.name]))
+        return frame
 
 
 def master_task_offset_ns(cfg: RuntimeConfig, bus: Bus) -> int | None:
