@@ -105,7 +105,7 @@ class CanopenMaster:
                 VirtualClock(sc, host),
                 bus_name=self.bus.name,
                 drift_free=True,  # anchored, as the analysis assumes (SYNC k within master_jitter of its instant)
-                pause_gc=False,
+                pause_gc=True,  # as on the robot: no collection in the loop (in virtual time, only a speed-up)
                 timing=self,
             )
             self._lead = cycle.sync_lead_s
