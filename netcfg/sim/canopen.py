@@ -15,8 +15,8 @@ writes commands by SDO; all of them share the master's processor, so samples com
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -24,11 +24,15 @@ from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE, sync_every
 from netcfg.runtime import Bus, Task
 from netcfg.runtime.canopen_master import CycleRecord, MasterCycle, MasterRun
 from netcfg.sim.can_bus import CanBus
+from netcfg.sim.engine import NEVER
 from netcfg.sim.stats import spread
 
 if TYPE_CHECKING:
     from netcfg.sim.pybus import Program
     from netcfg.sim.run import SimRun
+
+K = TypeVar("K")
+V = TypeVar("V")
 
 SDO_OBJECTS_PER_READ = 3  # position, velocity, current (seed 000, section 4.2)
 SDO_TIMEOUT_NS = 300_000_000  # the canopen package's default SDO response timeout (SdoClient.RESPONSE_TIMEOUT)
@@ -57,8 +61,11 @@ class CanopenMaster:
         self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # SDO mode: drive -> instants of samples
         self.missing: dict[str, int] = {d: 0 for d in self.drives}
         self._sync_count = 0
-        self._answers: list[tuple[str, int, str, int]] | None = None  # TPDO, every n-th SYNC, producer, its delay
-        self._sync_tasks: list[tuple[Task, int]] = []  # tasks a SYNC starts, and how long after its reception
+        # who answers a SYNC, grouped by how long after its reception: (delay, [(every n-th SYNC, when its producer
+        # crashes, the TPDO's source on the bus)])
+        self._answers: list[tuple[int, list[tuple[int, int, int]]]] | None = None
+        # tasks a SYNC starts, grouped by how long after its reception they start: (after, [task])
+        self._sync_tasks: list[tuple[int, list[Task]]] = []
         self.sdo_timeouts: dict[str, int] = {}  # drive -> SDO transfers that timed out and were repeated
         self._cpu_free = 0  # the master's one processor, shared by the SDO loops
         self.run: MasterRun | None = None
@@ -132,28 +139,49 @@ class CanopenMaster:
         return int(self.sc.rng.integers(0, jitter + 1)) / 1e9 if jitter else 0.0
 
     def _on_sync(self, end: int, _src: int, _release: int, _data: bytes | None) -> None:
+        """The drives answer and start their SYNC tasks: one event per instant at which something happens (the
+        answers of drives with the same delay go out in the same instant, in the order they were listed)."""
         sc = self.sc
         self._sync_count += 1
         n = self._sync_count
         answers = self._answers
         if answers is None:  # who answers a SYNC and how late, looked up at the first one
-            answers = self._answers = [
-                (m.name, self.every[m.name], m.producer, self._drive_delay(m.producer)) for m in self.tpdos
-            ]
-            self._sync_tasks = [
-                (task, sc.cfg.node(task.node).rx_delay_ns + task.offset_ns)
+            answers = self._answers = _grouped(
+                (
+                    self._drive_delay(m.producer),
+                    (self.every[m.name], sc.crash_at.get(m.producer, NEVER), sc.msg_source[m.name][1]),
+                )
+                for m in self.tpdos
+            )
+            self._sync_tasks = _grouped(
+                (sc.cfg.node(task.node).rx_delay_ns + task.offset_ns, task)
                 for task in sc.tasks_on_sync(self.bus.name)
                 if task.node != self.master  # the master's computation, which the live master runs (work_s)
-            ]
-        at, alive = sc.sim.at, sc.alive
-        for name, every, producer, delay in answers:
-            if n % every == 0 and alive(producer):
-                at(end + delay, self._tpdo, name)
-        for task, after in self._sync_tasks:
-            sc.run_task(task, end + after)
+            )
+        at = sc.sim.at
+        for delay, tpdos in answers:
+            due = [(crash, src) for every, crash, src in tpdos if n % every == 0 and end < crash]
+            if due:
+                at(end + delay, self._tpdos, due)
+        now = sc.sim.now
+        for after, tasks in self._sync_tasks:
+            if end + after > now:
+                at(end + after, self._start_tasks, tasks)
+            else:
+                self._start_tasks(tasks)
 
-    def _tpdo(self, name: str) -> None:
-        self.sc.submit(name)
+    def _tpdos(self, due: list[tuple[int, int]]) -> None:
+        """The drives' answers: (when the producer crashes, the TPDO's source); a crashed drive's is lost."""
+        can, now = self.can, self.sc.sim.now
+        for crash, src in due:
+            if now < crash:
+                can.submit(src)
+            else:
+                can.drop(src)
+
+    def _start_tasks(self, tasks: list[Task]) -> None:
+        for task in tasks:
+            self.sc.run_task(task)
 
     # -- SDO mode ---------------------------------------------------------------------------------------
     def _sdo_sources(self) -> None:
@@ -313,6 +341,14 @@ class CanopenMaster:
             "period_us": spread(gaps) if len(gaps) else None,
             "period_error_us": spread(gaps - period_us) if len(gaps) else None,
         }
+
+
+def _grouped(pairs: Iterable[tuple[K, V]]) -> list[tuple[K, list[V]]]:
+    """Values grouped by key, keys in the order of their first value, values in their order."""
+    groups: dict[K, list[V]] = {}
+    for key, value in pairs:
+        groups.setdefault(key, []).append(value)
+    return list(groups.items())
 
 
 def _complete(run: MasterRun, rec: CycleRecord, drive: str) -> bool:
