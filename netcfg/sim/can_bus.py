@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from netcfg.sim.engine import LATE, NEVER, Simulator
+from netcfg.sim.engine import EARLY, LATE, NEVER, Simulator
 from netcfg.timing.frames import (
     FrameStuffing,
     arbitration_key,
@@ -109,7 +109,9 @@ class CanBus:
         self.by_name: dict[str, CanSource] = {}
         self.streams: list[Stream] = []
         self.listeners: dict[int, list[Listener]] = {}
-        self.monitors: list[Listener] = []  # see every frame (python-can endpoints)
+        self.monitors: list[Listener] = []  # see every frame (python-can endpoints), except those they are deaf to
+        self._deaf: dict[Listener, set[int]] = {}  # monitor -> sources it does not hear (its own frames)
+        self._hear: dict[int, tuple[Listener, ...]] = {}  # source -> who hears its frames (listeners, monitors)
         self.gate: Gate | None = None
         self.record = Record()
         self.error_times: list[int] = []
@@ -177,6 +179,33 @@ class CanBus:
 
     def listen(self, source: int, fn: Listener) -> None:
         self.listeners.setdefault(source, []).append(fn)
+        self._hear.clear()
+
+    def monitor(self, fn: Listener) -> None:
+        """fn hears every frame (but those of the sources it is deafened to)."""
+        self.monitors.append(fn)
+        self._deaf[fn] = set()
+        self._hear.clear()
+
+    def deafen(self, fn: Listener, source: int) -> None:
+        """Monitor fn no longer hears the source's frames (a python-can endpoint's own): a frame nobody hears is
+        no event, so the arbitration loop carries on past it."""
+        self._deaf[fn].add(source)
+        self._hear.clear()
+
+    def unmonitor(self, fn: Listener) -> None:
+        if fn in self._deaf:
+            self.monitors.remove(fn)
+            del self._deaf[fn]
+            self._hear.clear()
+
+    def _hearers(self, m: int) -> tuple[Listener, ...]:
+        """Who hears a frame of source m: its listeners, then the monitors not deaf to it."""
+        hear = self._hear.get(m)
+        if hear is None:
+            hear = (*self.listeners.get(m, ()), *(fn for fn in self.monitors if m not in self._deaf[fn]))
+            self._hear[m] = hear
+        return hear
 
     def start(self) -> None:
         self._refill(0)
@@ -189,8 +218,16 @@ class CanBus:
         if data is None and self.stuffing == "exact" and self.sources[source].size:
             data = self.sim.rng.integers(0, 256, self.sources[source].size, dtype=np.uint8).tobytes()
         self._seq += 1
-        self._enqueue((self.sources[source].key, now, self._seq, source, data))
-        self._wake(now)
+        item = (self._keys[source], now, self._seq, source, data)
+        if self._fifo_of[source] < 0:
+            heapq.heappush(self._pending, item)
+        else:
+            self._enqueue(item)
+        # _wake(now), inline: reactive senders submit a frame per event
+        t = now if now > self._free_at else self._free_at
+        if self._step_at is None or t < self._step_at:
+            self._step_at = t
+            self.sim.at(t, self._step, t, LATE)
 
     def _enqueue(self, item: Pending) -> None:
         """A frame reaches its node's transmit queue: priority-queued frames all compete; a FIFO's only at its head."""
@@ -436,11 +473,44 @@ class CanBus:
                 self.record.data.append(data)
             t = busy = end
             if m in listeners or monitors:
-                for fn in listeners.get(m, ()):
-                    sim.at(end, _deliver, (fn, end, m, release, data))
-                for fn in monitors:
-                    sim.at(end, _deliver, (fn, end, m, release, data))
-                break
+                hear = self._hearers(m)
+                if not hear:  # a monitor's own frame: no event, unless another bus decides at this instant first
+                    if queue and _before(queue[0], end, LATE, NEVER):
+                        break
+                    continue
+                if len(monitors) > 1 or end >= until or (queue and _before(queue[0], end, EARLY, NEVER)):
+                    # others come first: a delivery event per hearer (one per frame when only a monitor can end
+                    # a run_until(stop=...), as the last of them), then this loop again
+                    if len(monitors) <= 1:
+                        sim.at(end, _deliver_all, (hear, end, m, release, data))
+                    else:
+                        for fn in hear:
+                            sim.at(end, _deliver, (fn, end, m, release, data))
+                    break
+                # Nothing else happens before this delivery: it happens here, as that event would have. The step
+                # that event left behind (when the bus had more to do) keeps its place in the order of events: the
+                # next number is taken now, before anything the hearers schedule.
+                self._seq, self._rel_i, self._err_i, self._free_at = seq, ri, ei, busy
+                more = pending or ri < rn or streams or babble is not None
+                rewake = next(sim._seq) if more else None
+                self._step_at = end if more else None
+                sim.now = end
+                for fn in hear:
+                    fn(end, m, release, data)
+                seq, pending = self._seq, self._pending
+                ri, rel_t, rel_src, rel_data = self._rel_i, self._rel_t, self._rel_src, self._rel_data
+                rn = len(rel_t)
+                stop = sim.stop
+                if (
+                    rewake is None
+                    or (stop is not None and stop())
+                    or (queue and _before(queue[0], end, LATE, rewake))
+                ):
+                    if rewake is not None:
+                        heapq.heappush(queue, (end, LATE, rewake, self._step, end))
+                    self._err_i = ei
+                    return  # the state is written back; the step that comes next is in place
+                self._step_at = None  # this loop is that step: it carries on
         self._seq = seq
         self._rel_i = ri
         self._err_i = ei
@@ -485,6 +555,17 @@ class CanBus:
         return best
 
 
+def _before(event: tuple[int, int, int, object, object], t: int, priority: int, seq: int) -> bool:
+    """The queued event comes before an event (t, priority, seq) would."""
+    return event[0] < t or (event[0] == t and (event[1] < priority or (event[1] == priority and event[2] < seq)))
+
+
 def _deliver(arg: tuple[Listener, int, int, int, bytes | None]) -> None:
     fn, end, m, release, data = arg
     fn(end, m, release, data)
+
+
+def _deliver_all(arg: tuple[tuple[Listener, ...], int, int, int, bytes | None]) -> None:
+    fns, end, m, release, data = arg
+    for fn in fns:
+        fn(end, m, release, data)

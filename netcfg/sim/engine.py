@@ -29,6 +29,7 @@ class Simulator:
         self._queue: list[tuple[int, int, int, Callable[..., Any], Any]] = []
         self._seq = count()
         self.until = 0  # the end of the current run_until: loops that batch work must not pass it
+        self.stop: Callable[[], object] | None = None  # the current run_until's stop(), for the same loops
 
     def at(self, t: int, fn: Callable[..., Any], arg: Any = None, priority: int = EARLY) -> None:
         """Call fn(arg) at virtual time t (never before now)."""
@@ -40,6 +41,7 @@ class Simulator:
         queue = self._queue
         pop = heapq.heappop
         self.until = t_end
+        self.stop = stop
         while queue and queue[0][0] < t_end:
             t, _, _, fn, arg = pop(queue)
             self.now = t

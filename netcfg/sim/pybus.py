@@ -24,6 +24,7 @@ from typing import Any
 
 import can
 
+from netcfg.sim.engine import NEVER
 from netcfg.sim.run import SimRun
 from netcfg.timing.frames import CANFD_PADDING, canfd_padded_size
 
@@ -126,13 +127,13 @@ class SimCanBus(can.BusABC):
         self.channel_info = f"netcfg simulator bus {channel}"
         self._rx: deque[can.Message] = deque()
         self._by_id = {(s.can_id, s.extended): s.index for s in self.sim_bus.sources}
-        self._own: set[int] = set()
-        self.sim_bus.monitors.append(self._heard)
+        self._own: set[int] = set()  # its sources: it does not hear them
+        self._crash = sc.crash_at.get(node, NEVER)  # when its node crashes (sc.alive, asked at every send)
+        self.sim_bus.monitor(self._heard)
         super().__init__(channel=channel, **kwargs)
 
     def _heard(self, end: int, src: int, _release: int, data: bytes | None) -> None:
-        if src in self._own:
-            return  # like python-can's buses: no echo of one's own frames
+        # never one of its own frames (the bus does not deliver those): like python-can's buses, no echo
         s = self.sim_bus.sources[src]
         payload = data if data is not None else bytes(s.size)
         if s.fd:  # a receiver sees an FD frame's padded length, as on a real bus
@@ -155,8 +156,10 @@ class SimCanBus(can.BusABC):
                 name, msg.arbitration_id, msg.is_extended_id, msg.dlc, self.node, fd=msg.is_fd, brs=msg.bitrate_switch
             )
             self._by_id[key] = src
-        self._own.add(src)
-        if not self.sc.alive(self.node):
+        if src not in self._own:
+            self._own.add(src)
+            self.sim_bus.deafen(self._heard, src)
+        if self.sc.sim.now >= self._crash:
             self.sim_bus.drop(src)  # a crashed node sends nothing
             return
         self.sim_bus.submit(src, bytes(msg.data))
@@ -179,6 +182,5 @@ class SimCanBus(can.BusABC):
         return msg, False
 
     def shutdown(self) -> None:
-        if self._heard in self.sim_bus.monitors:
-            self.sim_bus.monitors.remove(self._heard)
+        self.sim_bus.unmonitor(self._heard)
         super().shutdown()
