@@ -32,7 +32,7 @@ from netcfg.emit import c_header, runtime_json
 from netcfg.importers import ImportOptions
 from netcfg.model import Model
 from netcfg.runtime import RuntimeConfig, parse
-from netcfg.runtime.codec import Field, Number, decode, decoder, encode, present
+from netcfg.runtime.codec import Field, Number, _struct_layout, decode, decoder, encode, present
 
 CORPUS = Path(__file__).resolve().parent / "data" / "dbc"
 FILES = sorted(p.name for p in CORPUS.glob("*.dbc"))
@@ -348,6 +348,30 @@ def test_the_compiled_decoder_reads_what_decode_reads(
     got = decoder(fields)(payload)
     assert list(got) == list(want)
     assert [repr(v) for v in got.values()] == [repr(v) for v in want.values()]  # a NaN float equals itself here
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(
+    st.lists(st.tuples(st.integers(0, 2), st.sampled_from([8, 16, 32, 64]), st.booleans(), st.booleans()),
+             min_size=1, max_size=4),
+    st.binary(min_size=0, max_size=40),
+)
+def test_whole_byte_fields_decode_through_struct_as_decode_reads_them(
+    shapes: list[tuple[int, int, bool, bool]], payload: bytes
+) -> None:
+    """PDO-shaped layouts (whole little-endian bytes of 8-64 bits, integers or IEEE floats, gaps between them) go
+    through one struct unpack in codec.decoder(); its values are decode()'s, key for key and type for type, and a
+    payload shorter than the fields reads its missing bytes as zeros, as decode() does."""
+    fields, at = [], 0
+    for k, (gap, bits, signed, is_float) in enumerate(shapes):
+        at += gap
+        fields.append(Field(f"f{k}", 8 * at, bits, signed, is_float=is_float and bits in (32, 64)))
+        at += bits // 8
+    assert _struct_layout(tuple(fields)) is not None  # the layout this test is about
+    want = decode(fields, payload)
+    got = decoder(fields)(payload)
+    assert list(got) == list(want)
+    assert [repr(v) for v in got.values()] == [repr(v) for v in want.values()]
 
 
 @pytest.mark.parametrize("name", FILES)

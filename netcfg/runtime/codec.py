@@ -245,4 +245,38 @@ def decoder(fields: Iterable[Field]) -> Callable[[bytes], dict[str, Number]]:
             out[name] = raw if linear is None else raw * linear[0] + linear[1]
         return out
 
-    return run
+    unpack = _struct_layout(fields)
+    if unpack is None:
+        return run
+    names = tuple(f.name for f in fields)
+
+    def unpacked(payload: bytes) -> dict[str, Number]:
+        try:
+            return dict(zip(names, unpack(payload)))
+        except struct.error:  # shorter than the fields: the missing bits read as zeros, as in run()
+            return run(payload)
+
+    return unpacked
+
+
+# struct's codes for integers of (bits, signed) and for floats of bits
+_STRUCT_CODES = {(8, False): "B", (8, True): "b", (16, False): "H", (16, True): "h", (32, False): "I", (32, True): "i",
+                 (64, False): "Q", (64, True): "q"}
+_FLOAT_CODES = {32: "f", 64: "d"}
+
+
+def _struct_layout(fields: tuple[Field, ...]) -> Callable[[bytes], tuple[Number, ...]] | None:
+    """Fields that are whole little-endian bytes of C's integer or IEEE float widths, unscaled, listed in payload
+    order without overlapping (every CANopen PDO mapping netcfg writes): one struct.unpack_from gives their values,
+    the same as Field.from_raw's. None for any other layout."""
+    fmt, at = "<", 0
+    for f in fields:
+        if f.big_endian or f.start_bit % 8 or f.start_bit < 8 * at or not (f.is_float or f.is_integer):
+            return None
+        code = _FLOAT_CODES.get(f.bits) if f.is_float else _STRUCT_CODES.get((f.bits, f.signed))
+        if code is None:
+            return None
+        fmt += "x" * (f.start_bit // 8 - at) + code
+        at = (f.start_bit + f.bits) // 8
+    return struct.Struct(fmt).unpack_from
+

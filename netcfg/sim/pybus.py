@@ -129,23 +129,43 @@ class SimCanBus(can.BusABC):
         self._by_id = {(s.can_id, s.extended): s.index for s in self.sim_bus.sources}
         self._own: set[int] = set()  # its sources: it does not hear them
         self._crash = sc.crash_at.get(node, NEVER)  # when its node crashes (sc.alive, asked at every send)
+        self._channel = self.sim_bus.name
+        self._frames: dict[int, tuple[int, bool, bytes, Callable[[int, bytes | None], can.Message] | None]] = {}
         self.sim_bus.monitor(self._heard)
         super().__init__(channel=channel, **kwargs)
 
     def _heard(self, end: int, src: int, _release: int, data: bytes | None) -> None:
         # never one of its own frames (the bus does not deliver those): like python-can's buses, no echo
-        s = self.sim_bus.sources[src]
-        payload = data if data is not None else bytes(s.size)
-        if s.fd:  # a receiver sees an FD frame's padded length, as on a real bus
-            payload += bytes([CANFD_PADDING]) * (canfd_padded_size(len(payload)) - len(payload))
-        self._rx.append(
-            can.Message(
-                timestamp=end / 1e9, arbitration_id=s.can_id, is_extended_id=s.extended, data=payload,
-                channel=self.sim_bus.name, is_fd=s.fd, bitrate_switch=s.brs,
-            )
-        )
+        frame = self._frames.get(src)
+        if frame is None:
+            frame = self._frames[src] = self._frame_of(src)
+        can_id, extended, zeros, fd = frame
+        if fd is not None:
+            self._rx.append(fd(end, data))
+        else:
+            # python-can's Message(timestamp, arbitration_id, is_extended_id, is_remote_frame, is_error_frame,
+            # channel, dlc, data), positionally: half the time of keywords, once per frame heard
+            payload = zeros if data is None else data
+            self._rx.append(can.Message(end / 1e9, can_id, extended, False, False, self._channel, None, payload))
         if self.host is not None:
             self.host.poke()
+
+    def _frame_of(self, src: int) -> tuple[int, bool, bytes, Callable[[int, bytes | None], can.Message] | None]:
+        """What every frame of the source looks like here: identifier, extended, the payload of a frame without
+        one (zeros), and for CAN FD the frame's maker (a receiver sees an FD frame's padded length)."""
+        s = self.sim_bus.sources[src]
+        if not s.fd:
+            return s.can_id, s.extended, bytes(s.size), None
+
+        def fd(end: int, data: bytes | None) -> can.Message:
+            payload = data if data is not None else bytes(s.size)
+            payload += bytes([CANFD_PADDING]) * (canfd_padded_size(len(payload)) - len(payload))
+            return can.Message(
+                timestamp=end / 1e9, arbitration_id=s.can_id, is_extended_id=s.extended, data=payload,
+                channel=self._channel, is_fd=True, bitrate_switch=s.brs,
+            )
+
+        return s.can_id, s.extended, bytes(s.size), fd
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         key = (msg.arbitration_id, msg.is_extended_id)
