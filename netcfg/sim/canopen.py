@@ -153,7 +153,7 @@ class CanopenMaster:
                 )
                 for m in self.tpdos
             )
-            self._sync_tasks = _grouped(
+            self._sync_tasks = _runs(
                 (sc.cfg.node(task.node).rx_delay_ns + task.offset_ns, task)
                 for task in sc.tasks_on_sync(self.bus.name)
                 if task.node != self.master  # the master's computation, which the live master runs (work_s)
@@ -349,6 +349,18 @@ def _grouped(pairs: Iterable[tuple[K, V]]) -> list[tuple[K, list[V]]]:
     for key, value in pairs:
         groups.setdefault(key, []).append(value)
     return list(groups.items())
+
+
+def _runs(pairs: Iterable[tuple[K, V]]) -> list[tuple[K, list[V]]]:
+    """Values in their order, in runs of the same key (tasks: one that starts at once may schedule something,
+    so tasks that start later are not merged across it)."""
+    runs: list[tuple[K, list[V]]] = []
+    for key, value in pairs:
+        if runs and runs[-1][0] == key:
+            runs[-1][1].append(value)
+        else:
+            runs.append((key, [value]))
+    return runs
 
 
 def _complete(run: MasterRun, rec: CycleRecord, drive: str) -> bool:

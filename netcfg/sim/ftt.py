@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from netcfg.runtime import Bus
+from netcfg.runtime import Bus, EcSlot, Task
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, PPB
 
@@ -30,6 +30,7 @@ class FttMaster:
         self.ftt = ftt = bus.ftt
         self.master = ftt.master
         self.clock = sc.clock[ftt.master]
+        self._phase, self._drift, self._ec_ns = self.clock.phase_ns, self.clock.drift_ppb, ftt.ec_ns
         self.tm_name = f"{bus.name}_TM"
         self.tm = can.add_source(self.tm_name, ftt.tm_id, False, ftt.tm_size, ftt.master)
         sc.msg_source[self.tm_name] = (can, self.tm)
@@ -41,7 +42,9 @@ class FttMaster:
         self.ecs = 0
         self.lost_ecs = 0
         self._got_tm = -1  # the last EC whose TM arrived
-        self._rx_delay = {n.name: n.rx_delay_ns for n in sc.cfg.nodes}  # read at every trigger message
+        # per slot of the macro-cycle, what its trigger message starts: the tasks its triggers activate, grouped
+        # by how long after the TM's reception they start (the receiving node's rx_delay); worked out at first use
+        self._slot_tasks: dict[int, list[tuple[int, list[Task]]]] = {}
         can.listen(self.tm, self._on_tm)
         can.gate = self._gate
 
@@ -56,7 +59,8 @@ class FttMaster:
 
     # -- EC grid ----------------------------------------------------------------------------------------
     def ec_start(self, k: int) -> int:
-        return self.clock.to_global(k * self.ftt.ec_ns)
+        local = k * self._ec_ns  # the master's clock's to_global, inline: asked several times per EC
+        return self._phase + local + local * self._drift // PPB
 
     def ec_of(self, t: int) -> int:
         local = (t - self.clock.phase_ns) * PPB // (PPB + self.clock.drift_ppb)
@@ -119,13 +123,35 @@ class FttMaster:
             k -= 1  # cannot happen with a schedulable table; keep the EC the TM was sent for
         self._got_tm = k
         slot = self.ftt.slot(k)
-        rx = self._rx_delay
-        for trig in slot.triggers:
-            for task in self.sc.tasks_on_trigger(trig):
-                self.sc.run_task(task, end + rx[task.node])
+        groups = self._slot_tasks.get(k % self.ftt.macro_cycle_ec)
+        if groups is None:
+            groups = self._slot_tasks[k % self.ftt.macro_cycle_ec] = self._triggered(slot)
+        sim = self.sc.sim
+        for after, tasks in groups:  # tasks that start together: one event, in the order they were listed
+            if after > 0:
+                sim.at(end + after, self._start_tasks, tasks)
+            else:
+                self._start_tasks(tasks)
         if slot.messages:
             window = self.ec_start(k) + self.ftt.window_start(k)
-            self.sc.sim.at(max(window, end), self._sync_window, slot.messages)
+            sim.at(max(window, end), self._sync_window, slot.messages)
+
+    def _triggered(self, slot: EcSlot) -> list[tuple[int, list[Task]]]:
+        """The tasks the slot's triggers activate, in order, in runs of the same rx_delay of their node (a task
+        that starts at once may schedule something, so runs are not merged across it)."""
+        groups: list[tuple[int, list[Task]]] = []
+        for trig in slot.triggers:
+            for task in self.sc.tasks_on_trigger(trig):
+                after = self.sc.cfg.node(task.node).rx_delay_ns
+                if groups and groups[-1][0] == after:
+                    groups[-1][1].append(task)
+                else:
+                    groups.append((after, [task]))
+        return groups
+
+    def _start_tasks(self, tasks: list[Task]) -> None:
+        for task in tasks:
+            self.sc.run_task(task)
 
     def _sync_window(self, messages: tuple[str, ...]) -> None:
         for name in messages:
