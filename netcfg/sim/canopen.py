@@ -22,7 +22,7 @@ import numpy as np
 
 from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE, sync_every
 from netcfg.runtime import Bus, Task
-from netcfg.runtime.canopen_master import CycleRecord, MasterCycle, MasterRun
+from netcfg.runtime.canopen_master import MasterCycle, MasterRun
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER
 from netcfg.sim.stats import spread
@@ -298,11 +298,9 @@ class CanopenMaster:
         if run is None:  # "external": a program ran its own master
             return out
         missing = run.missing_by_node()
+        sampled = _sample_starts(run, self.drives)
         out["drives"] = {
-            drive: self._drive_report(
-                [1e6 * rec.start for rec in run.records if _complete(run, rec, drive)], missing.get(drive, 0), drive
-            )
-            for drive in self.drives
+            drive: self._drive_report(sampled[drive], missing.get(drive, 0), drive) for drive in self.drives
         }
         starts = np.asarray([1e6 * rec.start for rec in run.records])
         out["cycles"] = run.cycles
@@ -363,7 +361,20 @@ def _runs(pairs: Iterable[tuple[K, V]]) -> list[tuple[K, list[V]]]:
     return runs
 
 
-def _complete(run: MasterRun, rec: CycleRecord, drive: str) -> bool:
-    """The drive's TPDOs due in this cycle all arrived (a sample of it)."""
-    due = {m for m in rec.due if run.producers[m] == drive}
-    return bool(due) and not due & set(rec.missing)
+def _sample_starts(run: MasterRun, drives: list[str]) -> dict[str, list[float]]:
+    """Per drive, the starts (us) of the cycles that sampled it: the drive's TPDOs due in the cycle all arrived.
+    Which drive is due for which TPDOs is worked out once per pattern of due TxPDOs, not per cycle and drive."""
+    out: dict[str, list[float]] = {d: [] for d in drives}
+    by_due: dict[tuple[str, ...], dict[str, set[str]]] = {}
+    for rec in run.records:
+        due = by_due.get(rec.due)
+        if due is None:
+            due = by_due[rec.due] = {}
+            for m in rec.due:
+                due.setdefault(run.producers[m], set()).add(m)
+        start = 1e6 * rec.start
+        lost = set(rec.missing)
+        for drive, msgs in due.items():
+            if drive in out and not (lost and msgs & lost):
+                out[drive].append(start)
+    return out
