@@ -475,10 +475,12 @@ class CanBus:
             if m in listeners or monitors:
                 hear = self._hearers(m)
                 if not hear:  # a monitor's own frame: no event, unless another bus decides at this instant first
-                    if queue and _before(queue[0], end, LATE, NEVER):
+                    if queue and queue[0][0] <= end:
                         break
                     continue
-                if len(monitors) > 1 or end >= until or (queue and _before(queue[0], end, EARLY, NEVER)):
+                # (events compare as tuples (t, priority, number, ...): one before (end, EARLY + 1) runs before a
+                # delivery event at end would)
+                if len(monitors) > 1 or end >= until or (queue and queue[0] < (end, EARLY + 1)):
                     # others come first: a delivery event per hearer (one per frame when only a monitor can end
                     # a run_until(stop=...), as the last of them), then this loop again
                     if len(monitors) <= 1:
@@ -504,7 +506,7 @@ class CanBus:
                 if (
                     rewake is None
                     or (stop is not None and stop())
-                    or (queue and _before(queue[0], end, LATE, rewake))
+                    or (queue and queue[0] < (end, LATE, rewake))
                 ):
                     if rewake is not None:
                         heapq.heappush(queue, (end, LATE, rewake, self._step, end))
@@ -553,11 +555,6 @@ class CanBus:
             src = self.sources[item[3]]
             best = min(best, self.gate(t, self._duration(src, item[4])) if src.gated else t)
         return best
-
-
-def _before(event: tuple[int, int, int, object, object], t: int, priority: int, seq: int) -> bool:
-    """The queued event comes before an event (t, priority, seq) would."""
-    return event[0] < t or (event[0] == t and (event[1] < priority or (event[1] == priority and event[2] < seq)))
 
 
 def _deliver(arg: tuple[Listener, int, int, int, bytes | None]) -> None:
