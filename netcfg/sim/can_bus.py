@@ -35,6 +35,11 @@ INTERMISSION_BITS = 3  # the end of every frame time: nothing to corrupt there
 # the bus's stuffing modes as the timing core names them (can_frame_bits_of)
 FRAME_BITS: dict[str, FrameStuffing] = {"worst": "worst", "none": "nominal", "exact": "exact"}
 CHUNK_NS = 200_000_000  # release streams are expanded this much simulated time at a time
+# ... or this much, when the streams are sparse (a few heartbeats: one numpy expansion per 2 s instead of per 200 ms)
+# and the releases are the same however time is cut: no stream draws random numbers or counts crash losses per
+# chunk (PeriodicStreams.chunk_free), and frames carry no random payloads
+LONG_CHUNK_NS = 2_000_000_000
+SPARSE_RELEASES = 4096  # at most this many releases per long chunk, at the rate of the last one
 
 Listener = Callable[[int, int, int, bytes | None], None]  # (end_ns, message index, release_ns, data)
 Gate = Callable[[int, int], int]  # (t, duration) -> earliest start >= t at which the frame may go
@@ -131,6 +136,8 @@ class CanBus:
         self._exact: dict[tuple[int, bytes], int] = {}  # (source, payload) -> frame time, exact stuffing
         self._rel_i = 0
         self._chunk_end = 0
+        self._chunk_ns = CHUNK_NS  # how much simulated time the next refill expands
+        self._chunk_free = False  # the releases do not depend on the chunks (start)
         self._free_at = 0  # the bus is busy until then
         self._step_at: int | None = None  # when the arbitration loop is due to run next
         self._err_i = 0
@@ -208,6 +215,7 @@ class CanBus:
         return hear
 
     def start(self) -> None:
+        self._chunk_free = self.stuffing != "exact" and all(getattr(s, "chunk_free", False) for s in self.streams)
         self._refill(0)
         self._wake(0)
 
@@ -309,7 +317,7 @@ class CanBus:
 
     def _refill(self, t0: int) -> None:
         """Expand the release streams for [t0, t0 + CHUNK_NS) and merge them with what is left."""
-        t1 = t0 + CHUNK_NS
+        t1 = t0 + self._chunk_ns
         left = slice(self._rel_i, None)
         times = [np.asarray(self._rel_t[left], dtype=np.int64)]
         srcs = [np.asarray(self._rel_src[left], dtype=np.int64)]
@@ -328,6 +336,9 @@ class CanBus:
         self._rel_data = [data[i] for i in order.tolist()]
         self._rel_i = 0
         self._chunk_end = t1
+        new = len(all_t) - len(times[0])
+        sparse = self._chunk_free and new * (LONG_CHUNK_NS // (t1 - t0)) <= SPARSE_RELEASES
+        self._chunk_ns = LONG_CHUNK_NS if sparse else CHUNK_NS
 
     def _random_payloads(self, srcs: np.ndarray, data: list[bytes | None], first_new: int) -> list[bytes | None]:
         """Exact stuffing needs each frame's bits: free-running frames carry seeded random payloads, whose frame

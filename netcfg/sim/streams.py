@@ -17,7 +17,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from netcfg.sim.engine import PPB
+from netcfg.sim.engine import NEVER, PPB
 
 
 class PeriodicStreams:
@@ -51,6 +51,12 @@ class PeriodicStreams:
         self._index = np.arange(len(self.src))
         if len(self.src) == 1:
             self._one = (int(self.phase[0]), float(self._scale[0]), int(self.offset[0]), float(self._period[0]))
+
+    @property
+    def chunk_free(self) -> bool:
+        """The releases do not depend on how time is cut into [t0, t1) calls: no random draws (jitter), and no crash
+        instant whose releases after it are counted per call."""
+        return not self._jittered and not bool((self.until < NEVER).any())
 
     def __call__(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray]:
         """Every release whose nominal instant falls in [t0, t1): (instants, sources), source by source in the
