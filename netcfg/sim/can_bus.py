@@ -407,7 +407,10 @@ class CanBus:
         fifo_of = self._fifo_of
         fifos = bool(self.fifos)
         busy = self._free_at
-        t = max(sim.now, busy)  # the next arbitration instant
+        now = sim.now
+        t = busy if busy > now else now  # the next arbitration instant
+        hearers = self._hear
+        many = len(monitors) > 1  # several python-can endpoints: one delivery event each
         while True:
             # whatever else is due before this decision (or at it, and must happen first) runs first
             if queue:
@@ -484,17 +487,17 @@ class CanBus:
                 self.record.data.append(data)
             t = busy = end
             if m in listeners or monitors:
-                hear = self._hearers(m)
+                hear = hearers.get(m) or self._hearers(m)
                 if not hear:  # a monitor's own frame: no event, unless another bus decides at this instant first
                     if queue and queue[0][0] <= end:
                         break
                     continue
                 # (events compare as tuples (t, priority, number, ...): one before (end, EARLY + 1) runs before a
                 # delivery event at end would)
-                if len(monitors) > 1 or end >= until or (queue and queue[0] < (end, EARLY + 1)):
+                if many or end >= until or (queue and queue[0] < (end, EARLY + 1)):
                     # others come first: a delivery event per hearer (one per frame when only a monitor can end
                     # a run_until(stop=...), as the last of them), then this loop again
-                    if len(monitors) <= 1:
+                    if not many:
                         sim.at(end, _deliver_all, (hear, end, m, release, data))
                     else:
                         for fn in hear:
@@ -510,9 +513,11 @@ class CanBus:
                 sim.now = end
                 for fn in hear:
                     fn(end, m, release, data)
-                seq, pending = self._seq, self._pending
-                ri, rel_t, rel_src, rel_data = self._rel_i, self._rel_t, self._rel_src, self._rel_data
-                rn = len(rel_t)
+                seq, pending, ri = self._seq, self._pending, self._rel_i
+                many = len(monitors) > 1
+                if self._rel_t is not rel_t:  # a crash dropped releases (remove_pending)
+                    rel_t, rel_src, rel_data = self._rel_t, self._rel_src, self._rel_data
+                    rn = len(rel_t)
                 stop = sim.stop
                 if (
                     rewake is None
