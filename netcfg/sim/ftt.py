@@ -45,6 +45,7 @@ class FttMaster:
         # per slot of the macro-cycle, what its trigger message starts: the tasks its triggers activate, grouped
         # by how long after the TM's reception they start (the receiving node's rx_delay); worked out at first use
         self._slot_tasks: dict[int, list[tuple[int, list[Task]]]] = {}
+        self._tm_payloads: dict[int, bytes] = {}  # slot of the macro-cycle -> its TM's payload
         can.listen(self.tm, self._on_tm)
         can.gate = self._gate
 
@@ -114,8 +115,12 @@ class FttMaster:
         self._send_tm(k)
 
     def _send_tm(self, k: int) -> None:
-        slot = self.ftt.slot(k)
-        self.can.submit(self.tm, (slot.mask & ((1 << 8 * self.ftt.tm_size) - 1)).to_bytes(self.ftt.tm_size, "little"))
+        i = k % self.ftt.macro_cycle_ec
+        payload = self._tm_payloads.get(i)
+        if payload is None:  # the slot's schedule as the TM carries it, once per slot of the macro-cycle
+            mask, size = self.ftt.slot(k).mask, self.ftt.tm_size
+            payload = self._tm_payloads[i] = (mask & ((1 << 8 * size) - 1)).to_bytes(size, "little")
+        self.can.submit(self.tm, payload)
 
     def _on_tm(self, end: int, _src: int, _release: int, data: bytes | None) -> None:
         k = self.ec_of(end)

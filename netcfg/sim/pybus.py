@@ -101,9 +101,10 @@ class VirtualClock:
     def __init__(self, sc: SimRun, host: Program | None = None) -> None:
         self.sc = sc
         self.host = host
+        self._sim = sc.sim  # read at every now(): a master asks 30 times a cycle
 
     def now(self) -> float:
-        return self.sc.sim.now / 1e9
+        return self._sim.now / 1e9
 
     def sleep_until(self, t: float) -> None:
         target = round(t * 1e9)
