@@ -316,7 +316,7 @@ class CanBus:
             self.sim.at(t, self._step, t, LATE)
 
     def _refill(self, t0: int) -> None:
-        """Expand the release streams for [t0, t0 + CHUNK_NS) and merge them with what is left."""
+        """Expand the release streams for [t0, t0 + the chunk length) and merge them with what is left."""
         t1 = t0 + self._chunk_ns
         left = slice(self._rel_i, None)
         times = [np.asarray(self._rel_t[left], dtype=np.int64)]
