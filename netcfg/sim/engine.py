@@ -1,8 +1,10 @@
 """The event core: integer-nanosecond virtual time, a heap of callbacks, and drifting node clocks.
 
-Events at the same instant run in (priority, insertion) order. Priority 0 is for things that happen "at" an
-instant (releases, deliveries, task starts); priority 1 is for decisions taken once everything at that instant
-has happened, such as CAN arbitration when the bus goes idle, so a frame queued at exactly that instant joins it.
+Events at the same instant run in (priority, insertion) order. EARLY is for things that happen "at" an instant
+(releases, deliveries, the tasks a delivery starts); TASKS for the activations of periodic tasks, which so read
+whatever was delivered at their instant, whichever event was queued first; LATE for decisions taken once
+everything at that instant has happened, such as CAN arbitration when the bus goes idle, so a frame queued at
+exactly that instant joins it.
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from typing import Any
 import numpy as np
 
 EARLY = 0
-LATE = 1
+TASKS = 1
+LATE = 2
 
 PPB = 1_000_000_000
 NEVER = 1 << 62  # an instant after every run

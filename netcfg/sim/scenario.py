@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
 from netcfg.sim.can_bus import CanBus
-from netcfg.sim.engine import NEVER, NodeClock, Simulator
+from netcfg.sim.engine import NEVER, TASKS, NodeClock, Simulator
 from netcfg.sim.faults import Fault
 from netcfg.sim.flows import FlowTracker
 from netcfg.sim.streams import PeriodicStreams
@@ -372,9 +372,9 @@ class Scenario:
             nonlocal k
             self.run_task(task)
             k += 1
-            self.sim.at(clock.to_global(task.offset_ns + k * period), fire)
+            self.sim.at(clock.to_global(task.offset_ns + k * period), fire, None, TASKS)
 
-        self.sim.at(clock.to_global(task.offset_ns), fire)
+        self.sim.at(clock.to_global(task.offset_ns), fire, None, TASKS)
 
     # -- run --------------------------------------------------------------------------------------------
     def start(self) -> None:

@@ -9,7 +9,9 @@ frames, the chunk's end for a free-running link, and for a switch port the least
 their horizon plus the shortest frame time, cable and switch latency from them (a frame not yet known there
 reaches the port no sooner). Serving happens on each submit (along the submitted frame's links) and at wake-ups
 set just before the earliest instant a waiting frame could matter (a listened delivery), so nothing is served too
-late and a link never serves a frame before one that arrives earlier.
+late and a link never serves a frame before one that arrives earlier. Frames reaching a port at the same instant
+leave in order of release, then of message index (links.ARRIVAL_ORDER), so a NIC serves only what arrived before
+now: another task may still hand it a frame at this very instant.
 """
 
 from __future__ import annotations
@@ -41,15 +43,16 @@ class EventLinks(Topology):
                 self.lost[i] += self.downstream[(i, link.index)]
                 return
         self._seq = seq = self._seq + 1
-        heappush(link.waiting, (now, seq, i, now - tx))
+        heappush(link.waiting, (now, now - tx, i, seq))
         if off >= 0:
-            link.fresh.append((now + off, now, seq))
+            link.fresh.append((now + off, now, now - tx, i, seq))
         self._advance(below)
 
     def _advance(self, links: list[Link]) -> None:
         """Serve these event links (in path order) up to their horizons, then set a wake-up for what still waits."""
         now = self.sim.now
-        nic = now if now < self._known else self._known
+        # a NIC has every frame arriving before now: more may still be submitted at this very instant
+        nic = now - 1 if now - 1 < self._known else self._known
         for link in links:
             if link.takes_chained:
                 k = nic
@@ -71,8 +74,7 @@ class EventLinks(Topology):
                 link.fresh.clear()
             if due:
                 while due:  # drop what has been served: everything before the first frame still waiting
-                    _, a, seq = due[0]
-                    if waiting and (a > waiting[0][0] or (a == waiting[0][0] and seq >= waiting[0][1])):
+                    if waiting and due[0][1:] >= waiting[0]:
                         break
                     heappop(due)
                 if due:
@@ -99,7 +101,7 @@ class EventLinks(Topology):
         frames, busy_ns, qmax, seq = link.frames, link.busy_ns, link.max_queue, self._seq
         at, delivered, quiet = self.sim.at, self._delivered, self._finished
         while waiting and waiting[0][0] <= horizon:
-            a, _, i, r = heappop(waiting)
+            a, r, i, _ = heappop(waiting)
             while ends and ends[0] <= a:
                 ends.popleft()
             s = a if a > busy else busy
@@ -120,9 +122,9 @@ class EventLinks(Topology):
                 x = recv + lat
                 for child, off in kids:
                     seq += 1
-                    heappush(child.waiting, (x, seq, i, r))
+                    heappush(child.waiting, (x, r, i, seq))
                     if off >= 0:
-                        child.fresh.append((x + off, x, seq))
+                        child.fresh.append((x + off, x, r, i, seq))
             if dest is not None:
                 rx, dead, rels, end1, server, prel, pend, listen, name = dest
                 e = recv + rx

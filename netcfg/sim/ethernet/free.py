@@ -86,10 +86,10 @@ class FreeRunning(EventLinks):
         need = self.need
         for a, i, r in zip(t.tolist(), msg.tolist(), rel.tolist()):
             seq += 1
-            heappush(waiting, (a, seq, i, r))
+            heappush(waiting, (a, r, i, seq))
             off = need.get((i, li))
             if off is not None:
-                fresh.append((a + off, a, seq))
+                fresh.append((a + off, a, r, i, seq))
         self._seq = seq
 
     def _transmit(self, link: Link, t: np.ndarray, msg: np.ndarray, rel: np.ndarray) -> None:

@@ -28,9 +28,12 @@ CHUNK_NS = 5_000_000  # simulated time computed at once; frames fare the same fo
 _I64 = np.int64
 _EMPTY = np.empty(0, dtype=_I64)
 Batch = tuple[np.ndarray, np.ndarray, np.ndarray]  # (arrival at the stage, message index, release), aligned
-Waiting = tuple[int, int, int, int]  # a frame at an event link: (arrival, sequence number, message index, release)
+# a frame at an event link, in the order frames leave a port: (arrival, release, message index, sequence number);
+# frames that reach a port at the same instant leave in order of release, then of message index, whichever path
+# computed them (take() keeps the same order), so the result does not depend on the order they became known in
+Waiting = tuple[int, int, int, int]
 Listen = tuple[list["FlowTracker"], list["Task"]]
-Due = tuple[int, int, int]  # a waiting frame something observes: (latest instant to serve it by + 1, arrival, seq)
+Due = tuple[int, int, int, int, int]  # a waiting frame something observes: (serve it before this, *its Waiting)
 
 
 @dataclass
@@ -79,8 +82,8 @@ class Server:
 
 
 def take(pending: list[Batch], horizon: int) -> Batch | None:
-    """The waiting frames that arrive before the horizon, sorted by arrival (FIFO, earlier batches first on ties);
-    the others stay."""
+    """The waiting frames that arrive before the horizon, in the order they leave the port (FIFO; on the same
+    instant in order of release, then of message index, as Waiting); the others stay."""
     if not pending:
         return None
     if len(pending) == 1:
@@ -91,6 +94,12 @@ def take(pending: list[Batch], horizon: int) -> Batch | None:
         rel = np.concatenate([b[2] for b in pending])
     order = np.argsort(t, kind="stable")
     t, msg, rel = t[order], msg[order], rel[order]
+    tied = np.flatnonzero(t[1:] == t[:-1])
+    if len(tied):  # rare (two senders' frames on the same nanosecond): just those, by release, then message
+        at = np.unique(np.concatenate([tied, tied + 1]))
+        order = np.arange(len(t))
+        order[at] = at[np.lexsort((msg[at], rel[at], t[at]))]
+        t, msg, rel = t[order], msg[order], rel[order]
     k = int(np.searchsorted(t, horizon, side="left"))
     pending.clear()
     if k < len(t):

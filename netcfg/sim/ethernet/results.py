@@ -89,7 +89,7 @@ class Results(FreeRunning):
             for _, msg, rel in link.pending:
                 for i, k in zip(*np.unique(msg[rel < self.duration], return_counts=True)):
                     n[i] += int(k) * self.downstream[(int(i), link.index)]
-            for _, _, i, r in link.waiting:
+            for _, r, i, _ in link.waiting:
                 if r < self.duration:
                     n[i] += self.downstream[(i, link.index)]
         for i in range(len(self.messages)):
