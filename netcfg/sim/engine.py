@@ -9,6 +9,7 @@ exactly that instant joins it.
 
 from __future__ import annotations
 
+import hashlib
 import heapq
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,7 +29,8 @@ NEVER = 1 << 62  # an instant after every run
 class Simulator:
     def __init__(self, seed: int = 0) -> None:
         self.now = 0
-        self.rng = np.random.default_rng(seed)
+        self.seed = seed
+        self.rng = np.random.default_rng(seed)  # the sources not given a generator of their own (see random())
         self._queue: list[tuple[int, int, int, Callable[..., Any], Any]] = []
         self._seq = count()
         self.until = 0  # the end of the current run_until: loops that batch work must not pass it
@@ -38,6 +40,15 @@ class Simulator:
         """Call fn(arg) at virtual time t (never before now)."""
         now = self.now
         heapq.heappush(self._queue, (t if t > now else now, priority, next(self._seq), fn, arg))
+
+    def random(self, source: str) -> np.random.Generator:
+        """The generator of one random source (a task's execution times, a node's clock, ...), seeded from the
+        run's seed and the source's name: its draws do not depend on when other sources draw, so a computation
+        that takes a source's draws all at once gets the same numbers as one taking them event by event, and a
+        change to one task of a spec leaves every other source's draws as they were."""
+        key = hashlib.sha256(source.encode()).digest()
+        words = tuple(int.from_bytes(key[i : i + 4], "little") for i in range(0, 16, 4))
+        return np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=words))
 
     def run_until(self, t_end: int, stop: Callable[[], object] | None = None) -> None:
         """Run every event before t_end (or until stop() turns true after an event); then now = t_end."""

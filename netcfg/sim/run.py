@@ -36,6 +36,10 @@ class SimRun(Protocol):
 
     def alive(self, node: str) -> bool: ...
 
+    def random(self, source: str) -> np.random.Generator:
+        """The generator of one random source, seeded from the run's seed and the source's name (Simulator.random)."""
+        ...
+
     def submit(self, message: str, data: bytes | None = None) -> None:
         """A reactive sender queues a frame now."""
 
@@ -45,7 +49,7 @@ class SimRun(Protocol):
         """Activate a task now (or at `start`)."""
 
     def exec_ns(self, task: Task) -> int:
-        """An execution time of the task, drawn between its BCET and WCET."""
+        """An execution time of the task, drawn between its BCET and WCET from the task's own generator."""
         ...
 
     def task_ran(self, task: Task, start: int, end: int) -> None:

@@ -11,6 +11,10 @@ for a real master too. What runs:
   runs as plain, unsynchronised CAN instead, from the same configuration;
 * tasks that flows mention run when they are activated (period, trigger, SYNC or message), for a time drawn
   between BCET and WCET, and the flows are measured as data age (netcfg.sim.flows).
+
+Random draws: node clocks, each task's execution times and the Ethernet networks' jitter and receive processing
+each come from a generator of their own, seeded from the run's seed and the source's name (Simulator.random); the
+CAN buses' draws (jitter, payloads, bit errors, the drives' delays) share the run's generator, Scenario.rng.
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
 from netcfg.sim.can_bus import CanBus
@@ -73,6 +79,7 @@ class _TaskPlan:
     sends: tuple[tuple[str, int], ...]  # (message, its minimum inter-arrival time if sporadic, else 0)
     runs: list[tuple[int, int]]  # Scenario.task_runs of the task
     trackers: tuple[FlowTracker, ...]
+    draw: Callable[[], float]  # the next uniform draw of the task's own generator (Scenario.exec_draws)
 
 
 class Scenario:
@@ -92,6 +99,7 @@ class Scenario:
         self.sends: dict[str, list[str]] = {}  # task -> messages it sends as it finishes
         self._last_send: dict[str, int] = {}  # sporadic message -> when its task last sent it
         self._plans: dict[int, _TaskPlan] = {}  # id(task) -> what its activations do (run_task)
+        self._exec_draws: dict[str, np.random.Generator] = {}  # task -> the generator of its execution times
         self._on_trigger: dict[str, list[Task]] = {}  # trigger -> the tasks it activates that a flow follows
         self._on_sync: dict[str, list[Task]] = {}  # bus -> the same for its SYNC
         # node clocks: a random phase within the node's shortest period (within a longer one, a node with an hourly
@@ -103,8 +111,9 @@ class Scenario:
             periods = [m.interval_ns or 0 for m in cfg.messages if m.producer == node.name]
             periods += [t.period_ns or 0 for t in node.tasks]
             span = min((p for p in periods if p > 0), default=0)
-            phase = int(rng.integers(0, span)) if span > 0 and opts.random_phase else 0
-            drift = int(rng.uniform(-opts.drift_ppm, opts.drift_ppm) * 1000)
+            draw = self.random(f"clock {node.name}")
+            phase = int(draw.integers(0, span)) if span > 0 and opts.random_phase else 0
+            drift = int(draw.uniform(-opts.drift_ppm, opts.drift_ppm) * 1000)
             if node.name in masters and opts.mode != "unsync":
                 phase, drift = 0, 0  # the master's first cycle starts the run
             self.clock[node.name] = NodeClock(phase, drift)
@@ -161,10 +170,22 @@ class Scenario:
     def _wanted(self, task: Task) -> bool:
         return task.ref in self._flow_refs
 
+    def random(self, source: str) -> np.random.Generator:
+        return self.sim.random(source)
+
+    def exec_draws(self, ref: str) -> np.random.Generator:
+        """The generator of a task's execution times: BCET + floor(u * (WCET - BCET + 1)) for its k-th uniform draw
+        u is its k-th activation's (one draw per activation, none for a fixed time; run_task, exec_ns)."""
+        draws = self._exec_draws.get(ref)
+        if draws is None:
+            draws = self._exec_draws[ref] = self.random(f"task {ref}")
+        return draws
+
     def exec_ns(self, task: Task) -> int:
         if task.wcet_ns <= task.bcet_ns:
             return task.wcet_ns
-        return int(self.rng.integers(task.bcet_ns, task.wcet_ns + 1))
+        lo, hi = task.bcet_ns, task.wcet_ns
+        return lo + int(self.exec_draws(task.ref).random() * (hi - lo + 1))
 
     def _plan(self, task: Task) -> _TaskPlan:
         """What every activation of the task does, looked up once (the run's sends and flows are complete by its
@@ -177,7 +198,7 @@ class Scenario:
             sends.append((name, m.interval_ns if m.kind == "sporadic" and m.interval_ns else 0))
         plan = _TaskPlan(
             ref, task.node, task.bcet_ns, task.wcet_ns, tx, tuple(sends),
-            self.task_runs.setdefault(ref, []), tuple(self._flow_refs.get(ref, ())),
+            self.task_runs.setdefault(ref, []), tuple(self._flow_refs.get(ref, ())), self.exec_draws(ref).random,
         )
         self._plans[id(task)] = plan
         return plan
@@ -195,7 +216,7 @@ class Scenario:
                 self.drop(name)  # what the task would have sent is lost with it
             return
         lo, hi = plan.bcet, plan.wcet
-        end = t + (hi if hi <= lo else int(self.rng.integers(lo, hi + 1)))  # exec_ns, inline
+        end = t + (hi if hi <= lo else lo + int(plan.draw() * (hi - lo + 1)))  # exec_ns, inline
         plan.runs.append((t, end))
         for tr in plan.trackers:
             tr.task_started(plan.ref, t, end)

@@ -37,7 +37,8 @@ class Results(FreeRunning):
         if not len(t):
             return
         lo, hi = server.bcet[msg], server.wcet[msg]
-        s = lo + (self.sc.rng.random(len(t)) * (hi - lo + 1)).astype(_I64)
+        draws = self.sc.random(f"processing {self.bus.name} {server.node}")
+        s = lo + (draws.random(len(t)) * (hi - lo + 1)).astype(_I64)
         cum = np.cumsum(s)
         end = cum + np.maximum.accumulate(t - (cum - s))
         d = self.duration

@@ -179,7 +179,7 @@ class Topology:
                     drifts_ppb=[c.drift_ppb for c in clocks],
                     jitters=[m.jitter_ns for m in msgs],
                     until=[self.sc.crash_at.get(m.producer, NEVER) for m in msgs],
-                    rng=self.sc.rng,
+                    rng=self.sc.random(f"jitter {self.bus.name}"),
                 )
             )
         self._free = free  # message indices, ascending
