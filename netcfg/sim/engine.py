@@ -50,6 +50,11 @@ class Simulator:
         words = tuple(int.from_bytes(key[i : i + 4], "little") for i in range(0, 16, 4))
         return np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=words))
 
+    def skip_to(self, t: int) -> None:
+        """Drop every queued event and set now = t: the run up to t was computed another way (netcfg.sim.whole_run)."""
+        self._queue.clear()
+        self.now = max(self.now, t)
+
     def run_until(self, t_end: int, stop: Callable[[], object] | None = None) -> None:
         """Run every event before t_end (or until stop() turns true after an event); then now = t_end."""
         queue = self._queue

@@ -11,8 +11,10 @@ stamp overwritten before it is used is not a sample, as in the analysis.
 from __future__ import annotations
 
 from bisect import bisect_right
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from netcfg.runtime import Flow, RuntimeConfig
 
@@ -135,6 +137,81 @@ class FlowTracker:
                 self.latency.reach(name, stamp, end)
             if delivery and self.delivery is not None:
                 self.delivery.reach(name, stamp, end)
+
+
+class Undecided(Exception):
+    """Computing whole streams at once (netcfg.sim.whole_run) met a case whose result the order of two events at
+    one instant decides, or the event path's bounded history: the run goes event by event instead."""
+
+
+@dataclass
+class Stream:
+    """One flow item's activity over a whole run, in the order the event path sees it: a task's activations
+    (start, end) or a message's listened deliveries (release, end, in delivery order). `on_delivery_of`: the
+    message whose delivery starts the task (it reads that delivery at once), None for a periodic task."""
+
+    task: bool
+    first: np.ndarray  # start or release
+    end: np.ndarray
+    on_delivery_of: str | None = None
+
+
+def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None:
+    """The tracker's samples from whole streams: what task_started() and message_delivered(), called event by
+    event, would record, for flows whose every step has one item that appears once (whole_run.covers checks).
+
+    Data age as in the event path: a step's item holds (available at, stamp) records in the order they are added;
+    a reader takes the last record available by its instant (a task at its start, a message at its release).
+    Where that depends on which of two events at one instant comes first, or on records the event path has
+    already forgotten (HISTORY), this raises Undecided."""
+    steps = tracker.steps
+    last = len(steps) - 1
+    times = stamps = added = np.empty(0, dtype=np.int64)  # the previous step's item: records in add order
+    prev_ref = ""
+    for i, step in enumerate(steps):
+        ref = step.refs[0]
+        s = streams[ref]
+        when = s.first  # the instant each call reads at
+        at_event = s.first if s.task else s.end  # the instant each call happens
+        if i == 0:
+            stamp = s.first
+        else:
+            j = np.searchsorted(times, when, side="right") - 1
+            ok = j >= 0
+            found = np.where(ok, j, 0)
+            if s.task and len(times):  # a record available at the very instant the task starts
+                tie = ok & (times[found] == when) & (added[found] == at_event)
+                own = steps[i - 1].kind == "message" and (s.on_delivery_of in (None, prev_ref))
+                if tie.any() and not own:
+                    raise Undecided(f"flow '{tracker.name}': {ref} starts as {prev_ref} is added")
+            seen = np.searchsorted(added, at_event, side="right")  # records added by then, at most
+            if (ok & (seen > 2 * HISTORY) & (found < seen - HISTORY - 1)).any():
+                raise Undecided(f"flow '{tracker.name}': {ref} reads further back than the event path keeps")
+            stamp = stamps[found][ok]
+            when, at_event, end = when[ok], at_event[ok], s.end[ok]
+            s = Stream(s.task, s.first[ok], end, s.on_delivery_of)
+        if s.task:
+            if i == last:
+                tracker.latency.samples = _reached(tracker.latency.done, stamp, s.first)
+                return
+            times, stamps, added = s.end, stamp, s.first
+            if len(times) > 1 and (times[1:] < times[:-1]).any():
+                raise Undecided(f"flow '{tracker.name}': {ref} ends out of order")
+        else:
+            times, stamps, added = s.end, stamp, s.end
+            if i == last:
+                tracker.latency.samples = _reached(tracker.latency.done, stamp, s.end)
+                return
+            if i == tracker.delivery_step and tracker.delivery is not None:
+                tracker.delivery.samples = _reached(tracker.delivery.done, stamp, s.end)
+        prev_ref = ref
+
+
+def _reached(done: int, stamp: np.ndarray, t: np.ndarray) -> list[int]:
+    """_End.reach for one item over a whole stream: a stamp counts when it is newer than every earlier one."""
+    newest = np.maximum.accumulate(np.concatenate([[done], stamp]))[:-1]
+    counts = stamp > newest
+    return (t[counts] - stamp[counts]).tolist()
 
 
 def _oldest(reads: tuple[_Item, ...], t: int) -> int | None:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
+from netcfg.sim import whole_run
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, TASKS, NodeClock, Simulator
 from netcfg.sim.faults import Fault
@@ -67,6 +68,8 @@ class SimOptions:
     # node the (BCET, WCET) of consuming one frame (None: the node's on_message task for that message, if any)
     eth_queue_frames: int | None = None
     eth_processing_ns: Mapping[str, tuple[int, int]] | None = None
+    # compute the run's streams at once where netcfg.sim.whole_run covers it (the same results as event by event)
+    whole_run: bool = True
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,10 @@ class Scenario:
     def __init__(self, cfg: RuntimeConfig, opts: SimOptions) -> None:
         self.cfg = cfg
         self.opts = opts
+        self._build()
+
+    def _build(self) -> None:
+        cfg, opts = self.cfg, self.opts
         self.sim = Simulator(opts.seed)
         rng = self.sim.rng
         self.rng = rng
@@ -366,9 +373,11 @@ class Scenario:
         return deliver
 
     # -- tasks ------------------------------------------------------------------------------------------
-    def _start_free_running_tasks(self) -> None:
-        """Periodic tasks on their node's clock; in unsynchronised mode, triggered and SYNC tasks too, at their
-        trigger's or SYNC's period (the alternative the analysis also reports)."""
+    def free_running_tasks(self) -> list[tuple[Task, NodeClock, int]]:
+        """(task, its node's clock, period) of the tasks that run on their node's clock: periodic ones; in
+        unsynchronised mode, triggered and SYNC tasks too, at their trigger's or SYNC's period (the alternative
+        the analysis also reports)."""
+        out = []
         for node in self.cfg.nodes:
             clock = self.clock[node.name]
             for task in node.tasks:
@@ -382,9 +391,13 @@ class Scenario:
                 elif task.sync_bus is not None:
                     bus = self.cfg.bus(task.sync_bus)
                     period = bus.canopen.sync_period_ns if bus.canopen else period
-                if not period:
-                    continue
-                self._periodic_task(task, clock, period)
+                if period:
+                    out.append((task, clock, period))
+        return out
+
+    def _start_free_running_tasks(self) -> None:
+        for task, clock, period in self.free_running_tasks():
+            self._periodic_task(task, clock, period)
 
     def _periodic_task(self, task: Task, clock: NodeClock, period: int) -> None:
         k = 0
@@ -408,6 +421,12 @@ class Scenario:
                 start()
 
     def run(self) -> None:
+        if self.opts.whole_run and whole_run.covers(self):
+            try:
+                whole_run.run(self)
+                return
+            except whole_run.Undecided:  # rare: a tie only the order of events decides; the event path from 0
+                self._build()
         self.start()
         live: list[Any] = [d for d in self.protocols.values() if getattr(d, "live", False)]
         if len(live) == 1:  # the master's loop advances the whole simulation as it waits

@@ -36,6 +36,35 @@ class FreeRunning(EventLinks):
         if t1 < self.duration:
             self.sim.at(t1, self._chunk, t1)
 
+    # -- the whole run at once (netcfg.sim.whole_run) ------------------------------------------------------------
+    def whole_run_begin(self) -> None:
+        """Every link is computed as a free-running one, over the whole run, when whole_run_link() says (after all
+        that feeds it); listened deliveries are kept in self.heard instead of becoming events."""
+        for link in self.order:
+            link.event = False
+        self.free_order, self.event_order = list(self.order), []
+        self.heard = {}
+        if self._jitter_max:  # a chunk at a time, so the jitter draws come in the event path's order
+            for t0 in range(0, self.duration, CHUNK_NS):
+                self._release(t0, min(t0 + CHUNK_NS, self.duration))
+        else:
+            self._release(0, self.duration)
+
+    def whole_run_send(self, i: int, at: np.ndarray) -> None:
+        """Frames of chained message i handed to its producer's NIC at these instants (submit(), all at once)."""
+        link = self.first.get(i)
+        if link is None or not len(at):
+            return  # a message nobody else consumes goes nowhere
+        self.sent[i] += len(at)
+        self._enqueue(link, at, np.full(len(at), i, dtype=_I64), at - self._tx_ns[i])
+
+    def whole_run_link(self, link: Link) -> None:
+        """Serve every frame reaching the link within the run (all of them are known by now)."""
+        batch = take(link.pending, self.duration)
+        if batch is not None:
+            self._transmit(link, *batch)
+        link.served = self._known = self.duration - 1
+
     def _release(self, t0: int, t1: int) -> None:
         """Free-running releases whose nominal instant falls in [t0, t1), message by message, to their first links
         tx_delay later (Tpre)."""
@@ -182,7 +211,10 @@ class FreeRunning(EventLinks):
             self._proc_rel[i].append(rel)
             self._proc_end[i].append(end)
         listen = self.listeners.get((i, consumer))
-        if listen is not None:
+        if listen is not None and self.heard is not None:  # the whole run at once: kept for its tasks and flows
+            heard = end < self.duration
+            self.heard.setdefault((i, consumer), []).append((rel[heard], end[heard]))
+        elif listen is not None:
             name = self.messages[i].name
             at = self.sim.at
             for r, e in zip(rel.tolist(), end.tolist()):

@@ -70,6 +70,7 @@ class EthernetNetwork(Results):
         self._seq = 0
         self._wakes: list[int] = []  # instants of the wake-ups set
         self._finished = False
+        self.heard = None  # (message, consumer) -> its listened deliveries (release, end), in whole-run mode only
         self._build_routes_by_link()
         # chained message -> (first link or None, producer's crash, tx_delay, need at the first link or -1, links)
         self._chained_how: dict[int, tuple[Link | None, int, int, int, list[Link]]] = {}

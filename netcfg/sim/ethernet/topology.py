@@ -52,6 +52,7 @@ class Topology:
     _proc_rel1: list[list[int]]
     _proc_end1: list[list[int]]
     _known: int
+    heard: dict[tuple[int, str], list[tuple[np.ndarray, np.ndarray]]] | None  # whole-run mode: listened deliveries
     _seq: int
     _wakes: list[int]
     _finished: bool

@@ -1,0 +1,207 @@
+"""The whole run at once: a system of periodic tasks, switched Ethernet and flows, computed stream by stream.
+
+The event path (Scenario.run) takes one Python event per task activation and per frame someone listens to; a
+15 kHz control loop costs tens of thousands of them per simulated second. Where nothing feeds back, the same run
+is a handful of array computations, taken in dependency order:
+
+* a periodic task's activations are its node's clock at offset + k * period, its execution times one array
+  of its own generator's draws (Simulator.random: the same numbers the event path draws one at a time);
+* a message-activated task's activations are the listened deliveries of its message at its node;
+* the frames a task sends go to its NIC as it ends (+ tx_delay); each link serves, once everything that feeds
+  it is known, every frame of the run by Lindley's recursion (netcfg.sim.ethernet's free-running links);
+* each flow's samples follow from those streams (netcfg.sim.flows.measure_streams).
+
+What this covers (covers()): Ethernet buses only, no faults, flows whose steps have one item each, tasks that
+send no sporadic message, and an order among tasks and links in which each comes after all that feeds it (no
+feedback, such as a link carrying a frame sent because of an earlier frame on that link). Everything else runs
+event by event; so does a covered run that meets a tie only the order of two events at one instant decides
+(flows.Undecided), from the start. For the same seed both paths give identical results
+(tests/test_sim_whole_run.py).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from netcfg.sim.engine import PPB
+from netcfg.sim.flows import Stream, Undecided, measure_streams
+
+if TYPE_CHECKING:
+    from netcfg.runtime import Task
+    from netcfg.sim.ethernet import EthernetNetwork
+    from netcfg.sim.scenario import Scenario
+
+__all__ = ["Undecided", "covers", "run"]
+
+Job = tuple[str, Any]  # ("task", Task) or ("link", (its network, Link))
+
+
+def covers(sc: Scenario) -> bool:
+    return _plan(sc) is not None
+
+
+def _networks(sc: Scenario) -> list[EthernetNetwork] | None:
+    from netcfg.sim.ethernet import EthernetNetwork
+
+    nets = [d for d in sc.protocols.values() if isinstance(d, EthernetNetwork)]
+    if sc.can or len(nets) != len(sc.protocols):
+        return None
+    return nets
+
+
+def _plan(sc: Scenario) -> list[Job] | None:
+    """The tasks and links in an order where each comes after everything that feeds it; None if the run is not
+    covered."""
+    if sc.opts.faults:
+        return None
+    nets = _networks(sc)
+    if nets is None:
+        return None
+    for tr in sc.flows:
+        refs = [step.refs for step in tr.steps]
+        if any(len(r) != 1 for r in refs) or len({r[0] for r in refs}) != len(refs):
+            return None
+    tasks: dict[str, Task] = {task.ref: task for task, _, _ in sc.free_running_tasks()}
+    feeds: dict[int, list[int]] = {}  # job -> the jobs that need it first
+    jobs: list[Job] = []
+    ids: dict[object, int] = {}
+
+    def job(kind: str, what: object, key: object) -> int:
+        if key not in ids:
+            ids[key] = len(jobs)
+            jobs.append((kind, what))
+        return ids[key]
+
+    for net in nets:
+        for link in net.order:
+            job("link", (net, link), (id(net), link.index))
+        for (_, a), kids in net.children.items():
+            for kid in kids:
+                feeds.setdefault(ids[(id(net), a)], []).append(ids[(id(net), kid.index)])
+        for (i, consumer), (_, listening) in net.listeners.items():
+            for task in listening:
+                tasks[task.ref] = task
+                last = next(li for (mi, li), c in net.deliver_to.items() if mi == i and c == consumer)
+                feeds.setdefault(ids[(id(net), last)], []).append(job("task", task, task.ref))
+    for ref, task in tasks.items():
+        me = job("task", task, ref)
+        for name in sc.sends.get(ref, ()):
+            m = sc.cfg.message(name)
+            if m.kind == "sporadic" and m.interval_ns:
+                return None  # its minimum inter-arrival time skips sends one by one
+            owner = sc.eth_owner.get(name)
+            if owner is None:
+                return None
+            first = owner.first.get(owner.index[name])
+            if first is not None:
+                feeds.setdefault(me, []).append(ids[(id(owner), first.index)])
+    # Kahn's algorithm, in the order the jobs were found (deterministic)
+    needs = [0] * len(jobs)
+    for fed in feeds.values():
+        for k in fed:
+            needs[k] += 1
+    ready = [k for k in range(len(jobs)) if not needs[k]]
+    order: list[Job] = []
+    while ready:
+        k = ready.pop(0)
+        order.append(jobs[k])
+        for after in feeds.get(k, ()):
+            needs[after] -= 1
+            if not needs[after]:
+                ready.append(after)
+    return order if len(order) == len(jobs) else None  # a cycle: feedback
+
+
+def run(sc: Scenario) -> None:
+    """Compute the whole run into the scenario's records, as Scenario.run() would leave them."""
+    order = _plan(sc)
+    nets = _networks(sc)
+    assert order is not None and nets is not None
+    d = sc.opts.duration_ns
+    periodic = {task.ref: (clock, period) for task, clock, period in sc.free_running_tasks()}
+    activity: dict[str, Stream] = {}
+    for net in nets:
+        net.whole_run_begin()
+    for kind, what in order:
+        if kind == "link":
+            net, link = what
+            net.whole_run_link(link)
+            continue
+        task: Task = what
+        if task.ref in periodic:
+            clock, period = periodic[task.ref]
+            start = _activations(clock.phase_ns, clock.drift_ppb, task.offset_ns, period, d)
+        else:
+            start = _heard_by(sc, nets, task)
+        end = start + _exec_times(sc, task, len(start))
+        if len(start):
+            sc.task_runs.setdefault(task.ref, []).extend(zip(start.tolist(), end.tolist()))
+        activity[task.ref] = Stream(True, start, end, task.on_message)
+        send = end + sc.cfg.node(task.node).tx_delay_ns
+        send = send[send < d]
+        for name in sc.sends.get(task.ref, ()):
+            net = sc.eth_owner[name]
+            net.whole_run_send(net.index[name], send)
+    for tr in sc.flows:
+        streams = {}
+        for step in tr.steps:
+            ref = step.refs[0]
+            if step.kind == "task":
+                streams[ref] = activity.get(ref) or Stream(True, _EMPTY, _EMPTY)
+            else:
+                streams[ref] = _deliveries(nets, ref)
+        measure_streams(tr, streams)
+    sc.sim.skip_to(d)
+
+
+_EMPTY = np.empty(0, dtype=np.int64)
+
+
+def _activations(phase: int, drift_ppb: int, offset: int, period: int, until: int) -> np.ndarray:
+    """NodeClock.to_global(offset + k * period) for k = 0, 1, ... while before `until` (Scenario._periodic_task)."""
+    n = int((until - phase) / (period * (1 + drift_ppb / PPB))) + 2 if until > phase else 1
+    local = offset + np.arange(n, dtype=np.int64) * period
+    t = phase + local + local * drift_ppb // PPB
+    while len(t) and t[-1] < until:  # the estimate fell short (it never should by more than a step)
+        local = offset + np.arange(len(t), 2 * len(t) + 1, dtype=np.int64) * period
+        t = np.concatenate([t, phase + local + local * drift_ppb // PPB])
+    return t[t < until]
+
+
+def _exec_times(sc: Scenario, task: Task, n: int) -> np.ndarray:
+    """n execution times, as Scenario.run_task draws them one activation at a time."""
+    lo, hi = task.bcet_ns, task.wcet_ns
+    if hi <= lo:
+        return np.full(n, hi, dtype=np.int64)
+    return lo + (sc.exec_draws(task.ref).random(n) * (hi - lo + 1)).astype(np.int64)
+
+
+def _heard_by(sc: Scenario, nets: list[EthernetNetwork], task: Task) -> np.ndarray:
+    """A message-activated task's activations: its message's listened deliveries at its node."""
+    name = task.on_message
+    for net in nets:
+        if name in net.index and net.heard is not None:
+            parts = net.heard.get((net.index[name], task.node), [])
+            return np.concatenate([e for _, e in parts]) if parts else _EMPTY
+    return _EMPTY
+
+
+def _deliveries(nets: list[EthernetNetwork], name: str) -> Stream:
+    """A message's listened deliveries at every consumer, in the order they happen."""
+    for net in nets:
+        if name in net.index and net.heard is not None:
+            i = net.index[name]
+            parts = [p for (mi, _), ps in net.heard.items() if mi == i for p in ps]
+            if not parts:
+                break
+            rel = np.concatenate([r for r, _ in parts])
+            end = np.concatenate([e for _, e in parts])
+            order = np.argsort(end, kind="stable")
+            rel, end = rel[order], end[order]
+            same = np.flatnonzero(end[1:] == end[:-1])
+            if len(same) and (rel[same] != rel[same + 1]).any():
+                raise Undecided(f"message '{name}': two consumers receive different frames at one instant")
+            return Stream(False, rel, end)
+    return Stream(False, _EMPTY, _EMPTY)

@@ -1,0 +1,136 @@
+"""The whole-run path (netcfg.sim.whole_run) gives, for the same seed, exactly what the event path gives, on every
+system it covers: every frame's release and delivery, every flow sample, the counters, the per-link and
+per-receiver reports and the task runs. The event path is the reference (SimOptions(whole_run=False)); nothing
+here is a recorded figure, both paths run afresh on each case.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import ROOT
+from hypothesis import HealthCheck, given, settings
+
+import netcfg.runtime as rt
+from netcfg.runtime.config import FlowStep
+from netcfg.sim import flows, whole_run
+from netcfg.sim.faults import Fault
+from netcfg.sim.flows import Stream, Undecided, measure_streams
+from netcfg.sim.montecarlo import run_once
+from netcfg.sim.results import RunResult, summary
+from netcfg.sim.scenario import Scenario, SimOptions
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import soundness
+
+MS = 1_000_000
+
+
+def generated(system: str) -> rt.RuntimeConfig:
+    return rt.load(ROOT / "generated" / system / "runtime.json")
+
+
+def both(cfg: rt.RuntimeConfig, opts: SimOptions) -> tuple[tuple[Scenario, RunResult], tuple[Scenario, RunResult]]:
+    return run_once(cfg, opts), run_once(cfg, replace(opts, whole_run=False))
+
+
+def assert_identical(a: tuple[Scenario, RunResult], b: tuple[Scenario, RunResult]) -> None:
+    (sa, ra), (sb, rb) = a, b
+    for table in ("response", "flow_latency", "flow_delivery"):
+        x, y = getattr(ra, table), getattr(rb, table)
+        assert sorted(x) == sorted(y), table
+        for name in x:
+            assert np.array_equal(x[name], y[name]), f"{table} of {name}"
+    assert (ra.frames, ra.sent, ra.lost) == (rb.frames, rb.sent, rb.lost)
+    assert json.dumps(ra.protocols, sort_keys=True) == json.dumps(rb.protocols, sort_keys=True)
+    assert sa.task_runs == sb.task_runs
+    doc_a, doc_b = summary(ra), summary(rb)
+    doc_a.pop("speed"), doc_b.pop("speed")  # wall-clock figures
+    assert doc_a == doc_b
+
+
+@pytest.mark.parametrize(
+    ("system", "options"),
+    [
+        ("ntua_sahr", {"seed": 1}),
+        ("ntua_sahr", {"seed": 2, "duration_ns": 2000 * MS}),
+        ("ntua_treadmill", {"seed": 3}),
+        # every clock at 0 without drift: the 15 kHz encoders of both boards reach the PC's port on the same
+        # nanoseconds, so ties between free-running and chained frames decide the order
+        ("ntua_sahr", {"seed": 4, "random_phase": False, "drift_ppm": 0.0}),
+        # one frame per port: tail drops on the PC's port (the frame-by-frame twin of Lindley's recursion)
+        ("ntua_sahr", {"seed": 5, "eth_queue_frames": 1}),
+        ("ntua_sahr", {"seed": 6, "eth_processing_ns": {"pc": (2_000, 30_000), "mcu_hip": (1_000, 4_000)}}),
+    ],
+)
+def test_seed_systems_identical_both_ways(system: str, options: dict[str, Any]) -> None:
+    cfg = generated(system)
+    opts = SimOptions(**{"duration_ns": 1000 * MS, **options})
+    assert whole_run.covers(Scenario(cfg, opts))
+    a, b = both(cfg, opts)
+    assert_identical(a, b)
+    if options.get("eth_queue_frames") == 1:
+        assert sum(b[1].lost.values()) > 0, "the case is meant to drop frames"
+
+
+def test_random_ethernet_specs_identical_both_ways() -> None:
+    """benchmarks/soundness.py's random switched networks (1-3 switches, jitter, flows with periodic and
+    message-driven consumers), at random phases and at the critical instant."""
+    covered = []
+
+    @settings(max_examples=12, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+    @given(soundness.STRATEGIES["ethernet-udp"])
+    def run(spec: dict[str, Any]) -> None:
+        path = soundness._spec_path()
+        path.write_text(soundness._dump(spec), encoding="utf-8")
+        model, report = soundness.analyse_spec(path)
+        if model is None or report["errors"]:
+            return
+        cfg = rt.parse(json.loads(json.dumps(soundness.runtime_document(model, report))), "random")
+        for opts in (
+            SimOptions(duration_ns=150 * MS, seed=len(covered)),
+            SimOptions(duration_ns=150 * MS, seed=len(covered), random_phase=False, drift_ppm=0.0),
+        ):
+            if whole_run.covers(Scenario(cfg, opts)):
+                covered.append(spec["system"])
+                assert_identical(*both(cfg, opts))
+
+    run()
+    assert covered, "no random spec was covered: the test no longer compares anything"
+
+
+def test_what_the_whole_run_does_not_cover_runs_event_by_event() -> None:
+    sahr = generated("ntua_sahr")
+    assert not whole_run.covers(Scenario(sahr, SimOptions(faults=(Fault.parse("lose:hip_pwm@20ms"),))))
+    assert not whole_run.covers(Scenario(generated("cambada"), SimOptions()))  # CAN: its own paths
+
+
+def test_a_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = generated("ntua_sahr")
+    opts = SimOptions(duration_ns=300 * MS, seed=8)
+    reference = run_once(cfg, replace(opts, whole_run=False))
+
+    def undecided(*_: object) -> None:
+        raise Undecided("forced")
+
+    monkeypatch.setattr(whole_run, "measure_streams", undecided)
+    assert_identical(run_once(cfg, opts), reference)
+
+
+def test_a_task_starting_as_the_data_it_reads_is_written_is_undecided() -> None:
+    """Two periodic tasks on one node chained in a flow, the first with no execution time, both starting at 1 ms:
+    which reads what depends on which event was queued first, so the stream computation declines."""
+    cfg = generated("ntua_sahr")
+    steps = (FlowStep(kind="task", refs=("a.first",)), FlowStep(kind="task", refs=("a.second",)))
+    tracker = flows.FlowTracker(cfg, replace(cfg.flows[0], steps=steps))
+    at = np.array([1 * MS], dtype=np.int64)
+    with pytest.raises(Undecided):
+        measure_streams(tracker, {"a.first": Stream(True, at, at), "a.second": Stream(True, at, at + 5)})
+    later = at + 1  # a nanosecond later it reads the first task's output, one sample of 1 ns
+    measure_streams(tracker, {"a.first": Stream(True, at, at), "a.second": Stream(True, later, later + 5)})
+    assert tracker.latency.samples == [1]
