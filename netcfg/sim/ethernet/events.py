@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from heapq import heappop, heappush
 
-from netcfg.sim.engine import LATE, NEVER
+from netcfg.sim.engine import LATE
 from netcfg.sim.ethernet.links import Link, Listen
 from netcfg.sim.ethernet.topology import Topology
 
@@ -53,11 +53,12 @@ class EventLinks(Topology):
         now = self.sim.now
         # a NIC has every frame arriving before now: more may still be submitted at this very instant
         nic = now - 1 if now - 1 < self._known else self._known
+        last = self.duration - 1
         for link in links:
             if link.takes_chained:
                 k = nic
             else:
-                k = NEVER
+                k = last  # a frame reaching a port after the run's end is not served within it
                 for feeder, slack in link.feeders:
                     v = feeder.served + slack
                     if v < k:
