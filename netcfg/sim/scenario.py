@@ -102,7 +102,8 @@ class Scenario:
         self.crash_at: dict[str, int] = {f.target: f.at_ns for f in opts.faults if f.kind == "crash" and f.target}
         self.lost: dict[str, int] = {}  # message -> instances that never made it (scripted loss, crash)
         self.protocols: dict[str, object] = {}  # bus -> its protocol driver (FTT master, CANopen master, network)
-        self.task_runs: dict[str, list[tuple[int, int]]] = {}
+        self._task_runs: dict[str, list[tuple[int, int]]] = {}  # task -> (start, end) of each run, event by event
+        self.task_arrays: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # the same computed whole (whole_run)
         self.sends: dict[str, list[str]] = {}  # task -> messages it sends as it finishes
         self._last_send: dict[str, int] = {}  # sporadic message -> when its task last sent it
         self._plans: dict[int, _TaskPlan] = {}  # id(task) -> what its activations do (run_task)
@@ -155,6 +156,14 @@ class Scenario:
                 src, start, stop = can.babble
                 can.babble = (src, start, min(stop, self.crash_at.get(can.sources[src].producer, NEVER)))
 
+    @property
+    def task_runs(self) -> dict[str, list[tuple[int, int]]]:
+        """Task -> (start, end) of each of its runs, in activation order (of the tasks a flow follows)."""
+        for ref, (start, end) in self.task_arrays.items():  # lists only when asked: 15 kHz tasks make millions
+            self._task_runs.setdefault(ref, []).extend(zip(start.tolist(), end.tolist()))
+        self.task_arrays.clear()
+        return self._task_runs
+
     def _warm_up(self, flow: Flow) -> int:
         """Flows are measured once every node they involve has started (its clock's phase): data that met a
         consumer not yet running would show a start-up delay no steady state has."""
@@ -205,7 +214,7 @@ class Scenario:
             sends.append((name, m.interval_ns if m.kind == "sporadic" and m.interval_ns else 0))
         plan = _TaskPlan(
             ref, task.node, task.bcet_ns, task.wcet_ns, tx, tuple(sends),
-            self.task_runs.setdefault(ref, []), tuple(self._flow_refs.get(ref, ())), self.exec_draws(ref).random,
+            self._task_runs.setdefault(ref, []), tuple(self._flow_refs.get(ref, ())), self.exec_draws(ref).random,
         )
         self._plans[id(task)] = plan
         return plan
@@ -243,7 +252,7 @@ class Scenario:
         """A task that code outside the simulator ran (the live CANopen master's computation), for its flows."""
         if not self._wanted(task):
             return
-        self.task_runs.setdefault(task.ref, []).append((start, end))
+        self._task_runs.setdefault(task.ref, []).append((start, end))
         for tr in self._flow_refs.get(task.ref, ()):
             tr.task_started(task.ref, start, end)
 

@@ -137,7 +137,7 @@ def run(sc: Scenario) -> None:
             start = _heard_by(sc, nets, task)
         end = start + _exec_times(sc, task, len(start))
         if len(start):
-            sc.task_runs.setdefault(task.ref, []).extend(zip(start.tolist(), end.tolist()))
+            sc.task_arrays[task.ref] = (start, end)
         activity[task.ref] = Stream(True, start, end, task.on_message)
         send = end + sc.cfg.node(task.node).tx_delay_ns
         send = send[send < d]

@@ -129,10 +129,15 @@ class FreeRunning(EventLinks):
         keep = len(t)
         if link.crash_ns < NEVER:  # a suffix: start times only grow
             keep = int(np.searchsorted(end - c, link.crash_ns, side="left"))
-        # frames at the port when frame i arrives: earlier ones of this batch and of earlier ones not yet sent
-        held = len(link.tail) - np.searchsorted(link.tail, t[:keep], side="right")
-        queue = np.arange(keep) - np.searchsorted(end[:keep], t[:keep], side="right") + held
-        if keep and int(queue.max()) >= self.queue_frames:
+        # frames at the port when frame i arrives: earlier ones of this batch and of earlier ones not yet sent;
+        # none for a frame that starts as it arrives, so only the frames that wait are counted
+        waits = np.flatnonzero(end[:keep] - c[:keep] > t[:keep])
+        queue = 0
+        if len(waits):
+            tw = t[waits]
+            held = len(link.tail) - np.searchsorted(link.tail, tw, side="right")
+            queue = int((waits - np.searchsorted(end[:keep], tw, side="right") + held).max())
+        if keep and queue >= self.queue_frames:
             ok, end = self._transmit_lossy(link, t, c)
             gone = np.ones(len(t), dtype=bool)
             gone[ok] = False
@@ -143,11 +148,11 @@ class FreeRunning(EventLinks):
                 self._count_lost(link, msg[keep:])
             msg, rel, end, c = msg[:keep], rel[:keep], end[:keep], c[:keep]
             if keep:
-                link.max_queue = max(link.max_queue, int(queue.max()) + 1)
+                link.max_queue = max(link.max_queue, queue + 1)
         if not len(end):
             return
         link.busy_until = int(end[-1])
-        link.tail = np.concatenate([link.tail, end])[-self.queue_frames :]
+        link.tail = np.concatenate([link.tail, end[-self.queue_frames :]])[-self.queue_frames :]
         start = end - c
         d = self.duration
         link.frames += int((start < d).sum())
@@ -187,9 +192,13 @@ class FreeRunning(EventLinks):
 
     def _forward(self, link: Link, recv: np.ndarray, msg: np.ndarray, rel: np.ndarray) -> None:
         """Frames completely received at the link's far end: on to the next links, or delivered."""
-        for i in np.unique(msg).tolist():
-            sel = msg == i
-            r, e, mm = rel[sel], recv[sel], msg[sel]
+        present = np.flatnonzero(np.bincount(msg)).tolist()
+        for i in present:
+            if len(present) == 1:
+                r, e, mm = rel, recv, msg
+            else:
+                sel = msg == i
+                r, e, mm = rel[sel], recv[sel], msg[sel]
             for child in self.children.get((i, link.index), ()):
                 self._enqueue(child, e + link.latency_ns, mm, r)
             consumer = self.deliver_to.get((i, link.index))

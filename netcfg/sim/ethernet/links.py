@@ -92,8 +92,9 @@ def take(pending: list[Batch], horizon: int) -> Batch | None:
         t = np.concatenate([b[0] for b in pending])
         msg = np.concatenate([b[1] for b in pending])
         rel = np.concatenate([b[2] for b in pending])
-    order = np.argsort(t, kind="stable")
-    t, msg, rel = t[order], msg[order], rel[order]
+    if len(pending) > 1 or (t[1:] < t[:-1]).any():  # one batch is mostly in order already
+        order = np.argsort(t, kind="stable")
+        t, msg, rel = t[order], msg[order], rel[order]
     tied = np.flatnonzero(t[1:] == t[:-1])
     if len(tied):  # rare (two senders' frames on the same nanosecond): just those, by release, then message
         at = np.unique(np.concatenate([tied, tied + 1]))
