@@ -9,7 +9,7 @@ import secrets
 import sys
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from netcfg import runtime
 from netcfg.outputs import TMP_TAG
@@ -17,9 +17,11 @@ from netcfg.sim.faults import Fault, FaultError
 from netcfg.sim.montecarlo import progress_bar, run_batch, run_once
 from netcfg.sim.results import histograms, log_check, outside_error_assumption, summary, text
 from netcfg.sim.scenario import SimOptions
-from netcfg.sim.trace import SUPPORTED_SUFFIXES, TraceFrame, write_trace
 from netcfg.spec.units import format_ns, parse_duration_option
 from netcfg.timing.frames import CANFD_PADDING, can_frame_bits, canfd_frame_bits, canfd_padded_size
+
+if TYPE_CHECKING:
+    from netcfg.sim.trace import TraceFrame
 
 MAX_DRIFT_PPM = 100_000.0  # 10 %: beyond any clock; the arithmetic stays meaningful below it
 # The work one run may take, in events (message releases, task jobs, SYNCs, FTT-CAN elementary cycles), estimated
@@ -161,6 +163,8 @@ def simulate_command(args: argparse.Namespace) -> int:
     if args.seed < 0:
         print("netcfg: --seed must be 0 or more", file=sys.stderr)
         return 2
+    if args.log is not None:  # the trace's writers (python-can) are imported only for a trace
+        from netcfg.sim.trace import SUPPORTED_SUFFIXES
     if args.log is not None and args.log.suffix not in SUPPORTED_SUFFIXES:
         print(f"netcfg: --log {args.log}: the trace formats are {', '.join(SUPPORTED_SUFFIXES)}", file=sys.stderr)
         return 2
@@ -252,6 +256,8 @@ def _write_atomically(path: Path, frames: list[TraceFrame]) -> None:
     # a name no user file has (netcfg's temporary tag and a random part); the suffix picks the trace format
     tmp = path.with_name(f".{path.name}{TMP_TAG}{secrets.token_hex(4)}{path.suffix}")
     try:
+        from netcfg.sim.trace import write_trace
+
         write_trace(frames, tmp)
         os.replace(tmp, path)
     finally:
@@ -260,6 +266,8 @@ def _write_atomically(path: Path, frames: list[TraceFrame]) -> None:
 
 def trace_frames(sc: Any) -> list[TraceFrame]:
     """Every frame of every CAN bus, in time order, with error frames where a bit error hit."""
+    from netcfg.sim.trace import TraceFrame
+
     out: list[TraceFrame] = []
     for name, bus in sc.can.items():
         rec = bus.record

@@ -21,12 +21,13 @@ from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import TYPE_CHECKING
 
-from netcfg import model
 from netcfg.timing import load
 from netcfg.timing.frames import udp_frame_bytes, udp_frame_ns
 
 if TYPE_CHECKING:
     import networkx as nx
+
+    from netcfg import model
 
 PROPAGATION_M_PER_S = 0.7 * 299_792_458  # velocity factor 0.7 (seed 001: 0.4-0.7, 2.1e8 m/s)
 Link = tuple[str, str]

@@ -9,10 +9,12 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
-from netcfg import model
 from netcfg.timing.frames import FdFrameBits, bits_to_ns, can_frame_bits, canfd_frame_bits, udp_message_bytes
+
+if TYPE_CHECKING:  # annotations only: the simulator reads runtime messages and needs no spec model
+    from netcfg import model
 
 
 @dataclass(frozen=True)
