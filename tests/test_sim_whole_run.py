@@ -134,3 +134,19 @@ def test_a_task_starting_as_the_data_it_reads_is_written_is_undecided() -> None:
     later = at + 1  # a nanosecond later it reads the first task's output, one sample of 1 ns
     measure_streams(tracker, {"a.first": Stream(True, at, at), "a.second": Stream(True, later, later + 5)})
     assert tracker.latency.samples == [1]
+
+
+def test_a_flow_whose_frames_are_all_dropped_has_no_samples() -> None:
+    """Every hip_encoder frame lost (a full port): the PID never reads a stamp, so nothing reaches the motor."""
+    cfg = generated("ntua_sahr")
+    tracker = flows.FlowTracker(cfg, cfg.flows[0])
+    at = np.arange(1, 6, dtype=np.int64) * MS
+    none = np.empty(0, dtype=np.int64)
+    measure_streams(tracker, {
+        "mcu_hip.sample": Stream(True, at, at + 5_000),
+        "hip_encoder": Stream(False, none, none),
+        "pc.pid": Stream(True, at + 100, at + 200),
+        "hip_pwm": Stream(False, at + 200, at + 300),
+        "mcu_hip.apply_pwm": Stream(True, at + 300, at + 400, "hip_pwm"),
+    })
+    assert tracker.latency.samples == []

@@ -187,7 +187,7 @@ def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None
             seen = np.searchsorted(added, at_event, side="right")  # records added by then, at most
             if (ok & (seen > 2 * HISTORY) & (found < seen - HISTORY - 1)).any():
                 raise Undecided(f"flow '{tracker.name}': {ref} reads further back than the event path keeps")
-            stamp = stamps[found][ok]
+            stamp = stamps[j[ok]]
             when, at_event, end = when[ok], at_event[ok], s.end[ok]
             s = Stream(s.task, s.first[ok], end, s.on_delivery_of)
         if s.task:
