@@ -115,35 +115,51 @@ def _plan(sc: Scenario) -> list[Job] | None:
 
 
 def run(sc: Scenario) -> None:
-    """Compute the whole run into the scenario's records, as Scenario.run() would leave them."""
+    """Compute the whole run into the scenario's records, as Scenario.run() would leave them: a window of
+    simulated time at a time (WINDOW_NS), every task and link in dependency order within it."""
     order = _plan(sc)
     nets = _networks(sc)
     assert order is not None and nets is not None
     d = sc.opts.duration_ns
-    periodic = {task.ref: (clock, period) for task, clock, period in sc.free_running_tasks()}
-    activity: dict[str, Stream] = {}
+    periodic = {  # task -> every activation of the run
+        t.ref: _activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d)
+        for t, clock, period in sc.free_running_tasks()
+    }
+    tasks: list[Task] = [what for kind, what in order if kind == "task"]
+    starts: dict[str, list[np.ndarray]] = {t.ref: [] for t in tasks}
+    ends: dict[str, list[np.ndarray]] = {t.ref: [] for t in tasks}
+    heard = {t.ref: _Heard() for t in tasks if t.ref not in periodic}
     for net in nets:
         net.whole_run_begin()
-    for kind, what in order:
-        if kind == "link":
-            net, link = what
-            net.whole_run_link(link)
-            continue
-        task: Task = what
-        if task.ref in periodic:
-            clock, period = periodic[task.ref]
-            start = _activations(clock.phase_ns, clock.drift_ppb, task.offset_ns, period, d)
-        else:
-            start = _heard_by(sc, nets, task)
-        end = start + _exec_times(sc, task, len(start))
+    for w0 in range(0, d, WINDOW_NS):
+        w1 = min(w0 + WINDOW_NS, d)
+        for net in nets:
+            net.whole_run_release(w0, w1)
+        for kind, what in order:
+            if kind == "link":
+                net, link = what
+                net.whole_run_link(link, w1)
+                continue
+            task: Task = what
+            if task.ref in periodic:
+                every = periodic[task.ref]
+                start = every[np.searchsorted(every, w0) : np.searchsorted(every, w1)]
+            else:
+                start = heard[task.ref].before(w1, _heard_by(nets, task))
+            end = start + _exec_times(sc, task, len(start))
+            starts[task.ref].append(start)
+            ends[task.ref].append(end)
+            send = end + sc.cfg.node(task.node).tx_delay_ns
+            send = send[send < d]
+            for name in sc.sends.get(task.ref, ()):
+                net = sc.eth_owner[name]
+                net.whole_run_send(net.index[name], send)
+    activity: dict[str, Stream] = {}
+    for t in tasks:
+        start, end = np.concatenate(starts[t.ref]), np.concatenate(ends[t.ref])
         if len(start):
-            sc.task_arrays[task.ref] = (start, end)
-        activity[task.ref] = Stream(True, start, end, task.on_message)
-        send = end + sc.cfg.node(task.node).tx_delay_ns
-        send = send[send < d]
-        for name in sc.sends.get(task.ref, ()):
-            net = sc.eth_owner[name]
-            net.whole_run_send(net.index[name], send)
+            sc.task_arrays[t.ref] = (start, end)
+        activity[t.ref] = Stream(True, start, end, t.on_message)
     for tr in sc.flows:
         streams = {}
         for step in tr.steps:
@@ -154,6 +170,28 @@ def run(sc: Scenario) -> None:
                 streams[ref] = _deliveries(nets, ref)
         measure_streams(tr, streams)
     sc.sim.skip_to(d)
+
+
+WINDOW_NS = 1_000_000_000  # simulated time computed at once, so a long run's arrays stay small: computed whole,
+# 60 s of NTUA SAHR spent nearly as long in the kernel's page faults as computing. Any multiple of the Ethernet
+# chunk (ethernet.CHUNK_NS) gives the same results (jitter is drawn a chunk at a time)
+
+
+class _Heard:
+    """A message-activated task's activations, window by window: the deliveries heard so far not yet used."""
+
+    def __init__(self) -> None:
+        self.used = 0  # deliveries already taken (parts of the network's list, then elements of `left`)
+        self.left = _EMPTY
+
+    def before(self, t: int, parts: list[np.ndarray]) -> np.ndarray:
+        """The deliveries before t not taken yet, in order (each part of the list is in order, and so is the list)."""
+        new = parts[self.used :]
+        self.used = len(parts)
+        pool = np.concatenate([self.left, *new]) if new else self.left
+        k = int(np.searchsorted(pool, t))
+        self.left = pool[k:]
+        return pool[:k]
 
 
 _EMPTY = np.empty(0, dtype=np.int64)
@@ -178,14 +216,13 @@ def _exec_times(sc: Scenario, task: Task, n: int) -> np.ndarray:
     return lo + (sc.exec_draws(task.ref).random(n) * (hi - lo + 1)).astype(np.int64)
 
 
-def _heard_by(sc: Scenario, nets: list[EthernetNetwork], task: Task) -> np.ndarray:
-    """A message-activated task's activations: its message's listened deliveries at its node."""
+def _heard_by(nets: list[EthernetNetwork], task: Task) -> list[np.ndarray]:
+    """The delivery instants, part by part, of a message-activated task's message at its node."""
     name = task.on_message
     for net in nets:
         if name in net.index and net.heard is not None:
-            parts = net.heard.get((net.index[name], task.node), [])
-            return np.concatenate([e for _, e in parts]) if parts else _EMPTY
-    return _EMPTY
+            return [e for _, e in net.heard.get((net.index[name], task.node), [])]
+    return []
 
 
 def _deliveries(nets: list[EthernetNetwork], name: str) -> Stream:

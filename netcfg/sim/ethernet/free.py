@@ -38,17 +38,20 @@ class FreeRunning(EventLinks):
 
     # -- the whole run at once (netcfg.sim.whole_run) ------------------------------------------------------------
     def whole_run_begin(self) -> None:
-        """Every link is computed as a free-running one, over the whole run, when whole_run_link() says (after all
+        """Every link is computed as a free-running one, a window at a time, when whole_run_link() says (after all
         that feeds it); listened deliveries are kept in self.heard instead of becoming events."""
         for link in self.order:
             link.event = False
         self.free_order, self.event_order = list(self.order), []
         self.heard = {}
-        if self._jitter_max:  # a chunk at a time, so the jitter draws come in the event path's order
-            for t0 in range(0, self.duration, CHUNK_NS):
-                self._release(t0, min(t0 + CHUNK_NS, self.duration))
-        else:
-            self._release(0, self.duration)
+
+    def whole_run_release(self, t0: int, t1: int) -> None:
+        """The free-running releases whose nominal instant falls in [t0, t1); jittered ones a chunk at a time, so
+        their draws come in the event path's order."""
+        step = CHUNK_NS if self._jitter_max else t1 - t0
+        assert step == t1 - t0 or (t0 % CHUNK_NS == 0 and (t1 % CHUNK_NS == 0 or t1 == self.duration)), "chunk edges"
+        for a in range(t0, t1, step):
+            self._release(a, min(a + step, t1))
 
     def whole_run_send(self, i: int, at: np.ndarray) -> None:
         """Frames of chained message i handed to its producer's NIC at these instants (submit(), all at once)."""
@@ -58,12 +61,12 @@ class FreeRunning(EventLinks):
         self.sent[i] += len(at)
         self._enqueue(link, at, np.full(len(at), i, dtype=_I64), at - self._tx_ns[i])
 
-    def whole_run_link(self, link: Link) -> None:
-        """Serve every frame reaching the link within the run (all of them are known by now)."""
-        batch = take(link.pending, self.duration)
+    def whole_run_link(self, link: Link, horizon: int) -> None:
+        """Serve every frame reaching the link before the horizon (all of them are known by now)."""
+        batch = take(link.pending, horizon)
         if batch is not None:
             self._transmit(link, *batch)
-        link.served = self._known = self.duration - 1
+        link.served = self._known = horizon - 1
 
     def _release(self, t0: int, t1: int) -> None:
         """Free-running releases whose nominal instant falls in [t0, t1), message by message, to their first links
