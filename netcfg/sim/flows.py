@@ -188,8 +188,7 @@ def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None
             if (ok & (seen > 2 * HISTORY) & (found < seen - HISTORY - 1)).any():
                 raise Undecided(f"flow '{tracker.name}': {ref} reads further back than the event path keeps")
             stamp = stamps[j[ok]]
-            when, at_event, end = when[ok], at_event[ok], s.end[ok]
-            s = Stream(s.task, s.first[ok], end, s.on_delivery_of)
+            s = Stream(s.task, s.first[ok], s.end[ok], s.on_delivery_of)  # the calls that found a stamp
         if s.task:
             if i == last:
                 tracker.latency.samples = _reached(tracker.latency.done, stamp, s.first)
