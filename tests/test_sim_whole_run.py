@@ -9,14 +9,18 @@ from __future__ import annotations
 import json
 import sys
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+import yaml
 from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 
 import netcfg.runtime as rt
+from netcfg.check import analyse_spec
+from netcfg.emit.runtime_json import runtime_document
 from netcfg.runtime.config import FlowStep
 from netcfg.sim import flows, whole_run
 from netcfg.sim.ethernet import CHUNK_NS
@@ -105,6 +109,28 @@ def test_random_ethernet_specs_identical_both_ways(monkeypatch: pytest.MonkeyPat
 
     run()
     assert covered, "no random spec was covered: the test no longer compares anything"
+
+
+def test_a_multicast_flow_identical_both_ways(tmp_path: Path) -> None:
+    """NTUA SAHR with the hip encoder also sent to the spring board, which starts a task on it: one flow's message
+    step now holds both consumers' deliveries (often on the same nanosecond), and a second flow ends in the
+    message-activated task."""
+    spec = yaml.safe_load((ROOT / "specs" / "ntua_sahr.yaml").read_text(encoding="utf-8"))
+    hip = next(m for m in spec["messages"] if m["name"] == "hip_encoder")
+    hip["consumers"] = ["pc", "mcu_spring"]
+    spring = next(n for n in spec["nodes"] if n["name"] == "mcu_spring")
+    spring["tasks"].append({"name": "follow", "on_message": "hip_encoder", "wcet": "3 us", "bcet": "1 us"})
+    spec["flows"].append({"name": "hip_to_spring", "chain": ["mcu_hip.sample", "hip_encoder", "mcu_spring.follow"]})
+    path = tmp_path / "multicast.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    model, report = analyse_spec(path)
+    assert model is not None and not report["errors"], report["errors"]
+    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+    opts = SimOptions(duration_ns=1000 * MS, seed=9)
+    assert whole_run.covers(Scenario(cfg, opts))
+    a, b = both(cfg, opts)
+    assert_identical(a, b)
+    assert len(b[1].flow_latency["hip_to_spring"]) > 10_000  # 15 kHz for a second, after the warm-up
 
 
 def test_what_the_whole_run_does_not_cover_runs_event_by_event() -> None:

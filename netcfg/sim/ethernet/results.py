@@ -49,11 +49,16 @@ class Results(FreeRunning):
             self._proc_end[i].append(end[sel])
 
     def _pairs(self, rel: list[np.ndarray], end: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """(release, end) of what completed within the run."""
+        """(release, end) of what completed within the run, in order of end, then release: the order frames of
+        a multicast reach their consumers in depends on how the run was computed, the records do not."""
         r = np.concatenate(rel) if rel else _EMPTY
         e = np.concatenate(end) if end else _EMPTY
         done = e < self.duration
-        return r[done], e[done]
+        r, e = r[done], e[done]
+        if len(e) > 1 and (e[1:] <= e[:-1]).any():  # only a message with several consumers
+            order = np.lexsort((r, e))
+            r, e = r[order], e[order]
+        return r, e
 
     def records(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
         """Per message: (name, release_ns, end_ns) of every delivery within the run, one per consumer reached;
