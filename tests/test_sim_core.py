@@ -111,3 +111,14 @@ def test_release_streams_do_not_depend_on_where_chunks_are_cut(
     t, src = two(0, cut)
     t2, src2 = two(cut, end)
     assert np.concatenate([t[src == 0], t2[src2 == 0]]).tolist() == expected
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-(10**12), 10**12), min_size=1, max_size=400), st.sampled_from([1, 1000, 10**9]))
+def test_p99_is_numpys_nearest_rank(values: list[int], scale: int) -> None:
+    """stats.nearest_rank counts a histogram where np.percentile partitions; numpy's "inverted_cdf" is the
+    reference, on wide ranges (partition) and narrow ones (histogram), with many repeated values."""
+    from netcfg.sim.stats import nearest_rank
+
+    x = np.asarray(values, dtype=np.int64) // scale
+    assert nearest_rank(x, 99) == int(np.percentile(x, 99, method="inverted_cdf"))
