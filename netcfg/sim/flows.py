@@ -177,18 +177,23 @@ def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None
             stamp = s.first
         else:
             j = np.searchsorted(times, when, side="right") - 1
+            every = not len(j) or int(j.min()) >= 0  # every call found a record (most runs, after the first)
             ok = j >= 0
-            found = np.where(ok, j, 0)
+            found = j if every else np.where(ok, j, 0)
             if s.task and len(times):  # a record available at the very instant the task starts
                 tie = ok & (times[found] == when) & (added[found] == at_event)
                 own = steps[i - 1].kind == "message" and (s.on_delivery_of in (None, prev_ref))
                 if tie.any() and not own:
                     raise Undecided(f"flow '{tracker.name}': {ref} starts as {prev_ref} is added")
             seen = np.searchsorted(added, at_event, side="right")  # records added by then, at most
-            if (ok & (seen > 2 * HISTORY) & (found < seen - HISTORY - 1)).any():
+            back = found < seen - HISTORY - 1  # further back than the fewest records the event path keeps
+            if back.any() and (back & ok & (seen > 2 * HISTORY)).any():
                 raise Undecided(f"flow '{tracker.name}': {ref} reads further back than the event path keeps")
-            stamp = stamps[j[ok]]
-            s = Stream(s.task, s.first[ok], s.end[ok], s.on_delivery_of)  # the calls that found a stamp
+            if every:
+                stamp = stamps[j]
+            else:  # only the calls that found a stamp go on
+                stamp = stamps[j[ok]]
+                s = Stream(s.task, s.first[ok], s.end[ok], s.on_delivery_of)
         if s.task:
             if i == last:
                 tracker.latency.samples = _reached(tracker.latency.done, stamp, s.first)

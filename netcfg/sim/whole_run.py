@@ -235,8 +235,9 @@ def _deliveries(nets: list[EthernetNetwork], name: str) -> Stream:
                 break
             rel = np.concatenate([r for r, _ in parts])
             end = np.concatenate([e for _, e in parts])
-            order = np.argsort(end, kind="stable")
-            rel, end = rel[order], end[order]
+            if (end[1:] < end[:-1]).any():  # several consumers' deliveries, one consumer's after another
+                order = np.argsort(end, kind="stable")
+                rel, end = rel[order], end[order]
             same = np.flatnonzero(end[1:] == end[:-1])
             if len(same) and (rel[same] != rel[same + 1]).any():
                 raise Undecided(f"message '{name}': two consumers receive different frames at one instant")
