@@ -190,8 +190,8 @@ class Scenario:
         return self.sim.random(source)
 
     def exec_draws(self, ref: str) -> np.random.Generator:
-        """The generator of a task's execution times: BCET + floor(u * (WCET - BCET + 1)) for its k-th uniform draw
-        u is its k-th activation's (one draw per activation, none for a fixed time; run_task, exec_ns)."""
+        """The generator of a task's execution times: its k-th activation runs for BCET + floor(u * (WCET - BCET
+        + 1)), u its k-th uniform draw (no draw for a fixed time; run_task, exec_ns and whole_run alike)."""
         draws = self._exec_draws.get(ref)
         if draws is None:
             draws = self._exec_draws[ref] = self.random(f"task {ref}")
