@@ -53,8 +53,9 @@ class Results(FreeRunning):
         a multicast reach their consumers in depends on how the run was computed, the records do not."""
         r = np.concatenate(rel) if rel else _EMPTY
         e = np.concatenate(end) if end else _EMPTY
-        done = e < self.duration
-        r, e = r[done], e[done]
+        late = e >= self.duration
+        if late.any():
+            r, e = r[~late], e[~late]
         if len(e) > 1 and (e[1:] <= e[:-1]).any():  # only a message with several consumers
             order = np.lexsort((r, e))
             r, e = r[order], e[order]
@@ -75,11 +76,24 @@ class Results(FreeRunning):
         """Like records(), with end = when the receiving node has finished consuming the frame."""
         self._finish()
         out = []
+        delivered: list[tuple[str, np.ndarray, np.ndarray]] | None = None
         for i, m in enumerate(self.messages):
+            if self._consumed_on_delivery(i):  # no receiving server: the same records as records()
+                delivered = delivered or self.records()
+                out.append(delivered[i])
+                continue
             rel = [*self._proc_rel[i], np.asarray(self._proc_rel1[i], _I64)]
             end = [*self._proc_end[i], np.asarray(self._proc_end1[i], _I64)]
             out.append((m.name, *self._pairs(rel, end)))
         return out
+
+    def _consumed_on_delivery(self, i: int) -> bool:
+        """Every delivery of message i was consumed as it arrived (the same arrays and values in both records)."""
+        same = len(self._proc_rel[i]) == len(self._rel[i]) and all(
+            a is b and c is d
+            for a, b, c, d in zip(self._proc_rel[i], self._rel[i], self._proc_end[i], self._end[i])
+        )
+        return same and self._proc_end1[i] == self._end1[i] and self._proc_rel1[i] == self._rel1[i]
 
     def lost_by_message(self) -> dict[str, int]:
         """Deliveries that will never happen: dropped at a full port (one per consumer behind it), scripted losses
