@@ -12,7 +12,8 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, Strict, model_validator
 
-from netcfg.spec.units import BitRateField, Duration, DurationField, FrequencyField, OffsetField
+from netcfg.spec.fields import BitRateField, DurationField, FrequencyField, OffsetField
+from netcfg.spec.units import Duration
 
 # Names end up as file names, C identifiers, Python keys and DBC names: one safe alphabet for all of them.
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")

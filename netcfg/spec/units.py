@@ -11,13 +11,11 @@ import re
 from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
 from fractions import Fraction
-from typing import Annotated, Any
+from typing import Any
 
-from pydantic import PlainSerializer, PlainValidator, WithJsonSchema
-
-_NUMBER = r"([0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
-_QUANTITY = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-zµμ/]+)\s*$", re.ASCII)
-_NUMBER_ONLY = re.compile(rf"^-?{_NUMBER}$", re.ASCII)
+NUMBER_PATTERN = r"([0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+_QUANTITY = re.compile(rf"^\s*({NUMBER_PATTERN})\s*([A-Za-zµμ/]+)\s*$", re.ASCII)
+_NUMBER_ONLY = re.compile(rf"^-?{NUMBER_PATTERN}$", re.ASCII)
 
 TIME_UNITS_NS: dict[str, int] = {
     "ns": 1,
@@ -188,52 +186,11 @@ def parse_frequency(value: Any) -> Fraction:
     return f
 
 
-_DURATION_SCHEMA = {
-    "anyOf": [
-        {"type": "string", "pattern": rf"^\s*{_NUMBER}\s*(ns|us|µs|ms|s|EC|ec)\s*$"},
-        {"const": 0},
-    ],
-    "description": "a duration with its unit, e.g. '5 ms', '250 us', or elementary cycles on FTT-CAN, e.g. '2 EC'",
-}
-_BITRATE_SCHEMA = {
-    "type": "string",
-    "pattern": rf"^\s*{_NUMBER}\s*(?i:bit/s|bps|kbit/s|kbps|Mbit/s|Mbps|Gbit/s|Gbps|k|M|G)\s*$",
-    "description": "a bit rate with its unit, e.g. '250 kbit/s', '1 Mbit/s', '100 Mbit/s', or short: '500k', '1M'",
-}
-_FREQ_SCHEMA = {
-    "type": "string",
-    "pattern": rf"^\s*{_NUMBER}\s*(?i:Hz|kHz|MHz)\s*$",
-    "description": "a frequency with its unit, e.g. '15 kHz'",
-}
-
-DurationField = Annotated[
-    Duration,
-    PlainValidator(parse_duration),
-    PlainSerializer(str),
-    WithJsonSchema(_DURATION_SCHEMA),
-]
-BitRateField = Annotated[int, PlainValidator(parse_bitrate), WithJsonSchema(_BITRATE_SCHEMA)]
-FrequencyField = Annotated[
-    Fraction,
-    PlainValidator(parse_frequency),
-    PlainSerializer(lambda f: f"{float(f):g} Hz"),
-    WithJsonSchema(_FREQ_SCHEMA),
-]
-
-
 def parse_offset(value: Any) -> Duration | str:
     """An offset is a duration or 'auto' (derived from the flows it belongs to, FTT-CAN)."""
     if value == "auto":
         return "auto"
     return parse_duration(value)
-
-
-OffsetField = Annotated[
-    Duration | str,
-    PlainValidator(parse_offset),
-    PlainSerializer(str),
-    WithJsonSchema({"anyOf": [_DURATION_SCHEMA, {"const": "auto"}]}),
-]
 
 
 # --- the command line: the same grammar, plus the short forms people type there --------------------------------
