@@ -18,7 +18,7 @@ import numpy as np
 
 from netcfg.sim.engine import NEVER
 from netcfg.sim.ethernet.events import EventLinks
-from netcfg.sim.ethernet.links import _I64, CHUNK_NS, Link, take
+from netcfg.sim.ethernet.links import _I64, CHUNK_NS, Link, counts_by_index, take
 
 
 class FreeRunning(EventLinks):
@@ -190,8 +190,8 @@ class FreeRunning(EventLinks):
 
     def _count_lost(self, link: Link, msg: np.ndarray) -> None:
         link.lost += len(msg)
-        for i, n in zip(*np.unique(msg, return_counts=True)):
-            self.lost[i] += int(n) * self.downstream[(int(i), link.index)]
+        for i, n in counts_by_index(msg):
+            self.lost[i] += n * self.downstream[(i, link.index)]
 
     def _forward(self, link: Link, recv: np.ndarray, msg: np.ndarray, rel: np.ndarray) -> None:
         """Frames completely received at the link's far end: on to the next links, or delivered."""

@@ -81,6 +81,14 @@ class Server:
     busy_ns: int = 0
 
 
+def counts_by_index(idx: np.ndarray) -> list[tuple[int, int]]:
+    """(index, how many times it occurs) for each index present, ascending: np.unique(idx, return_counts=True) for
+    the message indices it is used on, without the numpy.ma import np.unique makes (5-10 ms of a simulate process)."""
+    counts = np.bincount(idx)
+    present = np.flatnonzero(counts)
+    return list(zip(present.tolist(), counts[present].tolist()))
+
+
 def take(pending: list[Batch], horizon: int) -> Batch | None:
     """The waiting frames that arrive before the horizon, in the order they leave the port (FIFO; on the same
     instant in order of release, then of message index, as Waiting); the others stay."""
@@ -97,7 +105,9 @@ def take(pending: list[Batch], horizon: int) -> Batch | None:
         t, msg, rel = t[order], msg[order], rel[order]
     tied = np.flatnonzero(t[1:] == t[:-1])
     if len(tied):  # rare (two senders' frames on the same nanosecond): just those, by release, then message
-        at = np.unique(np.concatenate([tied, tied + 1]))
+        mark = np.zeros(len(t), dtype=bool)
+        mark[tied] = mark[tied + 1] = True
+        at = np.flatnonzero(mark)
         order = np.arange(len(t))
         order[at] = at[np.lexsort((msg[at], rel[at], t[at]))]
         t, msg, rel = t[order], msg[order], rel[order]

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from netcfg.sim.ethernet.free import FreeRunning
-from netcfg.sim.ethernet.links import _EMPTY, _I64, Server
+from netcfg.sim.ethernet.links import _EMPTY, _I64, Server, counts_by_index
 from netcfg.sim.stats import stats_us
 
 
@@ -43,7 +43,7 @@ class Results(FreeRunning):
         end = cum + np.maximum.accumulate(t - (cum - s))
         d = self.duration
         server.busy_ns = int((np.minimum(end, d) - np.minimum(end - s, d)).sum())
-        for i in np.unique(msg).tolist():
+        for i, _ in counts_by_index(msg):
             sel = msg == i
             self._proc_rel[i].append(rel[sel])
             self._proc_end[i].append(end[sel])
@@ -107,8 +107,8 @@ class Results(FreeRunning):
         n = np.zeros(len(self.messages), dtype=_I64)
         for link in self.links.values():
             for _, msg, rel in link.pending:
-                for i, k in zip(*np.unique(msg[rel < self.duration], return_counts=True)):
-                    n[i] += int(k) * self.downstream[(int(i), link.index)]
+                for i, k in counts_by_index(msg[rel < self.duration]):
+                    n[i] += k * self.downstream[(i, link.index)]
             for _, r, i, _ in link.waiting:
                 if r < self.duration:
                     n[i] += self.downstream[(i, link.index)]
