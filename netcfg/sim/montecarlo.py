@@ -10,7 +10,6 @@ import os
 import sys
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from typing import Any
 
@@ -62,6 +61,8 @@ def run_batch(
             if progress:
                 progress(i + 1, runs)
     else:
+        from concurrent.futures import ProcessPoolExecutor  # multiprocessing's imports, only for parallel runs
+
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futures = [pool.submit(_worker, doc, o) for o in seeds]
             for done, fut in enumerate(futures, 1):
