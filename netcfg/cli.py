@@ -22,6 +22,9 @@ def main(argv: list[str] | None = None) -> int:
     # netcfg's array work is element by element, never linear algebra: OpenBLAS's thread pool, started as numpy is
     # imported, only burns CPU (0.08 s of a 0.4 s simulate process on 2 cores). A user's own setting wins.
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    # pydantic looks for plugins in the entry points of every installed distribution when it builds the first
+    # model; the spec's models are netcfg's own, no plugin of the user's is meant for them. A user's own setting wins.
+    os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
     parser = argparse.ArgumentParser(prog="netcfg", description="Control-network configuration compiler.")
     parser.add_argument("--version", action="version", version=f"netcfg {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
