@@ -149,6 +149,31 @@ def pycpa_analyse(
     return (out["times"], out["cpu"]), out["wcrt"]
 
 
+GOAL_RATIO = 50  # the whole check process against pyCPA's analysis alone, 1,000 messages
+GOAL_PEAK_MB = 150  # a 5,000-message check
+
+
+def print_goals(goals: dict[str, Any]) -> None:
+    """The speed and memory goals of this benchmark, each with its figure and whether it is met."""
+    print()
+    if "random_can_1000" in goals:
+        ours, dbc, peer, _, _ = goals["random_can_1000"]
+        for what, times in (("as a spec", ours), ("as a DBC", dbc)):
+            if peer and times:
+                wall_x = statistics.median(peer[0]) / statistics.median(times[0])
+                cpu_x = statistics.median(peer[1]) / statistics.median(times[1])
+                verdict = "met" if wall_x >= GOAL_RATIO else f"{GOAL_RATIO / wall_x:.1f}x short"
+                print(f"goal: check of 1,000 messages {what} >= {GOAL_RATIO}x pyCPA: {wall_x:.1f}x wall, "
+                      f"{cpu_x:.1f}x CPU: {verdict}")  # fmt: skip
+            else:
+                print(f"goal: check of 1,000 messages {what} >= {GOAL_RATIO}x pyCPA: no pyCPA figure")
+    if "random_can_5000" in goals:
+        _, _, _, peak, dbc_peak = goals["random_can_5000"]
+        worst = max(peak, dbc_peak or 0)
+        print(f"goal: 5,000-message check < {GOAL_PEAK_MB} MB peak: {peak:.0f} MB as a spec, {dbc_peak or 0:.0f} MB as "
+              f"a DBC: {'met' if worst < GOAL_PEAK_MB else 'not met'}")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=5, help="repetitions per figure (default 5)")
@@ -161,6 +186,7 @@ def main() -> None:
           "median [min-max]")  # fmt: skip
     wall(ROOT / "specs" / "cambada.yaml", 1)  # warm the file cache and byte-code
     rows, compare = [], []
+    goals: dict[str, Any] = {}  # label -> (check, DBC check, pyCPA) times and peaks, for the goal lines
     with tempfile.TemporaryDirectory(prefix="netcfg-bench-") as tmp:
         specs = [("large_plant", ROOT / "specs" / "large_plant.yaml")]
         specs += [(f"random_can_{n}", write_random_can(n, Path(tmp))) for n in args.sizes]
@@ -174,10 +200,11 @@ def main() -> None:
             peer_times: tuple[list[float], list[float]] | None = None
             dbc_times: tuple[list[float], list[float]] | None = None
             dbc_cell = "-"
+            dbc_peak: float | None = None
             note = "-"
             if label.startswith("random_can"):
                 dbc_wall, dbc_code, dbc_mb, dbc_cpu = wall(write_dbc(model, Path(tmp)), args.runs, "--bitrate", "500k")
-                dbc_times = (dbc_wall, dbc_cpu)
+                dbc_times, dbc_peak = (dbc_wall, dbc_cpu), dbc_mb
                 dbc_cell = f"{fmt(dbc_wall)}, CPU {statistics.median(dbc_cpu):.3f} (exit {dbc_code}, {dbc_mb:.0f} MB)"
             if any(b.protocol == "can" for b in model.buses.values()):
                 frames, tau = can_frames(model)
@@ -192,6 +219,7 @@ def main() -> None:
                     note = f"skipped (> {PEER_MAX_MESSAGES} messages)"
             check_cell = f"{fmt(check_times)}, CPU {statistics.median(check_cpu):.3f} (exit {code}, {peak_mb:.0f} MB)"
             peer_cell = f"{fmt(peer_times[0])}, CPU {statistics.median(peer_times[1]):.3f}" if peer_times else note
+            goals[label] = ((check_times, check_cpu), dbc_times, peer_times, peak_mb, dbc_peak)
             rows.append((label, n_msgs, check_cell, dbc_cell, fmt(load_times), fmt(an_times), fmt(rta_times),
                          peer_cell, ratio(peer_times[0] if peer_times else None, rta_times),
                          ratios(peer_times, (check_times, check_cpu)), ratios(peer_times, dbc_times)))  # fmt: skip
@@ -201,6 +229,7 @@ def main() -> None:
     widths = [max(len(str(r[i])) for r in [headers, *rows]) for i in range(len(headers))]
     for r in [headers, tuple("-" * w for w in widths), *rows]:
         print("  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
+    print_goals(goals)
     if not peer:
         print(
             "\npeer pyCPA skipped; to enable it: git clone https://github.com/IDA-TUBS/pycpa DIR, then "
