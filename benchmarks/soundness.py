@@ -441,6 +441,10 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple
     return tally["failures"], line
 
 
+GOAL_SPECS = 10_000
+GOAL_S = 600
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--specs", type=int, default=1000, help="random specs per protocol")
@@ -466,8 +470,12 @@ def main() -> int:
                 failures, line = future.result()
                 bad += failures
                 print(line, flush=True)
-    print(f"{len(protocols) * args.specs:,} random specs in {time.perf_counter() - started:.0f} s on {jobs} "
+    took = time.perf_counter() - started
+    print(f"{len(protocols) * args.specs:,} random specs in {took:.0f} s on {jobs} "
           f"process{'es' if jobs > 1 else ''}", flush=True)
+    if len(protocols) * args.specs >= GOAL_SPECS:
+        print(f"goal: {GOAL_SPECS:,} random specs in under {GOAL_S // 60} minutes: "
+              f"{'met' if took < GOAL_S else 'not met'}", flush=True)
     return 1 if bad else 0
 
 
