@@ -179,3 +179,21 @@ def test_a_flow_whose_frames_are_all_dropped_has_no_samples() -> None:
         "mcu_hip.apply_pwm": Stream(True, at + 300, at + 400, "hip_pwm"),
     })
     assert tracker.latency.samples == []
+
+
+@pytest.mark.parametrize("drift_ppb", [-99_000_000, 100_000_000, 50_000])
+def test_activations_follow_the_node_clock_at_the_largest_drift(drift_ppb: int) -> None:
+    """A periodic task's activations computed as an array are the event path's NodeClock.to_global(k * period),
+    instant for instant, over 100 s at --drift's limit (100,000 ppm): local * drift there passes 2^63 after 92 s of
+    local time, where an int64 product had wrapped round and cut the task's activations 16 s short."""
+    from netcfg.sim.engine import NodeClock
+
+    until, period, phase = 100_000 * MS, 1 * MS, 12_345
+    clock = NodeClock(phase, drift_ppb)
+    expected = []
+    k = 0
+    while (t := clock.to_global(k * period)) < until:
+        expected.append(t)
+        k += 1
+    got = whole_run._activations(phase, drift_ppb, 0, period, until)
+    assert got.tolist() == expected

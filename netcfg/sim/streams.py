@@ -17,7 +17,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from netcfg.sim.engine import NEVER, PPB
+from netcfg.sim.engine import NEVER, PPB, drift_ns
 
 
 class PeriodicStreams:
@@ -84,7 +84,7 @@ class PeriodicStreams:
             return a if which is None else a[which]
 
         local = each(self.offset) + (k * each(self.num) if self.whole else k * each(self.num) // each(self.den))
-        base = each(self.phase) + local + local * each(self.drift) // PPB
+        base = each(self.phase) + local + drift_ns(local, each(self.drift))
         due = (base >= t0) & (base < t1)
         keep = due & (base < each(self.until))
         if self.cut is not None:  # releases a crashed sender never makes: counted as lost

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from netcfg.sim.engine import PPB
+from netcfg.sim.engine import PPB, drift_ns
 from netcfg.sim.flows import Stream, Undecided, measure_streams
 
 if TYPE_CHECKING:
@@ -201,10 +201,10 @@ def _activations(phase: int, drift_ppb: int, offset: int, period: int, until: in
     """NodeClock.to_global(offset + k * period) for k = 0, 1, ... while before `until` (Scenario._periodic_task)."""
     n = int((until - phase) / (period * (1 + drift_ppb / PPB))) + 2 if until > phase else 1
     local = offset + np.arange(n, dtype=np.int64) * period
-    t = phase + local + local * drift_ppb // PPB
+    t = phase + local + drift_ns(local, drift_ppb)
     while len(t) and t[-1] < until:  # the estimate fell short (it never should by more than a step)
         local = offset + np.arange(len(t), 2 * len(t) + 1, dtype=np.int64) * period
-        t = np.concatenate([t, phase + local + local * drift_ppb // PPB])
+        t = np.concatenate([t, phase + local + drift_ns(local, drift_ppb)])
     return t[t < until]
 
 
