@@ -1,3 +1,3 @@
-from netcfg.cli import main
+from netcfg.cli import command
 
-raise SystemExit(main())
+raise SystemExit(command())

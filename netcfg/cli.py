@@ -18,13 +18,21 @@ from netcfg import __version__
 from netcfg.importers import ImportOptions
 
 
-def main(argv: list[str] | None = None) -> int:
-    # netcfg's array work is element by element, never linear algebra: OpenBLAS's thread pool, started as numpy is
-    # imported, only burns CPU (0.08 s of a 0.4 s simulate process on 2 cores). A user's own setting wins.
+def command() -> int:
+    """The `netcfg` command (and `python -m netcfg`): main() in a process of its own, which sets two defaults for
+    itself first. A program calling main() keeps its environment as it is. A user's own settings win.
+
+    - netcfg's array work is element by element, never linear algebra: OpenBLAS's thread pool, started as numpy is
+      imported, only burns CPU (0.08 s of a 0.4 s simulate process on 2 cores).
+    - pydantic looks for plugins in the entry points of every installed distribution when it builds the first
+      model; the spec's models are netcfg's own, no plugin is meant for them (1 % of a check, more where many
+      packages are installed)."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    # pydantic looks for plugins in the entry points of every installed distribution when it builds the first
-    # model; the spec's models are netcfg's own, no plugin of the user's is meant for them. A user's own setting wins.
     os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
+    return main()
+
+
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="netcfg", description="Control-network configuration compiler.")
     parser.add_argument("--version", action="version", version=f"netcfg {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
