@@ -186,7 +186,9 @@ def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None
                 if tie.any() and not own:
                     raise Undecided(f"flow '{tracker.name}': {ref} starts as {prev_ref} is added")
             seen = np.searchsorted(added, at_event, side="right")  # records added by then, at most
-            back = found < seen - HISTORY - 1  # further back than the fewest records the event path keeps
+            # further back than the fewest records the event path keeps; cautious: it may start the event path
+            # again where that path had in fact kept the record, never the other way round
+            back = found < seen - HISTORY - 1
             if back.any() and (back & ok & (seen > 2 * HISTORY)).any():
                 raise Undecided(f"flow '{tracker.name}': {ref} reads further back than the event path keeps")
             if every:

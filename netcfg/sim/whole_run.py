@@ -8,7 +8,8 @@ is a handful of array computations, taken in dependency order:
   of its own generator's draws (Simulator.random: the same numbers the event path draws one at a time);
 * a message-activated task's activations are the listened deliveries of its message at its node;
 * the frames a task sends go to its NIC as it ends (+ tx_delay); each link serves, once everything that feeds
-  it is known, every frame of the run by Lindley's recursion (netcfg.sim.ethernet's free-running links);
+  it is known, the frames of one window of the run (WINDOW_NS) by Lindley's recursion (netcfg.sim.ethernet's
+  free-running links), window after window, so a long run's arrays stay small;
 * each flow's samples follow from those streams (netcfg.sim.flows.measure_streams).
 
 What this covers (covers()): Ethernet buses only, no faults, flows whose steps have one item each, tasks that
