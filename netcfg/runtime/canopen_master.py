@@ -279,20 +279,21 @@ class MasterCycle:
             arrivals: dict[str, float] = {}
             values: dict[str, dict[str, Number]] = {}
             deadline = sync_sent + self.read_window_s
+            now, recv, by_id = clock.now, bus.recv, self._by_id  # once per cycle, not per frame
             while pending:
-                remaining = deadline - clock.now()
+                remaining = deadline - now()
                 # once the window is over, still take what is already queued: a master descheduled by its operating
                 # system looks late, but those frames did arrive; only frames not yet received are missing
-                frame = bus.recv(timeout=max(remaining, 0.0))
+                frame = recv(timeout=max(remaining, 0.0))
                 if frame is None:
                     if remaining <= 0:
                         break
                     continue
-                t = clock.now()
+                t = now()
                 got = (
                     None
                     if frame.is_error_frame or frame.is_remote_frame
-                    else self._by_id.get((frame.arbitration_id, bool(frame.is_extended_id)))
+                    else by_id.get((frame.arbitration_id, bool(frame.is_extended_id)))
                 )
                 if got is None:
                     other += 1

@@ -73,7 +73,8 @@ class Simulator:
             fn(arg)
             if stop is not None and stop():
                 return
-        self.now = max(self.now, t_end)
+        if t_end > self.now:
+            self.now = t_end
 
 
 @dataclass(frozen=True)

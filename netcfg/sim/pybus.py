@@ -127,6 +127,8 @@ class SimCanBus(can.BusABC):
         self.sim_bus = sc.can[channel]
         self.channel_info = f"netcfg simulator bus {channel}"
         self._rx: deque[can.Message] = deque()
+        self._ready = self._rx.__len__  # recv()'s stop(), checked after every event: a bound built-in, made once
+        self._sim = sc.sim
         self._by_id = {(s.can_id, s.extended): s.index for s in self.sim_bus.sources}
         self._own: set[int] = set()  # its sources: it does not hear them
         self._crash = sc.crash_at.get(node, NEVER)  # when its node crashes (sc.alive, asked at every send)
@@ -187,16 +189,16 @@ class SimCanBus(can.BusABC):
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
         """The next frame, waiting at most `timeout` simulated seconds (None: until the simulation runs dry)."""
-        if not self._rx:
-            sim = self.sc.sim
+        rx = self._rx
+        if not rx:
+            sim = self._sim
             # at least 1 ns: a timeout left over from float arithmetic must still let time move on
             until = (1 << 62) if timeout is None else sim.now + (max(1, math.ceil(timeout * 1e9)) if timeout > 0 else 0)
-            ready = self._rx.__len__  # checked after every event: a bound built-in, not a lambda
             if self.host is not None:
-                self.host.wait(until, ready=ready)
+                self.host.wait(until, ready=self._ready)
             else:
-                sim.run_until(until, stop=ready)
-        return self._rx.popleft() if self._rx else None
+                sim.run_until(until, stop=self._ready)
+        return rx.popleft() if rx else None
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         msg = self.recv(timeout)

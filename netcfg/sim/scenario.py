@@ -262,11 +262,14 @@ class Scenario:
 
     def task_ran(self, task: Task, start: int, end: int) -> None:
         """A task that code outside the simulator ran (the live CANopen master's computation), for its flows."""
-        if not self._wanted(task):
-            return
-        self._task_runs.setdefault(task.ref, []).append((start, end))
-        for tr in self._flow_refs.get(task.ref, ()):
-            tr.task_started(task.ref, start, end)
+        plan = self._plans.get(id(task))
+        if plan is None:
+            if not self._wanted(task):
+                return
+            plan = self._plan(task)  # its runs and flows, looked up once: the live master reports every cycle
+        plan.runs.append((start, end))
+        for tr in plan.trackers:
+            tr.task_started(plan.ref, start, end)
 
     def tasks_on_trigger(self, trigger: str) -> list[Task]:
         known = self._on_trigger.get(trigger)
