@@ -46,10 +46,13 @@ class _End:
     done: int = -1  # stamps at or below this are finished (stamps of one item only grow)
     samples: list[int] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        self.single = len(self.refs) == 1
+
     def reach(self, ref: str, stamp: int, t: int) -> None:
         if stamp <= self.done:
             return
-        if len(self.refs) == 1:  # one item (most flows): it finishes the stamp at once, nothing waits
+        if self.single:  # one item (most flows): it finishes the stamp at once, nothing waits
             self.samples.append(t - stamp)
             self.done = stamp
             return
@@ -222,6 +225,10 @@ def _reached(done: int, stamp: np.ndarray, t: np.ndarray) -> list[int]:
 
 def _oldest(reads: tuple[_Item, ...], t: int) -> int | None:
     """The oldest of the freshest stamps these items had at t; None if one had none yet."""
+    if len(reads) == 1:  # most steps read one item: no loop
+        item = reads[0]
+        i = bisect_right(item.times, t)
+        return item.stamps[i - 1] if i else None
     oldest = None
     for item in reads:
         i = bisect_right(item.times, t)
