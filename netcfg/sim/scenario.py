@@ -71,7 +71,8 @@ class SimOptions:
     # node the (BCET, WCET) of consuming one frame (None: the node's on_message task for that message, if any)
     eth_queue_frames: int | None = None
     eth_processing_ns: Mapping[str, tuple[int, int]] | None = None
-    # compute the run's streams at once where netcfg.sim.whole_run covers it (the same results as event by event)
+    # compute the run's streams at once where netcfg.sim.whole_run covers it (the same results as event by event);
+    # a run that meets a tie only the order of events decides starts again event by event, at worst twice the work
     whole_run: bool = True
 
 
@@ -445,9 +446,10 @@ class Scenario:
                 start()
 
     def run(self) -> None:
-        if self.opts.whole_run and whole_run.covers(self):
+        order = whole_run.plan(self) if self.opts.whole_run else None
+        if order is not None:
             try:
-                whole_run.run(self)
+                whole_run.run(self, order)
                 return
             except whole_run.Undecided:  # rare: a tie only the order of events decides; the event path from 0
                 self._build()

@@ -34,13 +34,13 @@ if TYPE_CHECKING:
     from netcfg.sim.ethernet import EthernetNetwork
     from netcfg.sim.scenario import Scenario
 
-__all__ = ["Undecided", "covers", "run"]
+__all__ = ["Undecided", "covers", "plan", "run"]
 
 Job = tuple[str, Any]  # ("task", Task) or ("link", (its network, Link))
 
 
 def covers(sc: Scenario) -> bool:
-    return _plan(sc) is not None
+    return plan(sc) is not None
 
 
 def _networks(sc: Scenario) -> list[EthernetNetwork] | None:
@@ -52,7 +52,7 @@ def _networks(sc: Scenario) -> list[EthernetNetwork] | None:
     return nets
 
 
-def _plan(sc: Scenario) -> list[Job] | None:
+def plan(sc: Scenario) -> list[Job] | None:
     """The tasks and links in an order where each comes after everything that feeds it; None if the run is not
     covered."""
     if sc.opts.faults:
@@ -115,12 +115,11 @@ def _plan(sc: Scenario) -> list[Job] | None:
     return order if len(order) == len(jobs) else None  # a cycle: feedback
 
 
-def run(sc: Scenario) -> None:
+def run(sc: Scenario, order: list[Job]) -> None:
     """Compute the whole run into the scenario's records, as Scenario.run() would leave them: a window of
-    simulated time at a time (WINDOW_NS), every task and link in dependency order within it."""
-    order = _plan(sc)
+    simulated time at a time (WINDOW_NS), every task and link in dependency order within it (`order`: plan(sc))."""
     nets = _networks(sc)
-    assert order is not None and nets is not None
+    assert nets is not None
     d = sc.opts.duration_ns
     periodic = {  # task -> every activation of the run
         t.ref: _activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d)
