@@ -123,3 +123,58 @@ def test_build_output_paths_never_leave_the_folder() -> None:
         with pytest.raises(ValueError):
             check_relative(bad)
     check_relative("canopen/hip_l.eds")
+
+
+def test_the_report_drawn_in_a_worker_is_what_drawing_it_here_gives(monkeypatch: pytest.MonkeyPatch) -> None:
+    """emit_all renders the report in a forked worker beside the other emitters: the same files as one after the
+    other, and no process left behind."""
+    import multiprocessing
+
+    from netcfg import emit
+    from netcfg.check import analyse_spec
+
+    for name in ("allex2", "cambada"):  # a CANopen SYNC cycle plot, an FTT-CAN macro-cycle plot
+        model, report = analyse_spec(SPECS / f"{name}.yaml")
+        assert model is not None
+        overlapped = emit.emit_all(model, report)
+        with monkeypatch.context() as m:
+            m.setattr(emit, "BACKGROUND", "")
+            assert emit.emit_all(model, report) == overlapped, name
+        assert any(path.endswith(".png") for path in overlapped)
+    if sys.platform.startswith("linux"):  # where the worker is forked: it is, and its files are the report's
+        worker = emit._Worker.start("report", model, report)
+        assert worker.process is not None
+        assert worker.result().items() <= overlapped.items()
+    assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("failing", ["report", "canopen", "bus_yml"])
+def test_a_failing_emitter_raises_as_in_order(monkeypatch: pytest.MonkeyPatch, failing: str) -> None:
+    """Whichever emitter fails, beside or in the worker, emit_all raises the error running EMITTERS in order would
+    raise, and leaves no process behind."""
+    import importlib
+    import multiprocessing
+
+    from netcfg import emit
+    from netcfg.check import analyse_spec
+
+    model, report = analyse_spec(SPECS / "allex2.yaml")
+    assert model is not None
+
+    def broken(*args: object) -> dict[str, bytes]:
+        raise RuntimeError(f"{failing} is broken")
+
+    module, _, func = emit.EMITTERS[failing].partition(":")
+    monkeypatch.setattr(importlib.import_module(module), func, broken)
+    with pytest.raises(RuntimeError, match=f"^{failing} is broken$"):
+        emit.emit_all(model, report)
+    if failing == "bus_yml":  # after the report in EMITTERS: a failing report comes first, as in sequence
+        report_module, _, report_func = emit.EMITTERS["report"].partition(":")
+        monkeypatch.setattr(importlib.import_module(report_module), report_func, broken_report)
+        with pytest.raises(RuntimeError, match=r"^the report is broken$"):
+            emit.emit_all(model, report)
+    assert multiprocessing.active_children() == []
+
+
+def broken_report(*args: object) -> dict[str, bytes]:
+    raise RuntimeError("the report is broken")

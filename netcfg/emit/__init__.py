@@ -7,9 +7,13 @@ module, one template and one line in EMITTERS.
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import importlib
 import os
 import re
+import sys
+import threading
 from collections.abc import Callable
 from functools import cache
 from importlib import resources
@@ -38,17 +42,132 @@ EMITTERS: dict[str, str] = {
 }
 
 
+# Rendered in a forked worker while this process runs the other emitters: the report (importing matplotlib,
+# drawing, Markdown to HTML) is a third of a build's CPU and needs nothing the other emitters make.
+BACKGROUND = "report"
+
+
 def emit_all(model: Model, report: dict[str, Any]) -> Files:
+    """Every emitter's files, sorted by path. The result, and which error is raised when emitters fail, are those
+    of running EMITTERS one after the other; BACKGROUND only overlaps in time where the platform can fork."""
     files: Files = {}
-    for name, target in EMITTERS.items():
-        module, _, func = target.partition(":")
-        emitter: Emitter = getattr(importlib.import_module(module), func)
-        for path, data in emitter(model, report).items():
-            check_relative(path)
-            if path in files:
-                raise ValueError(f"emitters '{name}' and another both write {path}")
-            files[path] = data
+    worker = _Worker.start(BACKGROUND, model, report) if BACKGROUND in EMITTERS else None
+    after: list[tuple[str, Files]] = []  # run after BACKGROUND's slot, merged once its files are in
+    try:
+        for name, target in EMITTERS.items():
+            if worker is not None and name == worker.name:
+                continue
+            try:
+                out = _emitter(target)(model, report)
+            except Exception:  # (an interrupt is not waited on: the finally below stops the worker)
+                if worker is not None and worker.name in _before(name):
+                    _merge(files, worker.name, worker.result())  # in sequence its failure would come first
+                raise
+            if worker is not None and worker.name in _before(name):
+                after.append((name, out))
+            else:
+                _merge(files, name, out)
+        if worker is not None:
+            _merge(files, worker.name, worker.result())
+        for name, out in after:
+            _merge(files, name, out)
+    finally:
+        if worker is not None:
+            worker.close()
     return dict(sorted(files.items()))
+
+
+def _emitter(target: str) -> Emitter:
+    module, _, func = target.partition(":")
+    emitter: Emitter = getattr(importlib.import_module(module), func)
+    return emitter
+
+
+def _before(name: str) -> list[str]:
+    names = list(EMITTERS)
+    return names[: names.index(name)]
+
+
+def _merge(files: Files, name: str, out: Files) -> None:
+    for path, data in out.items():
+        check_relative(path)
+        if path in files:
+            raise ValueError(f"emitters '{name}' and another both write {path}")
+        files[path] = data
+
+
+class _Worker:
+    """One emitter run in a forked child that sends its files back through a pipe. Where the child cannot give
+    them (no fork, the emitter failed, the child died), result() runs the emitter here: the same files, or the
+    same exception with its own traceback, as without a worker."""
+
+    def __init__(self, name: str, model: Model, report: dict[str, Any]) -> None:
+        self.name, self.model, self.report = name, model, report
+        self.process: Any = None
+        self.conn: Any = None
+
+    @classmethod
+    def start(cls, name: str, model: Model, report: dict[str, Any]) -> _Worker:
+        worker = cls(name, model, report)
+        # fork without exec is unsafe beside other threads and with macOS's system libraries (CPython's default
+        # there is spawn, which would pickle the model over: slower than not overlapping)
+        if sys.platform == "darwin" or threading.active_count() > 1:
+            return worker
+        import multiprocessing
+
+        if "fork" not in multiprocessing.get_all_start_methods():
+            return worker
+        context = multiprocessing.get_context("fork")
+        receiver, sender = context.Pipe(duplex=False)
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()  # else the child would flush the same buffered text again as it exits
+        process = context.Process(
+            target=_run_worker, args=(EMITTERS[name], model, report, sender, receiver), daemon=True
+        )
+        gc.freeze()  # the child's collections then leave the inherited objects (and their pages) alone
+        try:
+            process.start()
+        except OSError:  # no process to spare: run it here
+            receiver.close()
+            sender.close()
+            return worker
+        finally:
+            gc.unfreeze()
+        sender.close()  # the child's copy stays open: end of file here once it exits
+        worker.process, worker.conn = process, receiver
+        return worker
+
+    def result(self) -> Files:
+        files = None
+        if self.conn is not None:
+            try:
+                files = self.conn.recv()
+            except (EOFError, OSError):
+                files = None
+            self.process.join()  # it exits once it has sent them
+            self.close()
+        return files if files is not None else _emitter(EMITTERS[self.name])(self.model, self.report)
+
+    def close(self) -> None:
+        """Stop the child if it still runs (another emitter failed) and reap it."""
+        if self.process is None:
+            return
+        if self.process.is_alive():
+            self.process.kill()
+        self.process.join()
+        self.conn.close()
+        self.process = self.conn = None
+
+
+def _run_worker(target: str, model: Model, report: dict[str, Any], conn: Any, parents_end: Any) -> None:
+    parents_end.close()  # else, the parent killed, sending would block on a pipe no one reads instead of failing
+    try:
+        files: Files | None = _emitter(target)(model, report)
+    except BaseException:  # the parent runs the emitter again and raises the error itself
+        files = None
+    # the parent may be gone, or the files may not pickle: then it finds no result and runs the emitter itself
+    with contextlib.suppress(BaseException):
+        conn.send(files)
 
 
 def check_relative(path: str) -> None:
