@@ -116,7 +116,7 @@ class FileView:
     dummies: tuple[tuple[int, int], ...]
     comments: tuple[str, ...]
     groups: tuple[tuple[str, tuple[str, ...]], ...]  # the three object lists of CiA 306 4.6.2: name, indices
-    sections: tuple[Section | str, ...]  # every object's sections, by index; a str: shared sections as text
+    sections: tuple[str | tuple[str, str], ...]  # every object's sections as text, by index: (EDS, DCF) or shared
     commissioning: Commissioning
 
 
@@ -149,6 +149,9 @@ class _Obj:
 
 Dictionary = dict[int, _Obj]
 Known = dict[int, tuple[_Obj, str]]  # objects whose sections are written already (the same in EDS and DCF)
+# a configured object's contents -> its sections in the EDS and in the DCF: most come out the same for every node
+# (the SYNC objects, PDO mappings, $NODEID-relative defaults), so 126 drives write each once
+Texts = dict[tuple[object, ...], tuple[str, str]]
 Cache = dict[tuple[int, int | None, int | None, int | None], "_Base"]
 
 
@@ -173,13 +176,14 @@ def _copy(obj: _Obj) -> _Obj:
 def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
     files: dict[str, bytes] = {}
     cache: Cache = {}
+    texts: Texts = {}
     pdos = {bus.name: device_pdos(bus) for bus in model.buses.values() if bus.canopen is not None}
     for (bus_name, name), paths in file_names(model).items():
         bus, node = model.buses[bus_name], model.nodes[name]
         if node.device is not None:
-            view = _device_view(model, bus, node, node.device, cache, pdos[bus_name].get(name, []))
+            view = _device_view(model, bus, node, node.device, cache, pdos[bus_name].get(name, []), texts)
         else:
-            view = _master_view(model, bus, node)
+            view = _master_view(model, bus, node, texts)
         for ext, path in paths.items():
             files[path] = _render(view, PurePath(path).name, ext == "dcf")
     return files
@@ -207,7 +211,7 @@ def file_names(model: Model) -> dict[tuple[str, str], dict[str, str]]:
 
 
 def _render(view: FileView, file_name: str, dcf: bool) -> bytes:
-    text = "".join(s if isinstance(s, str) else section_text(s, dcf) for s in view.sections)
+    text = "".join(s if isinstance(s, str) else s[dcf] for s in view.sections)
     lists = object_lists_text(view.groups)
     return render(TEMPLATE, f=view, file_name=file_name, dcf=dcf, object_lists=lists, sections=text)
 
@@ -284,7 +288,7 @@ def device_pdos(bus: Bus) -> dict[str, list[Message]]:
 
 
 def _device_view(
-    model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: Cache, pdos: list[Message]
+    model: Model, bus: Bus, node: Node, dev: DeviceProfile, cache: Cache, pdos: list[Message], texts: Texts
 ) -> FileView:
     """pdos: the node's PDOs on the bus (device_pdos)."""
     assert bus.canopen is not None and node.node_id is not None
@@ -334,6 +338,7 @@ def _device_view(
         dummies=dummies,
         comments=comments,
         known=base.known,
+        texts=texts,
     )
 
 
@@ -399,7 +404,7 @@ def _device_pdo(od: Dictionary, dev: DeviceProfile, nid: int, kind: PdoKind, n: 
 
 
 # -- the master ----------------------------------------------------------------------------------------------------
-def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
+def _master_view(model: Model, bus: Bus, node: Node, texts: Texts) -> FileView:
     assert bus.canopen is not None and node.node_id is not None
     co = bus.canopen
     od: Dictionary = {}
@@ -481,6 +486,7 @@ def _master_view(model: Model, bus: Bus, node: Node) -> FileView:
         dummies=set(),
         comments=comments,
         known={},
+        texts=texts,
     )
 
 
@@ -563,11 +569,12 @@ def _file_view(
     dummies: set[int],
     comments: list[str],
     known: Known,
+    texts: Texts,
 ) -> FileView:
     assert node.node_id is not None
     kbit = bus.bitrate // 1000
     lists: dict[str, list[str]] = {"MandatoryObjects": [], "OptionalObjects": [], "ManufacturerObjects": []}
-    sections: list[Section | str] = []
+    sections: list[str | tuple[str, str]] = []
     for index in sorted(od):
         group = "MandatoryObjects" if index in MANDATORY else "OptionalObjects"
         lists["ManufacturerObjects" if index in MANUFACTURER else group].append(f"0x{index:04X}")
@@ -575,7 +582,7 @@ def _file_view(
         if cached is not None and cached[0] is od[index]:
             sections.append(cached[1])
         else:
-            sections.extend(_sections(index, od[index]))
+            sections.append(_object_texts(index, od[index], texts))
     groups = tuple((name, tuple(indices)) for name, indices in lists.items())
     return FileView(
         description=ini_text(description),
@@ -597,6 +604,24 @@ def _file_view(
         sections=tuple(sections),
         commissioning=Commissioning(node.node_id, ini_text(node.name, 246), kbit, ini_text(bus.name, 243), int(master)),
     )
+
+
+def _object_texts(index: int, obj: _Obj, texts: Texts) -> tuple[str, str]:
+    """The object's sections in the EDS and in the DCF, made once per distinct contents."""
+    key = (
+        index,
+        obj.name,
+        obj.object_type,
+        *((k, v.name, v.data_type, v.access, v.pdo, v.default, v.relative, v.value) for k, v in obj.subs.items()),
+    )
+    pair = texts.get(key)
+    if pair is None:
+        sections = _sections(index, obj)
+        pair = texts[key] = (
+            "".join(section_text(s, False) for s in sections),
+            "".join(section_text(s, True) for s in sections),
+        )
+    return pair
 
 
 def _sections(index: int, obj: _Obj) -> list[Section]:
