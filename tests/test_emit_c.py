@@ -812,3 +812,12 @@ def test_eds_object_names_become_c_identifiers(tmp_path: Path) -> None:
     headers = [rel for rel in files if rel.startswith("c/")]
     assert GCC is not None
     compile_units(GCC, C_FLAGS, include_units(out, headers, ".c"), out)
+
+
+def test_headers_are_the_same_when_the_blocks_marker_is_in_the_text(monkeypatch: pytest.MonkeyPatch) -> None:
+    """c_header joins the message blocks into the rendered header as bytes at a marker; where the header's own text
+    holds the marker too it renders them in the plain way, with the same result."""
+    model, report = model_of(SPECS / "allex2.yaml")
+    joined = c_header.emit(model, report)
+    monkeypatch.setattr(c_header, "_BLOCKS", "#define")  # in every header: each takes the plain way
+    assert c_header.emit(model, report) == joined

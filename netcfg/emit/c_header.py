@@ -498,20 +498,32 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     files = {}
     views: dict[ViewKey, MessageView] = {}
     on_bus = {bus.name: messages_by_node(bus) for bus in m.buses.values()}
-    headings: dict[ViewKey, str] = {}
-    bodies: dict[tuple[str, str], str] = {}
+    # encoded once each and joined as bytes: 126 drives' headers are 47 MB, nearly all of it these blocks
+    headings: dict[ViewKey, bytes] = {}
+    bodies: dict[tuple[str, str], bytes] = {}
     block = environment().get_template("node_message.h.j2").module  # its macros: heading(m), body(system, m)
+    header = environment().get_template("node.h.j2")
     for node in m.nodes.values():
         view = node_view(m, node, views, on_bus)
         if view is None:
             continue
-        texts: list[str] = []
+        parts: list[bytes] = []
         for msg in view.messages:
             key = (msg.bus, msg.name, msg.sends, msg.receives)
             if key not in headings:
-                headings[key] = block.heading(msg)  # type: ignore[attr-defined]
+                headings[key] = block.heading(msg).encode("utf-8")  # type: ignore[attr-defined]
             if key[:2] not in bodies:
-                bodies[key[:2]] = block.body(m.system, msg)  # type: ignore[attr-defined]
-            texts += (headings[key], bodies[key[:2]])
-        files[f"c/{node.name}.h"] = render("node.h.j2", node=view, message_blocks="".join(texts))
+                bodies[key[:2]] = block.body(m.system, msg).encode("utf-8")  # type: ignore[attr-defined]
+            parts += (headings[key], bodies[key[:2]])
+        text = header.render(node=view, message_blocks=_BLOCKS)
+        if text.count(_BLOCKS) == 1:
+            head, _, tail = text.partition(_BLOCKS)
+            files[f"c/{node.name}.h"] = b"".join((head.encode("utf-8"), *parts, tail.encode("utf-8")))
+        else:  # the marker also in the node's own text (a description may hold anything): the plain way
+            blocks = b"".join(parts).decode("utf-8")
+            files[f"c/{node.name}.h"] = render("node.h.j2", node=view, message_blocks=blocks)
     return files
+
+
+# where the message blocks go in a rendered header: NULs, which its own text holds only if the spec wrote them
+_BLOCKS = "\x00message blocks\x00"
