@@ -140,6 +140,10 @@ def test_the_report_drawn_in_a_worker_is_what_drawing_it_here_gives(monkeypatch:
         with monkeypatch.context() as m:
             m.setattr(emit, "BACKGROUND", "")
             assert emit.emit_all(model, report) == overlapped, name
+        with monkeypatch.context() as m:  # a platform without fork: the report is rendered here
+            m.setattr(multiprocessing, "get_all_start_methods", lambda: ["spawn"])
+            assert emit._Worker.start("report", model, report).process is None
+            assert emit.emit_all(model, report) == overlapped, name
         assert any(path.endswith(".png") for path in overlapped)
     if sys.platform.startswith("linux"):  # where the worker is forked: it is, and its files are the report's
         worker = emit._Worker.start("report", model, report)
