@@ -118,9 +118,14 @@ class _Worker:
         if "fork" not in multiprocessing.get_all_start_methods():
             return worker
         context = multiprocessing.get_context("fork")
-        receiver, sender = context.Pipe(duplex=False)
-        for stream in (sys.stdout, sys.stderr):
-            stream.flush()  # else the child would flush the same buffered text again as it exits
+        try:
+            receiver, sender = context.Pipe(duplex=False)
+        except OSError:  # no descriptor to spare: run it here
+            return worker
+        for stream in (sys.stdout, sys.stderr):  # else the child would flush the same buffered text again as it exits
+            if stream is not None:
+                with contextlib.suppress(OSError, ValueError):  # closed or broken: nothing of ours to lose there
+                    stream.flush()
         process = context.Process(
             target=_run_worker, args=(EMITTERS[name], model, report, sender, receiver), daemon=True
         )
