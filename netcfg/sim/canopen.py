@@ -113,6 +113,7 @@ class CanopenMaster:
                 bus_name=self.bus.name,
                 drift_free=True,  # anchored, as the analysis assumes (SYNC k within master_jitter of its instant)
                 pause_gc=True,  # as on the robot: no collection in the loop (in virtual time, only a speed-up)
+                collect_after=False,  # nor a full one after it: a Monte Carlo batch or a sweep runs many masters
                 timing=self,
             )
             self._lead = cycle.sync_lead_s
