@@ -27,8 +27,9 @@ NEVER = 1 << 62  # an instant after every run
 
 
 def drift_ns(local_ns: Any, drift_ppb: Any) -> Any:
-    """local_ns * drift_ppb // PPB, exactly, for integers or int64 arrays, without forming the product: at the
-    largest --drift (100,000 ppm) an int64 product overflows once local time passes 92 s."""
+    """What a clock drifting by drift_ppb adds to local_ns (NodeClock.to_global): local_ns * drift_ppb // PPB,
+    exactly, for integers or int64 arrays alike, without forming the product, which in int64 overflows at the
+    largest --drift (100,000 ppm) once local time passes 92 s."""
     return (local_ns // PPB) * drift_ppb + (local_ns % PPB) * drift_ppb // PPB
 
 
@@ -88,4 +89,4 @@ class NodeClock:
     drift_ppb: int = 0
 
     def to_global(self, local_ns: int) -> int:
-        return self.phase_ns + local_ns + local_ns * self.drift_ppb // PPB
+        return self.phase_ns + local_ns + drift_ns(local_ns, self.drift_ppb)

@@ -60,7 +60,9 @@ class FttMaster:
 
     # -- EC grid ----------------------------------------------------------------------------------------
     def ec_start(self, k: int) -> int:
-        local = k * self._ec_ns  # the master's clock's to_global, inline: asked several times per EC
+        # the master's clock's to_global, inline (engine.drift_ns, as a call 1.4 % of CAMBADA's instructions):
+        # asked several times per EC; Python integers do not overflow
+        local = k * self._ec_ns
         return self._phase + local + local * self._drift // PPB
 
     def ec_of(self, t: int) -> int:
