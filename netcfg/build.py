@@ -12,22 +12,30 @@ from pathlib import Path
 from typing import Any
 
 from netcfg.check import analyse_spec
-from netcfg.emit import Files, emit_all
+from netcfg.emit import Background, Files, emit_all
 from netcfg.inputs import read_input_bytes
 from netcfg.outputs import check_output_folder, write_tree
 
 
-def build(spec: Path, out: Path | None) -> tuple[dict[str, Any], Path | None, Files]:
+def build(spec: Path, out: Path | None, worker: Background | None = None) -> tuple[dict[str, Any], Path | None, Files]:
     """-> (check report, output folder or None when the spec was refused, files written).
+
+    worker: the emitters' background worker, best started before this module is imported (Background.start());
+    it is closed on return.
 
     report["kept"] lists the files of the user's that were found in netcfg's output folder and kept there.
     Raises OutputError (an OSError) when the output folder is one netcfg must not replace."""
-    if out is not None:
-        check_output_folder(out, [spec])  # refuse before the analysis, which can take a while
-    model, report = analyse_spec(spec)
-    if model is None or not report["ok"]:
-        return report, None, {}
-    files = emit_all(model, report)
+    if worker is None:
+        worker = Background.start()  # it imports what the report needs while the spec is analysed here
+    try:
+        if out is not None:
+            check_output_folder(out, [spec])  # refuse before the analysis, which can take a while
+        model, report = analyse_spec(spec)
+        if model is None or not report["ok"]:
+            return report, None, {}
+        files = emit_all(model, report, worker)
+    finally:
+        worker.close()
     target = out if out is not None else Path("generated") / model.system
     spec_sha256 = hashlib.sha256(read_input_bytes(spec, "spec")).hexdigest()
     report["kept"] = write_tree(target, files, spec_sha256, [spec])

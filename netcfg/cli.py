@@ -327,12 +327,15 @@ def cmd_check(
 
 
 def cmd_build(spec: Path, output: Path | None) -> int:
+    from netcfg.emit import Background
+
+    worker = Background.start()  # first: it imports what the report needs while the rest loads and the spec is read
     from netcfg.build import build
     from netcfg.inputs import InputError
     from netcfg.outputs import OutputError
 
     try:
-        report, target, files = build(spec, output)
+        report, target, files = build(spec, output, worker)
     except (OutputError, InputError) as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 2

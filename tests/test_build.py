@@ -126,29 +126,66 @@ def test_build_output_paths_never_leave_the_folder() -> None:
 
 
 def test_the_report_drawn_in_a_worker_is_what_drawing_it_here_gives(monkeypatch: pytest.MonkeyPatch) -> None:
-    """emit_all renders the report in a forked worker beside the other emitters: the same files as one after the
-    other, and no process left behind."""
+    """emit_all renders the report in a forked worker beside the other emitters, forked with the model or (as
+    `netcfg build` does) before it and sent it: the same files as one after the other, and no process left
+    behind."""
     import multiprocessing
 
     from netcfg import emit
     from netcfg.check import analyse_spec
 
     for name in ("allex2", "cambada"):  # a CANopen SYNC cycle plot, an FTT-CAN macro-cycle plot
+        early = emit.Background.start()  # before the model exists, as a build starts it
         model, report = analyse_spec(SPECS / f"{name}.yaml")
         assert model is not None
         overlapped = emit.emit_all(model, report)
+        assert emit.emit_all(model, report, early) == overlapped, name
         with monkeypatch.context() as m:
-            m.setattr(emit, "BACKGROUND", "")
+            m.setattr(emit, "BACKGROUND", ())
             assert emit.emit_all(model, report) == overlapped, name
         with monkeypatch.context() as m:  # a platform without fork: the report is rendered here
             m.setattr(multiprocessing, "get_all_start_methods", lambda: ["spawn"])
-            assert emit._Worker.start("report", model, report).process is None
+            assert emit.Background.start(model, report).process is None
+            assert emit.Background.start().process is None
             assert emit.emit_all(model, report) == overlapped, name
         assert any(path.endswith(".png") for path in overlapped)
     if sys.platform.startswith("linux"):  # where the worker is forked: it is, and its files are the report's
-        worker = emit._Worker.start("report", model, report)
-        assert worker.process is not None
-        assert worker.result().items() <= overlapped.items()
+        for worker in (emit.Background.start(model, report), emit.Background.start()):
+            assert worker.process is not None
+            worker.feed(model, report)
+            assert worker.result("report", model, report).items() <= overlapped.items()
+            worker.close()
+    assert multiprocessing.active_children() == []
+
+
+def test_a_worker_that_gets_no_model_is_stopped_and_one_that_cannot_be_sent_it_changes_nothing(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A build forks its worker before reading the spec: a refused spec, or a model that does not pickle, leaves
+    no process behind and the same output as without the worker."""
+    import multiprocessing
+    import pickle
+
+    from netcfg import emit
+    from netcfg.build import build
+    from netcfg.check import analyse_spec
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("system: x\nbuses: []\n", encoding="utf-8")
+    report, target, files = build(bad, tmp_path / "out")
+    assert target is None and files == {} and not (tmp_path / "out").exists()
+    assert multiprocessing.active_children() == []
+
+    model, report = analyse_spec(SPECS / "allex2.yaml")
+    assert model is not None
+    expected = emit.emit_all(model, report)
+
+    def refuse(*args: object, **kwargs: object) -> bytes:
+        raise pickle.PicklingError("no")
+
+    worker = emit.Background.start()
+    monkeypatch.setattr(pickle, "dumps", refuse)
+    assert emit.emit_all(model, report, worker) == expected
     assert multiprocessing.active_children() == []
 
 

@@ -11,6 +11,7 @@ import contextlib
 import gc
 import importlib
 import os
+import pickle
 import re
 import sys
 import threading
@@ -42,38 +43,40 @@ EMITTERS: dict[str, str] = {
 }
 
 
-# Rendered in a forked worker while this process runs the other emitters: the report (importing matplotlib,
-# drawing, Markdown to HTML) is a third of a build's CPU and needs nothing the other emitters make.
-BACKGROUND = "report"
+# Run in a forked worker while this process runs the other emitters. Forked at the start of a build, the worker
+# imports what they need (matplotlib and Python-Markdown: a fifth of a build's CPU) while this process reads and
+# analyses the spec; then it is sent the model and renders them. They need nothing the others make.
+BACKGROUND: tuple[str, ...] = ("report",)
 
 
-def emit_all(model: Model, report: dict[str, Any]) -> Files:
+def emit_all(model: Model, report: dict[str, Any], worker: Background | None = None) -> Files:
     """Every emitter's files, sorted by path. The result, and which error is raised when emitters fail, are those
-    of running EMITTERS one after the other; BACKGROUND only overlaps in time where the platform can fork."""
-    files: Files = {}
-    worker = _Worker.start(BACKGROUND, model, report) if BACKGROUND in EMITTERS else None
-    after: list[tuple[str, Files]] = []  # run after BACKGROUND's slot, merged once its files are in
+    of running EMITTERS one after the other; BACKGROUND only overlaps in time where the platform can fork.
+
+    worker: one started before the model existed (Background.start()); it is sent the model here. Without one,
+    a worker is forked here, with the model in its memory. Either way it is closed on return."""
+    if worker is None:
+        worker = Background.start(model, report)
+    outputs: dict[str, Files] = {}
     try:
+        worker.feed(model, report)
         for name, target in EMITTERS.items():
-            if worker is not None and name == worker.name:
+            if name in worker.names:
                 continue
             try:
-                out = _emitter(target)(model, report)
+                outputs[name] = _emitter(target)(model, report)
             except Exception:  # (an interrupt is not waited on: the finally below stops the worker)
-                if worker is not None and worker.name in _before(name):
-                    _merge(files, worker.name, worker.result())  # in sequence its failure would come first
+                for earlier in _before(name):  # in sequence, their failure would have come first
+                    if earlier in worker.names:
+                        worker.result(earlier, model, report)
                 raise
-            if worker is not None and worker.name in _before(name):
-                after.append((name, out))
-            else:
-                _merge(files, name, out)
-        if worker is not None:
-            _merge(files, worker.name, worker.result())
-        for name, out in after:
-            _merge(files, name, out)
+        for name in worker.names:
+            outputs[name] = worker.result(name, model, report)
     finally:
-        if worker is not None:
-            worker.close()
+        worker.close()
+    files: Files = {}
+    for name in EMITTERS:
+        _merge(files, name, outputs[name])
     return dict(sorted(files.items()))
 
 
@@ -96,83 +99,148 @@ def _merge(files: Files, name: str, out: Files) -> None:
         files[path] = data
 
 
-class _Worker:
-    """One emitter run in a forked child that sends its files back through a pipe. Where the child cannot give
-    them (no fork, the emitter failed, the child died), result() runs the emitter here: the same files, or the
-    same exception with its own traceback, as without a worker."""
+class Background:
+    """The BACKGROUND emitters, run in a forked child that sends their files back through a pipe. Where the child
+    cannot give an emitter's files (no fork, the emitter failed, the model did not reach it, the child died),
+    result() runs that emitter here: the same files, or the same exception with its own traceback, as without a
+    worker. names is empty where nothing runs in the background."""
 
-    def __init__(self, name: str, model: Model, report: dict[str, Any]) -> None:
-        self.name, self.model, self.report = name, model, report
+    def __init__(self, names: tuple[str, ...]) -> None:
+        self.names = names
         self.process: Any = None
-        self.conn: Any = None
+        self.results: Any = None  # the child's end of its results pipe, then {name: files or None}
+        self.model_feed: Any = None  # where the model goes, for a worker forked before it existed
+        self.sender: threading.Thread | None = None
 
     @classmethod
-    def start(cls, name: str, model: Model, report: dict[str, Any]) -> _Worker:
-        worker = cls(name, model, report)
+    def start(cls, model: Model | None = None, report: dict[str, Any] | None = None) -> Background:
+        """Fork the worker; without a model it waits for feed() meanwhile importing what its emitters need."""
+        names = tuple(n for n in EMITTERS if n in BACKGROUND)
+        worker = cls(names)
         # fork without exec is unsafe beside other threads and with macOS's system libraries (CPython's default
         # there is spawn, which would pickle the model over: slower than not overlapping)
-        if sys.platform == "darwin" or threading.active_count() > 1:
+        if not names or sys.platform == "darwin" or threading.active_count() > 1:
             return worker
         import multiprocessing
 
         if "fork" not in multiprocessing.get_all_start_methods():
             return worker
         context = multiprocessing.get_context("fork")
+        ends: list[tuple[Any, Any]] = []
         try:
-            receiver, sender = context.Pipe(duplex=False)
-        except OSError:  # no descriptor to spare: run it here
+            ends.append(context.Pipe(duplex=False))  # results: child -> here
+            if model is None:
+                ends.append(context.Pipe(duplex=False))  # the model: here -> child
+        except OSError:  # no descriptor to spare: run them here
+            for pair in ends:
+                for end in pair:
+                    end.close()
             return worker
+        (receiver, sender), feed = ends[0], (ends[1] if len(ends) > 1 else (None, None))
         for stream in (sys.stdout, sys.stderr):  # else the child would flush the same buffered text again as it exits
             if stream is not None:
                 with contextlib.suppress(OSError, ValueError):  # closed or broken: nothing of ours to lose there
                     stream.flush()
-        process = context.Process(
-            target=_run_worker, args=(EMITTERS[name], model, report, sender, receiver), daemon=True
-        )
+        keep: list[Any] = [sender, feed[0]]  # the child's ends
+        drop: list[Any] = [receiver, feed[1]]  # ours, which the child closes
+        process = context.Process(target=_serve, args=(names, model, report, keep, drop), daemon=True)
         gc.freeze()  # the child's collections then leave the inherited objects (and their pages) alone
         try:
             process.start()
-        except OSError:  # no process to spare: run it here
-            receiver.close()
-            sender.close()
+        except OSError:  # no process to spare: run them here
+            for end in keep + drop:
+                if end is not None:
+                    end.close()
             return worker
         finally:
             gc.unfreeze()
-        sender.close()  # the child's copy stays open: end of file here once it exits
-        worker.process, worker.conn = process, receiver
+        for end in keep:  # the child's copies stay open: end of file here once it exits
+            if end is not None:
+                end.close()
+        worker.process, worker.results, worker.model_feed = process, receiver, feed[1]
         return worker
 
-    def result(self) -> Files:
-        files = None
-        if self.conn is not None:
+    def feed(self, model: Model, report: dict[str, Any]) -> None:
+        """Send the model to a worker that was started without one (from a thread: the child may still be
+        importing, and the pipe holds only a part of it)."""
+        if self.model_feed is None:
+            return
+        conn, self.model_feed = self.model_feed, None
+        try:
+            data = pickle.dumps((model, report), protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:  # something in the model does not pickle: the child gets nothing, these run here
+            conn.close()
+            return
+
+        def send() -> None:
+            with contextlib.suppress(OSError):  # the child is gone: result() finds nothing and runs them here
+                conn.send_bytes(data)
+            conn.close()
+
+        self.sender = threading.Thread(target=send, name="netcfg-feed", daemon=True)
+        self.sender.start()
+
+    def result(self, name: str, model: Model, report: dict[str, Any]) -> Files:
+        if self.results is not None and not isinstance(self.results, dict):
+            conn = self.results
             try:
-                files = self.conn.recv()
-            except (EOFError, OSError):
-                files = None
+                received = conn.recv()
+            except (EOFError, OSError, pickle.UnpicklingError):
+                received = None
+            self.results = received if isinstance(received, dict) else {}
             self.process.join()  # it exits once it has sent them
-            self.close()
-        return files if files is not None else _emitter(EMITTERS[self.name])(self.model, self.report)
+            conn.close()
+        files = self.results.get(name) if isinstance(self.results, dict) else None
+        return files if files is not None else _emitter(EMITTERS[name])(model, report)
 
     def close(self) -> None:
-        """Stop the child if it still runs (another emitter failed) and reap it."""
-        if self.process is None:
-            return
-        if self.process.is_alive():
-            self.process.kill()
-        self.process.join()
-        self.conn.close()
-        self.process = self.conn = None
+        """Stop the child if it still runs (an emitter here failed, or the spec was refused) and reap it."""
+        if self.model_feed is not None:
+            self.model_feed.close()
+            self.model_feed = None
+        if self.process is not None:
+            if self.process.is_alive():
+                self.process.kill()
+            self.process.join()
+            self.process = None
+        if self.sender is not None:
+            self.sender.join()  # ends once the child has read it or is gone
+            self.sender = None
+        if self.results is not None and not isinstance(self.results, dict):
+            self.results.close()
+        self.results = None
 
 
-def _run_worker(target: str, model: Model, report: dict[str, Any], conn: Any, parents_end: Any) -> None:
-    parents_end.close()  # else, the parent killed, sending would block on a pipe no one reads instead of failing
+def _serve(
+    names: tuple[str, ...], model: Model | None, report: dict[str, Any] | None, ends: list[Any], parents: list[Any]
+) -> None:
+    """The worker: the BACKGROUND emitters' files, or None for one that failed (the parent runs it again and
+    raises the error itself), sent as one {name: files}."""
+    for end in parents:  # else, the parent killed, sending would block on a pipe no one reads instead of failing
+        if end is not None:
+            end.close()
+    results, feed = ends
+    outputs: dict[str, Files | None] = {}
     try:
-        files: Files | None = _emitter(target)(model, report)
-    except BaseException:  # the parent runs the emitter again and raises the error itself
-        files = None
-    # the parent may be gone, or the files may not pickle: then it finds no result and runs the emitter itself
+        for name in names:  # imported while the parent reads and analyses the spec
+            module = importlib.import_module(EMITTERS[name].partition(":")[0])
+            warm_up = getattr(module, "warm_up", None)
+            if warm_up is not None:
+                warm_up()
+        if feed is not None:
+            model, report = pickle.loads(feed.recv_bytes())
+            feed.close()
+    except BaseException:
+        model = None
+    if model is not None and report is not None:
+        for name in names:
+            try:
+                outputs[name] = _emitter(EMITTERS[name])(model, report)
+            except BaseException:
+                outputs[name] = None
+    # the parent may be gone, or the files may not pickle: then it finds nothing and runs the emitters itself
     with contextlib.suppress(BaseException):
-        conn.send(files)
+        results.send(outputs)
 
 
 def check_relative(path: str) -> None:

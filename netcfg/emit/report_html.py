@@ -13,7 +13,7 @@ import math
 import re
 from typing import Any
 
-from netcfg.emit import render, report_md
+from netcfg.emit import environment, render, report_md
 from netcfg.model import Model
 from netcfg.report_text import num
 
@@ -24,6 +24,14 @@ ROW = 16  # px per message
 MAX_ROWS = 48  # beyond that, the highest-priority messages are shown and the caption says how many are not
 MAX_BARS = 3000  # releases drawn per bus; a longer hyperperiod is shown from its start, as the caption says
 TICKS = 10
+
+
+def warm_up() -> None:
+    """What a report needs before there is a model: imported by a build's worker while the spec is analysed."""
+    import markdown  # noqa: F401
+
+    report_md.warm_up()
+    environment().get_template("report.html.j2")
 
 
 def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:

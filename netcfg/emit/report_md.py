@@ -11,7 +11,7 @@ import io
 from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
-from netcfg.emit import render
+from netcfg.emit import environment, render
 from netcfg.model import Bus, Described, Model, Node
 from netcfg.report_text import errors_text, master_loop_text, num, rate
 
@@ -493,6 +493,17 @@ def _flows_view(flows: list[dict[str, Any]], model: Model) -> dict[str, Any]:
 
 # ---------------------------------------------------------------------------------------------------------------
 # plots
+
+
+def warm_up() -> None:
+    """Import what drawing needs (see report_html.warm_up)."""
+    import matplotlib.style  # noqa: F401
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: F401
+    from matplotlib.figure import Figure  # noqa: F401
+    from matplotlib.lines import Line2D  # noqa: F401
+    from matplotlib.patches import Patch  # noqa: F401
+
+    environment().get_template("report.md.j2")
 
 
 def _draw(model: Model, plots: dict[str, tuple[str, dict[str, Any]]]) -> dict[str, bytes]:
