@@ -8,13 +8,12 @@ from __future__ import annotations
 
 import argparse
 import gc
-import json
 import os
 import sys
 from pathlib import Path
 from typing import Any
 
-from netcfg import __version__
+from netcfg import __version__, jsontext
 from netcfg.importers import ImportOptions
 
 
@@ -313,7 +312,7 @@ def cmd_check(
             return 2
     if fmt == "json":
         doc = reports[0] if len(reports) == 1 else {"ok": all(r["ok"] for r in reports), "results": reports}
-        print(json.dumps(doc, indent=2))
+        print(jsontext.dumps(doc, indent=2))
     else:
         for report in reports:
             if quiet:  # the problems only: warnings, then errors below
@@ -430,5 +429,5 @@ def cmd_schema() -> int:
     schema = Spec.model_json_schema()
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "netcfg spec"
-    print(json.dumps(schema, indent=2, sort_keys=True))
+    print(jsontext.dumps(schema, indent=2, sort_keys=True))
     return 0

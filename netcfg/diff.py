@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from netcfg import jsontext
 from netcfg.report_text import num
 
 Files = dict[str, bytes]
@@ -196,7 +197,7 @@ def diff_command(old: Path, new: Path, fmt: str) -> int:
         return 2
     d = compare(a, b)
     if fmt == "json":
-        print(json.dumps({"a": a.name, "b": b.name, **d.as_json()}, indent=2))
+        print(jsontext.dumps({"a": a.name, "b": b.name, **d.as_json()}, indent=2))
     else:
         print(render_text(a, b, d))
     return 0 if d.empty() else 1

@@ -10,13 +10,12 @@ a free identifier high enough, or else a slower rate of one named interferer.
 from __future__ import annotations
 
 import difflib
-import json
 import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from netcfg import model
+from netcfg import jsontext, model
 from netcfg.analyze import analysis_jitter, bus_responses, error_model, fifo_senders, release_offsets, rta_frames
 from netcfg.check import load_model
 from netcfg.diagnostics import Collector, sort_diagnostics
@@ -486,5 +485,5 @@ def command(paths: list[Path], name: str, fmt: str, options: ImportOptions) -> i
     except NotExplained as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 2
-    print(json.dumps(doc, indent=2) if fmt == "json" else text(doc))
+    print(jsontext.dumps(doc, indent=2) if fmt == "json" else text(doc))
     return 1 if doc["meets"] is False else 0

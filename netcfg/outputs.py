@@ -25,6 +25,8 @@ import shutil
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
+from netcfg import jsontext
+
 MANIFEST = ".netcfg-manifest.json"
 MANIFEST_FORMAT = "netcfg-output"
 MARKER = ".netcfg-temporary"  # inside temporary and backup folders only
@@ -52,7 +54,7 @@ def manifest_bytes(files: Mapping[str, bytes], spec_sha256: str) -> bytes:
         "spec_sha256": spec_sha256,
         "files": {name: hashlib.sha256(files[name]).hexdigest() for name in sorted(files)},
     }
-    return (json.dumps(doc, indent=2, sort_keys=True) + "\n").encode("utf-8")
+    return (jsontext.dumps(doc, indent=2, sort_keys=True) + "\n").encode("utf-8")
 
 
 def read_manifest(folder: Path) -> set[str] | None:

@@ -27,6 +27,8 @@ from functools import partial
 from pathlib import Path
 from typing import Any, TextIO
 
+from netcfg import jsontext
+
 __all__ = ["add_parser", "run_command"]
 
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")
@@ -257,7 +259,7 @@ def _run(
             return 2
     doc = result_document(outcome, cfg.system)
     if args.format == "json":
-        print(json.dumps(doc, indent=2))
+        print(jsontext.dumps(doc, indent=2))
     else:
         print(result_text(outcome, doc))
         if args.log is not None:

@@ -23,7 +23,6 @@ COB-ID (CiA 301's predefined connection set, which devices expect) and on FTT-CA
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import sys
@@ -35,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from netcfg import model
+from netcfg import jsontext, model
 from netcfg.analyze import analysis_jitter, release_offsets, rta_frames
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
@@ -497,7 +496,7 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
         print(f"netcfg: cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     doc = result_document(m, plans, before, after, output)
-    print(json.dumps(doc, indent=2) if fmt == "json" else result_text(doc))
+    print(jsontext.dumps(doc, indent=2) if fmt == "json" else result_text(doc))
     return 0
 
 

@@ -3,10 +3,10 @@ of two build folders). File names only, no machine paths: generated/ stays the s
 
 from __future__ import annotations
 
-import json
 from pathlib import PurePath
 from typing import Any
 
+from netcfg import jsontext
 from netcfg.model import Model
 
 
@@ -15,4 +15,4 @@ def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
     doc["file"] = PurePath(model.file).name
     for key in ("errors", "warnings"):
         doc[key] = [{**d, "file": PurePath(d["file"]).name} for d in report.get(key, [])]
-    return {"report.json": (json.dumps(doc, indent=1, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")}
+    return {"report.json": (jsontext.dumps(doc, indent=1, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")}

@@ -15,11 +15,10 @@ information (see netcfg.runtime).
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 from typing import Any
 
-from netcfg import cia301, model
+from netcfg import cia301, jsontext, model
 from netcfg.emit import canopen_dcf
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
@@ -38,7 +37,7 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     problems = check_document(doc, strict=True)  # what netcfg.runtime.load accepts, checked at the source
     if problems:
         raise ValueError(f"runtime.json would not load: {problems[0]}")
-    text = json.dumps(doc, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
+    text = jsontext.dumps(doc, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
     return {"runtime.json": text.encode("utf-8")}
 
 

@@ -12,7 +12,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from netcfg import runtime
+from netcfg import jsontext, runtime
 from netcfg.outputs import TMP_TAG
 from netcfg.sim.faults import Fault, FaultError
 from netcfg.sim.montecarlo import progress_bar, run_batch, run_once
@@ -258,7 +258,7 @@ def _simulate(args: argparse.Namespace, cfg: runtime.RuntimeConfig, opts: SimOpt
             print(f"netcfg: cannot write the trace {args.log}: {exc.strerror or exc}", file=sys.stderr)
             return 2
     if args.format == "json":
-        print(json.dumps(doc_out, indent=2))
+        print(jsontext.dumps(doc_out, indent=2))
     else:
         print(text(doc_out))
     excused = outside_error_assumption(res)  # the analysis does not claim to bound this run

@@ -13,6 +13,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from netcfg import jsontext
+
 __all__ = ["add_parser", "verify_command"]
 
 
@@ -90,7 +92,7 @@ def verify_command(args: argparse.Namespace) -> int:
             print(f"netcfg: cannot write the report to {args.report}: {exc.strerror or exc}", file=sys.stderr)
             return 2
     if args.format == "json":
-        print(json.dumps(_public(report), indent=2))
+        print(jsontext.dumps(_public(report), indent=2))
     else:
         print(text(report))
         if sys.stderr.isatty() and wall > 0:
