@@ -165,6 +165,25 @@ DOCUMENT = obj(
 )
 
 
+# Where a value is, as (where its container is, its key or (item, index) in it); None is the document. The text
+# ("messages[3] 'odometry'.period_ns") is made only for a problem: a large document has ~10^5 values.
+Where = tuple[Any, Any] | None
+
+
+def _text(where: Where) -> str:
+    parts: list[Any] = []
+    while where is not None:
+        where, part = where
+        parts.append(part)
+    text = ""
+    for part in reversed(parts):
+        if isinstance(part, str):
+            text = f"{text}.{part}" if text else part
+        else:
+            text += _label(*part)
+    return text
+
+
 def _label(item: Any, index: int) -> str:
     n = item.get("name") if isinstance(item, dict) else None
     return f"[{index}] {n!r}" if isinstance(n, str) else f"[{index}]"
@@ -174,69 +193,70 @@ def _within(value: float, f: F) -> bool:
     return (f.lo is None or f.lo <= value) and (f.hi is None or value <= f.hi)
 
 
-def _check(value: Any, f: F, where: str, out: list[str], strict: bool) -> None:
+def _check(value: Any, f: F, where: Where, out: list[str], strict: bool) -> None:
     if value is None:
         if not f.null:
-            out.append(f"{where}: must not be null")
+            out.append(f"{_text(where)}: must not be null")
         return
     k = f.kind
     if k == "int" or (k == "enum" and all(isinstance(c, int) for c in f.choices)):
         if not isinstance(value, int) or isinstance(value, bool):
-            out.append(f"{where}: must be a whole number, not {type(value).__name__}")
+            out.append(f"{_text(where)}: must be a whole number, not {type(value).__name__}")
         elif k == "enum" and value not in f.choices:
-            out.append(f"{where}: {value} is not one of {', '.join(map(str, f.choices))}")
+            out.append(f"{_text(where)}: {value} is not one of {', '.join(map(str, f.choices))}")
         elif k == "int" and not _within(value, f):
             shown = str(value) if len(str(value)) <= 24 else f"a number of {len(str(value))} digits"
-            out.append(f"{where}: {shown} is out of range {f.lo:,}..{f.hi:,}")
+            out.append(f"{_text(where)}: {shown} is out of range {f.lo:,}..{f.hi:,}")
     elif k == "float":
         if not isinstance(value, (int, float)) or isinstance(value, bool):
-            out.append(f"{where}: must be a number, not {type(value).__name__}")
+            out.append(f"{_text(where)}: must be a number, not {type(value).__name__}")
         elif not math.isfinite(value) or not _within(value, f):
-            out.append(f"{where}: {value!r} is out of range {f.lo:g}..{f.hi:g}")
+            out.append(f"{_text(where)}: {value!r} is out of range {f.lo:g}..{f.hi:g}")
     elif k == "bool":
         if not isinstance(value, bool):
-            out.append(f"{where}: must be true or false, not {type(value).__name__}")
+            out.append(f"{_text(where)}: must be true or false, not {type(value).__name__}")
     elif k in ("str", "name", "enum"):
         if not isinstance(value, str):
-            out.append(f"{where}: must be a string, not {type(value).__name__}")
+            out.append(f"{_text(where)}: must be a string, not {type(value).__name__}")
         elif k == "enum" and value not in f.choices:
-            out.append(f"{where}: {value[:40]!r} is not one of {', '.join(f.choices)}")
+            out.append(f"{_text(where)}: {value[:40]!r} is not one of {', '.join(f.choices)}")
         elif k == "name" and not 0 < len(value) <= MAX_NAME_CHARS:
-            out.append(f"{where}: a name must have 1..{MAX_NAME_CHARS} characters")
+            out.append(f"{_text(where)}: a name must have 1..{MAX_NAME_CHARS} characters")
     elif k == "list":
         if not isinstance(value, list):
-            out.append(f"{where}: must be a list, not {type(value).__name__}")
+            out.append(f"{_text(where)}: must be a list, not {type(value).__name__}")
         elif f.hi is not None and len(value) > f.hi:
-            out.append(f"{where}: {len(value):,} items, at most {int(f.hi):,}")
+            out.append(f"{_text(where)}: {len(value):,} items, at most {int(f.hi):,}")
         else:
             assert f.item is not None
             for n, item in enumerate(value):
-                _check(item, f.item, f"{where}{_label(item, n)}", out, strict)
+                _check(item, f.item, (where, (item, n)), out, strict)
     elif k == "tuple":
         if not isinstance(value, list) or len(value) != len(f.parts):
-            out.append(f"{where}: must be a list of {len(f.parts)} items")
+            out.append(f"{_text(where)}: must be a list of {len(f.parts)} items")
         else:
             for n, (item, part) in enumerate(zip(value, f.parts)):
-                _check(item, part, f"{where}[{n}]", out, strict)
+                _check(item, part, (where, (None, n)), out, strict)
     elif k == "obj":
         if not isinstance(value, dict):
-            out.append(f"{where}: must be an object, not {type(value).__name__}")
+            out.append(f"{_text(where)}: must be an object, not {type(value).__name__}")
             return
         assert f.fields is not None
         for key, sub in f.fields.items():
             if key in value:
-                _check(value[key], sub, f"{where}.{key}" if where else key, out, strict)
+                _check(value[key], sub, (where, key), out, strict)
             elif not sub.optional:
-                out.append(f"{where or 'the file'}: missing key '{key}'")
+                out.append(f"{_text(where) or 'the file'}: missing key '{key}'")
         if strict:
-            out += [f"{where or 'the file'}: key '{key}' is not in the schema" for key in value if key not in f.fields]
+            unknown = [key for key in value if key not in f.fields]
+            out += [f"{_text(where) or 'the file'}: key '{key}' is not in the schema" for key in unknown]
 
 
 def check_document(doc: Any, strict: bool = False) -> list[str]:
     """Every problem of a runtime.json document, as "where: what". strict: also keys the schema does not know
     (the emitter's check; a reader tolerates them, so that an older master reads a newer file)."""
     out: list[str] = []
-    _check(doc, DOCUMENT, "", out, strict)
+    _check(doc, DOCUMENT, None, out, strict)
     if out:
         return out
     for kind in ("buses", "nodes", "messages", "triggers", "flows"):
