@@ -25,10 +25,16 @@ def command() -> int:
       imported, only burns CPU (0.08 s of a 0.4 s simulate process on 2 cores).
     - pydantic looks for plugins in the entry points of every installed distribution when it builds the first
       model; the spec's models are netcfg's own, no plugin is meant for them (1 % of a check, more where many
-      packages are installed)."""
+      packages are installed).
+    - The process ends right after: Python's last collection, as it exits, would walk every object the command
+      built only to free memory the exit frees anyway (0.27 s after a 126-drive build). Frozen, they are left
+      to the exit; nothing netcfg relies on is finalised by that collection (files are closed as they are written)."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
-    return main()
+    try:
+        return main()
+    finally:
+        gc.freeze()
 
 
 def main(argv: list[str] | None = None) -> int:
