@@ -111,19 +111,21 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command not in BATCH_COMMANDS:
         return _dispatch(args)
-    # A batch command builds one large object graph (YAML nodes, spec, model, report) that lives until it ends; with
-    # the default gen-0 threshold of 700 the collector walks it hundreds of times for garbage it rarely holds.
-    # 5,000-message check: a quarter less CPU, the same peak memory.
-    saved = gc.get_threshold()
-    gc.set_threshold(BATCH_GC_THRESHOLD, *saved[1:])
+    # A batch command builds one large object graph (YAML nodes, spec, model, report, files) that lives until it
+    # ends, and makes almost no cyclic garbage: every collection walks objects that all survive it. Off, then.
+    # Measured (peak RSS, with the collector and without): 5,000-message check 107/108 MB as a spec, 112/113 MB as a
+    # DBC; specs of 20,000 messages that are all errors 201/201 MB and 212/212 MB; a 126-drive build 140/143 MB.
+    # The 126-drive import and build each spent about 0.08 s in 14 collections.
+    enabled = gc.isenabled()
+    gc.disable()
     try:
         return _dispatch(args)
     finally:
-        gc.set_threshold(*saved)
+        if enabled:
+            gc.enable()
 
 
 BATCH_COMMANDS = frozenset({"check", "build", "import"})
-BATCH_GC_THRESHOLD = 100_000  # allocations between gen-0 collections
 
 
 def _dispatch(args: argparse.Namespace) -> int:
@@ -300,7 +302,9 @@ def cmd_check(
         print(f"netcfg: {exc}", file=sys.stderr)
         return 2
     reports: list[dict[str, Any]] = []
-    for path in paths:
+    for n, path in enumerate(paths):
+        if n:
+            gc.collect()  # the last spec's model (its cycles: the collector is off in a batch command, see main())
         try:
             reports.append(promote_warnings(check(path, options), werror))
         except OSError as exc:
