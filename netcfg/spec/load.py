@@ -140,25 +140,30 @@ def report_validation_errors(
 
     errors = exc.errors(include_url=False)
     missing = {_data_path(tuple(e["loc"])) for e in errors if e["type"] == "missing"}
+    models: dict[tuple[Any, ...], type[BaseModel] | None] = {}  # by location with list indexes as 0
+    meant_by_error: dict[int, tuple[type[BaseModel] | None, str | None]] = {}  # unknown key: its model, closest key
     explained: set[tuple[Any, ...]] = set()  # required keys that are there, misspelt: one error says both
-    for e in errors:
+    for n, e in enumerate(errors):
         if e["type"] == "extra_forbidden":
             loc = _data_path(tuple(e["loc"]))
-            model = _model_at(tuple(e["loc"])[:-1])
+            shape = tuple(0 if isinstance(part, int) else part for part in tuple(e["loc"])[:-1])
+            if shape not in models:
+                models[shape] = _model_at(shape)
+            model = models[shape]
             meant = closest(str(loc[-1]), model.model_fields) if model is not None else None
+            meant_by_error[n] = (model, meant)
             if meant is not None and (*loc[:-1], meant) in missing:
                 explained.add((*loc[:-1], meant))
     seen: set[tuple[Any, ...]] = set()
-    for err in errors:
+    for n, err in enumerate(errors):
         loc = _data_path(tuple(err["loc"]))
         kind = err["type"]
         if kind == "extra_forbidden":
             key = loc[-1]
             parent = loc[:-1]
             where = _fmt_path(parent, data) or "the spec"
-            model = _model_at(tuple(err["loc"])[:-1])
-            hint = did_you_mean(str(key), model.model_fields) if model is not None else ""
-            meant = closest(str(key), model.model_fields) if model is not None else None
+            model, meant = meant_by_error[n]
+            hint = f" (did you mean '{meant}'?)" if meant is not None else ""
             if meant is not None and (*parent, meant) in explained:
                 hint = f" (did you mean '{meant}'? it is required)"
             message = f"unknown key '{key}' in {where}{hint or '; check its spelling (netcfg schema)'}"
