@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import re
 import sys
-from importlib import resources
 from pathlib import Path
 
 from netcfg.importers import ImportOptions
@@ -27,6 +26,8 @@ SOURCES = (*EXAMPLES, "dbc")
 
 
 def example_text(name: str) -> str:
+    from importlib import resources  # here: every command's argument parser imports this module for SOURCES
+
     return resources.files("netcfg.examples").joinpath(f"{EXAMPLES[name]}.yaml").read_text("utf-8")
 
 
