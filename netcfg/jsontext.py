@@ -101,7 +101,7 @@ class _Writer:
         inner = pad + self.step
         string, fast, value, extend = self.string, self.fast, self._value, parts.extend
         parts.append("{")
-        separator = inner
+        separator, comma = inner, "," + inner  # one string for every item's separator, as json's encoder has
         for key, item in sorted(obj.items()) if self.sort_keys else obj.items():
             name = string(key) if type(key) is str else self._key(key)
             write = fast.get(type(item))
@@ -110,7 +110,7 @@ class _Writer:
             else:
                 extend((separator, name, ": "))
                 value(item, inner)
-            separator = "," + inner
+            separator = comma
         parts.append(pad)
         parts.append("}")
 
@@ -122,10 +122,10 @@ class _Writer:
         inner = pad + self.step
         fast, value, append = self.fast, self._value, parts.append
         parts.append("[")
-        separator = inner
+        separator, comma = inner, "," + inner
         for item in obj:
             append(separator)
-            separator = "," + inner
+            separator = comma
             write = fast.get(type(item))
             if write is not None:
                 append(write(item))
