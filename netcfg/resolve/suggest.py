@@ -28,7 +28,11 @@ def closest(name: str, known: Iterable[str]) -> str | None:
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
     """" (did you mean 'x'?)" to put right after the unknown name's sentence, or "" when no known name is close."""
-    match = closest(name, known)
+    return suggestion(closest(name, known))
+
+
+def suggestion(match: str | None) -> str:
+    """did_you_mean's words for a match found already (closest), or "" for None."""
     return f" (did you mean '{match}'?)" if match is not None else ""
 
 

@@ -136,12 +136,12 @@ def _unwrap(tp: Any) -> Any:
 def report_validation_errors(
     exc: ValidationError, smap: SourceMap, diags: Collector, data: Any = None
 ) -> None:
-    from netcfg.resolve.suggest import closest, did_you_mean
+    from netcfg.resolve.suggest import closest, did_you_mean, suggestion
 
     errors = exc.errors(include_url=False)
     missing = {_data_path(tuple(e["loc"])) for e in errors if e["type"] == "missing"}
     models: dict[tuple[Any, ...], type[BaseModel] | None] = {}  # by location with list indexes as 0
-    meant_by_error: dict[int, tuple[type[BaseModel] | None, str | None]] = {}  # unknown key: its model, closest key
+    meant_by_error: dict[int, str | None] = {}  # an unknown key's error -> the model's closest key
     explained: set[tuple[Any, ...]] = set()  # required keys that are there, misspelt: one error says both
     for n, e in enumerate(errors):
         if e["type"] == "extra_forbidden":
@@ -151,7 +151,7 @@ def report_validation_errors(
                 models[shape] = _model_at(shape)
             model = models[shape]
             meant = closest(str(loc[-1]), model.model_fields) if model is not None else None
-            meant_by_error[n] = (model, meant)
+            meant_by_error[n] = meant
             if meant is not None and (*loc[:-1], meant) in missing:
                 explained.add((*loc[:-1], meant))
     seen: set[tuple[Any, ...]] = set()
@@ -162,8 +162,8 @@ def report_validation_errors(
             key = loc[-1]
             parent = loc[:-1]
             where = _fmt_path(parent, data) or "the spec"
-            model, meant = meant_by_error[n]
-            hint = f" (did you mean '{meant}'?)" if meant is not None else ""
+            meant = meant_by_error[n]
+            hint = suggestion(meant)
             if meant is not None and (*parent, meant) in explained:
                 hint = f" (did you mean '{meant}'? it is required)"
             message = f"unknown key '{key}' in {where}{hint or '; check its spelling (netcfg schema)'}"
