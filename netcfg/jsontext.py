@@ -1,4 +1,4 @@
-"""Indented JSON text, byte for byte what json.dumps writes, in a third of its time.
+"""Indented JSON text, byte for byte what json.dumps writes, in about half its time.
 
 With an indent, Python's json module (before 3.13) formats in pure Python, each piece passing up through one
 generator per level of nesting: 0.24 G of the 1.96 G instructions of `netcfg check --format json` on 1,000
@@ -48,7 +48,7 @@ class _Writer:
         """obj at the nesting level whose closing bracket follows pad ("\\n" plus its indent)."""
         if isinstance(obj, dict):
             self._object(obj, pad)
-        elif isinstance(obj, (list, tuple)) and not isinstance(obj, str):
+        elif isinstance(obj, (list, tuple)):
             self._array(obj, pad)
         else:
             self.parts.append(self._scalar(obj))
