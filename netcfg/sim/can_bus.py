@@ -411,6 +411,9 @@ class CanBus:
         t = busy if busy > now else now  # the next arbitration instant
         hearers = self._hear
         many = len(monitors) > 1  # several python-can endpoints: one delivery event each
+        # none of the per-frame special cases: frames nobody hears go through the short loop below
+        plain = babble is None and gate is None and not exact and not fifos and not keep_data
+        chunk_stop = chunk_end if streams else NEVER
         while True:
             # whatever else is due before this decision (or at it, and must happen first) runs first
             if queue:
@@ -429,6 +432,39 @@ class CanBus:
                 rel_t, rel_src, rel_data = self._rel_t, self._rel_src, self._rel_data
                 ri, rn = 0, len(rel_t)
                 chunk_end = self._chunk_end
+                chunk_stop = chunk_end
+            if plain and ei >= en and not monitors and not lose:
+                # The loop below, cut to what these frames need: it runs them while a decision at t would come
+                # before the next event (the tests at its top), and leaves the rest to it: at its top, the next
+                # event or a refill; else, at the same t, a frame someone hears or an idle stretch to the horizon.
+                if queue:
+                    stop_at = ht if head[1] < LATE else ht + 1  # a decision at ht comes after an EARLY event
+                    if stop_at > until:
+                        stop_at = until
+                else:
+                    stop_at = until
+                while t < stop_at and t < chunk_stop:
+                    while ri < rn and rel_t[ri] <= t:
+                        s = rel_src[ri]
+                        seq += 1
+                        push(pending, (keys[s], rel_t[ri], seq, s, None))
+                        ri += 1
+                    if not pending:
+                        nxt = rel_t[ri] if ri < rn else NEVER
+                        if nxt >= horizon or nxt >= chunk_stop:
+                            break
+                        t = nxt
+                        continue
+                    if pending[0][3] in listeners:
+                        break
+                    item = pop(pending)
+                    m = item[3]
+                    end = t + durs[m]
+                    rec_msg.append(m)
+                    rec_resp.append(end - item[1])
+                    t = busy = end
+                if t >= stop_at or t >= chunk_stop:
+                    continue
             while ri < rn and rel_t[ri] <= t:
                 s = rel_src[ri]
                 seq += 1
