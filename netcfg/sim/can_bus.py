@@ -328,12 +328,14 @@ class CanBus:
         all_t = np.concatenate(times)
         all_s = np.concatenate(srcs)
         order = np.argsort(all_t, kind="stable")
-        data: list[bytes | None] = self._rel_data[left] + [None] * (len(all_t) - len(times[0]))
         if self.stuffing == "exact":
+            data: list[bytes | None] = self._rel_data[left] + [None] * (len(all_t) - len(times[0]))
             data = self._random_payloads(all_s, data, len(times[0]))
+            self._rel_data = [data[i] for i in order.tolist()]
+        else:  # only exact stuffing gives free-running frames payloads
+            self._rel_data = [None] * len(all_t)
         self._rel_t = all_t[order].tolist()
         self._rel_src = all_s[order].tolist()
-        self._rel_data = [data[i] for i in order.tolist()]
         self._rel_i = 0
         self._chunk_end = t1
         new = len(all_t) - len(times[0])
