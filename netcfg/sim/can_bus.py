@@ -459,11 +459,11 @@ class CanBus:
                         continue
                     if pending[0][3] in listeners:
                         break
-                    item = pop(pending)
-                    m = item[3]
+                    frame = pop(pending)
+                    m = frame[3]
                     end = t + durs[m]
                     rec_msg.append(m)
-                    rec_resp.append(end - item[1])
+                    rec_resp.append(end - frame[1])
                     t = busy = end
                 if t >= stop_at or t >= chunk_stop:
                     continue
