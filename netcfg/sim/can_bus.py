@@ -449,7 +449,7 @@ class CanBus:
                     while ri < rn and rel_t[ri] <= t:
                         s = rel_src[ri]
                         seq += 1
-                        push(pending, (keys[s], rel_t[ri], seq, s, None))
+                        push(pending, (keys[s], rel_t[ri], seq, s, None))  # no payload outside exact stuffing
                         ri += 1
                     if not pending:
                         nxt = rel_t[ri] if ri < rn else NEVER
