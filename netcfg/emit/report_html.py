@@ -28,7 +28,7 @@ TICKS = 10
 
 def warm_up() -> None:
     """What a report needs before there is a model: imported by a build's worker while the spec is analysed."""
-    import markdown  # noqa: F401
+    import markdown.extensions.tables  # noqa: F401
 
     report_md.warm_up()
     environment().get_template("report.html.j2")
@@ -43,8 +43,11 @@ def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
 
 def page(model: Model, report: dict[str, Any], files: dict[str, bytes]) -> bytes:
     import markdown
+    from markdown.extensions.tables import TableExtension
 
-    md = markdown.Markdown(extensions=["tables"], output_format="html")
+    # the extension itself, not its name: a name is looked up among every installed package's entry points (30 ms
+    # of importlib.metadata in a build's worker), where another package could register a 'tables' of its own
+    md = markdown.Markdown(extensions=[TableExtension()], output_format="html")
     md.preprocessors.deregister("html_block")  # raw HTML in the Markdown is shown as text, never interpreted
     md.inlinePatterns.deregister("html")
     body = md.convert(files["report.md"].decode("utf-8"))
