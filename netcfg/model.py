@@ -262,6 +262,18 @@ class Model:
         node, name = ref.split(".", 1)
         return self.nodes[node].tasks[name]
 
+    def canopen_masters(self, bus: Bus) -> tuple[str, ...]:
+        """The nodes of a CANopen bus described as its master (a DCF of their own, with the consumer heartbeat
+        times 0x1016 of the nodes they supervise): the master or SYNC producer without a device profile."""
+        assert bus.canopen is not None
+        return tuple(
+            name
+            for name in bus.nodes
+            if (node := self.nodes[name]).device is None
+            and node.node_id is not None
+            and (node.role == "master" or name == bus.canopen.sync_producer)
+        )
+
 
 # What the spec can give a description: free text the emitters escape for their format.
 Described = Model | Bus | Node | Task | Message | Trigger | Flow

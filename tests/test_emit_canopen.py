@@ -26,6 +26,7 @@ from conftest import EPOS4_EDS, SPECS, load_spec
 
 from netcfg.check import analyse_spec
 from netcfg.devices import ObjectEntry, builtin_profile
+from netcfg.emit import c_header
 from netcfg.emit.canopen_dcf import emit, ini_text
 from netcfg.model import Model
 
@@ -238,6 +239,34 @@ def test_large_plant_master_and_heartbeats(tmp_path: Path) -> None:
         if node.get("device") == "epos4":
             od = canopen.import_od(str(out / "canopen" / f"{node['name']}.dcf"))
             assert node["heartbeat"] == "100 ms" and entry(od, 0x1017).value == 100
+
+
+def test_heartbeat_consumers_are_the_nodes_whose_dcf_supervises_them(tmp_path: Path) -> None:
+    """A heartbeat's consumers are the nodes configured to consume it (CiA 301 7.5.2.18: consumer heartbeat time
+    0x1016, node id in bits 16-23, time in ms below): in allex2 only the master's DCF has 0x1016, one entry per
+    drive with the default consumer time 3 x 100 ms = 300 ms, so each drive's heartbeat has the master alone as
+    consumer, and the drives' C headers do not receive each other's heartbeats. A heartbeat nobody supervises
+    (here the master's own, 50 ms, added for the test) has no consumer."""
+    data = load_spec("allex2.yaml")
+    master = next(n for n in data["nodes"] if n["name"] == "master")
+    master["heartbeat"] = "50 ms"
+    spec = tmp_path / "allex2_hb.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    model, files = emitted(spec)
+    out = write(files, tmp_path / "out")
+    od = canopen.import_od(str(out / "canopen" / "master.dcf"))
+    consumers = {msg.name: msg.consumers for msg in model.buses["can0"].messages if msg.implicit == "heartbeat"}
+    supervised = {od[0x1016][sub].value >> 16: od[0x1016][sub].value & 0xFFFF for sub in range(1, 7)}
+    assert supervised == dict.fromkeys(DRIVES.values(), 300)
+    for drive in DRIVES:
+        assert consumers[f"{drive}_heartbeat"] == ("master",)
+        assert 0x1016 not in canopen.import_od(str(out / "canopen" / f"{drive}.dcf"))
+    assert consumers["master_heartbeat"] == ()
+    model, report = analyse_spec(spec)
+    assert model is not None
+    header = c_header.emit(model, report)["c/hip_l.h"].decode()
+    assert "message hip_l_heartbeat on can0: hip_l -> master; sent here" in header
+    assert "knee_l_heartbeat" not in header
 
 
 def test_inhibit_time_and_sync_start_reach_the_tpdo_parameters(tmp_path: Path) -> None:

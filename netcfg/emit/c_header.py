@@ -426,7 +426,7 @@ def node_view(
     views: dict[ViewKey, MessageView] | None = None,
     on_bus: dict[str, dict[str, list[model.Message]]] | None = None,
 ) -> NodeView | None:
-    """The node's view; `views` caches the message views that other nodes share (a heartbeat every node hears),
+    """The node's view; `views` caches the message views that other nodes share (a SYNC every node hears),
     `on_bus` the messages each node sends or receives per bus (messages_by_node)."""
     views = {} if views is None else views
     buses = [m.buses[b] for b in node.buses]
@@ -483,7 +483,7 @@ def node_view(
 
 def messages_by_node(bus: model.Bus) -> dict[str, list[model.Message]]:
     """node -> the bus's messages it sends or receives, in the bus's order: one pass over the bus instead of one
-    per node (127 nodes that all hear 127 heartbeats)."""
+    per node (127 nodes that all hear the SYNC)."""
     out: dict[str, list[model.Message]] = {}
     for msg in bus.messages:
         for name in dict.fromkeys((msg.producer, *msg.consumers)):
@@ -493,12 +493,12 @@ def messages_by_node(bus: model.Bus) -> dict[str, list[model.Message]]:
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     """Each message's C body is rendered once and pasted into every header that has it, after a heading line that
-    says whether that node sends or receives it: on a CANopen bus every node hears every heartbeat, so per-node
-    rendering grows with the square of the nodes."""
+    says whether that node sends or receives it: a frame many nodes hear (a SYNC, a broadcast) is rendered once,
+    not once per node."""
     files = {}
     views: dict[ViewKey, MessageView] = {}
     on_bus = {bus.name: messages_by_node(bus) for bus in m.buses.values()}
-    # encoded once each and joined as bytes: 126 drives' headers are 47 MB, nearly all of it these blocks
+    # encoded once each and joined as bytes: most of a header is these blocks
     headings: dict[ViewKey, bytes] = {}
     bodies: dict[tuple[str, str], bytes] = {}
     block = environment().get_template("node_message.h.j2").module  # its macros: heading(m), body(system, m)

@@ -95,10 +95,10 @@ def dbc_text(m: model.Model, bus: model.Bus) -> str:
     """The bus's DBC file as cantools writes it.
 
     Before writing, cantools renames every node throughout every frame's sender and receiver lists: nodes x
-    frames x receivers steps, most of the writing on a CANopen bus of 127 nodes whose heartbeats every node
-    receives. For netcfg's names, which are DBC names already, that pass changes nothing; so when no node name is
-    long enough for cantools to shorten, it writes the database without its nodes and their one line, `BU_:`, is
-    filled in. Nodes carry no comment or attribute here, so the bytes are those of the long way (a test compares)."""
+    frames x receivers steps, most of the writing on a bus of many nodes that hear many frames. For netcfg's
+    names, which are DBC names already, that pass changes nothing; so when no node name is long enough for
+    cantools to shorten, it writes the database without its nodes and their one line, `BU_:`, is filled in.
+    Nodes carry no comment or attribute here, so the bytes are those of the long way (a test compares)."""
     if any(len(name) > CANTOOLS_SHORT_NAME for name in bus.nodes):
         return write(database(m, bus))
     text = write(database(m, bus, with_nodes=False))

@@ -213,6 +213,7 @@ class CanopenProtocol(CanProtocol):
             )
             self.r.claim_implicit_name(sync.name, "the SYNC of bus " + bus.name)
             bus.messages.insert(0, sync)
+            supervisors = self.r.model.canopen_masters(bus)
             for name in bus.nodes:
                 node = self.r.model.nodes.get(name)
                 if node is None or node.heartbeat_ns is None or node.node_id is None:
@@ -223,7 +224,10 @@ class CanopenProtocol(CanProtocol):
                         name=f"{name}_heartbeat",
                         bus=bus.name,
                         producer=name,
-                        consumers=tuple(n for n in bus.nodes if n != name) or (name,),
+                        # the nodes whose consumer heartbeat times (0x1016) list it, as the DCFs configure them
+                        consumers=tuple(s for s in supervisors if s != name)
+                        if node.heartbeat_timeout_ns is not None
+                        else (),
                         id=cia301.HEARTBEAT_BASE + node.node_id,
                         extended=False,
                         size=1,

@@ -1356,7 +1356,7 @@ static inline void msg_ankle_r_effort_unpack(struct msg_ankle_r_effort *v, const
 }
 #endif
 
-/* ==== message hip_l_heartbeat on can0: hip_l -> master, knee_l, ankle_l, hip_r, knee_r, ankle_r; received here; heartbeat (implicit) */
+/* ==== message hip_l_heartbeat on can0: hip_l -> master; received here; heartbeat (implicit) */
 #ifndef NETCFG_ALLEX2_MSG_HIP_L_HEARTBEAT
 #define NETCFG_ALLEX2_MSG_HIP_L_HEARTBEAT
 #define MSG_HIP_L_HEARTBEAT_ID 0x701
@@ -1394,7 +1394,7 @@ static inline void msg_hip_l_heartbeat_unpack(struct msg_hip_l_heartbeat *v, con
 }
 #endif
 
-/* ==== message knee_l_heartbeat on can0: knee_l -> master, hip_l, ankle_l, hip_r, knee_r, ankle_r; received here; heartbeat (implicit) */
+/* ==== message knee_l_heartbeat on can0: knee_l -> master; received here; heartbeat (implicit) */
 #ifndef NETCFG_ALLEX2_MSG_KNEE_L_HEARTBEAT
 #define NETCFG_ALLEX2_MSG_KNEE_L_HEARTBEAT
 #define MSG_KNEE_L_HEARTBEAT_ID 0x702
@@ -1432,7 +1432,7 @@ static inline void msg_knee_l_heartbeat_unpack(struct msg_knee_l_heartbeat *v, c
 }
 #endif
 
-/* ==== message ankle_l_heartbeat on can0: ankle_l -> master, hip_l, knee_l, hip_r, knee_r, ankle_r; received here; heartbeat (implicit) */
+/* ==== message ankle_l_heartbeat on can0: ankle_l -> master; received here; heartbeat (implicit) */
 #ifndef NETCFG_ALLEX2_MSG_ANKLE_L_HEARTBEAT
 #define NETCFG_ALLEX2_MSG_ANKLE_L_HEARTBEAT
 #define MSG_ANKLE_L_HEARTBEAT_ID 0x703
@@ -1470,7 +1470,7 @@ static inline void msg_ankle_l_heartbeat_unpack(struct msg_ankle_l_heartbeat *v,
 }
 #endif
 
-/* ==== message hip_r_heartbeat on can0: hip_r -> master, hip_l, knee_l, ankle_l, knee_r, ankle_r; received here; heartbeat (implicit) */
+/* ==== message hip_r_heartbeat on can0: hip_r -> master; received here; heartbeat (implicit) */
 #ifndef NETCFG_ALLEX2_MSG_HIP_R_HEARTBEAT
 #define NETCFG_ALLEX2_MSG_HIP_R_HEARTBEAT
 #define MSG_HIP_R_HEARTBEAT_ID 0x704
@@ -1508,7 +1508,7 @@ static inline void msg_hip_r_heartbeat_unpack(struct msg_hip_r_heartbeat *v, con
 }
 #endif
 
-/* ==== message knee_r_heartbeat on can0: knee_r -> master, hip_l, knee_l, ankle_l, hip_r, ankle_r; received here; heartbeat (implicit) */
+/* ==== message knee_r_heartbeat on can0: knee_r -> master; received here; heartbeat (implicit) */
 #ifndef NETCFG_ALLEX2_MSG_KNEE_R_HEARTBEAT
 #define NETCFG_ALLEX2_MSG_KNEE_R_HEARTBEAT
 #define MSG_KNEE_R_HEARTBEAT_ID 0x705
@@ -1546,7 +1546,7 @@ static inline void msg_knee_r_heartbeat_unpack(struct msg_knee_r_heartbeat *v, c
 }
 #endif
 
-/* ==== message ankle_r_heartbeat on can0: ankle_r -> master, hip_l, knee_l, ankle_l, hip_r, knee_r; received here; heartbeat (implicit) */
+/* ==== message ankle_r_heartbeat on can0: ankle_r -> master; received here; heartbeat (implicit) */
 #ifndef NETCFG_ALLEX2_MSG_ANKLE_R_HEARTBEAT
 #define NETCFG_ALLEX2_MSG_ANKLE_R_HEARTBEAT
 #define MSG_ANKLE_R_HEARTBEAT_ID 0x706

@@ -3483,7 +3483,7 @@ static inline void msg_axis25_state_unpack(struct msg_axis25_state *v, const uin
 }
 #endif
 
-/* ==== message axis01_heartbeat on motion: axis01 -> motion_master, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis01_heartbeat on motion: axis01 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS01_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS01_HEARTBEAT
 #define MSG_AXIS01_HEARTBEAT_ID 0x701
@@ -3521,7 +3521,7 @@ static inline void msg_axis01_heartbeat_unpack(struct msg_axis01_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis02_heartbeat on motion: axis02 -> motion_master, axis01, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis02_heartbeat on motion: axis02 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS02_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS02_HEARTBEAT
 #define MSG_AXIS02_HEARTBEAT_ID 0x702
@@ -3559,7 +3559,7 @@ static inline void msg_axis02_heartbeat_unpack(struct msg_axis02_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis03_heartbeat on motion: axis03 -> motion_master, axis01, axis02, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis03_heartbeat on motion: axis03 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS03_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS03_HEARTBEAT
 #define MSG_AXIS03_HEARTBEAT_ID 0x703
@@ -3597,7 +3597,7 @@ static inline void msg_axis03_heartbeat_unpack(struct msg_axis03_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis04_heartbeat on motion: axis04 -> motion_master, axis01, axis02, axis03, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis04_heartbeat on motion: axis04 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS04_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS04_HEARTBEAT
 #define MSG_AXIS04_HEARTBEAT_ID 0x704
@@ -3635,7 +3635,7 @@ static inline void msg_axis04_heartbeat_unpack(struct msg_axis04_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis05_heartbeat on motion: axis05 -> motion_master, axis01, axis02, axis03, axis04, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis05_heartbeat on motion: axis05 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS05_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS05_HEARTBEAT
 #define MSG_AXIS05_HEARTBEAT_ID 0x705
@@ -3673,7 +3673,7 @@ static inline void msg_axis05_heartbeat_unpack(struct msg_axis05_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis06_heartbeat on motion: axis06 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis06_heartbeat on motion: axis06 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS06_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS06_HEARTBEAT
 #define MSG_AXIS06_HEARTBEAT_ID 0x706
@@ -3711,7 +3711,7 @@ static inline void msg_axis06_heartbeat_unpack(struct msg_axis06_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis07_heartbeat on motion: axis07 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis07_heartbeat on motion: axis07 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS07_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS07_HEARTBEAT
 #define MSG_AXIS07_HEARTBEAT_ID 0x707
@@ -3749,7 +3749,7 @@ static inline void msg_axis07_heartbeat_unpack(struct msg_axis07_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis08_heartbeat on motion: axis08 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis08_heartbeat on motion: axis08 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS08_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS08_HEARTBEAT
 #define MSG_AXIS08_HEARTBEAT_ID 0x708
@@ -3787,7 +3787,7 @@ static inline void msg_axis08_heartbeat_unpack(struct msg_axis08_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis09_heartbeat on motion: axis09 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis09_heartbeat on motion: axis09 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS09_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS09_HEARTBEAT
 #define MSG_AXIS09_HEARTBEAT_ID 0x709
@@ -3825,7 +3825,7 @@ static inline void msg_axis09_heartbeat_unpack(struct msg_axis09_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis10_heartbeat on motion: axis10 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis10_heartbeat on motion: axis10 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS10_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS10_HEARTBEAT
 #define MSG_AXIS10_HEARTBEAT_ID 0x70A
@@ -3863,7 +3863,7 @@ static inline void msg_axis10_heartbeat_unpack(struct msg_axis10_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis11_heartbeat on motion: axis11 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis11_heartbeat on motion: axis11 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS11_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS11_HEARTBEAT
 #define MSG_AXIS11_HEARTBEAT_ID 0x70B
@@ -3901,7 +3901,7 @@ static inline void msg_axis11_heartbeat_unpack(struct msg_axis11_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis12_heartbeat on motion: axis12 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis12_heartbeat on motion: axis12 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS12_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS12_HEARTBEAT
 #define MSG_AXIS12_HEARTBEAT_ID 0x70C
@@ -3939,7 +3939,7 @@ static inline void msg_axis12_heartbeat_unpack(struct msg_axis12_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis13_heartbeat on motion: axis13 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis13_heartbeat on motion: axis13 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS13_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS13_HEARTBEAT
 #define MSG_AXIS13_HEARTBEAT_ID 0x70D
@@ -3977,7 +3977,7 @@ static inline void msg_axis13_heartbeat_unpack(struct msg_axis13_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis14_heartbeat on motion: axis14 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis14_heartbeat on motion: axis14 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS14_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS14_HEARTBEAT
 #define MSG_AXIS14_HEARTBEAT_ID 0x70E
@@ -4015,7 +4015,7 @@ static inline void msg_axis14_heartbeat_unpack(struct msg_axis14_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis15_heartbeat on motion: axis15 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis15_heartbeat on motion: axis15 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS15_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS15_HEARTBEAT
 #define MSG_AXIS15_HEARTBEAT_ID 0x70F
@@ -4053,7 +4053,7 @@ static inline void msg_axis15_heartbeat_unpack(struct msg_axis15_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis16_heartbeat on motion: axis16 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis16_heartbeat on motion: axis16 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS16_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS16_HEARTBEAT
 #define MSG_AXIS16_HEARTBEAT_ID 0x710
@@ -4091,7 +4091,7 @@ static inline void msg_axis16_heartbeat_unpack(struct msg_axis16_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis17_heartbeat on motion: axis17 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis18, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis17_heartbeat on motion: axis17 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS17_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS17_HEARTBEAT
 #define MSG_AXIS17_HEARTBEAT_ID 0x711
@@ -4129,7 +4129,7 @@ static inline void msg_axis17_heartbeat_unpack(struct msg_axis17_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis18_heartbeat on motion: axis18 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis19, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis18_heartbeat on motion: axis18 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS18_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS18_HEARTBEAT
 #define MSG_AXIS18_HEARTBEAT_ID 0x712
@@ -4167,7 +4167,7 @@ static inline void msg_axis18_heartbeat_unpack(struct msg_axis18_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis19_heartbeat on motion: axis19 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis20, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis19_heartbeat on motion: axis19 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS19_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS19_HEARTBEAT
 #define MSG_AXIS19_HEARTBEAT_ID 0x713
@@ -4205,7 +4205,7 @@ static inline void msg_axis19_heartbeat_unpack(struct msg_axis19_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis20_heartbeat on motion: axis20 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis21, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis20_heartbeat on motion: axis20 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS20_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS20_HEARTBEAT
 #define MSG_AXIS20_HEARTBEAT_ID 0x714
@@ -4243,7 +4243,7 @@ static inline void msg_axis20_heartbeat_unpack(struct msg_axis20_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis21_heartbeat on motion: axis21 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis22, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis21_heartbeat on motion: axis21 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS21_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS21_HEARTBEAT
 #define MSG_AXIS21_HEARTBEAT_ID 0x715
@@ -4281,7 +4281,7 @@ static inline void msg_axis21_heartbeat_unpack(struct msg_axis21_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis22_heartbeat on motion: axis22 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis23, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis22_heartbeat on motion: axis22 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS22_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS22_HEARTBEAT
 #define MSG_AXIS22_HEARTBEAT_ID 0x716
@@ -4319,7 +4319,7 @@ static inline void msg_axis22_heartbeat_unpack(struct msg_axis22_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis23_heartbeat on motion: axis23 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis24, axis25; received here; heartbeat (implicit) */
+/* ==== message axis23_heartbeat on motion: axis23 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS23_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS23_HEARTBEAT
 #define MSG_AXIS23_HEARTBEAT_ID 0x717
@@ -4357,7 +4357,7 @@ static inline void msg_axis23_heartbeat_unpack(struct msg_axis23_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis24_heartbeat on motion: axis24 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis25; received here; heartbeat (implicit) */
+/* ==== message axis24_heartbeat on motion: axis24 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS24_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS24_HEARTBEAT
 #define MSG_AXIS24_HEARTBEAT_ID 0x718
@@ -4395,7 +4395,7 @@ static inline void msg_axis24_heartbeat_unpack(struct msg_axis24_heartbeat *v, c
 }
 #endif
 
-/* ==== message axis25_heartbeat on motion: axis25 -> motion_master, axis01, axis02, axis03, axis04, axis05, axis06, axis07, axis08, axis09, axis10, axis11, axis12, axis13, axis14, axis15, axis16, axis17, axis18, axis19, axis20, axis21, axis22, axis23, axis24; received here; heartbeat (implicit) */
+/* ==== message axis25_heartbeat on motion: axis25 -> motion_master; received here; heartbeat (implicit) */
 #ifndef NETCFG_LARGE_PLANT_MSG_AXIS25_HEARTBEAT
 #define NETCFG_LARGE_PLANT_MSG_AXIS25_HEARTBEAT
 #define MSG_AXIS25_HEARTBEAT_ID 0x719
