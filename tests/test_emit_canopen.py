@@ -252,18 +252,18 @@ def test_heartbeat_consumers_are_the_nodes_whose_dcf_supervises_them(tmp_path: P
     master["heartbeat"] = "50 ms"
     spec = tmp_path / "allex2_hb.yaml"
     spec.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    model, files = emitted(spec)
-    out = write(files, tmp_path / "out")
+    model, report = analyse_spec(spec)
+    assert model is not None and report["ok"], report["errors"]
+    out = write(emit(model, report), tmp_path / "out")
     od = canopen.import_od(str(out / "canopen" / "master.dcf"))
     consumers = {msg.name: msg.consumers for msg in model.buses["can0"].messages if msg.implicit == "heartbeat"}
-    supervised = {od[0x1016][sub].value >> 16: od[0x1016][sub].value & 0xFFFF for sub in range(1, 7)}
+    assert od[0x1016][0].default == len(DRIVES)  # sub-index 0: the number of entries
+    supervised = {od[0x1016][sub].value >> 16: od[0x1016][sub].value & 0xFFFF for sub in range(1, len(DRIVES) + 1)}
     assert supervised == dict.fromkeys(DRIVES.values(), 300)
     for drive in DRIVES:
         assert consumers[f"{drive}_heartbeat"] == ("master",)
         assert 0x1016 not in canopen.import_od(str(out / "canopen" / f"{drive}.dcf"))
     assert consumers["master_heartbeat"] == ()
-    model, report = analyse_spec(spec)
-    assert model is not None
     header = c_header.emit(model, report)["c/hip_l.h"].decode()
     assert "message hip_l_heartbeat on can0: hip_l -> master; sent here" in header
     assert "knee_l_heartbeat" not in header

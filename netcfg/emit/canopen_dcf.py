@@ -196,7 +196,7 @@ def file_names(model: Model) -> dict[tuple[str, str], dict[str, str]]:
     out: dict[tuple[str, str], dict[str, str]] = {}
     buses = [b for b in model.buses.values() if b.canopen is not None]
     for bus in buses:
-        assert bus.canopen is not None
+        masters = model.canopen_masters(bus)
         for name in bus.nodes:
             node = model.nodes[name]
             if node.node_id is None:  # resolve refuses this on CANopen; nothing to describe
@@ -205,7 +205,7 @@ def file_names(model: Model) -> dict[tuple[str, str], dict[str, str]]:
             folder = "canopen" if on == 1 else f"canopen/{bus.name}"
             if node.device is not None:
                 out[(bus.name, name)] = {ext: f"{folder}/{name}.{ext}" for ext in ("eds", "dcf")}
-            elif node.role == "master" or name == bus.canopen.sync_producer:
+            elif name in masters:
                 out[(bus.name, name)] = {"dcf": f"{folder}/{name}.dcf"}
     return out
 
@@ -419,13 +419,12 @@ def _master_view(model: Model, bus: Bus, node: Node, texts: Texts) -> FileView:
     heartbeat = _var(od, 0x1017, NAMES[0x1017], U16, "rw", 0)
     if node.heartbeat_ns is not None:
         heartbeat.configure(node.heartbeat_ns // 1_000_000)
-    # consumer heartbeat times (CiA 301 7.5.2.18): one entry per supervised slave, node id in bits 16-23, ms below
+    # consumer heartbeat times (CiA 301 7.5.2.18): one entry per heartbeat the model makes this node consume, node
+    # id in bits 16-23, ms below
     supervised = [
-        slave
-        for name in bus.nodes
-        if (slave := model.nodes[name]).heartbeat_timeout_ns is not None
-        and slave.node_id is not None
-        and name != node.name
+        model.nodes[msg.producer]
+        for msg in bus.messages
+        if msg.implicit == "heartbeat" and node.name in msg.consumers
     ]
     if supervised:
         consumer = od[0x1016] = _Obj(name=NAMES[0x1016], object_type=ARRAY)
