@@ -181,6 +181,77 @@ def test_a_flow_whose_frames_are_all_dropped_has_no_samples() -> None:
     assert tracker.latency.samples == []
 
 
+def test_two_items_reaching_different_stamps_at_one_instant_is_undecided() -> None:
+    """A final step of two items, each reading its own node's item of the step before: where they reach
+    different stamps at one instant, which comes first may decide which stamp finishes, so the stream computation
+    declines (cautiously: here neither order would finish one); a nanosecond apart, it gives what the tracker,
+    called event by event as the event path calls it, gives."""
+    cfg = generated("ntua_sahr")
+    steps = (FlowStep(kind="task", refs=("a.first", "b.first")), FlowStep(kind="task", refs=("a.second", "b.second")))
+    flow = replace(cfg.flows[0], steps=steps)
+
+    def runs(*starts: int) -> Stream:
+        at = np.array(starts, dtype=np.int64)
+        return Stream(True, at, at + 10)
+
+    streams = {"a.first": runs(1 * MS, 4 * MS), "b.first": runs(1 * MS, 2 * MS, 4 * MS)}
+    streams["a.second"] = runs(3 * MS, 5 * MS)
+    with pytest.raises(Undecided):
+        measure_streams(flows.FlowTracker(cfg, flow), {**streams, "b.second": runs(3 * MS)})
+    streams["b.second"] = runs(3 * MS + 1, 5 * MS + 1)
+    tracker = flows.FlowTracker(cfg, flow)
+    measure_streams(tracker, streams)
+    reference = flows.FlowTracker(cfg, flow)
+    events = sorted((int(t), ref, int(e)) for ref, s in streams.items() for t, e in zip(s.first, s.end))
+    for t, ref, e in events:
+        reference.task_started(ref, t, e)
+    # at 3 ms a.second reads stamp 1 ms and b.second 2 ms: neither finishes; at 5 ms both read 4 ms, which the
+    # later of them finishes: 5 ms + 1 ns - 4 ms
+    assert tracker.latency.samples == reference.latency.samples == [1 * MS + 1]
+
+
+def test_a_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = generated("ntua_sahr")
+    opts = SimOptions(duration_ns=300 * MS, seed=8)
+    reference = run_once(cfg, replace(opts, whole_run=False))
+
+    def undecided(*_: object) -> None:
+        raise Undecided("forced")
+
+    monkeypatch.setattr(whole_run, "measure_streams", undecided)
+    assert_identical(run_once(cfg, opts), reference)
+
+
+def test_a_task_starting_as_the_data_it_reads_is_written_is_undecided() -> None:
+    """Two periodic tasks on one node chained in a flow, the first with no execution time, both starting at 1 ms:
+    which reads what depends on which event was queued first, so the stream computation declines."""
+    cfg = generated("ntua_sahr")
+    steps = (FlowStep(kind="task", refs=("a.first",)), FlowStep(kind="task", refs=("a.second",)))
+    tracker = flows.FlowTracker(cfg, replace(cfg.flows[0], steps=steps))
+    at = np.array([1 * MS], dtype=np.int64)
+    with pytest.raises(Undecided):
+        measure_streams(tracker, {"a.first": Stream(True, at, at), "a.second": Stream(True, at, at + 5)})
+    later = at + 1  # a nanosecond later it reads the first task's output, one sample of 1 ns
+    measure_streams(tracker, {"a.first": Stream(True, at, at), "a.second": Stream(True, later, later + 5)})
+    assert tracker.latency.samples == [1]
+
+
+def test_a_flow_whose_frames_are_all_dropped_has_no_samples() -> None:
+    """Every hip_encoder frame lost (a full port): the PID never reads a stamp, so nothing reaches the motor."""
+    cfg = generated("ntua_sahr")
+    tracker = flows.FlowTracker(cfg, cfg.flows[0])
+    at = np.arange(1, 6, dtype=np.int64) * MS
+    none = np.empty(0, dtype=np.int64)
+    measure_streams(tracker, {
+        "mcu_hip.sample": Stream(True, at, at + 5_000),
+        "hip_encoder": Stream(False, none, none),
+        "pc.pid": Stream(True, at + 100, at + 200),
+        "hip_pwm": Stream(False, at + 200, at + 300),
+        "mcu_hip.apply_pwm": Stream(True, at + 300, at + 400, "hip_pwm"),
+    })
+    assert tracker.latency.samples == []
+
+
 @pytest.mark.parametrize("drift_ppb", [-99_000_000, 100_000_000, 50_000])
 def test_activations_follow_the_node_clock_at_the_largest_drift(drift_ppb: int) -> None:
     """A periodic task's activations computed as an array are the event path's NodeClock.to_global(k * period),

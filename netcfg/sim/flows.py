@@ -161,59 +161,104 @@ class Stream:
 
 def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None:
     """The tracker's samples from whole streams: what task_started() and message_delivered(), called event by
-    event, would record, for flows whose every step has one item that appears once (whole_run.covers checks).
+    event, would record, for flows whose every item appears in one step only (the whole runs check).
 
     Data age as in the event path: a step's item holds (available at, stamp) records in the order they are added;
-    a reader takes the last record available by its instant (a task at its start, a message at its release).
-    Where that depends on which of two events at one instant comes first, or on records the event path has
-    already forgotten (HISTORY), this raises Undecided."""
+    a reader takes the last record available by its instant (a task at its start, a message at its release) of
+    each item it reads, and the oldest of their stamps. Where that depends on which of two events at one instant
+    comes first, or on records the event path has already forgotten (HISTORY), this raises Undecided."""
     steps = tracker.steps
     last = len(steps) - 1
-    times = stamps = added = np.empty(0, dtype=np.int64)  # the previous step's item: records in add order
-    prev_ref = ""
+    records: dict[str, _Records] = {}  # the previous step's items
     for i, step in enumerate(steps):
-        ref = step.refs[0]
-        s = streams[ref]
-        when = s.first  # the instant each call reads at
-        at_event = s.first if s.task else s.end  # the instant each call happens
-        if i == 0:
-            stamp = s.first
-        else:
-            j = np.searchsorted(times, when, side="right") - 1
-            every = not len(j) or int(j.min()) >= 0  # every call found a record (most runs, after the first)
-            ok = j >= 0
-            found = j if every else np.where(ok, j, 0)
-            if s.task and len(times):  # a record available at the very instant the task starts
-                tie = ok & (times[found] == when) & (added[found] == at_event)
-                own = steps[i - 1].kind == "message" and (s.on_delivery_of in (None, prev_ref))
-                if tie.any() and not own:
-                    raise Undecided(f"flow '{tracker.name}': {ref} starts as {prev_ref} is added")
-            seen = np.searchsorted(added, at_event, side="right")  # records added by then, at most
-            # further back than the fewest records the event path keeps; cautious: it may start the event path
-            # again where that path had in fact kept the record, never the other way round
-            back = found < seen - HISTORY - 1
-            if back.any() and (back & ok & (seen > 2 * HISTORY)).any():
-                raise Undecided(f"flow '{tracker.name}': {ref} reads further back than the event path keeps")
-            if every:
-                stamp = stamps[j]
-            else:  # only the calls that found a stamp go on
-                stamp = stamps[j[ok]]
-                s = Stream(s.task, s.first[ok], s.end[ok], s.on_delivery_of)
-        if s.task:
-            if i == last:
-                tracker.latency.samples = _reached(tracker.latency.done, stamp, s.first)
-                return
-            times, stamps, added = s.end, stamp, s.first
-            if len(times) > 1 and (times[1:] < times[:-1]).any():
-                raise Undecided(f"flow '{tracker.name}': {ref} ends out of order")
-        else:
-            times, stamps, added = s.end, stamp, s.end
-            if i == last:
-                tracker.latency.samples = _reached(tracker.latency.done, stamp, s.end)
-                return
-            if i == tracker.delivery_step and tracker.delivery is not None:
-                tracker.delivery.samples = _reached(tracker.delivery.done, stamp, s.end)
-        prev_ref = ref
+        reached: list[tuple[str, np.ndarray, Stream]] = []  # per item: its stamps and the calls that had one
+        for ref in step.refs:
+            s = streams[ref]
+            if i == 0:
+                stamp = s.first
+            else:
+                reads = [records[r] for r in tracker.local[(i, ref)]]
+                stamp, s = _read(tracker.name, ref, s, reads, steps[i - 1].kind == "message")
+            reached.append((ref, stamp, s))
+        if i == last:
+            _finish(tracker.latency, reached)
+            return
+        if i == tracker.delivery_step and tracker.delivery is not None:
+            _finish(tracker.delivery, reached)
+        records = {}
+        for ref, stamp, s in reached:
+            if s.task:
+                if len(s.end) > 1 and (s.end[1:] < s.end[:-1]).any():
+                    raise Undecided(f"flow '{tracker.name}': {ref} ends out of order")
+                records[ref] = _Records(ref, s.end, stamp, s.first)
+            else:
+                records[ref] = _Records(ref, s.end, stamp, s.end)
+
+
+@dataclass
+class _Records:
+    """One item's availability records over a whole run, in the order the event path adds them."""
+
+    ref: str
+    times: np.ndarray  # available from
+    stamps: np.ndarray
+    added: np.ndarray  # when the event path adds each
+
+
+def _read(flow: str, ref: str, s: Stream, reads: list[_Records], after_message: bool) -> tuple[np.ndarray, Stream]:
+    """The stamp each call of `s` takes from the items it reads (the oldest of their freshest), and the calls
+    that found one in every item (the others add no record)."""
+    when = s.first  # the instant each call reads at
+    at_event = s.first if s.task else s.end  # the instant each call happens
+    stamp: np.ndarray | None = None
+    ok = np.ones(len(when), dtype=bool)
+    for rec in reads:
+        if not len(rec.times):
+            return _EMPTY, Stream(s.task, _EMPTY, _EMPTY, s.on_delivery_of)
+        j = np.searchsorted(rec.times, when, side="right") - 1
+        found = j >= 0
+        jj = np.where(found, j, 0)
+        if s.task:  # a record available at the very instant the task starts
+            tie = found & (rec.times[jj] == when) & (rec.added[jj] == at_event)
+            own = after_message and s.on_delivery_of in (None, rec.ref)
+            if tie.any() and not own:
+                raise Undecided(f"flow '{flow}': {ref} starts as {rec.ref} is added")
+        seen = np.searchsorted(rec.added, at_event, side="right")  # records added by then, at most
+        # further back than the fewest records the event path keeps; cautious: it may start the event path
+        # again where that path had in fact kept the record, never the other way round
+        back = found & (jj < seen - HISTORY - 1) & (seen > 2 * HISTORY)
+        if back.any():
+            raise Undecided(f"flow '{flow}': {ref} reads further back than the event path keeps")
+        mine = rec.stamps[jj]
+        stamp = mine if stamp is None else np.minimum(stamp, mine)
+        ok &= found
+    assert stamp is not None
+    if ok.all():
+        return stamp, s
+    return stamp[ok], Stream(s.task, s.first[ok], s.end[ok], s.on_delivery_of)
+
+
+def _finish(end: _End, reached: list[tuple[str, np.ndarray, Stream]]) -> None:
+    """_End.reach for every call of a final step's items, in the order the event path makes them: a task's at
+    its start, a message's at its delivery."""
+    if len(reached) == 1:
+        _, stamp, s = reached[0]
+        end.samples = _reached(end.done, stamp, s.first if s.task else s.end)
+        return
+    at = np.concatenate([s.first if s.task else s.end for _, _, s in reached])
+    stamp = np.concatenate([st for _, st, _ in reached])
+    which = np.concatenate([np.full(len(st), k) for k, (_, st, _) in enumerate(reached)])
+    order = np.argsort(at, kind="stable")
+    at, stamp, which = at[order], stamp[order], which[order]
+    tie = (at[1:] == at[:-1]) & (which[1:] != which[:-1]) & (stamp[1:] != stamp[:-1])
+    if tie.any():  # which item reaches first at that instant decides which stamp finishes
+        raise Undecided(f"two items of one step reach different stamps at {int(at[1:][tie][0])} ns")
+    refs = [ref for ref, _, _ in reached]
+    for k, st, t in zip(which.tolist(), stamp.tolist(), at.tolist()):
+        end.reach(refs[k], st, t)
+
+
+_EMPTY = np.empty(0, dtype=np.int64)
 
 
 def _reached(done: int, stamp: np.ndarray, t: np.ndarray) -> list[int]:

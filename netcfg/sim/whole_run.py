@@ -12,7 +12,7 @@ is a handful of array computations, taken in dependency order:
   free-running links), window after window, so a long run's arrays stay small;
 * each flow's samples follow from those streams (netcfg.sim.flows.measure_streams).
 
-What this covers (covers()): Ethernet buses only, no faults, flows whose steps have one item each, tasks that
+What this covers (covers()): Ethernet buses only, no faults, flows whose every item appears in one step, tasks that
 send no sporadic message, and an order among tasks and links in which each comes after all that feeds it (no
 feedback, such as a link carrying a frame sent because of an earlier frame on that link). Everything else runs
 event by event; so does a covered run that meets a tie only the order of two events at one instant decides
@@ -43,6 +43,15 @@ def covers(sc: Scenario) -> bool:
     return plan(sc) is not None
 
 
+def flows_covered(sc: Scenario) -> bool:
+    """measure_streams computes a flow whose every item appears in one of its steps only."""
+    for tr in sc.flows:
+        refs = [ref for step in tr.steps for ref in step.refs]
+        if len(set(refs)) != len(refs):
+            return False
+    return True
+
+
 def _networks(sc: Scenario) -> list[EthernetNetwork] | None:
     from netcfg.sim.ethernet import EthernetNetwork
 
@@ -60,10 +69,8 @@ def plan(sc: Scenario) -> list[Job] | None:
     nets = _networks(sc)
     if nets is None:
         return None
-    for tr in sc.flows:
-        refs = [step.refs for step in tr.steps]
-        if any(len(r) != 1 for r in refs) or len({r[0] for r in refs}) != len(refs):
-            return None
+    if not flows_covered(sc):
+        return None
     tasks: dict[str, Task] = {task.ref: task for task, _, _ in sc.free_running_tasks()}
     feeds: dict[int, list[int]] = {}  # job -> the jobs that need it first
     jobs: list[Job] = []
@@ -163,11 +170,11 @@ def run(sc: Scenario, order: list[Job]) -> None:
     for tr in sc.flows:
         streams = {}
         for step in tr.steps:
-            ref = step.refs[0]
-            if step.kind == "task":
-                streams[ref] = activity.get(ref) or Stream(True, _EMPTY, _EMPTY)
-            else:
-                streams[ref] = _deliveries(nets, ref)
+            for ref in step.refs:
+                if step.kind == "task":
+                    streams[ref] = activity.get(ref) or Stream(True, _EMPTY, _EMPTY)
+                else:
+                    streams[ref] = _deliveries(nets, ref)
         measure_streams(tr, streams)
     sc.sim.skip_to(d)
 
