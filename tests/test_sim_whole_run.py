@@ -1,7 +1,7 @@
-"""The whole-run path (netcfg.sim.whole_run) gives, for the same seed, exactly what the event path gives, on every
-system it covers: every frame's release and delivery, every flow sample, the counters, the per-link and
-per-receiver reports and the task runs. The event path is the reference (SimOptions(whole_run=False)); nothing
-here is a recorded figure, both paths run afresh on each case.
+"""The whole-run paths (netcfg.sim.whole_run for Ethernet, netcfg.sim.ftt_whole_run for FTT-CAN) give, for the
+same seed, exactly what the event path gives, on every system they cover: every frame's release and delivery,
+every flow sample, the counters, the per-link and per-receiver reports and the task runs. The event path is the
+reference (SimOptions(whole_run=False)); nothing here is a recorded figure, both paths run afresh on each case.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import netcfg.runtime as rt
 from netcfg.check import analyse_spec
 from netcfg.emit.runtime_json import runtime_document
 from netcfg.runtime.config import FlowStep
-from netcfg.sim import flows, whole_run
+from netcfg.sim import flows, ftt_whole_run, whole_run
 from netcfg.sim.ethernet import CHUNK_NS
 from netcfg.sim.faults import Fault
 from netcfg.sim.flows import Stream, Undecided, measure_streams
@@ -136,7 +136,78 @@ def test_a_multicast_flow_identical_both_ways(tmp_path: Path) -> None:
 def test_what_the_whole_run_does_not_cover_runs_event_by_event() -> None:
     sahr = generated("ntua_sahr")
     assert not whole_run.covers(Scenario(sahr, SimOptions(faults=(Fault.parse("lose:hip_pwm@20ms"),))))
-    assert not whole_run.covers(Scenario(generated("cambada"), SimOptions()))  # CAN: its own paths
+    assert not whole_run.covers(Scenario(generated("cambada"), SimOptions()))  # FTT-CAN: ftt_whole_run
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"seed": 1},
+        {"seed": 2, "duration_ns": 7_000 * MS + 17},  # past several of the asynchronous streams' chunks
+        # the master's and every node's clock at 0 without drift: the sporadic resets and the periodic battery
+        # status are released on the same nanoseconds, and on EC starts
+        {"seed": 3, "random_phase": False, "drift_ppm": 0.0},
+        {"seed": 4, "stuffing": "none"},
+        {"seed": 5, "drift_ppm": 100_000.0},
+    ],
+)
+def test_cambada_identical_both_ways(options: dict[str, Any]) -> None:
+    """CAMBADA (seed 002): FTT-CAN with triggered tasks, a message-activated task, asynchronous periodic and
+    sporadic traffic, and flows whose steps hold several items (three wheels' tasks and encoders, the pose's two
+    messages), computed whole by netcfg.sim.ftt_whole_run."""
+    cfg = generated("cambada")
+    opts = SimOptions(**{"duration_ns": 2000 * MS, **options})
+    assert ftt_whole_run.plan(Scenario(cfg, opts)) is not None
+    a, b = both(cfg, opts)
+    assert a[0].protocols["lowlevel"]._got_tm == -1, "the event path ran: the master heard no TM in the whole run"
+    assert_identical(a, b)
+    assert all(len(v) for v in b[1].flow_latency.values())
+    assert b[1].sent["battery_status"] and b[1].sent["reset_motor1"], "the asynchronous traffic ran"
+
+
+def test_random_ftt_specs_identical_both_ways() -> None:
+    """benchmarks/soundness.py's random FTT-CAN buses (either window order, synchronous and asynchronous traffic,
+    triggered, periodic and message-activated tasks), at random phases and at the critical instant."""
+    covered = []
+
+    @settings(max_examples=15, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+    @given(soundness.STRATEGIES["ftt-can"])
+    def run(spec: dict[str, Any]) -> None:
+        path = soundness._spec_path()
+        path.write_text(soundness._dump(spec), encoding="utf-8")
+        model, report = soundness.analyse_spec(path)
+        if model is None or report["errors"]:
+            return
+        cfg = rt.parse(json.loads(json.dumps(soundness.runtime_document(model, report))), "random")
+        for opts in (
+            SimOptions(duration_ns=700 * MS, seed=len(covered)),
+            SimOptions(duration_ns=700 * MS, seed=len(covered), random_phase=False, drift_ppm=0.0),
+        ):
+            if ftt_whole_run.plan(Scenario(cfg, opts)) is not None:
+                covered.append(spec["system"])
+                assert_identical(*both(cfg, opts))
+
+    run()
+    assert covered, "no random spec was covered: the test no longer compares anything"
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"faults": (Fault.parse("master-fail@1s"),)},
+        {"stuffing": "exact"},  # random payloads, drawn from the generator the asynchronous frames share
+        {"trace": True},
+        {"mode": "unsync"},
+    ],
+)
+def test_what_the_ftt_whole_run_does_not_cover_runs_event_by_event(options: dict[str, Any]) -> None:
+    cfg = generated("cambada")
+    opts = SimOptions(duration_ns=2000 * MS, seed=1, **options)
+    assert ftt_whole_run.plan(Scenario(cfg, opts)) is None
+    sc, res = run_once(cfg, opts)
+    assert res.frames > 0
+    if options.get("mode") != "unsync":
+        assert sc.protocols["lowlevel"]._got_tm >= 0  # the master ran event by event
 
 
 def test_a_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -149,6 +220,20 @@ def test_a_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest
 
     monkeypatch.setattr(whole_run, "measure_streams", undecided)
     assert_identical(run_once(cfg, opts), reference)
+
+
+def test_an_ftt_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = generated("cambada")
+    opts = SimOptions(duration_ns=1000 * MS, seed=8)
+    reference = run_once(cfg, replace(opts, whole_run=False))
+
+    def undecided(*_: object) -> None:
+        raise Undecided("forced")
+
+    monkeypatch.setattr(ftt_whole_run, "measure_streams", undecided)
+    again = run_once(cfg, opts)
+    assert again[0].protocols["lowlevel"]._got_tm >= 0  # built afresh and run event by event
+    assert_identical(again, reference)
 
 
 def test_a_task_starting_as_the_data_it_reads_is_written_is_undecided() -> None:
@@ -208,48 +293,6 @@ def test_two_items_reaching_different_stamps_at_one_instant_is_undecided() -> No
     # at 3 ms a.second reads stamp 1 ms and b.second 2 ms: neither finishes; at 5 ms both read 4 ms, which the
     # later of them finishes: 5 ms + 1 ns - 4 ms
     assert tracker.latency.samples == reference.latency.samples == [1 * MS + 1]
-
-
-def test_a_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch) -> None:
-    cfg = generated("ntua_sahr")
-    opts = SimOptions(duration_ns=300 * MS, seed=8)
-    reference = run_once(cfg, replace(opts, whole_run=False))
-
-    def undecided(*_: object) -> None:
-        raise Undecided("forced")
-
-    monkeypatch.setattr(whole_run, "measure_streams", undecided)
-    assert_identical(run_once(cfg, opts), reference)
-
-
-def test_a_task_starting_as_the_data_it_reads_is_written_is_undecided() -> None:
-    """Two periodic tasks on one node chained in a flow, the first with no execution time, both starting at 1 ms:
-    which reads what depends on which event was queued first, so the stream computation declines."""
-    cfg = generated("ntua_sahr")
-    steps = (FlowStep(kind="task", refs=("a.first",)), FlowStep(kind="task", refs=("a.second",)))
-    tracker = flows.FlowTracker(cfg, replace(cfg.flows[0], steps=steps))
-    at = np.array([1 * MS], dtype=np.int64)
-    with pytest.raises(Undecided):
-        measure_streams(tracker, {"a.first": Stream(True, at, at), "a.second": Stream(True, at, at + 5)})
-    later = at + 1  # a nanosecond later it reads the first task's output, one sample of 1 ns
-    measure_streams(tracker, {"a.first": Stream(True, at, at), "a.second": Stream(True, later, later + 5)})
-    assert tracker.latency.samples == [1]
-
-
-def test_a_flow_whose_frames_are_all_dropped_has_no_samples() -> None:
-    """Every hip_encoder frame lost (a full port): the PID never reads a stamp, so nothing reaches the motor."""
-    cfg = generated("ntua_sahr")
-    tracker = flows.FlowTracker(cfg, cfg.flows[0])
-    at = np.arange(1, 6, dtype=np.int64) * MS
-    none = np.empty(0, dtype=np.int64)
-    measure_streams(tracker, {
-        "mcu_hip.sample": Stream(True, at, at + 5_000),
-        "hip_encoder": Stream(False, none, none),
-        "pc.pid": Stream(True, at + 100, at + 200),
-        "hip_pwm": Stream(False, at + 200, at + 300),
-        "mcu_hip.apply_pwm": Stream(True, at + 300, at + 400, "hip_pwm"),
-    })
-    assert tracker.latency.samples == []
 
 
 @pytest.mark.parametrize("drift_ppb", [-99_000_000, 100_000_000, 50_000])

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
-from netcfg.sim import whole_run
+from netcfg.sim import ftt_whole_run, whole_run
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, TASKS, NodeClock, Simulator
 from netcfg.sim.faults import Fault
@@ -71,7 +71,8 @@ class SimOptions:
     # node the (BCET, WCET) of consuming one frame (None: the node's on_message task for that message, if any)
     eth_queue_frames: int | None = None
     eth_processing_ns: Mapping[str, tuple[int, int]] | None = None
-    # compute the run's streams at once where netcfg.sim.whole_run covers it (the same results as event by event);
+    # compute the run's streams at once where netcfg.sim.whole_run (Ethernet) or netcfg.sim.ftt_whole_run (FTT-CAN)
+    # covers it (the same results as event by event);
     # a run that meets a tie only the order of events decides starts again event by event, at worst twice the work
     whole_run: bool = True
 
@@ -446,11 +447,16 @@ class Scenario:
                 start()
 
     def run(self) -> None:
-        order = whole_run.plan(self) if self.opts.whole_run else None
-        if order is not None:
+        if self.opts.whole_run:
             try:
-                whole_run.run(self, order)
-                return
+                order = whole_run.plan(self)
+                if order is not None:
+                    whole_run.run(self, order)
+                    return
+                ftt = ftt_whole_run.plan(self)
+                if ftt is not None:
+                    ftt_whole_run.run(self, ftt)
+                    return
             except whole_run.Undecided:  # rare: a tie only the order of events decides; the event path from 0
                 self._build()
         self.start()
