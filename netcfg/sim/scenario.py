@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
-from netcfg.sim import ftt_whole_run, whole_run
+from netcfg.sim import whole_run
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, TASKS, NodeClock, Simulator
 from netcfg.sim.faults import Fault
@@ -453,10 +453,13 @@ class Scenario:
                 if order is not None:
                     whole_run.run(self, order)
                     return
-                ftt = ftt_whole_run.plan(self)
-                if ftt is not None:
-                    ftt_whole_run.run(self, ftt)
-                    return
+                if any(b.ftt for b in self.cfg.buses):  # imported only then: its classes cost every run's start
+                    from netcfg.sim import ftt_whole_run
+
+                    ftt = ftt_whole_run.plan(self)
+                    if ftt is not None:
+                        ftt_whole_run.run(self, ftt)
+                        return
             except whole_run.Undecided:  # rare: a tie only the order of events decides; the event path from 0
                 self._build()
         self.start()
