@@ -43,11 +43,14 @@ if TYPE_CHECKING:
 
 
 @dataclass(frozen=True)
-class _Slot:
-    """One EC of the macro-cycle: its synchronous frames, (source, start, end) counted from the EC start."""
+class _Frames:
+    """One synchronous message's frames over the macro-cycle, one entry per slot that carries it, counted from
+    that EC's start: when the window queues it, when it starts and when it ends."""
 
-    frames: tuple[tuple[int, int, int], ...]
-    release: int  # when they are queued, from the EC start
+    slots: np.ndarray
+    queued: np.ndarray
+    begin: np.ndarray
+    end: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -55,8 +58,8 @@ class Plan:
     master: FttMaster
     can: CanBus
     tm_ns: int  # the TM's frame time on this bus
-    slots: tuple[_Slot, ...]
-    triggered: dict[str, tuple[Task, tuple[int, ...], int]]  # task -> (task, slots that start it, rx_delay)
+    sync: dict[int, _Frames]  # source -> its frames
+    triggered: dict[str, tuple[Task, np.ndarray, int]]  # task -> (task, the slots whose TM starts it, rx_delay)
     on_message: dict[str, tuple[Task, str, int]]  # task -> (task, its message, rx_delay)
 
 
@@ -80,33 +83,33 @@ def plan(sc: Scenario) -> Plan | None:
     asynchronous = [s for s in can.sources if s.index != tm.index and s.name not in master.owned]
     if any(not s.gated or s.key < tm.key or s.index in can.listeners for s in asynchronous):
         return None
-    slots = []
-    for slot in ftt.schedule:
-        window = ftt.window_start(slot.ec)
-        release = max(window, tm.dur_ns)
-        frames, t = [], release
-        for src in sorted((can.by_name[m] for m in slot.messages), key=lambda s: s.key):
-            frames.append((src.index, t, t + src.dur_ns))
-            t += src.dur_ns
-        opens, _ = ftt.async_window(slot.ec)
-        if tm.dur_ns > window or t > ftt.ec_ns or (ftt.sync_first and frames and t > opens):
-            return None
-        slots.append(_Slot(tuple(frames), release))
-    triggered: dict[str, tuple[Task, tuple[int, ...], int]] = {}
+    entries: dict[int, list[tuple[int, int, int, int]]] = {}  # source -> (slot, queued, begin, end)
+    triggered: dict[str, tuple[Task, list[int], int]] = {}
     for i, slot in enumerate(ftt.schedule):
+        window = ftt.window_start(i)
+        queued = t = max(window, tm.dur_ns)
+        for src in sorted((can.by_name[m] for m in slot.messages), key=lambda s: s.key):
+            entries.setdefault(src.index, []).append((i, queued, t, t + src.dur_ns))
+            t += src.dur_ns
+        opens, _ = ftt.async_window(i)
+        if tm.dur_ns > window or t > ftt.ec_ns or (ftt.sync_first and slot.messages and t > opens):
+            return None
         for trigger in slot.triggers:
             for task in sc.tasks_on_trigger(trigger):
-                if task.ref in triggered and i in triggered[task.ref][1]:
+                known = triggered.setdefault(task.ref, (task, [], cfg.node(task.node).rx_delay_ns))
+                if known[1] and known[1][-1] == i:
                     return None  # started twice by one TM
-                known = triggered.get(task.ref, (task, (), cfg.node(task.node).rx_delay_ns))
-                triggered[task.ref] = (task, (*known[1], i), known[2])
+                known[1].append(i)
     on_message: dict[str, tuple[Task, str, int]] = {}
     for name, tasks in sc._message_tasks.items():
         if name not in master.owned or name not in can.by_name:
             return None
         for task in tasks:
             on_message[task.ref] = (task, name, cfg.node(task.node).rx_delay_ns)
-    return Plan(master, can, tm.dur_ns, tuple(slots), triggered, on_message)
+    sync = {src: _Frames(*np.array(rows, dtype=np.int64).T) for src, rows in sorted(entries.items())}
+    return Plan(
+        master, can, tm.dur_ns, sync, {ref: (t, np.array(at), rx) for ref, (t, at, rx) in triggered.items()}, on_message
+    )
 
 
 def run(sc: Scenario, p: Plan) -> None:
@@ -114,36 +117,38 @@ def run(sc: Scenario, p: Plan) -> None:
     d = sc.opts.duration_ns
     master, can = p.master, p.can
     ftt = master.ftt
-    # the asynchronous frames: the bus's own loop, with nothing else on the bus
     sc.sim.skip_to(0)  # the periodic tasks' first activations, queued as the scenario was built: computed below
+    # the asynchronous frames: the bus's own loop, with nothing else on the bus
     can.gate = _async_gate(master, p.tm_ns)
     can.start()
     sc.sim.run_until(d)
     starts = _activations(master.clock.phase_ns, master.clock.drift_ppb, 0, ftt.ec_ns, d)  # the EC grid
     master.ecs = len(starts)
-    tm_end = starts + p.tm_ns
-    slot_of = np.arange(len(starts)) % ftt.macro_cycle_ec
-    heard = tm_end < d  # the TM's reception happens within the run: its EC's triggers and window follow
     can.record.msg.extend([master.tm] * len(starts))
     can.record.response.extend([p.tm_ns] * len(starts))
-    sent: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}  # source -> (release, end) per slot
-    for i, slot in enumerate(p.slots):
-        if not slot.frames:
-            continue
-        ec_start = starts[heard & (slot_of == i)]
-        queued = ec_start + slot.release
-        ec_start = ec_start[queued < d]  # the window's event happens within the run
-        for src, begin, finish in slot.frames:
-            started = ec_start[ec_start + begin < d]
-            sent.setdefault(src, []).append((started + slot.release, started + finish))
-            for at in (ec_start[ec_start + begin >= d] + slot.release).tolist():  # queued, never sent
-                can._seq += 1
-                heapq.heappush(can._pending, (can.sources[src].key, at, can._seq, src, None))
+    tm_end = starts + p.tm_ns
+    heard = int(np.searchsorted(tm_end, d))  # the ECs whose TM is received within the run: their triggers and window
+    cycles = -(-heard // ftt.macro_cycle_ec)
+
+    def ecs(slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The heard ECs whose slot is one of these (in order), and for each, which of them."""
+        k = (np.arange(cycles, dtype=np.int64)[:, None] * ftt.macro_cycle_ec + slots).ravel()
+        which = np.tile(np.arange(len(slots)), cycles)
+        keep = k < heard
+        return k[keep], which[keep]
+
     deliveries: dict[str, Stream] = {}
-    for src, parts in sorted(sent.items()):
-        release = np.concatenate([r for r, _ in parts])
-        order = np.argsort(release, kind="stable")  # slot by slot: into time order
-        release, end = release[order], np.concatenate([e for _, e in parts])[order]
+    for src, f in p.sync.items():
+        k, which = ecs(f.slots)
+        ec = starts[k]
+        queued = ec + f.queued[which]
+        begin = ec + f.begin[which]
+        end = ec + f.end[which]
+        sent = begin < d  # queued within the run (the window's event happens), and started in it
+        for at in queued[(queued < d) & ~sent].tolist():  # queued, never sent
+            can._seq += 1
+            heapq.heappush(can._pending, (can.sources[src].key, at, can._seq, src, None))
+        release, end = queued[sent], end[sent]
         can.record.msg.extend([src] * len(release))
         can.record.response.extend((end - release).tolist())
         delivered = end < d
@@ -153,7 +158,7 @@ def run(sc: Scenario, p: Plan) -> None:
     for t, clock, period in sc.free_running_tasks():
         activations[t.ref] = (t, _activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d))
     for ref, (task, slots, rx_delay) in p.triggered.items():
-        at = tm_end[heard & np.isin(slot_of, slots)] + rx_delay
+        at = tm_end[ecs(slots)[0]] + rx_delay
         activations[ref] = (task, at[at < d])
     for ref, (task, name, rx_delay) in p.on_message.items():
         heard_at = deliveries.get(name, Stream(False, _EMPTY, _EMPTY)).end + rx_delay
