@@ -165,6 +165,67 @@ def test_cambada_identical_both_ways(options: dict[str, Any]) -> None:
     assert b[1].sent["battery_status"] and b[1].sent["reset_motor1"], "the asynchronous traffic ran"
 
 
+def _tied_ftt_spec(windows: str, rx_delay: str, triggered: bool) -> dict[str, Any]:
+    """One 1 Mbit/s FTT-CAN bus, EC 2 ms: a.send (triggered every EC) -> m0 (every EC) -> b.use, triggered every
+    EC or started by m0, on a node whose rx_delay puts its start on the very nanosecond an m0 frame is received."""
+    use: dict[str, Any] = {"name": "use", "wcet": "40 us", "bcet": "10 us"}
+    triggers = [{"name": "t_send", "ftt_id": 5, "bus": "bus", "period": "1 EC", "tasks": ["a.send"]}]
+    if triggered:
+        triggers.append({"name": "t_use", "ftt_id": 6, "bus": "bus", "period": "1 EC", "tasks": ["b.use"]})
+    else:
+        use["on_message"] = "m0"
+    return {
+        "system": "tied",
+        "buses": [{"name": "bus", "protocol": "ftt-can", "bitrate": "1 Mbit/s",
+                   "ftt": {"ec": "2 ms", "tm_size": 2, "windows": windows}}],
+        "nodes": [
+            {"name": "master", "role": "master", "buses": ["bus"]},
+            {"name": "a", "buses": ["bus"], "tasks": [{"name": "send", "wcet": "50 us", "bcet": "20 us"}]},
+            {"name": "b", "buses": ["bus"], "rx_delay": rx_delay, "tasks": [use]},
+        ],
+        "messages": [
+            {"name": "m0", "ftt_id": 1, "producer": "a", "consumers": ["b"], "size": 2, "period": "1 EC"},
+            {"name": "as0", "id": 0x300, "window": "async", "producer": "a", "consumers": ["b"], "size": 1,
+             "period": "3 ms"},
+        ],
+        "triggers": triggers,
+        "flows": [{"name": "f0", "chain": ["a.send", "m0", "b.use"]}],
+    }
+
+
+@pytest.mark.parametrize(
+    ("windows", "rx_delay", "triggered"),
+    [
+        # the TM and m0 take 75 us each at 1 Mbit/s (2 bytes and 2 bytes, worst-case stuffing, ISO 11898-1):
+        # sync-first, m0 ends 150 us into the EC, b.use starts at the TM's end (75 us) + 75 us
+        ("sync-first", "75 us", True),
+        # async-first, m0 is the last frame of the EC (ends at 2 ms): 75 us + 1925 us
+        ("async-first", "1925 us", True),
+        # b.use on m0 with rx_delay one period: each start falls on the next m0 frame's reception
+        ("async-first", "2 ms", False),
+        ("async-first", "0 us", False),  # started from inside m0's delivery: it reads that frame
+    ],
+)
+def test_a_task_starting_as_its_frame_is_received_identical_both_ways(
+    tmp_path: Path, windows: str, rx_delay: str, triggered: bool
+) -> None:
+    """A task that starts on the nanosecond a frame it reads is received: the event path decides by the order its
+    events were queued in (a trigger's start is queued at the TM's reception, an rx_delay'd start at the earlier
+    frame's delivery: both before that frame's delivery; a periodic task after every delivery; a task without
+    rx_delay inside its frame's delivery), and the whole run must read the same frame."""
+    path = tmp_path / "tied.yaml"
+    path.write_text(yaml.safe_dump(_tied_ftt_spec(windows, rx_delay, triggered), sort_keys=False), encoding="utf-8")
+    model, report = analyse_spec(path)
+    assert model is not None and not report["errors"], report["errors"]
+    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+    opts = SimOptions(duration_ns=50 * MS, seed=1)
+    assert ftt_whole_run.plan(Scenario(cfg, opts)) is not None
+    a, b = both(cfg, opts)
+    assert a[0].protocols["bus"]._got_tm == -1, "computed whole, not fallen back to the event path"
+    assert_identical(a, b)
+    assert len(b[1].flow_latency["f0"]) > 10
+
+
 def test_random_ftt_specs_identical_both_ways() -> None:
     """benchmarks/soundness.py's random FTT-CAN buses (either window order, synchronous and asynchronous traffic,
     triggered, periodic and message-activated tasks), at random phases and at the critical instant."""

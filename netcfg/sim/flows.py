@@ -147,16 +147,26 @@ class Undecided(Exception):
     one instant decides, or the event path's bounded history: the run goes event by event instead."""
 
 
+# How a task's start is ordered, in the event path, against a message delivery at the very same instant:
+AFTER = "after"  # after every one: a periodic task (its events come after deliveries, netcfg.sim.engine.TASKS)
+AFTER_OWN = "after-own"  # after its own message's: started from inside that delivery (no rx_delay)
+BEFORE_OWN = "before-own"  # before its own message's: started by an event queued at an earlier one (rx_delay)
+BEFORE = "before"  # before every one: started by an event queued before any such delivery (an FTT-CAN trigger's,
+# queued at the trigger message's reception)
+
+
 @dataclass
 class Stream:
     """One flow item's activity over a whole run, in the order the event path sees it: a task's activations
     (start, end) or a message's listened deliveries (release, end, in delivery order). `on_delivery_of`: the
-    message whose delivery starts the task (it reads that delivery at once), None for a periodic task."""
+    message whose delivery starts the task, None for a periodic or triggered one; `ties`: how its start is ordered
+    against a delivery at the same instant (AFTER ...); a tie no order covers is Undecided."""
 
     task: bool
     first: np.ndarray  # start or release
     end: np.ndarray
     on_delivery_of: str | None = None
+    ties: str = AFTER
 
 
 def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None:
@@ -220,9 +230,14 @@ def _read(flow: str, ref: str, s: Stream, reads: list[_Records], after_message: 
         jj = np.where(found, j, 0)
         if s.task:  # a record available at the very instant the task starts
             tie = found & (rec.times[jj] == when) & (rec.added[jj] == at_event)
-            own = after_message and s.on_delivery_of in (None, rec.ref)
-            if tie.any() and not own:
-                raise Undecided(f"flow '{flow}': {ref} starts as {rec.ref} is added")
+            if tie.any():
+                sees = _sees_ties(s, rec.ref) if after_message else None
+                if sees is None:
+                    raise Undecided(f"flow '{flow}': {ref} starts as {rec.ref} is added")
+                if not sees:  # the task came first: the records before that instant (a message's are added at once)
+                    j = np.where(tie, np.searchsorted(rec.times, when, side="left") - 1, j)
+                    found = j >= 0
+                    jj = np.where(found, j, 0)
         seen = np.searchsorted(rec.added, at_event, side="right")  # records added by then, at most
         # further back than the fewest records the event path keeps; cautious: it may start the event path
         # again where that path had in fact kept the record, never the other way round
@@ -236,6 +251,16 @@ def _read(flow: str, ref: str, s: Stream, reads: list[_Records], after_message: 
     if ok.all():
         return stamp, s
     return stamp[ok], Stream(s.task, s.first[ok], s.end[ok], s.on_delivery_of)
+
+
+def _sees_ties(s: Stream, message: str) -> bool | None:
+    """Whether a task reads a record of `message` delivered at the very instant it starts; None where the order of
+    the two events is not known here."""
+    if s.ties == AFTER or (s.ties == AFTER_OWN and message == s.on_delivery_of):
+        return True
+    if s.ties == BEFORE or (s.ties == BEFORE_OWN and message == s.on_delivery_of):
+        return False
+    return None
 
 
 def _finish(end: _End, reached: list[tuple[str, np.ndarray, Stream]]) -> None:

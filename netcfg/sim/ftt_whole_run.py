@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from netcfg.sim.engine import NEVER
-from netcfg.sim.flows import Stream, measure_streams
+from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, Stream, measure_streams
 from netcfg.sim.whole_run import _EMPTY, _activations, _exec_times, flows_covered
 
 if TYPE_CHECKING:
@@ -81,7 +81,7 @@ def plan(sc: Scenario) -> Plan | None:
     if can.fifos:
         return None
     asynchronous = [s for s in can.sources if s.index != tm.index and s.name not in master.owned]
-    if any(not s.gated or s.key < tm.key or s.index in can.listeners for s in asynchronous):
+    if any(not s.gated or s.key <= tm.key or s.index in can.listeners for s in asynchronous):
         return None
     entries: dict[int, list[tuple[int, int, int, int]]] = {}  # source -> (slot, queued, begin, end)
     triggered: dict[str, tuple[Task, list[int], int]] = {}
@@ -154,21 +154,21 @@ def run(sc: Scenario, p: Plan) -> None:
         delivered = end < d
         deliveries[can.sources[src].name] = Stream(False, release[delivered], end[delivered])
     # the tasks
-    activations: dict[str, tuple[Task, np.ndarray]] = {}
+    activations: dict[str, tuple[Task, np.ndarray, str]] = {}  # task -> (task, its starts, its order at ties)
     for t, clock, period in sc.free_running_tasks():
-        activations[t.ref] = (t, _activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d))
+        activations[t.ref] = (t, _activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d), AFTER)
     for ref, (task, slots, rx_delay) in p.triggered.items():
         at = tm_end[ecs(slots)[0]] + rx_delay
-        activations[ref] = (task, at[at < d])
+        activations[ref] = (task, at[at < d], BEFORE)  # its event was queued as the TM was received
     for ref, (task, name, rx_delay) in p.on_message.items():
         heard_at = deliveries.get(name, Stream(False, _EMPTY, _EMPTY)).end + rx_delay
-        activations[ref] = (task, heard_at[heard_at < d])
+        activations[ref] = (task, heard_at[heard_at < d], BEFORE_OWN if rx_delay else AFTER_OWN)
     activity: dict[str, Stream] = {}
-    for ref, (task, start) in activations.items():
+    for ref, (task, start, ties) in activations.items():
         end = start + _exec_times(sc, task, len(start))
         if len(start):
             sc.task_arrays[ref] = (start, end)
-        activity[ref] = Stream(True, start, end, task.on_message)
+        activity[ref] = Stream(True, start, end, task.on_message, ties)
     for tr in sc.flows:
         streams = {}
         for step in tr.steps:

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netcfg.sim.engine import PPB, drift_ns
-from netcfg.sim.flows import Stream, Undecided, measure_streams
+from netcfg.sim.flows import AFTER, AFTER_OWN, Stream, Undecided, measure_streams
 
 if TYPE_CHECKING:
     from netcfg.runtime import Task
@@ -166,7 +166,7 @@ def run(sc: Scenario, order: list[Job]) -> None:
         start, end = np.concatenate(starts[t.ref]), np.concatenate(ends[t.ref])
         if len(start):
             sc.task_arrays[t.ref] = (start, end)
-        activity[t.ref] = Stream(True, start, end, t.on_message)
+        activity[t.ref] = Stream(True, start, end, t.on_message, AFTER if t.on_message is None else AFTER_OWN)
     for tr in sc.flows:
         streams = {}
         for step in tr.steps:
