@@ -133,6 +133,41 @@ def test_a_multicast_flow_identical_both_ways(tmp_path: Path) -> None:
     assert len(b[1].flow_latency["hip_to_spring"]) > 10_000  # 15 kHz for a second, after the warm-up
 
 
+@pytest.mark.parametrize("critical", [False, True])
+def test_ethernet_flows_with_several_items_per_step_identical_both_ways(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, critical: bool
+) -> None:
+    """NTUA SAHR with both 15 kHz boards in one flow's steps ([both samples], [both encoders], the PID, ...), and a
+    second flow ending in two PC tasks together (the PID and a 2 kHz logger): the PC's tasks read the older of the
+    two encoders' stamps, and the second flow's sample waits for both tasks. At the critical instant both boards
+    sample on the same nanoseconds."""
+    spec = yaml.safe_load((ROOT / "specs" / "ntua_sahr.yaml").read_text(encoding="utf-8"))
+    pc = next(n for n in spec["nodes"] if n["name"] == "pc")
+    pc["tasks"].append({"name": "log", "period": "500 us", "wcet": "20 us", "bcet": "5 us"})
+    samples, encoders = ["mcu_hip.sample", "mcu_spring.sample"], ["hip_encoder", "spring_encoder"]
+    spec["flows"] = [
+        {"name": "both_loop", "chain": [samples, encoders, "pc.pid", "hip_pwm", "mcu_hip.apply_pwm"]},
+        {"name": "both_encoders", "chain": [samples, encoders, ["pc.pid", "pc.log"]]},
+    ]
+    path = tmp_path / "both.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    model, report = analyse_spec(path)
+    assert model is not None and not report["errors"], report["errors"]
+    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+    opts = SimOptions(duration_ns=300 * MS, seed=11)
+    if critical:
+        opts = replace(opts, random_phase=False, drift_ppm=0.0)
+    assert whole_run.covers(Scenario(cfg, opts))
+    builds = []
+    build = Scenario._build
+    monkeypatch.setattr(Scenario, "_build", lambda sc: (builds.append(1), build(sc))[1])
+    a = run_once(cfg, opts)
+    assert len(builds) == 1, "computed whole, not fallen back to the event path"
+    b = run_once(cfg, replace(opts, whole_run=False))
+    assert_identical(a, b)
+    assert len(b[1].flow_latency["both_loop"]) > 100 and len(b[1].flow_latency["both_encoders"]) > 100
+
+
 def test_what_the_whole_run_does_not_cover_runs_event_by_event() -> None:
     sahr = generated("ntua_sahr")
     assert not whole_run.covers(Scenario(sahr, SimOptions(faults=(Fault.parse("lose:hip_pwm@20ms"),))))
