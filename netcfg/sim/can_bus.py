@@ -82,7 +82,8 @@ Stream = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
 @dataclass
 class Record:
-    """Every transmitted frame, in bus order; numpy arrays at the end of the run."""
+    """Every transmitted frame: in bus order event by event; a whole run (netcfg.sim.ftt_whole_run) appends its
+    frames message by message, each message's in order, so readers group by message or sort by end."""
 
     msg: list[int] = field(default_factory=list)
     response: list[int] = field(default_factory=list)  # end - release

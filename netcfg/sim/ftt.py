@@ -117,12 +117,15 @@ class FttMaster:
         self._send_tm(k)
 
     def _send_tm(self, k: int) -> None:
-        i = k % self.ftt.macro_cycle_ec
+        self.can.submit(self.tm, self.tm_payload(k % self.ftt.macro_cycle_ec))
+
+    def tm_payload(self, i: int) -> bytes:
+        """The TM of slot i of the macro-cycle: that EC's schedule as it carries it (worked out once per slot)."""
         payload = self._tm_payloads.get(i)
-        if payload is None:  # the slot's schedule as the TM carries it, once per slot of the macro-cycle
-            mask, size = self.ftt.slot(k).mask, self.ftt.tm_size
+        if payload is None:
+            mask, size = self.ftt.slot(i).mask, self.ftt.tm_size
             payload = self._tm_payloads[i] = (mask & ((1 << 8 * size) - 1)).to_bytes(size, "little")
-        self.can.submit(self.tm, payload)
+        return payload
 
     def _on_tm(self, end: int, _src: int, _release: int, data: bytes | None) -> None:
         k = self.ec_of(end)

@@ -14,7 +14,7 @@ apart, none of that depends on the run, so it is a handful of array computations
   keeps each inside its window, and here also out of the TM's time, which is what the TM did to them;
 * each flow's samples follow from those streams (netcfg.sim.flows.measure_streams).
 
-What this covers (plan()): one FTT-CAN bus run as FTT-CAN, no faults, no trace, no exact stuffing (its payloads
+What this covers (plan()): one FTT-CAN bus run as FTT-CAN, no faults, no exact stuffing (its payloads
 are random draws shared with the asynchronous frames), no FIFO transmit queues, no task that sends, nobody
 listening to asynchronous frames, a TM that outranks every asynchronous frame, and a schedule whose windows
 hold what they carry (each EC's TM before its synchronous window, that window over by the next EC, and with the
@@ -68,7 +68,7 @@ def plan(sc: Scenario) -> Plan | None:
     from netcfg.sim.ftt import FttMaster
 
     opts, cfg = sc.opts, sc.cfg
-    if opts.faults or opts.trace or opts.stuffing == "exact" or not sc.synchronised or sc.sends:
+    if opts.faults or opts.stuffing == "exact" or not sc.synchronised or sc.sends:
         return None
     if len(cfg.buses) != 1 or not flows_covered(sc):
         return None
@@ -124,9 +124,14 @@ def run(sc: Scenario, p: Plan) -> None:
     sc.sim.run_until(d)
     starts = _activations(master.clock.phase_ns, master.clock.drift_ppb, 0, ftt.ec_ns, d)  # the EC grid
     master.ecs = len(starts)
-    can.record.msg.extend([master.tm] * len(starts))
-    can.record.response.extend([p.tm_ns] * len(starts))
+    rec = can.record
+    rec.msg.extend([master.tm] * len(starts))
+    rec.response.extend([p.tm_ns] * len(starts))
     tm_end = starts + p.tm_ns
+    if can.trace:  # a trace's frames in any order (netcfg.sim.cli.trace_frames sorts them): the TMs carry their slot
+        rec.end.extend(tm_end.tolist())
+        payloads = [master.tm_payload(i) for i in range(ftt.macro_cycle_ec)]
+        rec.data.extend(payloads[i % ftt.macro_cycle_ec] for i in range(len(starts)))
     heard = int(np.searchsorted(tm_end, d))  # the ECs whose TM is received within the run: their triggers and window
     cycles = -(-heard // ftt.macro_cycle_ec)
 
@@ -149,8 +154,11 @@ def run(sc: Scenario, p: Plan) -> None:
             can._seq += 1
             heapq.heappush(can._pending, (can.sources[src].key, at, can._seq, src, None))
         release, end = queued[sent], end[sent]
-        can.record.msg.extend([src] * len(release))
-        can.record.response.extend((end - release).tolist())
+        rec.msg.extend([src] * len(release))
+        rec.response.extend((end - release).tolist())
+        if can.trace:
+            rec.end.extend(end.tolist())
+            rec.data.extend([None] * len(end))  # no payload outside exact stuffing, as the master submits them
         delivered = end < d
         deliveries[can.sources[src].name] = Stream(False, release[delivered], end[delivered])
     # the tasks
