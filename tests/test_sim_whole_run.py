@@ -60,6 +60,22 @@ def assert_identical(a: tuple[Scenario, RunResult], b: tuple[Scenario, RunResult
     assert doc_a == doc_b
 
 
+def compiled(spec: dict[str, Any], path: Path) -> rt.RuntimeConfig:
+    """The runtime configuration of a spec written as a dict (which check must accept)."""
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    model, report = analyse_spec(path)
+    assert model is not None and not report["errors"], report["errors"]
+    return rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+
+
+def count_builds(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """A list that grows by one each time a scenario is built: twice for a run that fell back to the event path."""
+    builds: list[int] = []
+    build = Scenario._build
+    monkeypatch.setattr(Scenario, "_build", lambda sc: (builds.append(1), build(sc))[1])
+    return builds
+
+
 @pytest.mark.parametrize(
     ("system", "options"),
     [
@@ -84,15 +100,13 @@ def test_seed_systems_identical_both_ways(system: str, options: dict[str, Any]) 
         assert sum(b[1].lost.values()) > 0, "the case is meant to drop frames"
 
 
-def test_random_ethernet_specs_identical_both_ways(monkeypatch: pytest.MonkeyPatch) -> None:
-    """benchmarks/soundness.py's random switched networks (1-3 switches, jitter, flows with periodic and
-    message-driven consumers), at random phases and at the critical instant; computed 15 ms at a time, so that
-    frames, activations and jitter draws cross window edges."""
-    monkeypatch.setattr(whole_run, "WINDOW_NS", 3 * CHUNK_NS)
+def random_specs_identical_both_ways(protocol: str, examples: int, duration_ns: int, covers: Any) -> None:
+    """benchmarks/soundness.py's random specs of one protocol, each at random phases and at the critical instant:
+    every run `covers` admits must be identical both ways, and some must be admitted."""
     covered = []
 
-    @settings(max_examples=12, deadline=None, database=None, suppress_health_check=list(HealthCheck))
-    @given(soundness.STRATEGIES["ethernet-udp"])
+    @settings(max_examples=examples, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+    @given(soundness.STRATEGIES[protocol])
     def run(spec: dict[str, Any]) -> None:
         path = soundness._spec_path()
         path.write_text(soundness._dump(spec), encoding="utf-8")
@@ -101,15 +115,22 @@ def test_random_ethernet_specs_identical_both_ways(monkeypatch: pytest.MonkeyPat
             return
         cfg = rt.parse(json.loads(json.dumps(soundness.runtime_document(model, report))), "random")
         for opts in (
-            SimOptions(duration_ns=150 * MS, seed=len(covered)),
-            SimOptions(duration_ns=150 * MS, seed=len(covered), random_phase=False, drift_ppm=0.0),
+            SimOptions(duration_ns=duration_ns, seed=len(covered)),
+            SimOptions(duration_ns=duration_ns, seed=len(covered), random_phase=False, drift_ppm=0.0),
         ):
-            if whole_run.covers(Scenario(cfg, opts)):
+            if covers(Scenario(cfg, opts)):
                 covered.append(spec["system"])
                 assert_identical(*both(cfg, opts))
 
     run()
     assert covered, "no random spec was covered: the test no longer compares anything"
+
+
+def test_random_ethernet_specs_identical_both_ways(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Random switched networks (1-3 switches, jitter, flows with periodic and message-driven consumers); computed
+    15 ms at a time, so that frames, activations and jitter draws cross window edges."""
+    monkeypatch.setattr(whole_run, "WINDOW_NS", 3 * CHUNK_NS)
+    random_specs_identical_both_ways("ethernet-udp", 12, 150 * MS, whole_run.covers)
 
 
 def test_a_multicast_flow_identical_both_ways(tmp_path: Path) -> None:
@@ -122,11 +143,7 @@ def test_a_multicast_flow_identical_both_ways(tmp_path: Path) -> None:
     spring = next(n for n in spec["nodes"] if n["name"] == "mcu_spring")
     spring["tasks"].append({"name": "follow", "on_message": "hip_encoder", "wcet": "3 us", "bcet": "1 us"})
     spec["flows"].append({"name": "hip_to_spring", "chain": ["mcu_hip.sample", "hip_encoder", "mcu_spring.follow"]})
-    path = tmp_path / "multicast.yaml"
-    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
-    model, report = analyse_spec(path)
-    assert model is not None and not report["errors"], report["errors"]
-    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+    cfg = compiled(spec, tmp_path / "multicast.yaml")
     opts = SimOptions(duration_ns=1000 * MS, seed=9)
     assert whole_run.covers(Scenario(cfg, opts))
     a, b = both(cfg, opts)
@@ -150,18 +167,12 @@ def test_ethernet_flows_with_several_items_per_step_identical_both_ways(
         {"name": "both_loop", "chain": [samples, encoders, "pc.pid", "hip_pwm", "mcu_hip.apply_pwm"]},
         {"name": "both_encoders", "chain": [samples, encoders, ["pc.pid", "pc.log"]]},
     ]
-    path = tmp_path / "both.yaml"
-    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
-    model, report = analyse_spec(path)
-    assert model is not None and not report["errors"], report["errors"]
-    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+    cfg = compiled(spec, tmp_path / "both.yaml")
     opts = SimOptions(duration_ns=300 * MS, seed=11)
     if critical:
         opts = replace(opts, random_phase=False, drift_ppm=0.0)
     assert whole_run.covers(Scenario(cfg, opts))
-    builds = []
-    build = Scenario._build
-    monkeypatch.setattr(Scenario, "_build", lambda sc: (builds.append(1), build(sc))[1])
+    builds = count_builds(monkeypatch)
     a = run_once(cfg, opts)
     assert len(builds) == 1, "computed whole, not fallen back to the event path"
     b = run_once(cfg, replace(opts, whole_run=False))
@@ -254,11 +265,7 @@ def test_a_task_starting_as_its_frame_is_received_identical_both_ways(
     events were queued in (a trigger's start is queued at the TM's reception, an rx_delay'd start at the earlier
     frame's delivery: both before that frame's delivery; a periodic task after every delivery; a task without
     rx_delay inside its frame's delivery), and the whole run must read the same frame."""
-    path = tmp_path / "tied.yaml"
-    path.write_text(yaml.safe_dump(_tied_ftt_spec(windows, rx_delay, triggered), sort_keys=False), encoding="utf-8")
-    model, report = analyse_spec(path)
-    assert model is not None and not report["errors"], report["errors"]
-    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+    cfg = compiled(_tied_ftt_spec(windows, rx_delay, triggered), tmp_path / "tied.yaml")
     opts = SimOptions(duration_ns=50 * MS, seed=1)
     assert ftt_whole_run.plan(Scenario(cfg, opts)) is not None
     a, b = both(cfg, opts)
@@ -268,29 +275,9 @@ def test_a_task_starting_as_its_frame_is_received_identical_both_ways(
 
 
 def test_random_ftt_specs_identical_both_ways() -> None:
-    """benchmarks/soundness.py's random FTT-CAN buses (either window order, synchronous and asynchronous traffic,
-    triggered, periodic and message-activated tasks), at random phases and at the critical instant."""
-    covered = []
-
-    @settings(max_examples=15, deadline=None, database=None, suppress_health_check=list(HealthCheck))
-    @given(soundness.STRATEGIES["ftt-can"])
-    def run(spec: dict[str, Any]) -> None:
-        path = soundness._spec_path()
-        path.write_text(soundness._dump(spec), encoding="utf-8")
-        model, report = soundness.analyse_spec(path)
-        if model is None or report["errors"]:
-            return
-        cfg = rt.parse(json.loads(json.dumps(soundness.runtime_document(model, report))), "random")
-        for opts in (
-            SimOptions(duration_ns=700 * MS, seed=len(covered)),
-            SimOptions(duration_ns=700 * MS, seed=len(covered), random_phase=False, drift_ppm=0.0),
-        ):
-            if ftt_whole_run.plan(Scenario(cfg, opts)) is not None:
-                covered.append(spec["system"])
-                assert_identical(*both(cfg, opts))
-
-    run()
-    assert covered, "no random spec was covered: the test no longer compares anything"
+    """Random FTT-CAN buses (either window order, synchronous and asynchronous traffic, triggered, periodic and
+    message-activated tasks)."""
+    random_specs_identical_both_ways("ftt-can", 15, 700 * MS, lambda sc: ftt_whole_run.plan(sc) is not None)
 
 
 @pytest.mark.parametrize(
@@ -311,30 +298,19 @@ def test_what_the_ftt_whole_run_does_not_cover_runs_event_by_event(options: dict
         assert sc.protocols["lowlevel"]._got_tm >= 0  # the master ran event by event
 
 
-def test_a_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch) -> None:
-    cfg = generated("ntua_sahr")
+@pytest.mark.parametrize("system", ["ntua_sahr", "cambada"])
+def test_a_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch, system: str) -> None:
+    cfg = generated(system)
     opts = SimOptions(duration_ns=300 * MS, seed=8)
     reference = run_once(cfg, replace(opts, whole_run=False))
+    builds = count_builds(monkeypatch)
 
     def undecided(*_: object) -> None:
         raise Undecided("forced")
 
-    monkeypatch.setattr(whole_run, "measure_streams", undecided)
+    monkeypatch.setattr(flows, "measure_streams", undecided)
     assert_identical(run_once(cfg, opts), reference)
-
-
-def test_an_ftt_tie_it_cannot_decide_falls_back_to_the_event_path(monkeypatch: pytest.MonkeyPatch) -> None:
-    cfg = generated("cambada")
-    opts = SimOptions(duration_ns=1000 * MS, seed=8)
-    reference = run_once(cfg, replace(opts, whole_run=False))
-
-    def undecided(*_: object) -> None:
-        raise Undecided("forced")
-
-    monkeypatch.setattr(ftt_whole_run, "measure_streams", undecided)
-    again = run_once(cfg, opts)
-    assert again[0].protocols["lowlevel"]._got_tm >= 0  # built afresh and run event by event
-    assert_identical(again, reference)
+    assert len(builds) == 2, "built again for the event path"
 
 
 def test_a_task_starting_as_the_data_it_reads_is_written_is_undecided() -> None:

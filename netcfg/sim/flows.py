@@ -11,7 +11,7 @@ stamp overwritten before it is used is not a sample, as in the analysis.
 from __future__ import annotations
 
 from bisect import bisect_right
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -203,6 +203,22 @@ def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None
                 records[ref] = _Records(ref, s.end, stamp, s.first)
             else:
                 records[ref] = _Records(ref, s.end, stamp, s.end)
+
+
+def measure_flows(
+    trackers: Iterable[FlowTracker], tasks: Mapping[str, Stream], messages: Callable[[str], Stream]
+) -> None:
+    """Every tracker's samples (measure_streams) from the tasks' streams (a task not there never ran) and each
+    message's deliveries."""
+    for tr in trackers:
+        streams = {}
+        for step in tr.steps:
+            for ref in step.refs:
+                if step.kind == "task":
+                    streams[ref] = tasks.get(ref) or Stream(True, _EMPTY, _EMPTY)
+                else:
+                    streams[ref] = messages(ref)
+        measure_streams(tr, streams)
 
 
 @dataclass

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from netcfg.sim.engine import NEVER
-from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, Stream, measure_streams
+from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, Stream, measure_flows
 from netcfg.sim.whole_run import _EMPTY, _activations, _exec_times, flows_covered
 
 if TYPE_CHECKING:
@@ -177,15 +177,7 @@ def run(sc: Scenario, p: Plan) -> None:
         if len(start):
             sc.task_arrays[ref] = (start, end)
         activity[ref] = Stream(True, start, end, task.on_message, ties)
-    for tr in sc.flows:
-        streams = {}
-        for step in tr.steps:
-            for ref in step.refs:
-                if step.kind == "task":
-                    streams[ref] = activity.get(ref) or Stream(True, _EMPTY, _EMPTY)
-                else:
-                    streams[ref] = deliveries.get(ref) or Stream(False, _EMPTY, _EMPTY)
-        measure_streams(tr, streams)
+    measure_flows(sc.flows, activity, lambda name: deliveries.get(name) or Stream(False, _EMPTY, _EMPTY))
     sc.sim.skip_to(d)
 
 

@@ -10,7 +10,7 @@ is a handful of array computations, taken in dependency order:
 * the frames a task sends go to its NIC as it ends (+ tx_delay); each link serves, once everything that feeds
   it is known, the frames of one window of the run (WINDOW_NS) by Lindley's recursion (netcfg.sim.ethernet's
   free-running links), window after window, so a long run's arrays stay small;
-* each flow's samples follow from those streams (netcfg.sim.flows.measure_streams).
+* each flow's samples follow from those streams (netcfg.sim.flows.measure_flows).
 
 What this covers (covers()): Ethernet buses only, no faults, flows whose every item appears in one step, tasks that
 send no sporadic message, and an order among tasks and links in which each comes after all that feeds it (no
@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netcfg.sim.engine import PPB, drift_ns
-from netcfg.sim.flows import AFTER, AFTER_OWN, Stream, Undecided, measure_streams
+from netcfg.sim.flows import AFTER, AFTER_OWN, Stream, Undecided, measure_flows
 
 if TYPE_CHECKING:
     from netcfg.runtime import Task
@@ -167,15 +167,7 @@ def run(sc: Scenario, order: list[Job]) -> None:
         if len(start):
             sc.task_arrays[t.ref] = (start, end)
         activity[t.ref] = Stream(True, start, end, t.on_message, AFTER if t.on_message is None else AFTER_OWN)
-    for tr in sc.flows:
-        streams = {}
-        for step in tr.steps:
-            for ref in step.refs:
-                if step.kind == "task":
-                    streams[ref] = activity.get(ref) or Stream(True, _EMPTY, _EMPTY)
-                else:
-                    streams[ref] = _deliveries(nets, ref)
-        measure_streams(tr, streams)
+    measure_flows(sc.flows, activity, lambda name: _deliveries(nets, name))
     sc.sim.skip_to(d)
 
 
