@@ -274,6 +274,25 @@ def test_a_task_starting_as_its_frame_is_received_identical_both_ways(
     assert len(b[1].flow_latency["f0"]) > 10
 
 
+@pytest.mark.parametrize("rx_delay", ["0 us", "150 us"])
+def test_cambada_with_a_task_sending_asynchronous_frames_identical_both_ways(tmp_path: Path, rx_delay: str) -> None:
+    """CAMBADA with its kick sent by the gateway's pose task (every 50 ms, started by a synchronous frame) rather
+    than free-running: the 1 s minimum inter-arrival lets one send in twenty through, the frames go through the
+    asynchronous window, and a kicker task started by each (after the kicker's rx_delay) ends a flow."""
+    spec = yaml.safe_load((ROOT / "specs" / "cambada.yaml").read_text(encoding="utf-8"))
+    kicker = next(n for n in spec["nodes"] if n["name"] == "kicker")
+    kicker["tasks"] = [{"name": "fire", "on_message": "kick", "wcet": "300 us", "bcet": "100 us"}]
+    kicker["rx_delay"] = rx_delay
+    spec["flows"].append({"name": "kick", "chain": ["gateway.rx_pose", "kick", "kicker.fire"]})
+    cfg = compiled(spec, tmp_path / "kick.yaml")
+    opts = SimOptions(duration_ns=5000 * MS, seed=12)
+    assert ftt_whole_run.plan(Scenario(cfg, opts)) is not None
+    a, b = both(cfg, opts)
+    assert a[0].protocols["lowlevel"]._got_tm == -1, "computed whole, not fallen back to the event path"
+    assert_identical(a, b)
+    assert 4 <= b[1].sent["kick"] <= 6 and len(b[1].flow_latency["kick"]) >= 4  # about one a second for 5 s
+
+
 def test_random_ftt_specs_identical_both_ways() -> None:
     """Random FTT-CAN buses (either window order, synchronous and asynchronous traffic, triggered, periodic and
     message-activated tasks)."""
