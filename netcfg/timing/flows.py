@@ -76,6 +76,14 @@ def task_period(m: model.Model, task: model.Task) -> int | None:
     return task.period_ns
 
 
+def start_delay(m: model.Model, task: model.Task) -> int:
+    """How long after the frame that starts it a task starts: its node's rx_delay after a CAN frame (its trigger
+    message, a SYNC, its message), as netcfg.sim starts it; an Ethernet delivery already includes it (Tpost)."""
+    if task.on_message is not None:
+        return m.nodes[task.node].rx_delay_ns if m.buses[m.messages[task.on_message].bus].is_can else 0
+    return m.nodes[task.node].rx_delay_ns if task.trigger is not None or task.sync_bus is not None else 0
+
+
 def message_period(msg: model.Message) -> int | None:
     """How long a periodic message may take to be sent again: the slowest period of a period_range, else its period
     (a sporadic message: its minimum inter-arrival time, all that is known)."""
@@ -113,9 +121,10 @@ def unsynchronised(
                 task = m.task(ref)
                 period = task_period(m, task)
                 wait = _sampling(period, refresh, ppm) if i and task.on_message is None else 0
-                start_hi = _add(hi, wait)
+                after = start_delay(m, task) if task.on_message is not None else 0  # free-running otherwise
+                start_hi = _add(hi, wait + after)
                 end_hi = _add(start_hi, task_response(task, task_ns))
-                outs.append((lo, start_hi) if last else (lo + task.bcet_ns, end_hi))
+                outs.append((lo + after, start_hi) if last else (lo + after + task.bcet_ns, end_hi))
                 periods.append(period or 0)
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
@@ -202,11 +211,21 @@ def synchronised(
         return k
 
     def next_activation(task: model.Task, t: int) -> int:
+        """Its first start at or after t: its trigger message's end in a due EC, plus its node's rx_delay."""
         period, init = ftt.entries[task.trigger]  # type: ignore[index]
-        k = -(-(t - s.tm_ns) // ec)
+        after = s.tm_ns + start_delay(m, task)
+        k = -(-(t - after) // ec)
         while (k - init) % period:
             k += 1
-        return k * ec + s.tm_ns
+        return k * ec + after
+
+    ppm = clock_tolerance(m)
+
+    def free_wait(i: int, ref: str) -> int:
+        """An asynchronous message its producer's task in the step before does not send as it ends goes out at
+        its own rate: the data may wait up to one of its periods for the next frame."""
+        msg = m.messages[ref]
+        return 0 if not i or _sent_by_producer(m, msg, flow.steps[i - 1]) else _sampling(message_period(msg), None, ppm)
 
     first = flow.steps[0]
     for step in flow.steps:
@@ -225,7 +244,7 @@ def synchronised(
         if first.kind == "task":
             task = m.task(head)
             if task.trigger is not None and due(task.trigger, k):
-                starts.append(k * ec + s.tm_ns)
+                starts.append(k * ec + s.tm_ns + start_delay(m, task))
         elif sync_msg(head) and due(head, k):
             starts.append(send_time(head, k))
     if not starts:
@@ -252,13 +271,13 @@ def synchronised(
                     d = chained[ref]
                     if d.worst_ns is None:
                         return None
-                    outs.append((lo + d.best_ns, hi + d.worst_ns))
+                    outs.append((lo + d.best_ns, hi + free_wait(i, ref) + d.worst_ns))
                 else:
                     task = m.task(ref)
                     if task.trigger is not None:
                         a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
                     else:  # started by a message
-                        a_lo, a_hi = lo, hi
+                        a_lo, a_hi = lo + start_delay(m, task), hi + start_delay(m, task)
                     if task.trigger is not None:  # its trigger message may end late, sent again after errors
                         a_hi += s.tm_delay_ns
                     busy = task_response(task, task_ns) or 0  # bounded: checked above
@@ -270,10 +289,28 @@ def synchronised(
     out = _freshest(runs, s.macro_cycle * ec)
     if out is None or not (first.kind == "task" and s.tm_delay_ns):
         return out
-    # a flow started by a triggered task: its start may be as late as its trigger message, its data no later
+    # a flow started by a triggered task: its start may be as late as its trigger message, and where a step after
+    # it keeps to its own time (a synchronous message, a triggered task, a message sent at its own rate), the data
+    # that step passes on no later.
+    # Steps that only follow their predecessor (chained messages, message-activated tasks) move with the start.
+    def anchored(until: int) -> bool:
+        return any(
+            (step.kind == "message" and (sync_msg(ref) or free_wait(i, ref)))
+            or (step.kind == "task" and m.task(ref).trigger is not None)
+            for i, step in enumerate(flow.steps[: until + 1])
+            if i
+            for ref in step.refs
+        )
+
     (lat_lo, lat_hi), got_range = out
     late = s.tm_delay_ns
-    return (lat_lo - late, lat_hi), (None if got_range is None else (got_range[0] - late, got_range[1]))
+    if anchored(len(flow.steps) - 1):
+        lat_lo = max(0, lat_lo - late)  # an age is never negative, however late the start
+    if got_range is not None:
+        delivered = max(i for i, step in enumerate(flow.steps) if step.kind == "message")
+        if anchored(delivered):
+            got_range = (max(0, got_range[0] - late), got_range[1])
+    return (lat_lo, lat_hi), got_range
 
 
 Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (worst), last message's delivery
@@ -348,7 +385,8 @@ def synchronised_canopen(
         """Earliest and latest start of a SYNC task after k * period."""
         if task.node == master:
             return task.offset_ns, task.offset_ns + jitter
-        return s_best + task.offset_ns, s_worst + task.offset_ns
+        after = start_delay(m, task) + task.offset_ns  # after the SYNC's reception
+        return s_best + after, s_worst + after
 
     def on_sync(due: int, window: tuple[int, int], r: int, worst_path: bool) -> tuple[int, int]:
         """First SYNC instant (plus offset) that can take data ready at r: (cycle, its time on this path)."""
@@ -424,7 +462,7 @@ def synchronised_canopen(
                         if by_sync is not None:
                             a_hi = min(a_hi, by_sync * period + activation(task)[1])
                     else:  # started by a message
-                        a_lo, a_hi = lo, hi
+                        a_lo, a_hi = lo + start_delay(m, task), hi + start_delay(m, task)
                     busy = task_response(task, task_ns) or 0  # bounded: checked above
                     outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
             lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
