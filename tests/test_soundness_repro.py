@@ -287,3 +287,49 @@ def test_a_flow_from_a_triggered_task_through_an_asynchronous_message(tmp_path: 
         assert hi >= 10_000  # one period of m at least
     rc, sim = cli_json("simulate", str(tmp_path / "spec.yaml"), "--duration", "3s", "--runs", "2")
     assert rc == 0, sim.get("violations")
+
+
+JOINED = {
+    "system": "joined",
+    "buses": [{"name": "bus", "protocol": "ftt-can", "bitrate": "250 kbit/s",
+               "ftt": {"ec": "3 ms", "tm_size": 4, "windows": "sync-first"}}],
+    "nodes": [
+        {"name": "master", "role": "master", "buses": ["bus"]},
+        {"name": "a", "buses": ["bus"]},
+        {"name": "b", "buses": ["bus"], "tasks": [
+            {"name": "join", "on_message": "m0", "wcet": "174 us", "bcet": "4 us"},
+        ]},
+    ],
+    "messages": [
+        {"name": "m0", "ftt_id": 1, "producer": "a", "consumers": ["b"], "size": 1, "period": "1 EC", "offset": "0 EC"},
+        {"name": "m3", "ftt_id": 4, "producer": "a", "consumers": ["b"], "size": 4, "period": "2 EC", "offset": "0 EC"},
+    ],
+    "flows": [{"name": "fj", "chain": [["m0", "m3"], "b.join"]}],
+}
+
+
+@pytest.mark.parametrize("variant", ["after-its-frame", "rx-delay", "late-trigger-message"])
+def test_a_task_joining_two_synchronous_messages(tmp_path: Path, variant: str) -> None:
+    """b.join, started by m0 (every EC), reads m0 and m3 (every other EC, or every fourth), sent in one window
+    (m0 first: identifier order), and takes the older of their data. Each was found outside its bound by the
+    wider random FTT-CAN specs (`benchmarks/soundness.py --protocol ftt-can-wide`):
+    - started by m0, b.join starts before that window's m3 is in, so the data of an m3 frame is first used an EC
+      later: the analysis started the task once the whole step was in (measured above the bound);
+    - with a 503 us rx_delay, m3 is in before b.join starts, so it is used at once (measured below the bound);
+    - with a bit-error model the trigger message may be resent, and with the synchronous window right after it
+      both frames are queued that much later, which shortens the data's age (measured below the bound).
+    The analysis now takes each item of a first step as the start in turn (the one whose data is the oldest
+    used), starts a task started by one item at that item's first frame once the others' are in (later in the
+    window or by time), and takes a late trigger message off the lower bound of flows starting with a
+    synchronous message when the window follows the TM."""
+    spec = json.loads(json.dumps(JOINED))
+    if variant == "rx-delay":
+        spec["nodes"][2]["rx_delay"] = "503 us"
+    if variant == "late-trigger-message":
+        spec["buses"][0]["errors"] = {"burst": 1, "interval": "35 ms"}
+        spec["messages"][1] |= {"period": "4 EC", "offset": "3 EC"}
+    report = check_data(tmp_path, spec)
+    assert report["ok"], report["errors"]
+    assert report["flows"][0]["mode"] == "synchronised"
+    rc, sim = cli_json("simulate", str(tmp_path / "spec.yaml"), "--duration", "3s", "--runs", "2")
+    assert rc == 0, sim.get("violations")

@@ -210,6 +210,28 @@ def synchronised(
             k += 1
         return k
 
+    def first_use(on: str, prev: dict[str, tuple[int, int]], after: int, path: int) -> int:
+        """When a task started by `on`, one of the step before's synchronous items, first starts with every
+        item's data of this path in (prev: item -> its EC and its frame's end, on this path): at `on`'s frame (from
+        its own) plus `after` that comes after each other item's frame, in a later EC or later in the window, or
+        by time. Path 0, the best case, takes the first frame that may come after (at its earliest); path 1 the
+        first that must (at its latest)."""
+        k = prev[on][0]
+        while True:
+            if due(on, k):
+                early = k * ec + s.completion(on, k, ftt.frame_ns)[0] + after
+                late = k * ec + s.completion(on, k, ftt.frame_ns)[1] + s.slots[k % s.macro_cycle].allowance_ns + after
+                msgs = s.slots[k % s.macro_cycle].messages
+                if all(
+                    (ko == k and other in msgs and msgs.index(other) < msgs.index(on))
+                    or ko < k
+                    or end <= (late if path == 0 else early)
+                    for other, (ko, end) in prev.items()
+                    if other != on
+                ):
+                    return early if path == 0 else late
+            k += 1
+
     def next_activation(task: model.Task, t: int) -> int:
         """Its first start at or after t: its trigger message's end in a due EC, plus its node's rx_delay."""
         period, init = ftt.entries[task.trigger]  # type: ignore[index]
@@ -236,62 +258,114 @@ def synchronised(
                     return None
             elif ref not in chained:
                 return None
-    # start instances: every activation / transmission of the first step's first item, over two macro-cycles
-    # (the second only to see which start's data the next use actually takes)
-    starts = []
-    head = first.refs[0]
-    for k in range(2 * s.macro_cycle):
-        if first.kind == "task":
-            task = m.task(head)
-            if task.trigger is not None and due(task.trigger, k):
-                starts.append(k * ec + s.tm_ns + start_delay(m, task))
-        elif sync_msg(head) and due(head, k):
-            starts.append(send_time(head, k))
-    if not starts:
-        return None
-    runs = []
-    for start in starts:
-        lo = hi = start
-        got: tuple[int, int] | None = None
-        for i, step in enumerate(flow.steps):
-            last = i == len(flow.steps) - 1
-            outs = []
-            for ref in step.refs:
-                if step.kind == "message" and sync_msg(ref):
-                    k_lo, k_hi = next_send(ref, lo), next_send(ref, hi)
-                    outs.append(
-                        (
-                            k_lo * ec + s.completion(ref, k_lo, ftt.frame_ns)[0],
-                            k_hi * ec
-                            + s.completion(ref, k_hi, ftt.frame_ns)[1]
-                            + s.slots[k_hi % s.macro_cycle].allowance_ns,  # its retransmissions, within the window
+
+    def from_head(head: str) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
+        """The latency range counted from each activation / transmission of one item of the first step, over two
+        macro-cycles (the second only to see which start's data the next use actually takes); the step's other
+        items are taken at their next instance from then on."""
+        starts = []
+        for k in range(2 * s.macro_cycle):
+            if first.kind == "task":
+                task = m.task(head)
+                if task.trigger is not None and due(task.trigger, k):
+                    starts.append(k * ec + s.tm_ns + start_delay(m, task))
+            elif sync_msg(head) and due(head, k):
+                starts.append(send_time(head, k))
+        if not starts:
+            return None
+        runs = []
+        for start in starts:
+            lo = hi = start
+            got: tuple[int, int] | None = None
+            prev_inst: dict[str, tuple[int, int]] = {}  # the step before's synchronous items: their ECs, both paths
+            prev_out: dict[str, tuple[int, int]] = {}  # ... and their frames' ends, on both paths
+            for i, step in enumerate(flow.steps):
+                last = i == len(flow.steps) - 1
+                outs = []
+                inst: dict[str, tuple[int, int]] = {}
+                for ref in step.refs:
+                    if step.kind == "message" and sync_msg(ref):
+                        k_lo, k_hi = next_send(ref, lo), next_send(ref, hi)
+                        inst[ref] = (k_lo, k_hi)
+                        outs.append(
+                            (
+                                k_lo * ec + s.completion(ref, k_lo, ftt.frame_ns)[0],
+                                k_hi * ec
+                                + s.completion(ref, k_hi, ftt.frame_ns)[1]
+                                + s.slots[k_hi % s.macro_cycle].allowance_ns,  # its resends, within the window
+                            )
                         )
-                    )
-                elif step.kind == "message":
-                    d = chained[ref]
-                    if d.worst_ns is None:
-                        return None
-                    outs.append((lo + d.best_ns, hi + free_wait(i, ref) + d.worst_ns))
-                else:
-                    task = m.task(ref)
-                    if task.trigger is not None:
-                        a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
-                    else:  # started by a message
-                        a_lo, a_hi = lo + start_delay(m, task), hi + start_delay(m, task)
-                    if task.trigger is not None:  # its trigger message may end late, sent again after errors
-                        a_hi += s.tm_delay_ns
-                    busy = task_response(task, task_ns) or 0  # bounded: checked above
-                    outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
-            lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
-            if step.kind == "message":
-                got = (lo, hi)
-        runs.append((start, lo, hi, got))
-    out = _freshest(runs, s.macro_cycle * ec)
-    if out is None or not (first.kind == "task" and s.tm_delay_ns):
+                    elif step.kind == "message":
+                        d = chained[ref]
+                        if d.worst_ns is None:
+                            return None
+                        outs.append((lo + d.best_ns, hi + free_wait(i, ref) + d.worst_ns))
+                    else:
+                        task = m.task(ref)
+                        if task.trigger is not None:
+                            a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
+                        elif task.on_message in prev_inst and len(prev_inst) > 1:
+                            # started by one of several synchronous items: by that message's first frame once
+                            # the others' data of this path is in
+                            on, after = task.on_message, start_delay(m, task)
+                            a_lo, a_hi = (
+                                first_use(on, {r: (ks[p], prev_out[r][p]) for r, ks in prev_inst.items()}, after, p)
+                                for p in (0, 1)
+                            )
+                        else:  # started by a message
+                            a_lo, a_hi = lo + start_delay(m, task), hi + start_delay(m, task)
+                        if task.trigger is not None:  # its trigger message may end late, sent again after errors
+                            a_hi += s.tm_delay_ns
+                        busy = task_response(task, task_ns) or 0  # bounded: checked above
+                        outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
+                lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
+                prev_inst = inst if len(inst) == len(step.refs) else {}
+                prev_out = dict(zip(step.refs, outs)) if prev_inst else {}
+                if step.kind == "message":
+                    got = (lo, hi)
+                if i == 0 and superseded(head, start, starts, lo):
+                    break  # its next instance is there, however late, before the others' at their earliest
+            else:
+                runs.append((start, lo, hi, got))
+        if not runs:  # every start superseded: this item's data is never the oldest used
+            return (0, 0), NOT_OLDEST
+        return _freshest(runs, s.macro_cycle * ec)
+
+    def superseded(head: str, start: int, starts: list[int], ready: int) -> bool:
+        """Of a first step with several items: the head's next instance (at its slowest) comes before the step's
+        other items have an instance at least as new (at their fastest), so this one is never the oldest used."""
+        if len(first.refs) == 1:
+            return False
+        later = [t for t in starts if t > start]
+        if not later:
+            return False
+        nxt = later[0]
+        if first.kind == "message":
+            k = next_send(head, nxt)
+            return k * ec + s.completion(head, k, ftt.frame_ns)[1] + s.slots[k % s.macro_cycle].allowance_ns < ready
+        task = m.task(head)
+        return nxt + s.tm_delay_ns + (task_response(task, task_ns) or 0) < ready
+
+    # a step of several items passes on the oldest of their data: the flow's age counts from whichever item's
+    # instance is the oldest one used, so every item of the first step is a start in turn
+    ranges = [from_head(head) for head in first.refs]
+    if any(r is None for r in ranges):
+        return None
+    done = [r for r in ranges if r is not None and r[1] is not NOT_OLDEST]
+    if not done:
+        return None
+    got_ranges = [r[1] for r in done if r[1] is not None]
+    got_all = (min(g[0] for g in got_ranges), max(g[1] for g in got_ranges)) if got_ranges else None
+    out: tuple[tuple[int, int], tuple[int, int] | None] | None = (
+        (min(r[0][0] for r in done), max(r[0][1] for r in done)),
+        got_all,
+    )
+    # the first step's start may come late: a triggered task's with its trigger message, resent after bit errors,
+    # and with the synchronous window right after the TM, a synchronous message's too (queued at the TM's end)
+    if out is None or not ((first.kind == "task" or s.sync_first) and s.tm_delay_ns):
         return out
-    # a flow started by a triggered task: its start may be as late as its trigger message, and where a step after
-    # it keeps to its own time (a synchronous message, a triggered task, a message sent at its own rate), the data
-    # that step passes on no later.
+    # where a step after the start keeps to its own time (a synchronous message, a triggered task, a message sent
+    # at its own rate), the data that step passes on comes no later, so the flow may be that much shorter.
     # Steps that only follow their predecessor (chained messages, message-activated tasks) move with the start.
     def anchored(until: int) -> bool:
         return any(
@@ -314,6 +388,7 @@ def synchronised(
 
 
 Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (worst), last message's delivery
+NOT_OLDEST = (-1, -1)  # synchronised(): an item of a first step whose data is never the oldest one used
 
 
 def _freshest(runs: list[Run], cycle_end: int) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
