@@ -367,8 +367,16 @@ class Node(SpecModel):
         "(controlword 0x6040: quick stop, or disable operation)",
     )
     ip: str | None = Field(None, pattern=r"^\d{1,3}(\.\d{1,3}){3}$")
-    tx_delay: DurationField | None = Field(None, description="Ethernet: sender processing Tpre (seed 001, eq. 6.3)")
-    rx_delay: DurationField | None = Field(None, description="Ethernet: receiver processing Tpost")
+    tx_delay: DurationField | None = Field(
+        None,
+        description="sender processing: Ethernet Tpre (seed 001, eq. 6.3); on CAN, from a sending task's end (a "
+        "drive's SYNC reception) to its frame's release",
+    )
+    rx_delay: DurationField | None = Field(
+        None,
+        description="receiver processing: Ethernet Tpost; on CAN, from a frame's reception to the start of the tasks "
+        "it starts (its message, trigger message or SYNC)",
+    )
     tasks: list[Task] = Field(default_factory=list)
     scheduling: Literal["preemptive", "non-preemptive"] = Field(
         "preemptive",
