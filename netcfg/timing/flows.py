@@ -210,17 +210,21 @@ def synchronised(
             k += 1
         return k
 
+    def frame_end(ref: str, k: int) -> tuple[int, int]:
+        """A synchronous message's frame in EC k: its earliest end, and its latest (resends within the window)."""
+        best, worst = s.completion(ref, k, ftt.frame_ns)
+        return k * ec + best, k * ec + worst + s.slots[k % s.macro_cycle].allowance_ns
+
     def first_use(on: str, prev: dict[str, tuple[int, int]], after: int, path: int) -> int:
-        """When a task started by `on`, one of the step before's synchronous items, first starts with every
-        item's data of this path in (prev: item -> its EC and its frame's end, on this path): at `on`'s frame (from
-        its own) plus `after` that comes after each other item's frame, in a later EC or later in the window, or
-        by time. Path 0, the best case, takes the first frame that may come after (at its earliest); path 1 the
+        """The start of a task that `on`, one of several synchronous items of the step before, starts (`after` its
+        frame), with every item's data of this path in (prev: item -> its EC and frame end on this path): at the
+        first frame of `on` from its own that comes after each other item's, in a later EC, later in the window
+        or later in time. The best path (0) takes the first that may (at its earliest end), the worst path (1) the
         first that must (at its latest)."""
         k = prev[on][0]
         while True:
             if due(on, k):
-                early = k * ec + s.completion(on, k, ftt.frame_ns)[0] + after
-                late = k * ec + s.completion(on, k, ftt.frame_ns)[1] + s.slots[k % s.macro_cycle].allowance_ns + after
+                early, late = (end + after for end in frame_end(on, k))
                 msgs = s.slots[k % s.macro_cycle].messages
                 if all(
                     (ko == k and other in msgs and msgs.index(other) < msgs.index(on))
@@ -259,10 +263,9 @@ def synchronised(
             elif ref not in chained:
                 return None
 
-    def from_head(head: str) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
-        """The latency range counted from each activation / transmission of one item of the first step, over two
-        macro-cycles (the second only to see which start's data the next use actually takes); the step's other
-        items are taken at their next instance from then on."""
+    def starts_of(head: str) -> list[int]:
+        """Every activation / transmission of one item of the first step, over two macro-cycles (the second only
+        to see which start's data the next use actually takes)."""
         starts = []
         for k in range(2 * s.macro_cycle):
             if first.kind == "task":
@@ -271,8 +274,11 @@ def synchronised(
                     starts.append(k * ec + s.tm_ns + start_delay(m, task))
             elif sync_msg(head) and due(head, k):
                 starts.append(send_time(head, k))
-        if not starts:
-            return None
+        return starts
+
+    def from_head(head: str, starts: list[int]) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
+        """The latency range counted from the starts of one item of the first step; the step's other items are
+        taken at their next instance from then on."""
         runs = []
         for start in starts:
             lo = hi = start
@@ -287,14 +293,7 @@ def synchronised(
                     if step.kind == "message" and sync_msg(ref):
                         k_lo, k_hi = next_send(ref, lo), next_send(ref, hi)
                         inst[ref] = (k_lo, k_hi)
-                        outs.append(
-                            (
-                                k_lo * ec + s.completion(ref, k_lo, ftt.frame_ns)[0],
-                                k_hi * ec
-                                + s.completion(ref, k_hi, ftt.frame_ns)[1]
-                                + s.slots[k_hi % s.macro_cycle].allowance_ns,  # its resends, within the window
-                            )
-                        )
+                        outs.append((frame_end(ref, k_lo)[0], frame_end(ref, k_hi)[1]))
                     elif step.kind == "message":
                         d = chained[ref]
                         if d.worst_ns is None:
@@ -327,9 +326,7 @@ def synchronised(
                     break  # its next instance is there, however late, before the others' at their earliest
             else:
                 runs.append((start, lo, hi, got))
-        if not runs:  # every start superseded: this item's data is never the oldest used
-            return (0, 0), NOT_OLDEST
-        return _freshest(runs, s.macro_cycle * ec)
+        return _freshest(runs, s.macro_cycle * ec)  # None if no start's data is ever used
 
     def superseded(head: str, start: int, starts: list[int], ready: int) -> bool:
         """Of a first step with several items: the head's next instance (at its slowest) comes before the step's
@@ -341,33 +338,32 @@ def synchronised(
             return False
         nxt = later[0]
         if first.kind == "message":
-            k = next_send(head, nxt)
-            return k * ec + s.completion(head, k, ftt.frame_ns)[1] + s.slots[k % s.macro_cycle].allowance_ns < ready
+            return frame_end(head, next_send(head, nxt))[1] < ready
         task = m.task(head)
         return nxt + s.tm_delay_ns + (task_response(task, task_ns) or 0) < ready
 
     # a step of several items passes on the oldest of their data: the flow's age counts from whichever item's
-    # instance is the oldest one used, so every item of the first step is a start in turn
-    ranges = [from_head(head) for head in first.refs]
-    if any(r is None for r in ranges):
+    # instance is the oldest one used, so every item of the first step is a start in turn (an item none of whose
+    # starts is ever the oldest used adds nothing)
+    heads = {head: starts_of(head) for head in first.refs}
+    if not all(heads.values()):
         return None
-    done = [r for r in ranges if r is not None and r[1] is not NOT_OLDEST]
+    done = [r for r in (from_head(head, starts) for head, starts in heads.items()) if r is not None]
     if not done:
         return None
-    got_ranges = [r[1] for r in done if r[1] is not None]
-    got_all = (min(g[0] for g in got_ranges), max(g[1] for g in got_ranges)) if got_ranges else None
-    out: tuple[tuple[int, int], tuple[int, int] | None] | None = (
-        (min(r[0][0] for r in done), max(r[0][1] for r in done)),
-        got_all,
-    )
+    lat_lo, lat_hi = min(r[0][0] for r in done), max(r[0][1] for r in done)
+    got = [r[1] for r in done if r[1] is not None]
+    got_range = (min(g[0] for g in got), max(g[1] for g in got)) if got else None
     # the first step's start may come late: a triggered task's with its trigger message, resent after bit errors,
     # and with the synchronous window right after the TM, a synchronous message's too (queued at the TM's end)
-    if out is None or not ((first.kind == "task" or s.sync_first) and s.tm_delay_ns):
-        return out
-    # where a step after the start keeps to its own time (a synchronous message, a triggered task, a message sent
-    # at its own rate), the data that step passes on comes no later, so the flow may be that much shorter.
-    # Steps that only follow their predecessor (chained messages, message-activated tasks) move with the start.
+    if not ((first.kind == "task" or s.sync_first) and s.tm_delay_ns):
+        return (lat_lo, lat_hi), got_range
+
     def anchored(until: int) -> bool:
+        """A step after the start, up to `until`, keeps to its own time (a synchronous message, a triggered task, a
+        message sent at its own rate): the data it passes on comes no later, so the flow may be that much
+        shorter. Steps that only follow their predecessor (chained messages, message-activated tasks) move with
+        the start."""
         return any(
             (step.kind == "message" and (sync_msg(ref) or free_wait(i, ref)))
             or (step.kind == "task" and m.task(ref).trigger is not None)
@@ -376,7 +372,6 @@ def synchronised(
             for ref in step.refs
         )
 
-    (lat_lo, lat_hi), got_range = out
     late = s.tm_delay_ns
     if anchored(len(flow.steps) - 1):
         lat_lo = max(0, lat_lo - late)  # an age is never negative, however late the start
@@ -388,7 +383,6 @@ def synchronised(
 
 
 Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (worst), last message's delivery
-NOT_OLDEST = (-1, -1)  # synchronised(): an item of a first step whose data is never the oldest one used
 
 
 def _freshest(runs: list[Run], cycle_end: int) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
