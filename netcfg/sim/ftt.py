@@ -47,7 +47,7 @@ class FttMaster:
         self._slot_tasks: dict[int, list[tuple[int, list[Task]]]] = {}
         self._tm_payloads: dict[int, bytes] = {}  # slot of the macro-cycle -> its TM's payload
         can.listen(self.tm, self._on_tm)
-        can.gate = self._gate
+        can.gate = self.async_start
 
     def fail(self, at_ns: int, backup: str | None) -> None:
         self.fail_at = at_ns
@@ -74,13 +74,14 @@ class FttMaster:
             k += 1
         return k
 
-    def _gate(self, t: int, dur: int) -> int:
-        """Earliest start >= t at which an asynchronous frame of this duration ends before a synchronous window."""
+    def async_start(self, t: int, dur: int, opens_after: int = 0) -> int:
+        """Earliest start >= t at which an asynchronous frame of this duration ends before a synchronous window
+        (and starts no earlier than `opens_after` into the EC)."""
         k = self.ec_of(t)
         for _ in range(2 * self.ftt.macro_cycle_ec + 2):
             opens, closes = self.ftt.async_window(k)
             start = self.ec_start(k)
-            s = max(t, start + opens)
+            s = max(t, start + max(opens, opens_after))
             if s + dur <= start + closes:
                 return s
             k += 1

@@ -31,17 +31,17 @@ from __future__ import annotations
 
 import heapq
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from netcfg.sim.engine import NEVER
 from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, Stream, measure_flows
 from netcfg.sim.whole_run import _EMPTY, _activations, _exec_times, flows_covered
 
 if TYPE_CHECKING:
     from netcfg.runtime import Task
-    from netcfg.sim.can_bus import CanBus, Gate, Listener
+    from netcfg.sim.can_bus import CanBus, Listener
     from netcfg.sim.ftt import FttMaster
     from netcfg.sim.scenario import Scenario
 
@@ -217,7 +217,9 @@ def run(sc: Scenario, p: Plan) -> None:
     if len(release_t):
         order = np.argsort(release_t, kind="stable")
         can.add_stream(_Released(release_t[order], np.concatenate(sent_src)[order]))
-    can.gate = _async_gate(master, p.tm_ns)
+    # the gate, with each asynchronous window opening no earlier than the TM's end: the TM, which wins the
+    # arbitration at the EC start, kept asynchronous frames off the bus until then
+    can.gate = partial(master.async_start, opens_after=p.tm_ns)
     can.start()
     sc.sim.run_until(d)
     for src, (rel, ends) in heard_async.items():
@@ -275,22 +277,3 @@ def _recorder(release: list[int], end: list[int]) -> Listener:
         end.append(e)
 
     return heard
-
-
-def _async_gate(master: FttMaster, tm_ns: int) -> Gate:
-    """FttMaster's gate, with each asynchronous window opening no earlier than the TM's end: the TM, which wins
-    the arbitration at the EC start, kept asynchronous frames off the bus until then."""
-    ftt = master.ftt
-
-    def gate(t: int, dur: int) -> int:
-        k = master.ec_of(t)
-        for _ in range(2 * ftt.macro_cycle_ec + 2):
-            opens, closes = ftt.async_window(k)
-            start = master.ec_start(k)
-            s = max(t, start + max(opens, tm_ns))
-            if s + dur <= start + closes:
-                return s
-            k += 1
-        return NEVER
-
-    return gate
