@@ -405,5 +405,5 @@ def test_activations_follow_the_node_clock_at_the_largest_drift(drift_ppb: int) 
     while (t := clock.to_global(k * period)) < until:
         expected.append(t)
         k += 1
-    got = whole_run._activations(phase, drift_ppb, 0, period, until)
+    got = whole_run.clock_activations(phase, drift_ppb, 0, period, until)
     assert got.tolist() == expected

@@ -189,6 +189,11 @@ class CanBus:
         self.listeners.setdefault(source, []).append(fn)
         self._hear.clear()
 
+    def listen_only(self, source: int, fn: Listener) -> None:
+        """fn replaces whoever listened to the source's frames (a whole run records them instead)."""
+        self.listeners[source] = [fn]
+        self._hear.clear()
+
     def monitor(self, fn: Listener) -> None:
         """fn hears every frame (but those of the sources it is deafened to)."""
         self.monitors.append(fn)
@@ -264,6 +269,11 @@ class CanBus:
         q.size -= 1
         if q.behind:
             heapq.heappush(self._pending, q.behind.popleft())
+
+    def queued_unsent(self, source: int, release: int) -> None:
+        """A frame queued at `release` that the run ended before sending (a whole run's, for pending_count)."""
+        self._seq += 1
+        heapq.heappush(self._pending, (self._keys[source], release, self._seq, source, None))
 
     def drop(self, source: int) -> None:
         """A frame that never reached the bus (its sender crashed, a scripted loss): counted, not sent."""

@@ -18,6 +18,7 @@ import numpy as np
 
 from netcfg.runtime import Flow, RuntimeConfig
 
+EMPTY = np.empty(0, dtype=np.int64)  # a stream with nothing in it
 HISTORY = 64  # availability records kept per item: enough to look back one message's worth of releases
 
 
@@ -205,6 +206,15 @@ def measure_streams(tracker: FlowTracker, streams: Mapping[str, Stream]) -> None
                 records[ref] = _Records(ref, s.end, stamp, s.end)
 
 
+def streams_measure(trackers: Iterable[FlowTracker]) -> bool:
+    """measure_streams computes these flows: each item of a flow appears in one of its steps only."""
+    for tr in trackers:
+        refs = [ref for step in tr.steps for ref in step.refs]
+        if len(set(refs)) != len(refs):
+            return False
+    return True
+
+
 def measure_flows(
     trackers: Iterable[FlowTracker], tasks: Mapping[str, Stream], messages: Callable[[str], Stream]
 ) -> None:
@@ -215,7 +225,7 @@ def measure_flows(
         for step in tr.steps:
             for ref in step.refs:
                 if step.kind == "task":
-                    streams[ref] = tasks.get(ref) or Stream(True, _EMPTY, _EMPTY)
+                    streams[ref] = tasks.get(ref) or Stream(True, EMPTY, EMPTY)
                 else:
                     streams[ref] = messages(ref)
         measure_streams(tr, streams)
@@ -240,7 +250,7 @@ def _read(flow: str, ref: str, s: Stream, reads: list[_Records], after_message: 
     ok = np.ones(len(when), dtype=bool)
     for rec in reads:
         if not len(rec.times):
-            return _EMPTY, Stream(s.task, _EMPTY, _EMPTY, s.on_delivery_of)
+            return EMPTY, Stream(s.task, EMPTY, EMPTY, s.on_delivery_of)
         j = np.searchsorted(rec.times, when, side="right") - 1
         found = j >= 0
         jj = np.where(found, j, 0)
@@ -299,7 +309,6 @@ def _finish(end: _End, reached: list[tuple[str, np.ndarray, Stream]]) -> None:
         end.reach(refs[k], st, t)
 
 
-_EMPTY = np.empty(0, dtype=np.int64)
 
 
 def _reached(done: int, stamp: np.ndarray, t: np.ndarray) -> list[int]:

@@ -29,15 +29,14 @@ identical results (tests/test_sim_whole_run.py).
 
 from __future__ import annotations
 
-import heapq
 from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, Stream, measure_flows
-from netcfg.sim.whole_run import _EMPTY, _activations, _exec_times, flows_covered
+from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, EMPTY, Stream, measure_flows, streams_measure
+from netcfg.sim.whole_run import clock_activations, exec_times
 
 if TYPE_CHECKING:
     from netcfg.runtime import Task
@@ -76,7 +75,7 @@ def plan(sc: Scenario) -> Plan | None:
     opts, cfg = sc.opts, sc.cfg
     if opts.faults or opts.stuffing == "exact" or not sc.synchronised:
         return None
-    if len(cfg.buses) != 1 or not flows_covered(sc):
+    if len(cfg.buses) != 1 or not streams_measure(sc.flows):
         return None
     bus = cfg.buses[0]
     master = sc.protocols.get(bus.name)
@@ -120,10 +119,8 @@ def plan(sc: Scenario) -> Plan | None:
                 (asynchronous[name].index, m.interval_ns if m.kind == "sporadic" and m.interval_ns else 0)
             )
     on_message: dict[str, tuple[Task, str, int]] = {}
-    for name, tasks in sc._message_tasks.items():
-        if name not in can.by_name:
-            return None
-        for task in tasks:
+    for name in can.by_name:
+        for task in sc.tasks_on_message(name):
             if name in asynchronous and task.ref in sends:
                 return None
             on_message[task.ref] = (task, name, cfg.node(task.node).rx_delay_ns)
@@ -143,7 +140,7 @@ def run(sc: Scenario, p: Plan) -> None:
     master, can = p.master, p.can
     ftt = master.ftt
     sc.sim.skip_to(0)  # the periodic tasks' first activations, queued as the scenario was built: computed below
-    starts = _activations(master.clock.phase_ns, master.clock.drift_ppb, 0, ftt.ec_ns, d)  # the EC grid
+    starts = clock_activations(master.clock.phase_ns, master.clock.drift_ppb, 0, ftt.ec_ns, d)  # the EC grid
     master.ecs = len(starts)
     tm_end = starts + p.tm_ns
     heard = int(np.searchsorted(tm_end, d))  # the ECs whose TM is received within the run: their triggers and window
@@ -180,7 +177,7 @@ def run(sc: Scenario, p: Plan) -> None:
     # the tasks that no asynchronous frame starts, and what they send
     activations: dict[str, tuple[Task, np.ndarray, str]] = {}  # task -> (task, its starts, its order at ties)
     for t, clock, period in sc.free_running_tasks():
-        activations[t.ref] = (t, _activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d), AFTER)
+        activations[t.ref] = (t, clock_activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d), AFTER)
     for ref, (task, slots, rx_delay) in p.triggered.items():
         at = tm_end[ecs(slots)[0]] + rx_delay
         activations[ref] = (task, at[at < d], BEFORE)  # its event was queued as the TM was received
@@ -190,16 +187,16 @@ def run(sc: Scenario, p: Plan) -> None:
 
     def run_tasks(which: dict[str, tuple[Task, np.ndarray, str]]) -> None:
         for ref, (task, start, ties) in which.items():
-            end = start + _exec_times(sc, task, len(start))
+            end = start + exec_times(sc, task, len(start))
             if len(start):
                 sc.task_arrays[ref] = (start, end)
             activity[ref] = Stream(True, start, end, task.on_message, ties)
 
     for ref, (task, name, rx_delay) in p.on_message.items():
         if ref not in late:
-            activations[ref] = _heard(task, deliveries.get(name) or Stream(False, _EMPTY, _EMPTY), rx_delay, d)
+            activations[ref] = _heard(task, deliveries.get(name) or Stream(False, EMPTY, EMPTY), rx_delay, d)
     run_tasks(activations)
-    sent_t, sent_src = [_EMPTY], [_EMPTY]
+    sent_t, sent_src = [EMPTY], [EMPTY]
     for ref, sends in p.sends.items():
         if ref in activity:
             stream = activity[ref]
@@ -211,8 +208,7 @@ def run(sc: Scenario, p: Plan) -> None:
     # the asynchronous frames: the bus's own loop, alone on the bus, with what the tasks send as released frames
     heard_async: dict[int, tuple[list[int], list[int]]] = {src: ([], []) for src in p.heard}
     for src, (rel, ends) in heard_async.items():
-        can.listeners[src] = [_recorder(rel, ends)]
-    can._hear.clear()
+        can.listen_only(src, _recorder(rel, ends))
     release_t = np.concatenate(sent_t)
     if len(release_t):
         order = np.argsort(release_t, kind="stable")
@@ -234,9 +230,8 @@ def run(sc: Scenario, p: Plan) -> None:
             rec.end.extend(end.tolist())
             rec.data.extend(data if data is not None else [None] * len(end))
     for src, at in unsent:
-        can._seq += 1
-        heapq.heappush(can._pending, (can.sources[src].key, at, can._seq, src, None))
-    measure_flows(sc.flows, activity, lambda name: deliveries.get(name) or Stream(False, _EMPTY, _EMPTY))
+        can.queued_unsent(src, at)
+    measure_flows(sc.flows, activity, lambda name: deliveries.get(name) or Stream(False, EMPTY, EMPTY))
     sc.sim.skip_to(d)
 
 

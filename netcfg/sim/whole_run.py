@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from netcfg.sim.engine import PPB, drift_ns
-from netcfg.sim.flows import AFTER, AFTER_OWN, Stream, Undecided, measure_flows
+from netcfg.sim.flows import AFTER, AFTER_OWN, EMPTY, Stream, Undecided, measure_flows, streams_measure
 
 if TYPE_CHECKING:
     from netcfg.runtime import Task
@@ -41,15 +41,6 @@ Job = tuple[str, Any]  # ("task", Task) or ("link", (its network, Link))
 
 def covers(sc: Scenario) -> bool:
     return plan(sc) is not None
-
-
-def flows_covered(sc: Scenario) -> bool:
-    """measure_streams computes a flow whose every item appears in one of its steps only."""
-    for tr in sc.flows:
-        refs = [ref for step in tr.steps for ref in step.refs]
-        if len(set(refs)) != len(refs):
-            return False
-    return True
 
 
 def _networks(sc: Scenario) -> list[EthernetNetwork] | None:
@@ -69,7 +60,7 @@ def plan(sc: Scenario) -> list[Job] | None:
     nets = _networks(sc)
     if nets is None:
         return None
-    if not flows_covered(sc):
+    if not streams_measure(sc.flows):
         return None
     tasks: dict[str, Task] = {task.ref: task for task, _, _ in sc.free_running_tasks()}
     feeds: dict[int, list[int]] = {}  # job -> the jobs that need it first
@@ -129,7 +120,7 @@ def run(sc: Scenario, order: list[Job]) -> None:
     assert nets is not None
     d = sc.opts.duration_ns
     periodic = {  # task -> every activation of the run
-        t.ref: _activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d)
+        t.ref: clock_activations(clock.phase_ns, clock.drift_ppb, t.offset_ns, period, d)
         for t, clock, period in sc.free_running_tasks()
     }
     tasks: list[Task] = [what for kind, what in order if kind == "task"]
@@ -153,7 +144,7 @@ def run(sc: Scenario, order: list[Job]) -> None:
                 start = every[np.searchsorted(every, w0) : np.searchsorted(every, w1)]
             else:
                 start = heard[task.ref].before(w1, _heard_by(nets, task))
-            end = start + _exec_times(sc, task, len(start))
+            end = start + exec_times(sc, task, len(start))
             starts[task.ref].append(start)
             ends[task.ref].append(end)
             send = end + sc.cfg.node(task.node).tx_delay_ns
@@ -181,7 +172,7 @@ class _Heard:
 
     def __init__(self) -> None:
         self.used = 0  # deliveries already taken (parts of the network's list, then elements of `left`)
-        self.left = _EMPTY
+        self.left = EMPTY
 
     def before(self, t: int, parts: list[np.ndarray]) -> np.ndarray:
         """The deliveries before t not taken yet, in order (each part of the list is in order, and so is the list)."""
@@ -193,10 +184,9 @@ class _Heard:
         return pool[:k]
 
 
-_EMPTY = np.empty(0, dtype=np.int64)
 
 
-def _activations(phase: int, drift_ppb: int, offset: int, period: int, until: int) -> np.ndarray:
+def clock_activations(phase: int, drift_ppb: int, offset: int, period: int, until: int) -> np.ndarray:
     """NodeClock.to_global(offset + k * period) for k = 0, 1, ... while before `until` (Scenario._periodic_task)."""
     n = int((until - phase) / (period * (1 + drift_ppb / PPB))) + 2 if until > phase else 1
     local = offset + np.arange(n, dtype=np.int64) * period
@@ -207,7 +197,7 @@ def _activations(phase: int, drift_ppb: int, offset: int, period: int, until: in
     return t[t < until]
 
 
-def _exec_times(sc: Scenario, task: Task, n: int) -> np.ndarray:
+def exec_times(sc: Scenario, task: Task, n: int) -> np.ndarray:
     """n execution times, as Scenario.run_task draws them one activation at a time."""
     lo, hi = task.bcet_ns, task.wcet_ns
     if hi <= lo:
@@ -241,4 +231,4 @@ def _deliveries(nets: list[EthernetNetwork], name: str) -> Stream:
             if len(same) and (rel[same] != rel[same + 1]).any():
                 raise Undecided(f"message '{name}': two consumers receive different frames at one instant")
             return Stream(False, rel, end)
-    return Stream(False, _EMPTY, _EMPTY)
+    return Stream(False, EMPTY, EMPTY)
