@@ -65,7 +65,7 @@ class Plan:
     triggered: dict[str, tuple[Task, np.ndarray, int]]  # task -> (task, the slots whose TM starts it, rx_delay)
     on_message: dict[str, tuple[Task, str, int]]  # task -> (task, its message, rx_delay)
     sends: dict[str, list[tuple[int, int]]]  # task -> (asynchronous source, its minimum gap if sporadic, else 0)
-    heard: frozenset[int]  # asynchronous sources someone listens to (a flow, a task)
+    listened: frozenset[int]  # asynchronous sources someone listens to (a flow, a task)
 
 
 def plan(sc: Scenario) -> Plan | None:
@@ -124,11 +124,11 @@ def plan(sc: Scenario) -> Plan | None:
             if name in asynchronous and task.ref in sends:
                 return None
             on_message[task.ref] = (task, name, cfg.node(task.node).rx_delay_ns)
-    heard = frozenset(s.index for s in asynchronous.values() if s.index in can.listeners)
+    listened = frozenset(s.index for s in asynchronous.values() if s.index in can.listeners)
     sync = {src: _Frames(*np.array(rows, dtype=np.int64).T) for src, rows in sorted(entries.items())}
     return Plan(
         master, can, tm.dur_ns, sync, {ref: (t, np.array(at), rx) for ref, (t, at, rx) in triggered.items()},
-        on_message, sends, heard,
+        on_message, sends, listened,
     )
 
 
@@ -143,14 +143,14 @@ def run(sc: Scenario, p: Plan) -> None:
     starts = clock_activations(master.clock.phase_ns, master.clock.drift_ppb, 0, ftt.ec_ns, d)  # the EC grid
     master.ecs = len(starts)
     tm_end = starts + p.tm_ns
-    heard = int(np.searchsorted(tm_end, d))  # the ECs whose TM is received within the run: their triggers and window
-    cycles = -(-heard // ftt.macro_cycle_ec)
+    received = int(np.searchsorted(tm_end, d))  # the ECs whose TM is received in the run: their triggers and window
+    cycles = -(-received // ftt.macro_cycle_ec)
 
     def ecs(slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The heard ECs whose slot is one of these (in order), and for each, which of them."""
+        """The received ECs whose slot is one of these (in order), and for each, which of them."""
         k = (np.arange(cycles, dtype=np.int64)[:, None] * ftt.macro_cycle_ec + slots).ravel()
         which = np.tile(np.arange(len(slots)), cycles)
-        keep = k < heard
+        keep = k < received
         return k[keep], which[keep]
 
     # the TM and the synchronous frames, in the records after the asynchronous ones (each message's in order)
@@ -181,8 +181,8 @@ def run(sc: Scenario, p: Plan) -> None:
     for ref, (task, slots, rx_delay) in p.triggered.items():
         at = tm_end[ecs(slots)[0]] + rx_delay
         activations[ref] = (task, at[at < d], BEFORE)  # its event was queued as the TM was received
-    heard_names = {can.sources[src].name for src in p.heard}
-    late = {ref: v for ref, v in p.on_message.items() if v[1] in heard_names}  # started by asynchronous frames
+    listened = {can.sources[src].name for src in p.listened}
+    late = {ref: v for ref, v in p.on_message.items() if v[1] in listened}  # started by asynchronous frames
     activity: dict[str, Stream] = {}
 
     def run_tasks(which: dict[str, tuple[Task, np.ndarray, str]]) -> None:
@@ -194,7 +194,7 @@ def run(sc: Scenario, p: Plan) -> None:
 
     for ref, (task, name, rx_delay) in p.on_message.items():
         if ref not in late:
-            activations[ref] = _heard(task, deliveries.get(name) or Stream(False, EMPTY, EMPTY), rx_delay, d)
+            activations[ref] = _started_by(task, deliveries.get(name) or Stream(False, EMPTY, EMPTY), rx_delay, d)
     run_tasks(activations)
     sent_t, sent_src = [EMPTY], [EMPTY]
     for ref, sends in p.sends.items():
@@ -206,8 +206,8 @@ def run(sc: Scenario, p: Plan) -> None:
                 sent_t.append(mine)
                 sent_src.append(np.full(len(mine), src, dtype=np.int64))
     # the asynchronous frames: the bus's own loop, alone on the bus, with what the tasks send as released frames
-    heard_async: dict[int, tuple[list[int], list[int]]] = {src: ([], []) for src in p.heard}
-    for src, (rel, ends) in heard_async.items():
+    recorded: dict[int, tuple[list[int], list[int]]] = {src: ([], []) for src in p.listened}
+    for src, (rel, ends) in recorded.items():
         can.listen_only(src, _recorder(rel, ends))
     release_t = np.concatenate(sent_t)
     if len(release_t):
@@ -218,9 +218,9 @@ def run(sc: Scenario, p: Plan) -> None:
     can.gate = partial(master.async_start, opens_after=p.tm_ns)
     can.start()
     sc.sim.run_until(d)
-    for src, (rel, ends) in heard_async.items():
+    for src, (rel, ends) in recorded.items():
         deliveries[can.sources[src].name] = Stream(False, np.array(rel, dtype=np.int64), np.array(ends, dtype=np.int64))
-    run_tasks({ref: _heard(task, deliveries[name], rx_delay, d) for ref, (task, name, rx_delay) in late.items()})
+    run_tasks({ref: _started_by(task, deliveries[name], rx_delay, d) for ref, (task, name, rx_delay) in late.items()})
     # the records the event path leaves
     rec = can.record
     for src, release, end, data in frames:
@@ -235,7 +235,7 @@ def run(sc: Scenario, p: Plan) -> None:
     sc.sim.skip_to(d)
 
 
-def _heard(task: Task, delivered: Stream, rx_delay: int, d: int) -> tuple[Task, np.ndarray, str]:
+def _started_by(task: Task, delivered: Stream, rx_delay: int, d: int) -> tuple[Task, np.ndarray, str]:
     """A message-activated task's activations: each delivery of its message plus its node's rx_delay; with
     rx_delay, its start was queued at the delivery before (so it comes before one at the same instant)."""
     at = delivered.end + rx_delay
