@@ -962,8 +962,7 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: _Analysis, diags: Collec
     if sync:
         lo, hi = sync[0]
     elif ftt_bus is not None:  # free-running steps around FTT-CAN windows: the windows' own delivery times
-        scheduled = frozenset(acc.ftt[ftt_bus].entries)
-        lo, hi = flows.unsynchronised(m, flow, acc.chained, acc.task_ns, scheduled)[0]
+        lo, hi = flows.unsynchronised(m, flow, acc.chained, acc.task_ns, acc.ftt[ftt_bus])[0]
     else:
         lo, hi = unsync
     out: dict[str, Any] = {

@@ -6,15 +6,26 @@ correct figure with its derivation. Every figure asserted here is derived in tha
 
 from __future__ import annotations
 
+import importlib
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
-from conftest import bus, check, check_data, cli, cli_json, message
+from conftest import ROOT, bus, check, check_data, cli, cli_json, message
+
+from netcfg import runtime
+from netcfg.check import analyse_spec
+from netcfg.emit.runtime_json import runtime_document
+from netcfg.sim.montecarlo import run_once
+from netcfg.sim.results import summary
+from netcfg.sim.scenario import SimOptions
 
 DATA = Path(__file__).parent / "data" / "soundness"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+SOUNDNESS = importlib.import_module("soundness")  # the sweep's own runs, as tests/test_soundness.py uses them
 
 
 def spec(name: str) -> dict[str, Any]:
@@ -333,3 +344,108 @@ def test_a_task_joining_two_synchronous_messages(tmp_path: Path, variant: str) -
     assert report["flows"][0]["mode"] == "synchronised"
     rc, sim = cli_json("simulate", str(tmp_path / "spec.yaml"), "--duration", "3s", "--runs", "2")
     assert rc == 0, sim.get("violations")
+
+
+JOIN_OF_TWO_PRODUCERS = """\
+system: join_of_two_producers
+buses: [{name: can0, protocol: can, bitrate: 500 kbit/s}]
+nodes:
+  - {name: p, buses: [can0]}
+  - {name: q, buses: [can0]}
+  - {name: r, buses: [can0], tasks: [{name: t, period: 10 ms, wcet: 1 ms, bcet: 500 us}]}
+messages:
+  - {name: ma, id: 0x10, producer: p, consumers: [r], size: 8, period: 20 ms}
+  - {name: mb, id: 0x11, producer: q, consumers: [r], size: 8, period: 20 ms, offset: 19 ms}
+flows:
+  - {name: f, chain: [[ma, mb], r.t]}
+"""
+
+
+def _critical_instant(spec_path: Path, duration_ns: int) -> dict[str, Any]:
+    """One run with every clock at 0 and no drift, so that the offsets are as written."""
+    model, report = analyse_spec(spec_path)
+    assert model is not None and not report["errors"], report["errors"]
+    cfg = runtime.parse(json.loads(json.dumps(runtime_document(model, report))), "critical")
+    result: dict[str, Any] = summary(run_once(cfg, SimOptions(duration_ns=duration_ns, random_phase=False,
+                                                              drift_ppm=0.0))[1])
+    return result
+
+
+def test_a_join_waits_for_its_other_streams_newer_data(tmp_path: Path) -> None:
+    """r.t takes the older of ma's and mb's data, which two nodes send every 20 ms. Data of ma released at 0 is the
+    older one used only once mb's next frame, released 19 ms later, is in; r.t, every 10 ms, then reads it at 20 ms,
+    before ma's next frame is in: 20,000 us of age. Found by `benchmarks/soundness.py --protocol ftt-can-wide`
+    (joins of messages from different producers); the analysis gave 540 + 10,001 = 10,541 us, as if r.t waited only
+    for its own period. By hand (500 kbit/s, 8-byte frames 135 bits = 270 us, Davis 2007): ma 270 + 270 (mb's
+    blocking) = 540 us, mb 270 + 270 (ma) = 540 us; the step is in by 540 us. The oldest data r.t takes waits for
+    the other message's next frame, up to its whole period at the slowest clock (20,000 + 2 us at 100 ppm), and
+    r.t's own period after that; but never longer than the older message's own renewal, 20,002 us (r.t would read
+    its newer data instead): 540 + min(20,002 + 10,001, 20,002) = 20,542 us."""
+    (tmp_path / "spec.yaml").write_text(JOIN_OF_TWO_PRODUCERS, encoding="utf-8")
+    report = check(tmp_path / "spec.yaml")
+    assert [message(bus(report, "can0"), n)["wcrt_us"] for n in ("ma", "mb")] == [540, 540]
+    assert report["flows"][0]["latency_max_us"] == 20_542
+    flow = next(f for f in _critical_instant(tmp_path / "spec.yaml", 2_000_000_000)["flows"] if f["name"] == "f")
+    assert flow["latency_us"]["max"] == pytest.approx(20_000, abs=1), flow  # above the old 10,541
+    assert flow["within_analysis"] is True
+    rc, sim = cli_json("simulate", str(tmp_path / "spec.yaml"), "--duration", "3s", "--runs", "3")
+    assert rc == 0, sim.get("violations")
+
+
+def test_one_producers_messages_keep_their_distance_in_a_join(tmp_path: Path) -> None:
+    """The same join, both messages sent by one node on its one clock: mb always comes 19 ms after ma, and ma 1 ms
+    after mb, so r.t's oldest data waits at most 19,001.9 us (19 ms at 100 ppm, rounded up) for the other's, and
+    never more than one renewal: 540 + min(19,002 + 10,001, 20,002) = 20,542 us; with mb 1 ms after ma instead,
+    540 + max(min(1,001 + 10,001, 20,002), min(19,002 + 10,001, 20,002)) is the same 20,542 us. With both at one
+    offset, neither waits for the other: 540 + 10,001 = 10,541 us, as for one message."""
+    data = yaml.safe_load(JOIN_OF_TWO_PRODUCERS)
+    data["messages"][1]["producer"] = "p"
+    bounds = []
+    for offset in ("19 ms", "1 ms", "0 ms"):
+        data["messages"][1]["offset"] = offset
+        (tmp_path / offset).mkdir()
+        bounds.append(check_data(tmp_path / offset, data)["flows"][0]["latency_max_us"])
+    assert bounds == [20_542, 20_542, 10_541]
+    rc, sim = cli_json("simulate", str(tmp_path / "0 ms" / "spec.yaml"), "--duration", "3s", "--runs", "3")
+    assert rc == 0, sim.get("violations")
+
+
+def test_a_can_message_a_task_sends_is_queued_its_tx_delay_after_the_task(tmp_path: Path) -> None:
+    """netcfg.sim queues a CAN message a task sends as it ends its node's tx_delay later; the flow analysis queued
+    it at the task's end, so the latency ran past the bound by up to tx_delay (found by the wide FTT-CAN specs,
+    under --mode unsync). By hand: a.send 50-100 us, tx_delay 165 us, m alone on the bus, its 8-byte frame 111 bits
+    unstuffed (222 us) to 135 stuffed (270 us, 500 kbit/s): b.use starts 50 + 165 + 222 = 437 us at the earliest and
+    100 + 165 + 270 = 535 us at the latest (it was 272-370 us)."""
+    text = RX_CAN.replace("RX", "0 us").replace("{name: a,", "{name: a, tx_delay: 165 us,")
+    (tmp_path / "spec.yaml").write_text(text, encoding="utf-8")
+    flow = check(tmp_path / "spec.yaml")["flows"][0]
+    assert (flow["latency_min_us"], flow["latency_max_us"]) == (437, 535)
+    rc, sim = cli_json("simulate", str(tmp_path / "spec.yaml"), "--duration", "2s", "--runs", "2")
+    assert rc == 0, sim.get("violations")
+    assert next(f for f in sim["flows"] if f["name"] == "f")["latency_us"]["min"] >= 437
+
+
+@pytest.mark.parametrize(
+    ("name", "seed"),
+    [
+        ("12", 745),
+        ("13", 397),
+        ("14", 1217),
+        ("15", 1447),
+    ],
+)
+def test_wide_ftt_can_specs_stay_inside_their_bounds(name: str, seed: int) -> None:
+    """Specs the wider FTT-CAN generator found outside a bound (each file's header says what netcfg printed, what
+    was measured and why): run as the sweep ran them (random phases, the critical instant, free-running CAN, with
+    the bus's errors hitting as hard as its model allows), nothing may leave its bound."""
+    out = SOUNDNESS.check_spec(spec(name), seed=seed, duration_ns=500_000_000)
+    assert out.accepted
+    assert out.violations == [], out.violations
+
+
+def test_a_first_task_started_by_a_message_counts_from_its_start(tmp_path: Path) -> None:
+    """Spec 14's header: the age counts from n1.as0's start, after n1's rx_delay, so af0's earliest is bcet 63 us +
+    a0's unstuffed frame (29-bit identifier, 8 bytes: 131 bits, 262 us at 500 kbit/s) + n0's rx_delay 7.001 us."""
+    report = check(next(DATA.glob("14-*.yaml")))
+    flow = next(f for f in report["flows"] if f["name"] == "af0")
+    assert flow["latency_min_us"] == pytest.approx(63 + 262 + 7.001)

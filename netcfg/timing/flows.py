@@ -4,13 +4,17 @@ Two models, reported side by side where both apply (seed 002, Table 3 and Figure
 
 * unsynchronised: every node runs on its own clock. A task that consumes data waits up to one of its periods
   for its next activation (0 for a task started by the message itself); a message sent by the task that
-  produced the data goes out at once and takes between its nominal frame time and its worst-case response
-  time; a message with its own period, different from its producer's, first waits up to one period.
+  produced the data goes out as it ends (on CAN its node's tx_delay later) and takes between its nominal frame
+  time and its worst-case response time; a message with its own period, different from its producer's, first
+  waits up to one period.
 * synchronised (FTT-CAN): the master's schedule fixes when every synchronous message is sent and every
   triggered task starts, so each step takes the first instance at or after the moment its data is ready,
   and the latency range comes out of the schedule itself, over every instance of the macro-cycle.
 
 A step may hold several items in parallel; the data of all of them is needed, so the step ends with the last.
+A reader that joins data of different first-step items takes the oldest, and may first take it only once the
+other items have data at least as new: the wait for their next release (their offsets' distance on one clock or
+EC grid, else up to a period), but never longer than the oldest data's own renewal.
 """
 
 from __future__ import annotations
@@ -95,45 +99,208 @@ def unsynchronised(
     flow: model.Flow,
     chained: dict[str, Delivery],
     task_ns: TaskTimes | None = None,
-    scheduled: frozenset[str] = frozenset(),
+    ftt: FttTimes | None = None,
 ) -> tuple[tuple[int, int | None], tuple[int, int | None] | None]:
-    """Free-running steps. `scheduled` messages (FTT-CAN synchronous) go out in their own ECs, never at once
-    when their producer finishes: they wait for their slot as any message with its own period does."""
+    """Free-running steps. With `ftt`, the bus runs its FTT-CAN schedule: synchronous messages go out in their own
+    ECs, never at once when their producer finishes (they wait for their slot as any message with its own period
+    does), and the first step's synchronous messages and triggered tasks keep to the EC grid."""
+    scheduled = frozenset(ftt.entries) if ftt is not None else frozenset()
     lo, hi = 0, 0  # type: int, int | None
     refresh: int | None = None  # how often the data reaching this step is renewed
+    unknown = False  # ... at no known rate
     delivery: tuple[int, int | None] | None = None
     prev: model.FlowStep | None = None
     ppm = clock_tolerance(m)
+    releases = {ref: _release(m, flow.steps[0].kind, ref, chained, task_ns, ftt, ppm) for ref in flow.steps[0].refs}
+    streams: dict[str, tuple[str, ...]] = {ref: (ref,) for ref in flow.steps[0].refs}  # item -> the stream it carries
     for i, step in enumerate(flow.steps):
         last = i == len(flow.steps) - 1
         outs: list[tuple[int, int | None]] = []
-        periods: list[int] = []
+        periods: list[int | None] = []  # how often each item renews its data (None: unknown)
+        carried: dict[str, tuple[str, ...]] = {}
         for ref in step.refs:
+            heads: list[tuple[int | None, int | None]] = []  # of a join, per stream it reads: (wait for the rest,
+            # renewal), None where no rate bounds it
+            if i:
+                assert prev is not None
+                read = sorted({streams[r] for r in _reads(m, prev, step.kind, ref)})
+                carried[ref] = read[0] if len(read) == 1 else tuple(sorted({o for s in read for o in s}))
+                if len(read) > 1:
+                    heads = [
+                        (
+                            _latest([_gap(a, b, releases, ppm) for b in read if b != a]),
+                            releases[a[0]].renewal if i == 1 and len(a) == 1 else None,
+                        )
+                        for a in read
+                    ]
             if step.kind == "message":
                 msg = m.messages[ref]
                 d = chained[ref]
-                wait = 0
-                if msg.kind == "periodic" and i and (ref in scheduled or not _sent_by_producer(m, msg, prev)):
-                    wait = _sampling(message_period(msg), refresh, ppm)
-                outs.append((lo + d.best_ns, _add(_add(hi, wait), d.worst_ns)))
-                periods.append(message_period(msg) or 0)
+                own_rate = msg.kind == "periodic" and i and (ref in scheduled or not _sent_by_producer(m, msg, prev))
+                wait = _read_wait(not own_rate, message_period(msg), refresh, heads, ppm) if i else 0
+                tx = 0 if own_rate else queue_delay(m, msg, prev)
+                outs.append((lo + tx + d.best_ns, _add(_add(_add(hi, wait), tx), d.worst_ns)))
+                periods.append(renewal_period(m, msg))
             else:
                 task = m.task(ref)
                 period = task_period(m, task)
-                wait = _sampling(period, refresh, ppm) if i and task.on_message is None else 0
-                after = start_delay(m, task) if task.on_message is not None else 0  # free-running otherwise
-                start_hi = _add(hi, wait + after)
+                # a message starts it rx_delay after its frame; free-running, or the flow's first (whose start is
+                # the stamp), at once
+                after = start_delay(m, task) if task.on_message is not None and i else 0
+                started = _started_by(m, task, chained, prev)  # by a message from outside the flow: how often
+                if started is not None:  # it samples the flow's data at that message's rate
+                    period = started[0]
+                event = task.on_message is not None and started is None
+                wait = (None if period is None else _read_wait(event, period, refresh, heads, ppm)) if i else 0
+                start_hi = _add(_add(hi, wait), after)
                 end_hi = _add(start_hi, task_response(task, task_ns))
                 outs.append((lo + after, start_hi) if last else (lo + after + task.bcet_ns, end_hi))
-                periods.append(period or 0)
+                periods.append(period if started is not None else period or 0)
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
         if step.kind == "message":
             delivery = (lo, hi)
-        # an event-driven task passes its input's rate on
-        refresh = max(max(periods), refresh or 0) or None  # a stamp renews no faster than its slowest step so far
+        # an event-driven task passes its input's rate on (one started from outside the flow, its message's);
+        # a stamp renews no faster than its slowest step so far; once one renews at no known rate, neither does it
+        unknown = unknown or None in periods
+        refresh = None if unknown else max(max(p or 0 for p in periods), refresh or 0) or None
+        if i:
+            streams = carried
         prev = step
     return (lo, hi), delivery
+
+
+def _started_by(
+    m: model.Model, task: model.Task, chained: dict[str, Delivery], prev: model.FlowStep | None
+) -> tuple[int | None] | None:
+    """Of a task started by a message that is not an item of the step before (the flow's first task, or one that
+    reads the flow's data when another message comes): how far apart its starts may be, (None,) when no rate bounds
+    them. None for the other tasks."""
+    if task.on_message is None or (prev is not None and task.on_message in prev.refs):
+        return None
+    msg = m.messages[task.on_message]
+    every, d = renewal_period(m, msg), chained.get(msg.name)
+    if every is None or d is None or d.worst_ns is None:
+        return (None,)
+    return (every + d.worst_ns - d.best_ns,)
+
+
+def _read_wait(
+    event: bool, own: int | None, refresh: int | None, heads: list[tuple[int | None, int | None]], ppm: int
+) -> int | None:
+    """How long data waits for a reader that samples every `own`, or at once on an `event`. A join (`heads`: per
+    stream it reads, the longest wait for the other streams' data at least as new, and how often that stream is
+    renewed, None: no faster than `refresh`) takes the oldest of its streams' data, so it also waits for the rest;
+    but it never takes a stream's data older than one renewal, whatever it waits for."""
+    if not heads:
+        return 0 if event else _sampling(own, refresh, ppm)
+    waits = []
+    for rest, renewal in heads:
+        cap = renewal if renewal is not None else clocks.longest_real(refresh, ppm) if refresh else None
+        wait = None if event or not own or rest is None else rest + clocks.longest_real(own, ppm)
+        waits.append(cap if wait is None else wait if cap is None else min(wait, cap))
+    return _latest(waits)
+
+
+def _latest(spans: list[int | None]) -> int | None:
+    """The longest of some spans; None (unbounded) if one is."""
+    return None if None in spans else max(x for x in spans if x is not None)
+
+
+def _reads(m: model.Model, prev: model.FlowStep, kind: str, ref: str) -> tuple[str, ...]:
+    """The items of the step before that a reader takes its data from, as netcfg.sim.flows reads them: a task those
+    its node receives or runs, a message those its producer runs; all of them when none is local."""
+    if kind == "task":
+        node = m.task(ref).node
+        mine = tuple(
+            r for r in prev.refs
+            if (prev.kind == "message" and node in m.messages[r].consumers)
+            or (prev.kind == "task" and m.task(r).node == node)
+        )
+    else:
+        producer = m.messages[ref].producer
+        mine = tuple(r for r in prev.refs if prev.kind == "task" and m.task(r).node == producer)
+    return mine or prev.refs
+
+
+@dataclass(frozen=True)
+class _Release:
+    """When a first-step item releases its data (starts a stamp): on a grid of `period` shared by the items of the
+    same `grid` (one node's clock, or the FTT-CAN master's ECs), within [offset + early, offset + late] of each
+    period; `renewal`: the longest real time from any instant to its next release."""
+
+    grid: tuple[str, str] | None
+    period: int
+    offset: int
+    early: int
+    late: int
+    renewal: int | None  # None: no rate bounds it
+
+
+def _release(
+    m: model.Model,
+    kind: str,
+    ref: str,
+    chained: dict[str, Delivery],
+    task_ns: TaskTimes | None,
+    ftt: FttTimes | None,
+    ppm: int,
+) -> _Release:
+    if ftt is not None:  # the master's ECs: a synchronous message is queued at its window, a task at its TM
+        s = ftt.schedule
+        entry = ref if kind == "message" else m.task(ref).trigger
+        if entry is not None and entry in ftt.entries and (kind == "task" or ref in ftt.frame_ns):
+            period, init = ftt.entries[entry]
+            if kind == "message":
+                starts = [s.window_start(k) for k in range(s.macro_cycle)]
+                early, late = min(starts), max(starts) + (s.tm_delay_ns if s.sync_first else 0)
+            else:
+                early = s.tm_ns + start_delay(m, m.task(ref))
+                late = early + s.tm_delay_ns
+            return _Release(("ftt", ""), period * s.ec_ns, init * s.ec_ns, early, late, period * s.ec_ns + late - early)
+    if kind == "message":
+        msg = m.messages[ref]
+        every = renewal_period(m, msg)
+        senders = sending_tasks(m, msg)
+        variation = max(((task_response(m.task(t), task_ns) or 0) - m.task(t).bcet_ns for t in senders), default=0)
+        renewal = None if every is None else clocks.longest_real(every, ppm) + msg.jitter_ns + variation
+        clocked = (
+            msg.kind == "periodic" and not senders and msg.slowest_ns is None and m.buses[msg.bus].is_can
+            and msg.period_ns == msg.interval_ns
+        )
+        grid = ("clock", msg.producer) if clocked else None
+        return _Release(grid, msg.interval_ns or 0, msg.offset_ns or 0, 0, msg.jitter_ns, renewal)
+    task = m.task(ref)
+    started = _started_by(m, task, chained, None)
+    every = task_period(m, task) if started is None else started[0]
+    clocked = task.period_ns is not None and task.trigger is None and task.on_message is None and task.sync_bus is None
+    grid = ("clock", task.node) if clocked else None
+    renewal = None if every is None else clocks.longest_real(every, ppm)
+    return _Release(grid, every or 0, task.offset_ns, 0, 0, renewal)
+
+
+def _gap(a: tuple[str, ...], b: tuple[str, ...], releases: dict[str, _Release], ppm: int) -> int | None:
+    """The longest real time from a release of stream a to the next release of stream b: b's data that is at least
+    as new as a's. Two first-step items on one grid keep their offsets' distances (over their common period);
+    otherwise b may have just been released, and comes again after its renewal (a joined stream, after its
+    slowest item's)."""
+    if len(a) == 1 and len(b) == 1:
+        ra, rb = releases[a[0]], releases[b[0]]
+        if ra.grid is not None and ra.grid == rb.grid and ra.period and rb.period:
+            common = lcm(ra.period, rb.period) // ra.period
+            if common <= _MAX_PHASES:
+                tol = ppm if ra.grid[0] == "clock" else 0  # a node's clock: its distances within +-ppm in real time
+                gap = 0
+                for k in range(common):  # each release of a in the common period
+                    distance = (rb.offset - ra.offset - k * ra.period) % rb.period
+                    if clocks.shortest_real(distance, tol) + rb.early < ra.late:  # a late may pass b's release
+                        distance += rb.period
+                    gap = max(gap, clocks.longest_real(distance, tol) + rb.late - ra.early)
+                return gap
+    return _latest([releases[r].renewal for r in b])
+
+
+_MAX_PHASES = 10_000  # releases of one item in two items' common period that are examined one by one
 
 
 def clock_tolerance(m: model.Model) -> int:
@@ -162,6 +329,28 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
         if task.node == msg.producer and _same_rate(m, task, msg):
             return True
     return False
+
+
+def renewal_period(m: model.Model, msg: model.Message) -> int | None:
+    """The longest nominal time between two of a message's releases; None when no rate bounds it. A sporadic
+    message that tasks send as they end goes at most every minimum inter-arrival time, so a send may be skipped
+    and the next comes up to one sender period later; one sent on its own is taken at its minimum inter-arrival
+    time (all that is known, as netcfg.sim releases it)."""
+    if msg.kind != "sporadic":
+        return message_period(msg)
+    senders = [task_period(m, m.task(t)) for t in sending_tasks(m, msg)]
+    if not senders:
+        return msg.interval_ns
+    return None if not all(senders) or msg.interval_ns is None else msg.interval_ns + max(p or 0 for p in senders)
+
+
+def queue_delay(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> int:
+    """How long after the task before it a CAN message it sends as it ends is queued: its producer's tx_delay, as
+    netcfg.sim queues it (on Ethernet the path delay already holds it, as Tpre)."""
+    if prev is None or prev.kind != "task" or not m.buses[msg.bus].is_can:
+        return 0
+    senders = sending_tasks(m, msg)
+    return m.nodes[msg.producer].tx_delay_ns if any(ref in senders for ref in prev.refs) else 0
 
 
 def _same_rate(m: model.Model, task: model.Task, msg: model.Message) -> bool:
@@ -298,7 +487,9 @@ def synchronised(
                         d = chained[ref]
                         if d.worst_ns is None:
                             return None
-                        outs.append((lo + d.best_ns, hi + free_wait(i, ref) + d.worst_ns))
+                        wait = free_wait(i, ref)
+                        tx = 0 if wait else queue_delay(m, m.messages[ref], flow.steps[i - 1] if i else None)
+                        outs.append((lo + tx + d.best_ns, hi + wait + tx + d.worst_ns))
                     else:
                         task = m.task(ref)
                         if task.trigger is not None:
@@ -363,8 +554,9 @@ def synchronised(
         """A step after the start, up to `until`, keeps to its own time (a synchronous message, a triggered task, a
         message sent at its own rate): the data it passes on comes no later, so the flow may be that much
         shorter. Steps that only follow their predecessor (chained messages, message-activated tasks) move with
-        the start."""
-        return any(
+        the start; but with several items in the first step, the others keep to their own time: a task started by
+        one of them takes the late one's data at that one's frame."""
+        return len(first.refs) > 1 or any(
             (step.kind == "message" and (sync_msg(ref) or free_wait(i, ref)))
             or (step.kind == "task" and m.task(ref).trigger is not None)
             for i, step in enumerate(flow.steps[: until + 1])
