@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from netcfg.runtime import Flow, RuntimeConfig
+from netcfg.timing.flow_inputs import step_inputs
 
 EMPTY = np.empty(0, dtype=np.int64)  # a stream with nothing in it
 HISTORY = 64  # availability records kept per item: enough to look back one message's worth of releases
@@ -81,17 +82,9 @@ class FlowTracker:
         for i in range(1, len(flow.steps)):
             prev = flow.steps[i - 1]
             for ref in flow.steps[i].refs:
-                if flow.steps[i].kind == "task":
-                    node = ref.split(".", 1)[0]
-                    mine = tuple(
-                        r for r in prev.refs
-                        if (prev.kind == "message" and node in cfg.message(r).consumers)
-                        or (prev.kind == "task" and r.split(".", 1)[0] == node)
-                    )
-                else:
-                    producer = cfg.message(ref).producer
-                    mine = tuple(r for r in prev.refs if prev.kind == "task" and r.split(".", 1)[0] == producer)
-                self.local[(i, ref)] = mine or prev.refs
+                self.local[(i, ref)] = step_inputs(
+                    prev, flow.steps[i].kind, ref, lambda r: cfg.message(r).consumers, lambda r: cfg.message(r).producer
+                )
         last = len(flow.steps) - 1
         self.latency = _End(frozenset(flow.steps[last].refs), done=warm_up_ns - 1)
         msg_steps = [i for i, s in enumerate(flow.steps) if s.kind == "message"]

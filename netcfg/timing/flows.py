@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 
 from netcfg import model
 from netcfg.timing import clocks
+from netcfg.timing.flow_inputs import step_inputs
 
 if TYPE_CHECKING:  # only in annotations: a spec without FTT-CAN or CANopen loads neither analysis
     from netcfg.timing.canopen_sync import MasterLoop
@@ -113,6 +114,13 @@ def unsynchronised(
     ppm = clock_tolerance(m)
     releases = {ref: _release(m, flow.steps[0].kind, ref, chained, task_ns, ftt, ppm) for ref in flow.steps[0].refs}
     streams: dict[str, tuple[str, ...]] = {ref: (ref,) for ref in flow.steps[0].refs}  # item -> the stream it carries
+
+    def consumers(name: str) -> tuple[str, ...]:
+        return m.messages[name].consumers
+
+    def producer(name: str) -> str:
+        return m.messages[name].producer
+
     for i, step in enumerate(flow.steps):
         last = i == len(flow.steps) - 1
         outs: list[tuple[int, int | None]] = []
@@ -123,7 +131,7 @@ def unsynchronised(
             # renewal), None where no rate bounds it
             if i:
                 assert prev is not None
-                read = sorted({streams[r] for r in _reads(m, prev, step.kind, ref)})
+                read = sorted({streams[r] for r in step_inputs(prev, step.kind, ref, consumers, producer)})
                 carried[ref] = read[0] if len(read) == 1 else tuple(sorted({o for s in read for o in s}))
                 if len(read) > 1:
                     heads = [
@@ -205,22 +213,6 @@ def _read_wait(
 def _latest(spans: list[int | None]) -> int | None:
     """The longest of some spans; None (unbounded) if one is."""
     return None if None in spans else max(x for x in spans if x is not None)
-
-
-def _reads(m: model.Model, prev: model.FlowStep, kind: str, ref: str) -> tuple[str, ...]:
-    """The items of the step before that a reader takes its data from, as netcfg.sim.flows reads them: a task those
-    its node receives or runs, a message those its producer runs; all of them when none is local."""
-    if kind == "task":
-        node = m.task(ref).node
-        mine = tuple(
-            r for r in prev.refs
-            if (prev.kind == "message" and node in m.messages[r].consumers)
-            or (prev.kind == "task" and m.task(r).node == node)
-        )
-    else:
-        producer = m.messages[ref].producer
-        mine = tuple(r for r in prev.refs if prev.kind == "task" and m.task(r).node == producer)
-    return mine or prev.refs
 
 
 @dataclass(frozen=True)
