@@ -127,8 +127,8 @@ def unsynchronised(
         periods: list[int | None] = []  # how often each item renews its data (None: unknown)
         carried: dict[str, tuple[str, ...]] = {}
         for ref in step.refs:
-            heads: list[tuple[int | None, int | None]] = []  # of a join, per stream it reads: (wait for the rest,
-            # renewal), None where no rate bounds it
+            # of a join, per stream it reads: (wait for the rest, renewal); None where no rate bounds it
+            heads: list[tuple[int | None, int | None]] = []
             if i:
                 assert prev is not None
                 read = sorted({streams[r] for r in step_inputs(prev, step.kind, ref, consumers, producer)})
@@ -155,15 +155,15 @@ def unsynchronised(
                 # a message starts it rx_delay after its frame; free-running, or the flow's first (whose start is
                 # the stamp), at once
                 after = start_delay(m, task) if task.on_message is not None and i else 0
-                started = _started_by(m, task, chained, prev)  # by a message from outside the flow: how often
-                if started is not None:  # it samples the flow's data at that message's rate
-                    period = started[0]
-                event = task.on_message is not None and started is None
-                wait = (None if period is None else _read_wait(event, period, refresh, heads, ppm)) if i else 0
+                starter = _outside_starter(m, task, prev)
+                if starter is not None:  # it samples (and renews) the flow's data as often as that message comes
+                    period = _start_spacing(m, starter, chained)
+                event = task.on_message is not None and starter is None  # started by the data itself
+                wait = _read_wait(event, period, refresh, heads, ppm) if i else 0
                 start_hi = _add(_add(hi, wait), after)
                 end_hi = _add(start_hi, task_response(task, task_ns))
                 outs.append((lo + after, start_hi) if last else (lo + after + task.bcet_ns, end_hi))
-                periods.append(period if started is not None else period or 0)
+                periods.append(period if starter is not None else period or 0)
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
         if step.kind == "message":
@@ -178,19 +178,21 @@ def unsynchronised(
     return (lo, hi), delivery
 
 
-def _started_by(
-    m: model.Model, task: model.Task, chained: dict[str, Delivery], prev: model.FlowStep | None
-) -> tuple[int | None] | None:
-    """Of a task started by a message that is not an item of the step before (the flow's first task, or one that
-    reads the flow's data when another message comes): how far apart its starts may be, (None,) when no rate bounds
-    them. None for the other tasks."""
+def _outside_starter(m: model.Model, task: model.Task, prev: model.FlowStep | None) -> model.Message | None:
+    """The message that starts a task when it is not an item of the step before (the flow's first task, or one
+    that reads the flow's data whenever another message comes); None otherwise."""
     if task.on_message is None or (prev is not None and task.on_message in prev.refs):
         return None
-    msg = m.messages[task.on_message]
+    return m.messages[task.on_message]
+
+
+def _start_spacing(m: model.Model, msg: model.Message, chained: dict[str, Delivery]) -> int | None:
+    """How far apart the starts of a task this message starts may be: its renewal and its delivery's variation;
+    None when no rate bounds them."""
     every, d = renewal_period(m, msg), chained.get(msg.name)
     if every is None or d is None or d.worst_ns is None:
-        return (None,)
-    return (every + d.worst_ns - d.best_ns,)
+        return None
+    return every + d.worst_ns - d.best_ns
 
 
 def _read_wait(
@@ -263,8 +265,8 @@ def _release(
         grid = ("clock", msg.producer) if clocked else None
         return _Release(grid, msg.interval_ns or 0, msg.offset_ns or 0, 0, msg.jitter_ns, renewal)
     task = m.task(ref)
-    started = _started_by(m, task, chained, None)
-    every = task_period(m, task) if started is None else started[0]
+    starter = _outside_starter(m, task, None)
+    every = task_period(m, task) if starter is None else _start_spacing(m, starter, chained)
     clocked = task.period_ns is not None and task.trigger is None and task.on_message is None and task.sync_bus is None
     grid = ("clock", task.node) if clocked else None
     renewal = None if every is None else clocks.longest_real(every, ppm)
