@@ -394,9 +394,9 @@ def test_a_join_waits_for_its_other_streams_newer_data(tmp_path: Path) -> None:
 
 def test_one_producers_messages_keep_their_distance_in_a_join(tmp_path: Path) -> None:
     """The same join, both messages sent by one node on its one clock: mb always comes 19 ms after ma, and ma 1 ms
-    after mb, so r.t's oldest data waits at most 19,001.9 us (19 ms at 100 ppm, rounded up) for the other's, and
-    never more than one renewal: 540 + min(19,002 + 10,001, 20,002) = 20,542 us; with mb 1 ms after ma instead,
-    540 + max(min(1,001 + 10,001, 20,002), min(19,002 + 10,001, 20,002)) is the same 20,542 us. With both at one
+    after mb, so r.t's oldest data waits at most 19,001.9 us (19 ms at 100 ppm) for the other's, and never more
+    than one renewal: 540 + min(19,001.9 + 10,001, 20,002) = 20,542 us; with mb 1 ms after ma instead,
+    540 + max(min(1,000.1 + 10,001, 20,002), min(19,001.9 + 10,001, 20,002)) is the same 20,542 us. With both at one
     offset, neither waits for the other: 540 + 10,001 = 10,541 us, as for one message."""
     data = yaml.safe_load(JOIN_OF_TWO_PRODUCERS)
     data["messages"][1]["producer"] = "p"
