@@ -302,8 +302,6 @@ def _finish(end: _End, reached: list[tuple[str, np.ndarray, Stream]]) -> None:
         end.reach(refs[k], st, t)
 
 
-
-
 def _reached(done: int, stamp: np.ndarray, t: np.ndarray) -> list[int]:
     """_End.reach for one item over a whole stream: a stamp counts when it is newer than every earlier one."""
     newest = np.maximum.accumulate(np.concatenate([[done], stamp]))[:-1]

@@ -184,8 +184,6 @@ class _Heard:
         return pool[:k]
 
 
-
-
 def clock_activations(phase: int, drift_ppb: int, offset: int, period: int, until: int) -> np.ndarray:
     """NodeClock.to_global(offset + k * period) for k = 0, 1, ... while before `until` (Scenario._periodic_task)."""
     n = int((until - phase) / (period * (1 + drift_ppb / PPB))) + 2 if until > phase else 1
