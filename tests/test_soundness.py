@@ -1,4 +1,5 @@
-"""No simulated figure outside its analysed bound, on random specs of every protocol (a bounded sample in CI).
+"""No simulated figure outside its analysed bound, on random specs of every protocol and of the wider FTT-CAN
+strategy (a bounded sample in CI).
 
 The specs, the runs (random phases and drift, the critical instant, and FTT-CAN buses also as free-running CAN)
 and the check are benchmarks/soundness.py's; its command line runs thousands and prints the tightness.
@@ -19,12 +20,13 @@ import soundness
 RUN_NS = 200_000_000  # simulated per run: several hyperperiods of most random specs
 
 
-@pytest.mark.parametrize("protocol", soundness.PROTOCOLS)
+@pytest.mark.parametrize("protocol", [*soundness.PROTOCOLS, *soundness.OPT_IN])
 def test_simulation_stays_inside_the_analysis(protocol: str) -> None:
     accepted = []
+    strategy = soundness.STRATEGIES[protocol] if protocol in soundness.STRATEGIES else soundness.OPT_IN[protocol]()
 
     @settings(max_examples=25, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
-    @given(soundness.STRATEGIES[protocol])
+    @given(strategy)
     def run(spec: dict[str, Any]) -> None:
         out = soundness.check_spec(spec, seed=len(accepted), duration_ns=RUN_NS)
         accepted.append(out.accepted)
