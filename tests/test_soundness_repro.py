@@ -432,6 +432,9 @@ def test_a_can_message_a_task_sends_is_queued_its_tx_delay_after_the_task(tmp_pa
         ("13", 397),
         ("14", 1217),
         ("15", 1447),
+        ("16", 115),
+        ("17", 1307),
+        ("18", 1011),
     ],
 )
 def test_wide_ftt_can_specs_stay_inside_their_bounds(name: str, seed: int) -> None:
@@ -449,3 +452,18 @@ def test_a_first_task_started_by_a_message_counts_from_its_start(tmp_path: Path)
     report = check(next(DATA.glob("14-*.yaml")))
     flow = next(f for f in report["flows"] if f["name"] == "af0")
     assert flow["latency_min_us"] == pytest.approx(63 + 262 + 7.001)
+
+
+@pytest.mark.parametrize(
+    ("name", "flow", "analysis", "expected"),
+    [
+        ("16", "af1", "latency_max_us", 8_127),  # its header: an EC (4,000 us) more than the 4,127 us before
+        ("17", "fj", "unsynchronised", 550),  # its header: 47 + 503 us
+        ("18", "fj", "latency_min_us", 1_536),  # its header: 1,808 - (340 + 464 - 532) us
+    ],
+)
+def test_wide_ftt_can_specs_figures(name: str, flow: str, analysis: str, expected: int) -> None:
+    """The figures each spec's header derives."""
+    row = next(f for f in check(next(DATA.glob(f"{name}-*.yaml")))["flows"] if f["name"] == flow)
+    got = row["unsynchronised"]["latency_min_us"] if analysis == "unsynchronised" else row[analysis]
+    assert got == pytest.approx(expected)

@@ -19,8 +19,8 @@ EC grid, else up to a period), but never longer than the oldest data's own renew
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from dataclasses import dataclass, field
-from itertools import pairwise
 from math import lcm
 from typing import TYPE_CHECKING
 
@@ -109,6 +109,7 @@ def unsynchronised(
     lo, hi = 0, 0  # type: int, int | None
     refresh: int | None = None  # how often the data reaching this step is renewed
     unknown = False  # ... at no known rate
+    item_lo: dict[str, int] = {}  # the step before's items: each one's earliest
     delivery: tuple[int, int | None] | None = None
     prev: model.FlowStep | None = None
     ppm = clock_tolerance(m)
@@ -162,8 +163,11 @@ def unsynchronised(
                 wait = _read_wait(event, period, refresh, heads, ppm) if i else 0
                 start_hi = _add(_add(hi, wait), after)
                 end_hi = _add(start_hi, task_response(task, task_ns))
-                outs.append((lo + after, start_hi) if last else (lo + after + task.bcet_ns, end_hi))
+                # at the earliest, its message's frame and rx_delay; the step's other items need only be in by then
+                start_lo = max(lo, item_lo[task.on_message] + after) if event else lo  # type: ignore[index]
+                outs.append((start_lo, start_hi) if last else (start_lo + task.bcet_ns, end_hi))
                 periods.append(period if starter is not None else period or 0)
+        item_lo = {ref: o[0] for ref, o in zip(step.refs, outs)}
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
         if step.kind == "message":
@@ -246,8 +250,9 @@ def _release(
         if entry is not None and entry in ftt.entries and (kind == "task" or ref in ftt.frame_ns):
             period, init = ftt.entries[entry]
             if kind == "message":
-                starts = [s.window_start(k) for k in range(s.macro_cycle)]
-                early, late = min(starts), max(starts) + (s.tm_delay_ns if s.sync_first else 0)
+                ecs = range(s.macro_cycle)
+                early = min(s.window_start(k) for k in ecs)
+                late = max(s.window_start(k) + s.window_delay(k) for k in ecs)
             else:
                 early = s.tm_ns + start_delay(m, m.task(ref))
                 late = early + s.tm_delay_ns
@@ -463,6 +468,7 @@ def synchronised(
         """The latency range counted from the starts of one item of the first step; the step's other items are
         taken at their next instance from then on."""
         runs = []
+        hold = 0  # how much later a start must be to supersede this one (0: the next start)
         for start in starts:
             lo = hi = start
             got: tuple[int, int] | None = None
@@ -484,6 +490,9 @@ def synchronised(
                         wait = free_wait(i, ref)
                         tx = 0 if wait else queue_delay(m, m.messages[ref], flow.steps[i - 1] if i else None)
                         outs.append((lo + tx + d.best_ns, hi + wait + tx + d.worst_ns))
+                        if i and not wait and may_skip(flow.steps[i - 1], m.messages[ref]):
+                            # a later start's data reaches the message surely only once it is sent again
+                            hold = max(hold, (m.messages[ref].interval_ns or 0) + hi - lo)
                     else:
                         task = m.task(ref)
                         if task.trigger is not None:
@@ -511,7 +520,18 @@ def synchronised(
                     break  # its next instance is there, however late, before the others' at their earliest
             else:
                 runs.append((start, lo, hi, got))
-        return _freshest(runs, s.macro_cycle * ec)  # None if no start's data is ever used
+        return _freshest(runs, s.macro_cycle * ec, hold)  # None if no start's data is ever used
+
+    def may_skip(prev: model.FlowStep, msg: model.Message) -> bool:
+        """A sporadic message the task before sends as it ends, whose sends may come closer than its minimum
+        inter-arrival time: netcfg.sim then skips one, and the data waits for the next."""
+        if msg.kind != "sporadic" or not msg.interval_ns or prev.kind != "task":
+            return False
+        senders = [m.task(r) for r in prev.refs if r in sending_tasks(m, msg)]
+        return any(
+            (task_period(m, t) or 0) - ((task_response(t, task_ns) or 0) - t.bcet_ns) < msg.interval_ns
+            for t in senders
+        )
 
     def superseded(head: str, start: int, starts: list[int], ready: int) -> bool:
         """Of a first step with several items: the head's next instance (at its slowest) comes before the step's
@@ -540,8 +560,9 @@ def synchronised(
     got = [r[1] for r in done if r[1] is not None]
     got_range = (min(g[0] for g in got), max(g[1] for g in got)) if got else None
     # the first step's start may come late: a triggered task's with its trigger message, resent after bit errors,
-    # and with the synchronous window right after the TM, a synchronous message's too (queued at the TM's end)
-    if not ((first.kind == "task" or s.sync_first) and s.tm_delay_ns):
+    # and a synchronous message's too when that TM ends after its window's start (queued at the TM's end)
+    late = s.tm_delay_ns if first.kind == "task" else max(s.window_delay(k) for k in range(s.macro_cycle))
+    if not late:
         return (lat_lo, lat_hi), got_range
 
     def anchored(until: int) -> bool:
@@ -558,7 +579,6 @@ def synchronised(
             for ref in step.refs
         )
 
-    late = s.tm_delay_ns
     if anchored(len(flow.steps) - 1):
         lat_lo = max(0, lat_lo - late)  # an age is never negative, however late the start
     if got_range is not None:
@@ -571,8 +591,11 @@ def synchronised(
 Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (worst), last message's delivery
 
 
-def _freshest(runs: list[Run], cycle_end: int) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
-    """Data age: a use takes the freshest data, so of several starts that reach the same use only the last counts.
+def _freshest(
+    runs: list[Run], cycle_end: int, hold: int = 0
+) -> tuple[tuple[int, int], tuple[int, int] | None] | None:
+    """Data age: a use takes the freshest data, so of several starts that reach the same use only the last counts:
+    the last of those at least `hold` apart (a later start's data may not be passed on before then).
     `runs` cover two cycles; only the starts of the first are measured (the second shows which start is last).
     A start's fastest execution is used when the next start, also fast, reaches a later use (likewise the slowest);
     each execution that is used counts for both ends of the range: a fast start whose slow twin is superseded is
@@ -582,11 +605,19 @@ def _freshest(runs: list[Run], cycle_end: int) -> tuple[tuple[int, int], tuple[i
     lat_hi = 0
     del_lo: int | None = None
     del_hi = 0
-    for (start, lo, hi, got), nxt in pairwise(runs):
+    starts = [run[0] for run in runs]
+    for k, (start, lo, hi, got) in enumerate(runs):
         if start >= cycle_end:
             break
-        for end, later, delivered in ((lo, nxt[1], got[0] if got else None), (hi, nxt[2], got[1] if got else None)):
-            if later > end:
+        j = bisect_left(starts, start + hold, k + 1)
+        if j == len(runs) and not hold:
+            break
+        nxt = runs[j] if j < len(runs) else None  # None: no start surely supersedes it
+        for end, later, delivered in (
+            (lo, nxt[1] if nxt else None, got[0] if got else None),
+            (hi, nxt[2] if nxt else None, got[1] if got else None),
+        ):
+            if later is None or later > end:
                 lat_lo = end - start if lat_lo is None else min(lat_lo, end - start)
                 lat_hi = max(lat_hi, end - start)
                 if delivered is not None:

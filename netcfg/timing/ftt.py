@@ -100,6 +100,11 @@ class Schedule:
         slot = self.slots[ec % self.macro_cycle]
         return self.ec_ns - slot.sync_ns - slot.allowance_ns
 
+    def window_delay(self, ec: int) -> int:
+        """How much later than window_start EC ec's synchronous frames may be queued: a TM resent after bit errors
+        that ends after the window's start holds them back until it ends (netcfg.sim.ftt queues them then)."""
+        return max(0, self.tm_ns + self.tm_delay_ns - self.window_start(ec))
+
     def async_start(self, ec: int) -> int:
         """Start of EC ec's asynchronous window, from the EC start: after the TM, or after the synchronous window."""
         slot = self.slots[ec % self.macro_cycle]
