@@ -435,6 +435,7 @@ def test_a_can_message_a_task_sends_is_queued_its_tx_delay_after_the_task(tmp_pa
         ("16", 115),
         ("17", 1307),
         ("18", 1011),
+        ("19", 1089),
     ],
 )
 def test_wide_ftt_can_specs_stay_inside_their_bounds(name: str, seed: int) -> None:
@@ -460,6 +461,7 @@ def test_a_first_task_started_by_a_message_counts_from_its_start(tmp_path: Path)
         ("16", "af1", "latency_max_us", 8_127),  # its header: an EC (4,000 us) more than the 4,127 us before
         ("17", "fj", "unsynchronised", 550),  # its header: 47 + 503 us
         ("18", "fj", "latency_min_us", 1_536),  # its header: 1,808 - (340 + 464 - 532) us
+        ("19", "f0", "latency_max_us", 8_940),  # its header: 8,353 + 928 - 341 us
     ],
 )
 def test_wide_ftt_can_specs_figures(name: str, flow: str, analysis: str, expected: int) -> None:

@@ -472,6 +472,7 @@ def synchronised(
         for start in starts:
             lo = hi = start
             got: tuple[int, int] | None = None
+            uses: Uses | None = None
             prev_inst: dict[str, tuple[int, int]] = {}  # the step before's synchronous items: their ECs, both paths
             prev_out: dict[str, tuple[int, int]] = {}  # ... and their frames' ends, on both paths
             for i, step in enumerate(flow.steps):
@@ -512,6 +513,8 @@ def synchronised(
                         busy = task_response(task, task_ns) or 0  # bounded: checked above
                         outs.append((a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy))
                 lo, hi = max(o[0] for o in outs), max(o[1] for o in outs)
+                if last and len(step.refs) == 1 and m.task(step.refs[0]).trigger is not None:
+                    uses = last_uses(m.task(step.refs[0]), lo, hi)
                 prev_inst = inst if len(inst) == len(step.refs) else {}
                 prev_out = dict(zip(step.refs, outs)) if prev_inst else {}
                 if step.kind == "message":
@@ -519,8 +522,18 @@ def synchronised(
                 if i == 0 and superseded(head, start, starts, lo):
                     break  # its next instance is there, however late, before the others' at their earliest
             else:
-                runs.append((start, lo, hi, got))
+                runs.append((start, lo, hi, got, uses))
         return _freshest(runs, s.macro_cycle * ec, hold)  # None if no start's data is ever used
+
+    def last_uses(task: model.Task, lo: int, hi: int) -> Uses:
+        """The activations of the flow's last task, triggered, that this start's data may reach between its fastest
+        path (lo) and its slowest (hi), each as (earliest, latest) start: at its trigger message's end, up to
+        tm_delay late (resent after errors). A mix of fast and slow steps may reach any of them, each at its latest."""
+        out, at = [], lo
+        while at <= hi - s.tm_delay_ns:
+            out.append((at, at + s.tm_delay_ns))
+            at = next_activation(task, at + 1)
+        return tuple(out)
 
     def may_skip(prev: model.FlowStep, msg: model.Message) -> bool:
         """A sporadic message the task before sends as it ends, whose sends may come closer than its minimum
@@ -588,7 +601,10 @@ def synchronised(
     return (lat_lo, lat_hi), got_range
 
 
-Run = tuple[int, int, int, tuple[int, int] | None]  # start, end (best), end (worst), last message's delivery
+Uses = tuple[tuple[int, int], ...]  # activations of a flow's triggered last task: (earliest start, latest start)
+# start, end (best), end (worst), last message's delivery, the last task's activations it may reach (None: the task
+# follows its input, each activation its own)
+Run = tuple[int, int, int, tuple[int, int] | None, Uses | None]
 
 
 def _freshest(
@@ -597,32 +613,45 @@ def _freshest(
     """Data age: a use takes the freshest data, so of several starts that reach the same use only the last counts:
     the last of those at least `hold` apart (a later start's data may not be passed on before then).
     `runs` cover two cycles; only the starts of the first are measured (the second shows which start is last).
-    A start's fastest execution is used when the next start, also fast, reaches a later use (likewise the slowest);
-    each execution that is used counts for both ends of the range: a fast start whose slow twin is superseded is
-    still used, and may carry the flow's oldest data. (Executions between the fastest and the slowest, and a fast
-    start followed by a slow one, are not examined separately.)"""
+    Where the last task is triggered (its activations known), a start's data is used by every activation it may
+    reach before the one the next start surely reaches (at its slowest), each at its latest: a fast start followed
+    by a slow one (or by a late trigger message), and a mix of fast and slow steps, included. Otherwise, and for
+    the delivery range, a start's fastest execution is used when the next start, also fast, reaches a later use
+    (likewise the slowest); each execution that is used counts for both ends of the range: a fast start whose slow
+    twin is superseded is still used, and may carry the flow's oldest data. (There, executions between the
+    fastest and the slowest are not examined separately.)"""
     lat_lo: int | None = None
     lat_hi = 0
     del_lo: int | None = None
     del_hi = 0
     starts = [run[0] for run in runs]
-    for k, (start, lo, hi, got) in enumerate(runs):
+    for k, (start, lo, hi, got, uses) in enumerate(runs):
         if start >= cycle_end:
             break
         j = bisect_left(starts, start + hold, k + 1)
         if j == len(runs) and not hold:
             break
         nxt = runs[j] if j < len(runs) else None  # None: no start surely supersedes it
-        for end, later, delivered in (
-            (lo, nxt[1] if nxt else None, got[0] if got else None),
-            (hi, nxt[2] if nxt else None, got[1] if got else None),
-        ):
-            if later is None or later > end:
-                lat_lo = end - start if lat_lo is None else min(lat_lo, end - start)
-                lat_hi = max(lat_hi, end - start)
-                if delivered is not None:
-                    del_lo = delivered - start if del_lo is None else min(del_lo, delivered - start)
-                    del_hi = max(del_hi, delivered - start)
+        used = [
+            (end, delivered)
+            for end, later, delivered in (
+                (lo, nxt[1] if nxt else None, got[0] if got else None),
+                (hi, nxt[2] if nxt else None, got[1] if got else None),
+            )
+            if later is None or later > end
+        ]
+        ends = [end for end, _ in used]
+        if uses is not None and (nxt is None or nxt[4] is not None):
+            sure = nxt[4][-1][0] if nxt is not None and nxt[4] else None  # the next start's data is in by then
+            open_uses = [u for u in uses if sure is None or u[0] < sure]
+            ends = [open_uses[0][0], open_uses[-1][1]] if open_uses else []
+        for end in ends:
+            lat_lo = end - start if lat_lo is None else min(lat_lo, end - start)
+            lat_hi = max(lat_hi, end - start)
+        for _, delivered in used:
+            if delivered is not None:
+                del_lo = delivered - start if del_lo is None else min(del_lo, delivered - start)
+                del_hi = max(del_hi, delivered - start)
     if lat_lo is None:
         return None
     return (lat_lo, lat_hi), (None if del_lo is None else (del_lo, del_hi))
@@ -758,5 +787,5 @@ def synchronised_canopen(
                 if ahead and all(k is not None for k in ahead):
                     by_sync = max(k for k in ahead if k is not None)
         # runs hold ends relative to the start taken: the best case's, which began `spread` later, is moved back
-        runs.append((start, lo - spread, hi, None if got is None else (got[0] - spread, got[1])))
+        runs.append((start, lo - spread, hi, None if got is None else (got[0] - spread, got[1]), None))
     return _freshest(runs, hyper * period)
