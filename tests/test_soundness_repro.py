@@ -436,6 +436,7 @@ def test_a_can_message_a_task_sends_is_queued_its_tx_delay_after_the_task(tmp_pa
         ("17", 1307),
         ("18", 1011),
         ("19", 1089),
+        ("20", 106),
     ],
 )
 def test_wide_ftt_can_specs_stay_inside_their_bounds(name: str, seed: int) -> None:
@@ -453,6 +454,20 @@ def test_a_first_task_started_by_a_message_counts_from_its_start(tmp_path: Path)
     report = check(next(DATA.glob("14-*.yaml")))
     flow = next(f for f in report["flows"] if f["name"] == "af0")
     assert flow["latency_min_us"] == pytest.approx(63 + 262 + 7.001)
+
+
+def test_a_late_tm_starts_the_ec_it_was_sent_for() -> None:
+    """Spec 20's header: bit errors only delay a TM (ISO 11898-1 retransmits it), so a TM resent past its EC's
+    asynchronous-first window start still starts that EC: no EC goes without its TM and no frame is lost."""
+    faults = SOUNDNESS.error_pattern(spec("20"), 500_000_000, 106)
+    model, report = analyse_spec(next(DATA.glob("20-*.yaml")))
+    assert model is not None and not report["errors"]
+    cfg = runtime.parse(json.loads(json.dumps(runtime_document(model, report))), "spec 20")
+    opts = SimOptions(duration_ns=500_000_000, seed=106, random_phase=False, drift_ppm=0.0, faults=faults)
+    result = summary(run_once(cfg, opts)[1])
+    assert result["error_frames"] > 0  # the TM of EC 28 among the frames hit
+    assert result["protocols"]["bus"][0]["ecs_without_tm"] == 0
+    assert [m["lost"] for m in result["messages"]] == [0] * len(result["messages"])
 
 
 @pytest.mark.parametrize(

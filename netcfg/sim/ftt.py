@@ -128,10 +128,10 @@ class FttMaster:
             payload = self._tm_payloads[i] = (mask & ((1 << 8 * size) - 1)).to_bytes(size, "little")
         return payload
 
-    def _on_tm(self, end: int, _src: int, _release: int, data: bytes | None) -> None:
-        k = self.ec_of(end)
-        if not self.ftt.sync_first and self.ec_start(k) + self.ftt.window_start(k) < end:
-            k -= 1  # cannot happen with a schedulable table; keep the EC the TM was sent for
+    def _on_tm(self, end: int, _src: int, release: int, data: bytes | None) -> None:
+        # the EC the TM was sent for: it is queued in that EC (at its start, or the backup's timeout later), but a
+        # TM resent after bit errors may end past that EC's synchronous window's start, or even in the next EC
+        k = self.ec_of(release)
         self._got_tm = k
         slot = self.ftt.slot(k)
         groups = self._slot_tasks.get(k % self.ftt.macro_cycle_ec)
