@@ -29,6 +29,9 @@ def main() -> int:
     parser.add_argument("--cycles", type=int, default=400, help="SYNC cycles (400 = the paper's 8 s gait cycle)")
     parser.add_argument("--csv", type=Path, help="store the samples here")
     parser.add_argument("--channel", default="allex2-example", help="python-can virtual channel")
+    parser.add_argument(
+        "--strict", action="store_true", help="fail on any frame missing its read window, not only on most of them"
+    )
     args = parser.parse_args()
 
     cfg = rt.load(GENERATED / "runtime.json")
@@ -51,7 +54,18 @@ def main() -> int:
     print(run.summary())
     if args.csv:
         print(f"samples written to {run.write_csv(args.csv)}")
-    return 0 if run.missing == 0 else 1
+    if run.missing == 0:
+        return 0
+    # The cycle runs in wall-clock time: a loaded host may stall a thread past a read window. That is the host's
+    # doing, not the network's; a broken mapping or drive loses most frames, which fails without --strict too.
+    due = sum(len(rec.due) for rec in run.records)
+    if args.strict or run.missing > due // 10:
+        return 1
+    print(
+        f"{run.missing} of {due} frames missed their read window: this host did not keep the cycle in real time "
+        "(`netcfg simulate` runs it in virtual time); --strict fails on that"
+    )
+    return 0
 
 
 if __name__ == "__main__":
