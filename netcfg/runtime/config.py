@@ -133,6 +133,12 @@ class Message:
     def is_can(self) -> bool:
         return self.protocol in CAN_PROTOCOLS
 
+    @property
+    def min_gap_ns(self) -> int:
+        """How close two sends of it may come: a sporadic message's minimum inter-arrival time (a send that a task
+        raises sooner is skipped), 0 for the others."""
+        return self.interval_ns if self.kind == "sporadic" and self.interval_ns else 0
+
     def encode(self, **values: Number | str | bytes) -> bytes:
         """Physical values -> payload (size bytes). Every present field must be given (multiplexed ones: those
         the multiplexers' values select); a value name (enum) stands for its value; a raw field takes bytes."""

@@ -114,10 +114,7 @@ def plan(sc: Scenario) -> Plan | None:
             if name not in asynchronous or name in senders:
                 return None
             senders.add(name)
-            m = cfg.message(name)
-            sends.setdefault(ref, []).append(
-                (asynchronous[name].index, m.interval_ns if m.kind == "sporadic" and m.interval_ns else 0)
-            )
+            sends.setdefault(ref, []).append((asynchronous[name].index, cfg.message(name).min_gap_ns))
     on_message: dict[str, tuple[Task, str, int]] = {}
     for name in can.by_name:
         for task in sc.tasks_on_message(name):

@@ -222,10 +222,7 @@ class Scenario:
         first activation): tasks of fast loops run tens of thousands of times a simulated second."""
         ref = task.ref
         tx = self.cfg.node(task.node).tx_delay_ns
-        sends = []
-        for name in self.sends.get(ref, ()):
-            m = self.cfg.message(name)
-            sends.append((name, m.interval_ns if m.kind == "sporadic" and m.interval_ns else 0))
+        sends = [(name, self.cfg.message(name).min_gap_ns) for name in self.sends.get(ref, ())]
         plan = _TaskPlan(
             ref, task.node, task.bcet_ns, task.wcet_ns, tx, tuple(sends),
             self._task_runs.setdefault(ref, []), tuple(self._flow_refs.get(ref, ())), self.exec_uniforms(ref),

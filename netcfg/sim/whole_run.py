@@ -87,8 +87,7 @@ def plan(sc: Scenario) -> list[Job] | None:
     for ref, task in tasks.items():
         me = job("task", task, ref)
         for name in sc.sends.get(ref, ()):
-            m = sc.cfg.message(name)
-            if m.kind == "sporadic" and m.interval_ns:
+            if sc.cfg.message(name).min_gap_ns:
                 return None  # its minimum inter-arrival time skips sends one by one
             owner = sc.eth_owner.get(name)
             if owner is None:

@@ -195,8 +195,8 @@ class Checker:
         if m.kind == "periodic" and m.period_ns:
             exact = exact_rate(m)  # the configured period (an FTT-CAN period_range's faster rates are jitter here)
             period = 1e6 / float(exact) if exact is not None else m.period_ns / 1000
-        elif m.kind == "sporadic" and m.interval_ns:
-            min_gap = m.interval_ns / 1000
+        elif m.min_gap_ns:
+            min_gap = m.min_gap_ns / 1000
         pdo = m.pdo
         co = self.buses[bus].canopen
         ftt = self.buses[bus].ftt
