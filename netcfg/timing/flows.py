@@ -641,7 +641,7 @@ def _freshest(
             if later is None or later > end
         ]
         ends = [end for end, _ in used]
-        if uses is not None and (nxt is None or nxt[4] is not None):
+        if uses is not None:  # (then every run's are: they share the last task)
             sure = nxt[4][-1][0] if nxt is not None and nxt[4] else None  # the next start's data is in by then
             open_uses = [u for u in uses if sure is None or u[0] < sure]
             ends = [open_uses[0][0], open_uses[-1][1]] if open_uses else []
