@@ -458,7 +458,6 @@ def ftt_wide_spec(draw: st.DrawFn) -> dict[str, Any]:
             node["rx_delay"] = f"{r.choice([0, 1, 7, 13, 37, 111, 503]) * 1000 + r.choice([0, 1, 333])} ns"
         if r.random() < 0.3:
             node["tx_delay"] = f"{r.randint(0, 200)} us"
-    messages: list[dict[str, Any]] = []
     triggers: list[dict[str, Any]] = []
     flows: list[dict[str, Any]] = []
     ids = iter(range(1, 64))
@@ -475,7 +474,7 @@ def ftt_wide_spec(draw: st.DrawFn) -> dict[str, Any]:
              "consumers": [c], "size": r.randint(0, 8), "extended": r.random() < 0.3}
         m["period" if r.random() < 0.5 else "min_interarrival"] = f"{r.randint(1, 30)} ms"
         asynchronous.append(m)
-    messages = sync + asynchronous
+    messages: list[dict[str, Any]] = sync + asynchronous
 
     def trigger(task: str, period: str, offset: str | None = None) -> None:
         triggers.append({"name": f"t_{task.replace('.', '_')}", "ftt_id": next(ids), "bus": "bus", "period": period,

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -243,7 +243,7 @@ def _read(flow: str, ref: str, s: Stream, reads: list[_Records], after_message: 
     ok = np.ones(len(when), dtype=bool)
     for rec in reads:
         if not len(rec.times):
-            return EMPTY, Stream(s.task, EMPTY, EMPTY, s.on_delivery_of)
+            return EMPTY, replace(s, first=EMPTY, end=EMPTY)
         j = np.searchsorted(rec.times, when, side="right") - 1
         found = j >= 0
         jj = np.where(found, j, 0)
@@ -269,7 +269,7 @@ def _read(flow: str, ref: str, s: Stream, reads: list[_Records], after_message: 
     assert stamp is not None
     if ok.all():
         return stamp, s
-    return stamp[ok], Stream(s.task, s.first[ok], s.end[ok], s.on_delivery_of)
+    return stamp[ok], replace(s, first=s.first[ok], end=s.end[ok])
 
 
 def _sees_ties(s: Stream, message: str) -> bool | None:

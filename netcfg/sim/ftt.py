@@ -1,8 +1,9 @@
 """The FTT-CAN master and its elementary cycles (seed 002, section 3; Almeida, Pedreiras, Fonseca 2002).
 
 Every EC starts with the trigger message (TM), which carries that EC's schedule. Its reception starts the
-triggered tasks of the EC; the EC's synchronous messages are queued at the start of the synchronous window at
-the end of the EC (the layout the analysis uses) and go out in identifier order; asynchronous messages
+triggered tasks of the EC; the EC's synchronous messages are queued at the start of the synchronous window (after
+the TM, or at the end of the EC with the asynchronous window first: netcfg.timing.ftt's layout), or at the TM's
+end if a TM resent after bit errors ends later, and go out in identifier order; asynchronous messages
 arbitrate normally but may start only if they end before that window (netcfg.sim.can_bus's gate).
 
 The master may fail (a `master-fail` fault). A backup master that misses the TM for longer than a timeout sends

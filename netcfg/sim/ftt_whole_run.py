@@ -8,8 +8,8 @@ apart, none of that depends on the run, so it is a handful of array computations
   identifier beats every asynchronous one) and is received a TM frame time later;
 * the triggered tasks start at that reception plus their node's rx_delay, for an execution time drawn from their
   own generator (the same numbers the event path draws);
-* the EC's synchronous frames are queued at max(window start, TM reception) and go back to back in identifier
-  order; a message-activated task starts at its frame's reception plus rx_delay;
+* the EC's synchronous frames are queued at the window's start (the TM being over by then) and go back to back
+  in identifier order; a message-activated task starts at its frame's reception plus rx_delay;
 * what tasks send (asynchronous messages: the master sends the synchronous ones) is known from their ends
   (+ tx_delay; a sporadic message's minimum gap skips sends as the event path does), and joins the
   asynchronous frames, which still run through the bus's arbitration loop (netcfg.sim.can_bus), alone: the gate
@@ -19,7 +19,7 @@ apart, none of that depends on the run, so it is a handful of array computations
 
 What this covers (plan()): one FTT-CAN bus run as FTT-CAN, no faults, no exact stuffing (its payloads are random
 draws shared with the asynchronous frames), no FIFO transmit queues, a TM that outranks every asynchronous frame,
-messages sent by one task each and only asynchronous ones, no task started by an asynchronous frame that sends
+messages sent by one task each, no task started by an asynchronous frame that sends
 (the frames would then depend on each other), and a schedule whose windows hold what they carry (each EC's TM
 before its synchronous window, that window over by the next EC, and with the synchronous window first, over
 before the asynchronous one opens). Everything else runs event by event, and so does a covered run that meets a
@@ -92,7 +92,7 @@ def plan(sc: Scenario) -> Plan | None:
     triggered: dict[str, tuple[Task, list[int], int]] = {}
     for i, slot in enumerate(ftt.schedule):
         window = ftt.window_start(i)
-        queued = t = max(window, tm.dur_ns)
+        queued = t = window  # the TM ends before the window opens (below): its frames are queued at its start
         for src in sorted((can.by_name[m] for m in slot.messages), key=lambda s: s.key):
             entries.setdefault(src.index, []).append((i, queued, t, t + src.dur_ns))
             t += src.dur_ns
@@ -111,7 +111,7 @@ def plan(sc: Scenario) -> Plan | None:
     senders: set[str] = set()
     for ref, names in sc.sends.items():
         for name in names:
-            if name not in asynchronous or name in senders:
+            if name in senders:  # (what tasks send is asynchronous: the master owns the synchronous messages)
                 return None
             senders.add(name)
             sends.setdefault(ref, []).append((asynchronous[name].index, cfg.message(name).min_gap_ns))
