@@ -177,6 +177,7 @@ def test_ethernet_flows_with_several_items_per_step_identical_both_ways(
     assert len(builds) == 1, "computed whole, not fallen back to the event path"
     b = run_once(cfg, replace(opts, whole_run=False))
     assert_identical(a, b)
+    # the boards sample at 15 kHz for 0.3 s (4,500 times, less the warm-up): the floor says both flows were measured
     assert len(b[1].flow_latency["both_loop"]) > 100 and len(b[1].flow_latency["both_encoders"]) > 100
 
 
@@ -271,7 +272,7 @@ def test_a_task_starting_as_its_frame_is_received_identical_both_ways(
     a, b = both(cfg, opts)
     assert a[0].protocols["bus"]._got_tm == -1, "computed whole, not fallen back to the event path"
     assert_identical(a, b)
-    assert len(b[1].flow_latency["f0"]) > 10
+    assert len(b[1].flow_latency["f0"]) > 10  # 25 ECs of 2 ms in 50 ms: the floor says the flow was measured
 
 
 @pytest.mark.parametrize("rx_delay", ["0 us", "150 us"])
@@ -290,7 +291,11 @@ def test_cambada_with_a_task_sending_asynchronous_frames_identical_both_ways(tmp
     a, b = both(cfg, opts)
     assert a[0].protocols["lowlevel"]._got_tm == -1, "computed whole, not fallen back to the event path"
     assert_identical(a, b)
-    assert 4 <= b[1].sent["kick"] <= 6 and len(b[1].flow_latency["kick"]) >= 4  # about one a second for 5 s
+    # rx_pose runs every 50 ms from 25 ms; a send needs 1 s since the last, so the k-th comes between 25 + 1,000k
+    # and 25 + 1,050k ms: five in 5 s. The flow measures those after the warm-up (the last of its nodes' clock
+    # phases), which the first may precede.
+    assert b[1].sent["kick"] == 5
+    assert len(b[1].flow_latency["kick"]) in (4, 5)
 
 
 def test_random_ftt_specs_identical_both_ways() -> None:
