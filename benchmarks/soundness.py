@@ -355,15 +355,21 @@ def _spec_path() -> Path:
     return Path(_SCRATCH[0].name) / "spec.yaml"
 
 
-def check_spec(spec: dict[str, Any], seed: int, duration_ns: int) -> Outcome:
-    """Analyse the spec; when accepted, simulate it with random phases and at the critical instant."""
+def runtime_config(spec: dict[str, Any]) -> runtime.RuntimeConfig | None:
+    """The spec's runtime configuration as `netcfg build` writes it; None when check refuses the spec."""
     path = _spec_path()
     path.write_text(_dump(spec), encoding="utf-8")
     model, report = analyse_spec(path)
     if model is None or report["errors"]:
+        return None
+    return runtime.parse(json.loads(json.dumps(runtime_document(model, report))), "random")
+
+
+def check_spec(spec: dict[str, Any], seed: int, duration_ns: int) -> Outcome:
+    """Analyse the spec; when accepted, simulate it with random phases and at the critical instant."""
+    cfg = runtime_config(spec)
+    if cfg is None:
         return Outcome(False)
-    doc = json.loads(json.dumps(runtime_document(model, report)))
-    cfg = runtime.parse(doc, "random")
     out = Outcome(True)
     faults = error_pattern(spec, duration_ns, seed)
     runs = {
@@ -399,8 +405,6 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple
     ratios: list[float] = []
     with_errors: list[float] = []  # the same, for the specs with a bit-error model
     error_specs = [0]
-    if protocol not in STRATEGIES:  # an opt-in one, built only when asked for
-        STRATEGIES[protocol] = OPT_IN[protocol]()
 
     @seed(seed_value)
     @settings(
@@ -410,7 +414,7 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple
         phases=[Phase.generate],
         suppress_health_check=list(HealthCheck),
     )
-    @given(STRATEGIES[protocol])
+    @given(strategy(protocol))
     def run(spec: dict[str, Any]) -> None:
         out = check_spec(spec, tally["specs"], duration_ms * 1_000_000)
         tally["specs"] += 1
@@ -553,6 +557,13 @@ def ftt_wide_spec(draw: st.DrawFn) -> dict[str, Any]:
 
 
 OPT_IN = {"ftt-can-wide": ftt_wide_spec}  # not in the default sweep; built only when asked for
+
+
+def strategy(protocol: str) -> st.SearchStrategy[dict[str, Any]]:
+    """A protocol's random specs: the default sweep's, or an opt-in one (built on first use)."""
+    if protocol not in STRATEGIES:
+        STRATEGIES[protocol] = OPT_IN[protocol]()
+    return STRATEGIES[protocol]
 
 
 GOAL_SPECS = 10_000

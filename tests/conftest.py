@@ -6,12 +6,16 @@ import json
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 import yaml
 
+if TYPE_CHECKING:
+    from netcfg.runtime import RuntimeConfig
+
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))  # tests import the benchmarks' modules (soundness, sim_peers)
 SPECS = ROOT / "specs"
 SHARED = ROOT.parent / "shared"
 EPOS4_EDS = SHARED / "devices" / "maxon_epos4_50-5.eds"
@@ -27,6 +31,23 @@ def check_data(tmp_path: Path, data: dict[str, Any], name: str = "spec.yaml") ->
     path = tmp_path / name
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     return check(path)
+
+
+def runtime_config(path: Path) -> RuntimeConfig:
+    """The runtime configuration `netcfg build` writes for a spec, which check must accept."""
+    from netcfg import runtime
+    from netcfg.check import analyse_spec
+    from netcfg.emit.runtime_json import runtime_document
+
+    model, report = analyse_spec(path)
+    assert model is not None and not report["errors"], report["errors"]
+    return runtime.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+
+
+def runtime_config_of(path: Path, data: dict[str, Any]) -> RuntimeConfig:
+    """The same for a spec written as a dict, which is saved at path first."""
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return runtime_config(path)
 
 
 def load_spec(name: str) -> dict[str, Any]:

@@ -3,19 +3,16 @@ the offset-free analysis where offsets cannot help, and no simulated response ab
 
 from __future__ import annotations
 
-import json
 import tempfile
 from pathlib import Path
 from typing import Any
 
 import yaml
-from conftest import ROOT, check
+from conftest import ROOT, check, runtime_config
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from netcfg import runtime
 from netcfg.check import analyse_spec
-from netcfg.emit.runtime_json import runtime_document
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.results import summary
 from netcfg.sim.scenario import SimOptions
@@ -85,9 +82,7 @@ def test_equal_to_the_offset_free_analysis_where_offsets_cannot_help(raw: list[t
 def _simulate(spec_path: Path, seed: int, duration_ns: int) -> list[str]:
     """Simulated responses above their bound, at the critical instant (clocks at 0, no drift: offsets as written)
     and with random phases and drift between the nodes."""
-    model, report = analyse_spec(spec_path)
-    assert model is not None and not report["errors"], report["errors"]
-    cfg = runtime.parse(json.loads(json.dumps(runtime_document(model, report))), "offsets")
+    cfg = runtime_config(spec_path)
     out = []
     for opts in (
         SimOptions(duration_ns=duration_ns, seed=seed, random_phase=False, drift_ppm=0.0),

@@ -9,12 +9,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-import yaml
-from conftest import bus, check_data, cli, load_spec, message
+from conftest import bus, check_data, cli, load_spec, message, runtime_config_of
 
 from netcfg import runtime
-from netcfg.check import analyse_spec
-from netcfg.emit.runtime_json import runtime_document
 from netcfg.sim.faults import Fault
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.results import summary
@@ -246,11 +243,7 @@ def test_canopen_sync_cycle_error_term(tmp_path: Path) -> None:
 
 
 def runtime_of(tmp_path: Path, spec: dict[str, Any]) -> runtime.RuntimeConfig:
-    path = tmp_path / "spec.yaml"
-    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
-    model, report = analyse_spec(path)
-    assert model is not None and not report["errors"], report["errors"]
-    return runtime.parse(json.loads(json.dumps(runtime_document(model, report))), "test")
+    return runtime_config_of(tmp_path / "spec.yaml", spec)
 
 
 def scripted(times_ns: list[int]) -> tuple[Fault, ...]:

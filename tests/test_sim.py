@@ -13,7 +13,6 @@ Where a figure comes from:
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -275,7 +274,6 @@ def test_simulated_responses_never_exceed_the_analysis(system: str) -> None:
 def test_same_frames_same_maxima_as_the_simpy_model() -> None:
     """The 90 %-loaded 1 Mbit/s set of benchmarks/sim_peers.py, without drift or phase: netcfg's simulated maximum
     response of every message equals the plain simpy model's (a peer simulator) on the same release instants."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
     from bench_sim import peer_document
     from sim_peers import fully_loaded_set, simpy_can
 

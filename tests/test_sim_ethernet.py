@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT, SPECS, check
+from conftest import ROOT, SPECS, check, runtime_config
 
 import netcfg.runtime as rt
 from netcfg.sim.ethernet import QUEUE_FRAMES, EthernetNetwork
@@ -414,14 +414,9 @@ def test_two_switches_with_a_chained_multicast(tmp_path: Path) -> None:
     logger. Against reference_deliveries (cables 20 + 50 + 10 m: 95, 238 and 48 ns, as in the test above; switch
     latency 2 us; tx_delay 3 us at a, rx_delay 4 us at the pc; a_state 31 bytes -> 97 on the wire, 7.76 us) every
     delivery matches; the flow stays within its analysed range."""
-    from netcfg.check import analyse_spec
-    from netcfg.emit.runtime_json import runtime_document
-
     path = tmp_path / "two.yaml"
     path.write_text(TWO_SWITCHES_CHAINED, encoding="utf-8")
-    model, report = analyse_spec(path)
-    assert model is not None and report["ok"], report["errors"]
-    cfg = rt.parse(json.loads(json.dumps(runtime_document(model, report))))
+    cfg = runtime_config(path)
     duration = SECOND // 2
     sc = simulate(cfg, SimOptions(duration_ns=duration, seed=5))
     net = network(sc)

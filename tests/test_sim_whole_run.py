@@ -7,20 +7,17 @@ reference (SimOptions(whole_run=False)); nothing here is a recorded figure, both
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-import yaml
-from conftest import ROOT
+import soundness
+from conftest import ROOT, load_spec, runtime_config_of
 from hypothesis import HealthCheck, given, settings
 
 import netcfg.runtime as rt
-from netcfg.check import analyse_spec
-from netcfg.emit.runtime_json import runtime_document
 from netcfg.runtime.config import FlowStep
 from netcfg.sim import flows, ftt_whole_run, whole_run
 from netcfg.sim.cli import trace_frames
@@ -30,9 +27,6 @@ from netcfg.sim.flows import Stream, Undecided, measure_streams
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.results import RunResult, summary
 from netcfg.sim.scenario import Scenario, SimOptions
-
-sys.path.insert(0, str(ROOT / "benchmarks"))
-import soundness
 
 MS = 1_000_000
 
@@ -62,10 +56,7 @@ def assert_identical(a: tuple[Scenario, RunResult], b: tuple[Scenario, RunResult
 
 def compiled(spec: dict[str, Any], path: Path) -> rt.RuntimeConfig:
     """The runtime configuration of a spec written as a dict (which check must accept)."""
-    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
-    model, report = analyse_spec(path)
-    assert model is not None and not report["errors"], report["errors"]
-    return rt.parse(json.loads(json.dumps(runtime_document(model, report))), str(path))
+    return runtime_config_of(path, spec)
 
 
 def count_builds(monkeypatch: pytest.MonkeyPatch) -> list[int]:
@@ -106,14 +97,11 @@ def random_specs_identical_both_ways(protocol: str, examples: int, duration_ns: 
     covered = []
 
     @settings(max_examples=examples, deadline=None, database=None, suppress_health_check=list(HealthCheck))
-    @given(soundness.STRATEGIES[protocol])
+    @given(soundness.strategy(protocol))
     def run(spec: dict[str, Any]) -> None:
-        path = soundness._spec_path()
-        path.write_text(soundness._dump(spec), encoding="utf-8")
-        model, report = soundness.analyse_spec(path)
-        if model is None or report["errors"]:
+        cfg = soundness.runtime_config(spec)
+        if cfg is None:
             return
-        cfg = rt.parse(json.loads(json.dumps(soundness.runtime_document(model, report))), "random")
         for opts in (
             SimOptions(duration_ns=duration_ns, seed=len(covered)),
             SimOptions(duration_ns=duration_ns, seed=len(covered), random_phase=False, drift_ppm=0.0),
@@ -137,7 +125,7 @@ def test_a_multicast_flow_identical_both_ways(tmp_path: Path) -> None:
     """NTUA SAHR with the hip encoder also sent to the spring board, which starts a task on it: one flow's message
     step now holds both consumers' deliveries (often on the same nanosecond), and a second flow ends in the
     message-activated task."""
-    spec = yaml.safe_load((ROOT / "specs" / "ntua_sahr.yaml").read_text(encoding="utf-8"))
+    spec = load_spec("ntua_sahr.yaml")
     hip = next(m for m in spec["messages"] if m["name"] == "hip_encoder")
     hip["consumers"] = ["pc", "mcu_spring"]
     spring = next(n for n in spec["nodes"] if n["name"] == "mcu_spring")
@@ -159,7 +147,7 @@ def test_ethernet_flows_with_several_items_per_step_identical_both_ways(
     second flow ending in two PC tasks together (the PID and a 2 kHz logger): the PC's tasks read the older of the
     two encoders' stamps, and the second flow's sample waits for both tasks. At the critical instant both boards
     sample on the same nanoseconds."""
-    spec = yaml.safe_load((ROOT / "specs" / "ntua_sahr.yaml").read_text(encoding="utf-8"))
+    spec = load_spec("ntua_sahr.yaml")
     pc = next(n for n in spec["nodes"] if n["name"] == "pc")
     pc["tasks"].append({"name": "log", "period": "500 us", "wcet": "20 us", "bcet": "5 us"})
     samples, encoders = ["mcu_hip.sample", "mcu_spring.sample"], ["hip_encoder", "spring_encoder"]
@@ -280,7 +268,7 @@ def test_cambada_with_a_task_sending_asynchronous_frames_identical_both_ways(tmp
     """CAMBADA with its kick sent by the gateway's pose task (every 50 ms, started by a synchronous frame) rather
     than free-running: the 1 s minimum inter-arrival lets one send in twenty through, the frames go through the
     asynchronous window, and a kicker task started by each (after the kicker's rx_delay) ends a flow."""
-    spec = yaml.safe_load((ROOT / "specs" / "cambada.yaml").read_text(encoding="utf-8"))
+    spec = load_spec("cambada.yaml")
     kicker = next(n for n in spec["nodes"] if n["name"] == "kicker")
     kicker["tasks"] = [{"name": "fire", "on_message": "kick", "wcet": "300 us", "bcet": "100 us"}]
     kicker["rx_delay"] = rx_delay

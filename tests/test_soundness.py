@@ -7,15 +7,11 @@ and the check are benchmarks/soundness.py's; its command line runs thousands and
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
 import pytest
-from conftest import ROOT
-from hypothesis import HealthCheck, given, settings
-
-sys.path.insert(0, str(ROOT / "benchmarks"))
 import soundness
+from hypothesis import HealthCheck, given, settings
 
 RUN_NS = 200_000_000  # simulated per run: several hyperperiods of most random specs
 
@@ -23,10 +19,9 @@ RUN_NS = 200_000_000  # simulated per run: several hyperperiods of most random s
 @pytest.mark.parametrize("protocol", [*soundness.PROTOCOLS, *soundness.OPT_IN])
 def test_simulation_stays_inside_the_analysis(protocol: str) -> None:
     accepted = []
-    strategy = soundness.STRATEGIES[protocol] if protocol in soundness.STRATEGIES else soundness.OPT_IN[protocol]()
 
     @settings(max_examples=25, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
-    @given(strategy)
+    @given(soundness.strategy(protocol))
     def run(spec: dict[str, Any]) -> None:
         out = soundness.check_spec(spec, seed=len(accepted), duration_ns=RUN_NS)
         accepted.append(out.accepted)

@@ -6,26 +6,20 @@ correct figure with its derivation. Every figure asserted here is derived in tha
 
 from __future__ import annotations
 
-import importlib
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+import soundness  # the sweep's own runs, as tests/test_soundness.py uses them
 import yaml
-from conftest import ROOT, bus, check, check_data, cli, cli_json, message
+from conftest import bus, check, check_data, cli, cli_json, load_spec, message, runtime_config
 
-from netcfg import runtime
-from netcfg.check import analyse_spec
-from netcfg.emit.runtime_json import runtime_document
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.results import summary
 from netcfg.sim.scenario import SimOptions
 
 DATA = Path(__file__).parent / "data" / "soundness"
-sys.path.insert(0, str(ROOT / "benchmarks"))
-SOUNDNESS = importlib.import_module("soundness")  # the sweep's own runs, as tests/test_soundness.py uses them
 
 
 def spec(name: str) -> dict[str, Any]:
@@ -221,36 +215,34 @@ flows:
 
 
 def _allex2_rx(rx: str) -> str:
-    doc = yaml.safe_load((Path(__file__).parent.parent / "specs" / "allex2.yaml").read_text(encoding="utf-8"))
+    doc = load_spec("allex2.yaml")
     next(n for n in doc["nodes"] if n["name"] == "hip_l")["rx_delay"] = rx
     return yaml.safe_dump(doc, sort_keys=False)
 
 
 @pytest.mark.parametrize(
-    ("text", "flow", "moved_us"),
+    ("text", "flow"),
     [
-        (RX_CAN.replace, "f", 300),  # plain CAN: b.use, the last step, starts 300 us after m's reception
-        (RX_FTT.replace, "f", 300),  # FTT-CAN: b.use, triggered, 300 us after its TM's reception
-        (lambda _old, rx: _allex2_rx(rx), "joint_command", 300),  # CANopen: hip_l.apply after the SYNC's
+        (RX_CAN.replace, "f"),  # plain CAN: b.use, the last step, starts rx_delay after m's reception
+        (RX_FTT.replace, "f"),  # FTT-CAN: b.use, triggered, rx_delay after its TM's reception
+        (lambda _old, rx: _allex2_rx(rx), "joint_command"),  # CANopen: hip_l.apply, rx_delay after the SYNC's
     ],
     ids=["can", "ftt-can", "canopen"],
 )
-def test_a_task_a_can_frame_starts_runs_its_node_rx_delay_later(
-    tmp_path: Path, text: Any, flow: str, moved_us: int
-) -> None:
+def test_a_task_a_can_frame_starts_runs_its_node_rx_delay_later(tmp_path: Path, text: Any, flow: str) -> None:
     """The simulator starts a task its node's rx_delay (300 us here) after the CAN frame that starts it (its
     message, its trigger message, its SYNC); the flow analysis started it at the frame's end, so a consumer with an
     rx_delay ran past its flow's bound. Here only the flow's last task moves, so its latency range moves by exactly
     rx_delay (in FTT-CAN the frame it reads is in an earlier EC, so it still makes the same activation)."""
-    ranges = []
-    for rx in ("0 us", "300 us"):
+    ranges, rx_us = [], 300
+    for rx in ("0 us", f"{rx_us} us"):
         (tmp_path / rx).mkdir()
         report = check_data(tmp_path / rx, yaml.safe_load(text("RX", rx)))
         assert report["ok"], report["errors"]
         ranges.append(next((f["latency_min_us"], f["latency_max_us"]) for f in report["flows"] if f["name"] == flow))
     (lo0, hi0), (lo1, hi1) = ranges
-    assert (lo1, hi1) == (pytest.approx(lo0 + moved_us), pytest.approx(hi0 + moved_us))
-    rc, sim = cli_json("simulate", str(tmp_path / "300 us" / "spec.yaml"), "--duration", "2s", "--runs", "2")
+    assert (lo1, hi1) == (pytest.approx(lo0 + rx_us), pytest.approx(hi0 + rx_us))
+    rc, sim = cli_json("simulate", str(tmp_path / f"{rx_us} us" / "spec.yaml"), "--duration", "2s", "--runs", "2")
     assert rc == 0, sim.get("violations")
 
 
@@ -364,9 +356,7 @@ flows:
 
 def _critical_instant(spec_path: Path, duration_ns: int, **options: Any) -> dict[str, Any]:
     """One run with every clock at 0 and no drift, so that the offsets are as written (options: SimOptions')."""
-    model, report = analyse_spec(spec_path)
-    assert model is not None and not report["errors"], report["errors"]
-    cfg = runtime.parse(json.loads(json.dumps(runtime_document(model, report))), "critical")
+    cfg = runtime_config(spec_path)
     opts = SimOptions(duration_ns=duration_ns, random_phase=False, drift_ppm=0.0, **options)
     result: dict[str, Any] = summary(run_once(cfg, opts)[1])
     return result
@@ -444,7 +434,7 @@ def test_wide_ftt_can_specs_stay_inside_their_bounds(name: str, seed: int) -> No
     """Specs the wider FTT-CAN generator found outside a bound (each file's header says what netcfg printed, what
     was measured and why): run as the sweep ran them (random phases, the critical instant, free-running CAN, with
     the bus's errors hitting as hard as its model allows), nothing may leave its bound."""
-    out = SOUNDNESS.check_spec(spec(name), seed=seed, duration_ns=500_000_000)
+    out = soundness.check_spec(spec(name), seed=seed, duration_ns=500_000_000)
     assert out.accepted
     assert out.violations == [], out.violations
 
@@ -460,7 +450,7 @@ def test_a_first_task_started_by_a_message_counts_from_its_start(tmp_path: Path)
 def test_a_late_tm_starts_the_ec_it_was_sent_for() -> None:
     """Spec 20's header: bit errors only delay a TM (ISO 11898-1 retransmits it), so a TM resent past its EC's
     asynchronous-first window start still starts that EC: no EC goes without its TM and no frame is lost."""
-    faults = SOUNDNESS.error_pattern(spec("20"), 500_000_000, 106)
+    faults = soundness.error_pattern(spec("20"), 500_000_000, 106)
     # EC 28 starts at 28 x 3 ms; its TM (6 bytes: 115 bits at 250 kbit/s, 460 us) is hit, and resent after the
     # error frame (31 bits, 124 us) it ends past the window's start, 460 + 356 us (its asynchronous window) in
     (hit,) = [f.at_ns for f in faults if 84_000_000 <= f.at_ns < 84_460_000]
