@@ -48,7 +48,7 @@ class FttMaster:
         self._slot_tasks: dict[int, list[tuple[int, list[Task]]]] = {}
         self._tm_payloads: dict[int, bytes] = {}  # slot of the macro-cycle -> its TM's payload
         can.listen(self.tm, self._on_tm)
-        can.gate = self.async_start
+        can.gate = self.gate
 
     def fail(self, at_ns: int, backup: str | None) -> None:
         self.fail_at = at_ns
@@ -75,7 +75,7 @@ class FttMaster:
             k += 1
         return k
 
-    def async_start(self, t: int, dur: int, opens_after: int = 0) -> int:
+    def gate(self, t: int, dur: int, opens_after: int = 0) -> int:
         """Earliest start >= t at which an asynchronous frame of this duration ends before a synchronous window
         (and starts no earlier than `opens_after` into the EC)."""
         k = self.ec_of(t)

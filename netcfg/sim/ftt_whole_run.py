@@ -212,7 +212,7 @@ def run(sc: Scenario, p: Plan) -> None:
         can.add_stream(_Released(release_t[order], np.concatenate(sent_src)[order]))
     # the gate, with each asynchronous window opening no earlier than the TM's end: the TM, which wins the
     # arbitration at the EC start, kept asynchronous frames off the bus until then
-    can.gate = partial(master.async_start, opens_after=p.tm_ns)
+    can.gate = partial(master.gate, opens_after=p.tm_ns)
     can.start()
     sc.sim.run_until(d)
     for src, (rel, ends) in recorded.items():
