@@ -31,6 +31,18 @@ def example_text(name: str) -> str:
     return resources.files("netcfg.examples").joinpath(f"{EXAMPLES[name]}.yaml").read_text("utf-8")
 
 
+def _safe_system_name(name: str) -> str:
+    """A system name `check` accepts, from a file name that may be a C keyword or too long (`new.yaml`, `int.yml`)."""
+    from netcfg.spec.schema import check_name
+
+    for candidate in (name, f"{name[:56]}_system"):
+        try:
+            return check_name(candidate)
+        except ValueError:
+            continue
+    return "my_system"
+
+
 def starting_spec(source: str | None, output: Path | None) -> str:
     """The text of the starting spec (not for dbc, which goes through the importer)."""
     if source is None:
@@ -40,6 +52,7 @@ def starting_spec(source: str | None, output: Path | None) -> str:
         system = re.sub(r"[^A-Za-z0-9_]", "_", stem) or "my_system"
         if system[0].isdigit():
             system = f"s_{system}"
+        system = _safe_system_name(system)
         name = output.name if output is not None else "spec.yaml"
         return render("init_spec.yaml.j2", system=system, file_name=name).decode("utf-8")
     header = (

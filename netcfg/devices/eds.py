@@ -26,7 +26,12 @@ IDENTITY_NAMES = {1: "Vendor-ID", 2: "Product code", 3: "Revision number", 4: "S
 
 
 class EdsError(Exception):
-    pass
+    """What is wrong with a device file; line and column when the fault is at one place in it."""
+
+    def __init__(self, message: str, line: int | None = None, column: int | None = None) -> None:
+        super().__init__(message)
+        self.line = line
+        self.column = column
 
 
 def read_od(path: Path, node_id: int | None = None) -> Any:
@@ -47,7 +52,8 @@ def read_od(path: Path, node_id: int | None = None) -> Any:
     try:
         od = canopen.import_od(stream, node_id)
     except Exception as exc:  # canopen raises many kinds for bad files; report them all the same way
-        raise EdsError(f"canopen could not read the {what} file: {exc}") from exc
+        line, column = _value_position(text, str(exc))
+        raise EdsError(f"canopen could not read the {what} file: {exc}", line, column) from exc
     check_od(od, text)
     return od
 
@@ -72,6 +78,17 @@ def cached_profile(path: Path, display: str) -> DeviceProfile:
 @lru_cache(maxsize=64)
 def _profile(file: str, mtime_ns: int, name: str) -> DeviceProfile:
     return import_eds(Path(file), name)
+
+
+def _value_position(text: str, error: str) -> tuple[int | None, int | None]:
+    """Where the value canopen's error quotes ("invalid literal ...: '0xZZ'") is written: the first `Key=value` line
+    with it. (None, None) when the error quotes none or it is not found."""
+    quoted = re.findall(r"'([^'\n]+)'", error)
+    for value in reversed(quoted):  # the value comes last in Python's conversion errors
+        m = re.search(rf"^([^=\n;\[]+=[ \t]*){re.escape(value)}[ \t]*$", text, re.MULTILINE)
+        if m is not None:
+            return text.count("\n", 0, m.start()) + 1, len(m.group(1)) + 1
+    return None, None
 
 
 def _section_line(text: str, index: int, sub: int | None) -> int | None:

@@ -27,7 +27,7 @@ class CanProtocol(BusProtocol):
         if size > CAN_MAX_PAYLOAD:
             self.r.err(
                 "payload",
-                f"{size} bytes do not fit a classical CAN frame (at most 8); split the message"
+                f"message '{m.name}': {size} bytes do not fit a classical CAN frame (at most 8); split the message"
                 + (", or make the bus 'protocol: can-fd' (up to 64 bytes)" if type(self) is CanProtocol else ""),
                 (*path, "size") if m.size is not None else path,
             )
@@ -39,12 +39,19 @@ class CanProtocol(BusProtocol):
     def check_message_id(self, bus: model.Bus, m: model.Message) -> None:
         """A rule the protocol adds for one message's identifier once it is known to be unique."""
 
+    def id_source_node(self, m: model.Message) -> str | None:
+        """The node whose node id the protocol derived `m`'s identifier from (None: written or chosen otherwise)."""
+        return None
+
     def check_identifiers(self, bus: model.Bus) -> None:
         taken = self.reserved_ids(bus)
+        owner: dict[tuple[bool, int], model.Message] = {}
         for m in bus.messages:
             if m.id < 0:
                 continue
             id_key = (m.extended, m.id)
+            if id_key in owner and self._follows_shared_node_id(m, owner[id_key]):
+                continue  # both identifiers follow from one duplicated node id: that is the one error
             if id_key in taken:
                 self.r.err(
                     "duplicate-id",
@@ -53,8 +60,13 @@ class CanProtocol(BusProtocol):
                 )
                 continue
             taken[id_key] = f"'{m.name}'"
+            owner[id_key] = m
             self.check_message_id(bus, m)
             self.check_id_range(m)
+
+    def _follows_shared_node_id(self, a: model.Message, b: model.Message) -> bool:
+        nodes = (self.id_source_node(a), self.id_source_node(b))
+        return all(n is not None and n in self.r.shared_node_ids for n in nodes)
 
     def check_id_range(self, m: model.Message) -> None:
         """A node's `id_range` holds every identifier it sends with (implicit protocol frames aside)."""

@@ -43,12 +43,17 @@ class CanFdProtocol(CanProtocol):
             if size > CAN_MAX_PAYLOAD:
                 self.r.err(
                     "payload",
-                    f"{size} bytes do not fit a classical frame (at most 8); drop 'fd: false' or split the message",
+                    f"message '{m.name}': {size} bytes do not fit a classical frame (at most 8); drop 'fd: false' or "
+                    "split the message",
                     where,
                 )
             return
         if size > CANFD_MAX_PAYLOAD:
-            self.r.err("payload", f"{size} bytes do not fit a CAN FD frame (at most 64); split the message", where)
+            self.r.err(
+                "payload",
+                f"message '{m.name}': {size} bytes do not fit a CAN FD frame (at most 64); split the message",
+                where,
+            )
             return
         padded = canfd_padded_size(size)
         if padded != size:

@@ -5,11 +5,13 @@ maps themselves are checked in `netcfg.resolve.pdo`."""
 from __future__ import annotations
 
 import dataclasses
+import pathlib
 from typing import TYPE_CHECKING
 
 from netcfg import cia301, model
 from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.devices.eds import EdsError, cached_profile
+from netcfg.diagnostics import Position
 from netcfg.inputs import check_input_path
 from netcfg.model import MessageKind
 from netcfg.resolve import pdo as pdo_map
@@ -142,6 +144,13 @@ class CanopenProtocol(CanProtocol):
                 )
         return ident
 
+    def id_source_node(self, m: model.Message) -> str | None:
+        if m.implicit == "heartbeat":
+            return m.producer
+        if m.pdo is not None and not self.r.smap.has((*m.path, "id")):
+            return m.pdo.device_node  # the CiA 301 default COB-ID of its device's PDO
+        return None
+
     def reserved_ids(self, bus: model.Bus) -> dict[tuple[bool, int], str]:
         taken: dict[tuple[bool, int], str] = {}
         if bus.canopen is not None:
@@ -272,7 +281,17 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
         profile = cached_profile(file, n.device.eds)
         return dataclasses.replace(profile, source=n.device.eds)  # name the file as the spec wrote it
     except EdsError as exc:
-        r.err("eds-invalid", f"{n.device.eds}: {exc}", (*dpath, "eds"))
+        if exc.line is None:
+            r.err("eds-invalid", f"{n.device.eds}: {exc}", (*dpath, "eds"))
+        else:  # at the device file's own line, the spec's naming it alongside
+            named = r.smap.at((*dpath, "eds"))
+            eds_file = str(pathlib.PurePath(named.file).parent / n.device.eds)
+            r.d.add(
+                "eds-invalid",
+                f"{exc} (device file of node '{n.name}', named at {named.file}:{named.line}:{named.column}); fix the "
+                "value or ask the vendor for a corrected file",
+                Position(eds_file, exc.line, exc.column or 1),
+            )
         return None
 
 

@@ -49,6 +49,7 @@ class Resolver:
             flows={},
         )
         self.spec_nodes = {n.name: n for n in spec.nodes}
+        self.shared_node_ids: set[str] = set()  # nodes whose node id another node on one of their buses has too
         self.spec_buses = {b.name: b for b in spec.buses}
         self.protocols = {name: rules(self) for name, rules in protocols.items()}
 
@@ -229,6 +230,7 @@ class Resolver:
                 for bname in n.buses:
                     key = (bname, n.node_id)
                     if key in ids:
+                        self.shared_node_ids.update((n.name, ids[key]))
                         self.err(
                             "duplicate-node-id",
                             f"node id {n.node_id} of '{n.name}' is already used by '{ids[key]}' on bus '{bname}'",
@@ -433,7 +435,17 @@ class Resolver:
             signals = self.layout_signals(m.signals, (*path, "signals"))
             sig_size = max((_last_byte(s) + 1 for s in signals), default=0)
             if size is not None and size < sig_size:
-                self.err("size", f"size {size} is too small for the signals ({sig_size} bytes)", (*path, "size"))
+                # the signal that reaches furthest is the mistake (or the size is): name it, at its own line
+                j, far = max(enumerate(signals), key=lambda item: _last_byte(item[1]))
+                order = "big-endian" if far.big_endian else "little-endian"
+                self.err(
+                    "size",
+                    f"signal '{far.name}' of message '{m.name}' (start bit {far.start_bit}, {far.bits} bits, {order}) "
+                    f"reaches byte {_last_byte(far)}, outside the message's {size} bytes; move the signal or make "
+                    f"'size: {sig_size}'",
+                    (*path, "signals", j, "start_bit") if self.smap.has((*path, "signals", j, "start_bit"))
+                    else (*path, "signals", j),
+                )
             size = max(size or 0, sig_size)
         if size is None:
             self.err("size", f"message '{m.name}' needs a payload: 'size: <bytes>', 'signals:' or a PDO map", path)
@@ -446,7 +458,7 @@ class Resolver:
         kind, period, interval, offset, offset_auto, rate = timing
         deadline = self.ns(m.deadline, (*path, "deadline"), ec)
         if deadline is not None and deadline <= 0:
-            self.err("deadline", "a deadline must be above zero", (*path, "deadline"))
+            self.err("deadline", f"message '{m.name}': a deadline must be above zero", (*path, "deadline"))
         if deadline is None:
             deadline = interval
         jitter = self.ns(m.jitter, (*path, "jitter"), ec) or 0
@@ -459,7 +471,14 @@ class Resolver:
         if ident is not None:
             limit, width = rules.id_limit(bool(extended))
             if ident > limit:
-                self.err("id-range", f"id 0x{ident:X} does not fit {width} (max 0x{limit:X})", (*path, "id"))
+                # an 11-bit overflow is most often a 29-bit identifier written without saying so
+                fits_29 = not extended and ident <= 0x1FFFFFFF
+                hint = "; make it a 29-bit identifier with 'extended: true'" if fits_29 else ""
+                self.err(
+                    "id-range",
+                    f"message '{m.name}': id 0x{ident:X} does not fit {width} (max 0x{limit:X}){hint}",
+                    (*path, "id"),
+                )
         rules.check_fields(m, path)
         fd, brs = rules.frame_format(m, path)
         return model.Message(
@@ -521,7 +540,7 @@ class Resolver:
                 self.err("period", "a periodic message needs 'period' (or 'rate')", path)
                 return None
             if period <= 0:
-                self.err("period", "a period must be above zero", (*path, "period"))
+                self.err("period", f"message '{m.name}': a period must be above zero", (*path, "period"))
                 return None
             if mit is not None and m.min_interarrival is not None:
                 self.err("message-type", "'min_interarrival' is for sporadic messages", (*path, "min_interarrival"))

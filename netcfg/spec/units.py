@@ -196,6 +196,9 @@ def parse_offset(value: Any) -> Duration | str:
 # --- the command line: the same grammar, plus the short forms people type there --------------------------------
 
 
+MIN_PLAIN_BITRATE = 1_000  # a plain --bitrate below this is taken for a forgotten 'k'
+
+
 def parse_bitrate_option(text: str) -> int:
     """A --bitrate: any spec bit rate ('500 kbit/s', '500k', '1M') or, on the command line only, a plain number of
     bit/s ('250000'). ValueError when not."""
@@ -204,6 +207,9 @@ def parse_bitrate_option(text: str) -> int:
         number = parse_number(short, f"bit rate {text!r}")
         if number != number.to_integral_value() or not 0 < number <= MAX_BITRATE:
             raise ValueError(f"bit rate {text!r}: give a whole number of bit/s above 0, at most 1 Tbit/s")
+        if number < MIN_PLAIN_BITRATE:
+            # no bus runs below 1 kbit/s: '500' is kbit/s written without its unit
+            raise ValueError(f"{text} bit/s is slower than any bus; did you mean '{short}k'?")
         return int(number)
     return parse_bitrate(text)
 
