@@ -83,7 +83,8 @@ def render(report: dict[str, Any]) -> str:
         if "errors" in bus:
             out.append("  " + errors_text(bus["errors"]))
         rows = []
-        for m in bus["messages"]:
+        # by identifier, the order of priority on CAN and how people look frames up; ones without an id last
+        for m in sorted(bus["messages"], key=lambda m: (m["id"] < 0, m.get("extended", False), m["id"], m["name"])):
             ident = f"0x{m['id']:X}" if m["id"] >= 0 else "-"
             rows.append(
                 [
