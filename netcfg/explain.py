@@ -35,10 +35,19 @@ def _us(ns: int | None) -> float | None:
     return None if ns is None else round(ns / 1000, 3)
 
 
-def explain(m: model.Model, name: str) -> dict[str, Any]:
+def _message(m: model.Model, name: str) -> model.Message | None:
+    """A message of the spec, or one the protocol adds (a CANopen SYNC, a heartbeat): check's table lists both."""
     msg = m.messages.get(name)
     if msg is None:
-        close = difflib.get_close_matches(name, list(m.messages), n=1)
+        msg = next((x for bus in m.buses.values() for x in bus.messages if x.name == name), None)
+    return msg
+
+
+def explain(m: model.Model, name: str) -> dict[str, Any]:
+    msg = _message(m, name)
+    if msg is None:
+        known = list(m.messages) + [x.name for bus in m.buses.values() for x in bus.messages if x.implicit]
+        close = difflib.get_close_matches(name, known, n=1)
         hint = f"; did you mean '{close[0]}'?" if close else ""
         raise NotExplained(f"no message '{name}' in system '{m.system}'{hint}")
     bus = m.buses[msg.bus]
