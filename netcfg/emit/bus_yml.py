@@ -30,6 +30,7 @@ from typing import Any
 
 from netcfg import cia301
 from netcfg.emit import render
+from netcfg.emit.bus_yml_spec import SPEC_NOTE, spec_notes
 from netcfg.importers.bus_yml import default_timing, safe_name
 from netcfg.model import Bus, Message, Model, Node, PdoEntry
 from netcfg.resolve import snake
@@ -113,7 +114,10 @@ def _bus_view(model: Model, bus: Bus, buses: list[Bus]) -> BusView | None:
         f"CANopen bus {bus.name} of {model.system}: Lely dcfgen / ros2_canopen bus configuration, written by netcfg.",
         "The dcf files are the EDS netcfg generates next to this file; '# netcfg:' comments are for netcfg import.",
     ]
-    header.extend(f"not expressible here, kept in the netcfg spec: {text}" for text in _left_out(model, bus, master))
+    notes, crossing = spec_notes(model, bus)
+    left_out = [*_left_out(model, bus, master), *crossing]
+    header.extend(f"not expressible here, kept in the netcfg spec: {text}" for text in left_out)
+    header.extend(f"{SPEC_NOTE} {note}" for note in notes)
     annotation = {
         "system": model.system,
         "bus": bus.name,

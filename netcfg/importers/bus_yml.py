@@ -93,6 +93,7 @@ from netcfg.importers.bus_yml_keys import (
     parse_annotation,
     safe_name,
 )
+from netcfg.importers.bus_yml_notes import apply_spec_notes, read_spec_notes
 from netcfg.inputs import InputError, check_input_path, decode_text, read_input_bytes
 from netcfg.spec.load import report_validation_errors
 from netcfg.spec.source import SourceMap, load_yaml
@@ -149,6 +150,15 @@ class BusYmlImporter:
     def link(self, spath: SpecPath, bpath: BusPath) -> None:
         """The spec item at spath came from bpath: its comment and its errors point there."""
         self.origin[spath] = bpath
+
+    def link_note(self, spath: SpecPath, line: int) -> None:
+        """The spec item at spath came from the `# netcfg-spec:` comment on this line."""
+        bpath = ("# netcfg-spec", line)
+        self.smap.record(bpath, _mark(self.file, Position(self.file, line, 1)))
+        self.link(spath, bpath)
+
+    def warn_note(self, message: str, line: int) -> None:
+        self.d.add("bus-yml-note", message, Position(self.file, line, 1), "warning")
 
     def at(self, bpath: BusPath, key: bool = False) -> Position:
         return self.smap.key_at(bpath) if key else self.smap.at(bpath)
@@ -253,6 +263,7 @@ class BusYmlImporter:
         spec["messages"] = self.messages
         if self.d.errors:
             return None
+        apply_spec_notes(spec, read_spec_notes(self.lines, self.file, self.d), self.link_note, self.warn_note)
         self.validate(spec)
         if self.d.errors:
             return None
