@@ -18,6 +18,16 @@ from netcfg import jsontext
 from netcfg.report_text import num
 
 Files = dict[str, bytes]
+# what a spec sets for a message, as report.json states it (label for the text); offsets are the resolved ones,
+# so `offset: auto` placing a message elsewhere shows too
+PARAMETERS = {
+    "id": "id",
+    "ftt_id": "FTT id",
+    "producer": "producer",
+    "size": "bytes",
+    "period_us": "period us",
+    "offset_us": "offset us",
+}
 
 
 class DiffInputError(Exception):
@@ -98,7 +108,7 @@ def compare(a: Side, b: Side) -> Difference:
     msgs_b = _messages(b.report)
     for name in sorted(msgs_a.keys() | msgs_b.keys()):
         ma, mb = msgs_a.get(name), msgs_b.get(name)
-        keys = ("bus", "id", "size", "period_us", "wcrt_us", "deadline_us", "schedulable")
+        keys = ("bus", *PARAMETERS, "wcrt_us", "deadline_us", "schedulable")
         va = {k: ma.get(k) for k in keys} if ma else None
         vb = {k: mb.get(k) for k in keys} if mb else None
         if va != vb:
@@ -106,7 +116,7 @@ def compare(a: Side, b: Side) -> Difference:
     flows_a = {f["name"]: f for f in a.report["flows"]}
     flows_b = {f["name"]: f for f in b.report["flows"]}
     for name in sorted(flows_a.keys() | flows_b.keys()):
-        flow_keys = ("latency_min_us", "latency_max_us", "deadline_us")
+        flow_keys = ("latency_min_us", "latency_max_us", "deadline_us", "meets_deadline")
         fa = {k: flows_a[name].get(k) for k in flow_keys} if name in flows_a else None
         fb = {k: flows_b[name].get(k) for k in flow_keys} if name in flows_b else None
         if fa != fb:
@@ -152,7 +162,7 @@ def _message_line(name: str, a: dict[str, Any] | None, b: dict[str, Any] | None)
     if b is None:
         return f"message {name}: removed"
     parts = []
-    for key, label in (("bus", "bus"), ("id", "id"), ("size", "bytes"), ("period_us", "period us")):
+    for key, label in (("bus", "bus"), *PARAMETERS.items()):
         if a[key] != b[key]:
             parts.append(f"{label} {_fmt(key, a[key])} -> {_fmt(key, b[key])}")
     if (a["wcrt_us"], a["deadline_us"], a["schedulable"]) != (b["wcrt_us"], b["deadline_us"], b["schedulable"]):
@@ -171,7 +181,11 @@ def _bound(m: dict[str, Any] | None) -> str:
 def _flow(f: dict[str, Any] | None) -> str:
     if f is None:
         return "absent"
-    return f"{num(f['latency_min_us'])}..{num(f['latency_max_us'])} us"
+    if f["deadline_us"] is None:
+        verdict = "no deadline"
+    else:
+        verdict = f"{'meets' if f['meets_deadline'] else 'MISSES'} its {num(f['deadline_us'])} us deadline"
+    return f"{num(f['latency_min_us'])}..{num(f['latency_max_us'])} us ({verdict})"
 
 
 def _fmt(key: str, value: Any) -> str:
