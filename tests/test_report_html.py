@@ -105,3 +105,17 @@ def test_chromium_renders_it_with_the_plots_loaded(cambada_html: str, tmp_path: 
     assert len(colours) > 50
     assert BUSIEST_EC in colours, "the macro-cycle PNG did not load"
     assert TIMELINE_FILL in colours
+
+
+def test_the_timeline_axis_is_in_milliseconds_and_ends_inside_the_picture(cambada_html: str) -> None:
+    """The page says 'Time in milliseconds': the axis' last label is the span its caption states in ms (the whole
+    hyperperiod, or the first part shown), and it is anchored at its end so that it is not cut off at the edge."""
+    svg = re.search(r'<svg class="timeline".*?</svg>', cambada_html, re.S)
+    assert svg is not None
+    caption = re.search(r'<p class="caption">hyperperiod ([\d,.]+) ms[^<]*?(?:the first ([\d,.]+) ms are shown)?',
+                        cambada_html)
+    assert caption is not None
+    span = caption.group(2) or caption.group(1)
+    labels = re.findall(r'<text x="[\d.]+" y="\d+" text-anchor="(\w+)">([\d,.]+)</text>', svg.group(0))
+    assert labels[0] == ("middle", "0")
+    assert labels[-1] == ("end", span)

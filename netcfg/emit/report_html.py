@@ -102,7 +102,15 @@ def _timeline(model: Model, b: dict[str, Any]) -> dict[str, Any] | None:
                 "cls": "late" if ok is False or window is None else "window",
             })
     step = shown / TICKS
-    ticks = [{"x": f"{LABEL + k * step * scale:.2f}", "label": num(k * step / 1000)} for k in range(TICKS + 1)]
+    # labels in ms, as the page says; the last one ends at the axis' end rather than past the picture's edge
+    ticks = [
+        {
+            "x": f"{LABEL + k * step * scale:.2f}",
+            "label": num(round(k * step / 1e6, 3)),
+            "anchor": "end" if k == TICKS else "middle",
+        }
+        for k in range(TICKS + 1)
+    ]
     caption = f"hyperperiod {num(hyper / 1e6)} ms, {len(rows)} periodic messages"
     if shown < hyper:
         caption += f"; the first {num(shown / 1e6)} ms are shown ({MAX_BARS} releases at most)"
