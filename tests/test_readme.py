@@ -160,3 +160,5 @@ def test_readme_example_runs(example: Example, workdir: Path) -> None:
         f"README.md line {example.line} exits {proc.returncode}, not {example.exit_code}:\n{example.text}\n"
         f"--- stdout\n{proc.stdout[-3000:]}\n--- stderr\n{proc.stderr[-3000:]}"
     )
+    if example.kind == "python":  # a program a user copies must leave nothing open (python-can warns of a bus)
+        assert "not properly shut down" not in proc.stderr, f"README.md line {example.line}: {proc.stderr[-500:]}"
