@@ -31,6 +31,7 @@ class Example:
     kind: str  # "shell" or "python"
     text: str
     exit_code: int = 0  # a command shown failing on purpose says `exits N` (or `exit N`) in its comment
+    shown: tuple[str, ...] = ()  # output the README prints under a `$ ` command, which the command must print
 
 
     @property
@@ -85,8 +86,25 @@ def _commands(body: list[str], start: int) -> list[Example]:
         if match and OPT_OUT not in raw:
             expected = re.search(r"#.*\bexits? (\d)\b", raw)
             code = int(expected.group(1)) if expected else 0
-            found.append(Example(start + offset + 1, "shell", _strip_comment(match.group(1)), code))
+            shown: list[str] = []
+            if raw.strip().startswith("$ "):  # its output follows, up to a blank line or the next command
+                for line in body[offset + 1 :]:
+                    if not line.strip() or COMMAND.match(line.strip()) or line.strip().startswith("$ "):
+                        break
+                    shown.append(line)
+            found.append(Example(start + offset + 1, "shell", _strip_comment(match.group(1)), code, tuple(shown)))
     return found
+
+
+def _words(text: str) -> str:
+    return " ".join(text.split())
+
+
+def missing_output(shown: tuple[str, ...], printed: str) -> list[str]:
+    """The README's output lines the command did not print. '...' in a line stands for what the README leaves out,
+    and lines the README wraps are matched piece by piece, so each piece must appear as printed."""
+    out = _words(printed)
+    return [line for line in shown if not all(_words(p) in out for p in line.split("...") if p.strip())]
 
 
 EXAMPLES = extract((ROOT / "README.md").read_text(encoding="utf-8"))
@@ -159,6 +177,10 @@ def test_readme_example_runs(example: Example, workdir: Path) -> None:
     assert proc.returncode == example.exit_code, (
         f"README.md line {example.line} exits {proc.returncode}, not {example.exit_code}:\n{example.text}\n"
         f"--- stdout\n{proc.stdout[-3000:]}\n--- stderr\n{proc.stderr[-3000:]}"
+    )
+    absent = missing_output(example.shown, proc.stdout + proc.stderr)
+    assert not absent, f"README.md line {example.line} shows output the command no longer prints:\n" + "\n".join(
+        absent
     )
     if example.kind == "python":  # a program a user copies must leave nothing open (python-can warns of a bus)
         assert "not properly shut down" not in proc.stderr, f"README.md line {example.line}: {proc.stderr[-500:]}"
