@@ -9,7 +9,7 @@ import pathlib
 from typing import TYPE_CHECKING
 
 from netcfg import cia301, model
-from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
+from netcfg.devices import DATA_TYPE_CODES, DeviceProfile, ObjectEntry, builtin_profile, builtin_profile_names
 from netcfg.devices.eds import EdsError, cached_profile
 from netcfg.diagnostics import Position
 from netcfg.inputs import check_input_path
@@ -261,17 +261,19 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
         if all(b in r.spec_buses for b in n.buses):  # an unknown bus is reported on its own
             r.err("wrong-section", "device profiles describe CANopen devices; this node is on no CANopen bus", dpath)
         return None
-    if isinstance(n.device, str):
+    if isinstance(n.device, (str, schema.ProfileDevice)):
+        name = n.device if isinstance(n.device, str) else n.device.profile
         try:
-            return builtin_profile(n.device)
+            base = builtin_profile(name)
         except KeyError:
             r.err(
                 "unknown-device",
-                f"no built-in device profile '{n.device}'{did_you_mean(n.device, builtin_profile_names())}; built-in: "
+                f"no built-in device profile '{name}'{did_you_mean(name, builtin_profile_names())}; built-in: "
                 f"{', '.join(builtin_profile_names())}, or give a vendor file as 'device: {{eds: x.eds}}'",
-                dpath,
+                dpath if isinstance(n.device, str) else (*dpath, "profile"),
             )
             return None
+        return base if isinstance(n.device, str) else _with_objects(r, base, n.device, dpath)
     try:  # the input guard: a NUL byte, a symlink loop or a missing file is placed at the spec's line
         file = check_input_path(r.spec_dir, n.device.eds, "EDS file")
     except ValueError as exc:
@@ -293,6 +295,32 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
                 Position(eds_file, exc.line, exc.column or 1),
             )
         return None
+
+
+def _with_objects(r: Resolver, base: DeviceProfile, device: schema.ProfileDevice, dpath: Path) -> DeviceProfile:
+    """A built-in profile with the spec's own application objects: not the built-in one any more (its EDS is the
+    spec's, so bus.yml and the DCF comments do not call it by the profile's name)."""
+    objects = dict(base.objects)
+    for i, o in enumerate(device.objects):
+        key = (o.index, o.sub)
+        if key in objects:
+            r.err(
+                "device-object",
+                f"object 0x{o.index:04X}:{o.sub} '{o.name}' is already in profile '{device.profile}' as "
+                f"'{objects[key].name}'; give each object once",
+                (*dpath, "objects", i, "index"),
+            )
+            continue
+        objects[key] = ObjectEntry(
+            index=o.index,
+            sub=o.sub,
+            name=o.name,
+            data_type=DATA_TYPE_CODES[o.type],
+            access=o.access,
+            pdo_mappable=o.pdo,
+            default=o.default,
+        )
+    return dataclasses.replace(base, name=base.name, source=f"spec:{device.profile}", objects=objects)
 
 
 def sync_task(r: Resolver, node: str, t: schema.Task, path: Path, period: int | None) -> tuple[str | None, int | None]:

@@ -10,7 +10,17 @@ import math
 import re
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, Strict, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Strict,
+    Tag,
+    model_validator,
+)
 
 from netcfg.spec.fields import BitRateField, DurationField, FrequencyField, OffsetField
 from netcfg.spec.units import Duration
@@ -313,6 +323,55 @@ class EdsDevice(SpecModel):
     eds: str = Field(description="path of a vendor EDS file, relative to the spec")
 
 
+# CiA 301's basic data types a PDO can carry (7.1.4.1, table 44 ordering)
+ObjectType = Literal[
+    "BOOLEAN", "INTEGER8", "INTEGER16", "INTEGER24", "INTEGER32", "INTEGER40", "INTEGER48", "INTEGER56", "INTEGER64",
+    "UNSIGNED8", "UNSIGNED16", "UNSIGNED24", "UNSIGNED32", "UNSIGNED40", "UNSIGNED48", "UNSIGNED56", "UNSIGNED64",
+    "REAL32", "REAL64",
+]
+
+
+class DeviceObject(SpecModel):
+    """An application object of a device without a vendor file (CiA 301 7.4.1: 0x2000-0x5FFF manufacturer-specific,
+    0x6000-0x9FFF a device profile's)."""
+
+    index: Int = Field(ge=0x2000, le=0x9FFF, description="object index, 0x2000..0x9FFF")
+    sub: Int = Field(0, ge=0, le=0xFE, description="sub-index")
+    name: str = Field(min_length=1, max_length=120, description="parameter name, as an EDS writes it")
+    type: ObjectType = Field(description="CiA 301 data type")
+    access: Literal["ro", "wo", "rw", "rwr", "rww", "const"] = Field(
+        description="CiA 306 access type: ro/const read-only (TPDO), wo/rww written (RPDO), rw/rwr both"
+    )
+    pdo: Bool = Field(True, description="whether a PDO may map it")
+    default: Int | None = Field(None, description="default value")
+
+
+class ProfileDevice(SpecModel):
+    """A built-in profile and the device's own objects: a device without a vendor EDS (a BMS on the generic
+    'cia301', a drive on 'cia402')."""
+
+    profile: Name = Field(description="the built-in profile it extends: cia301, cia402, epos4")
+    objects: list[DeviceObject] = Field(default_factory=list, description="the application objects it adds")
+
+
+def _device_form(value: object) -> str:
+    """Which of the three forms a `device:` is, from its shape: one form's errors, not all three's."""
+    if isinstance(value, dict):
+        return "ProfileDevice" if "profile" in value else "EdsDevice"
+    if isinstance(value, (EdsDevice, ProfileDevice)):
+        return type(value).__name__
+    return "Name"
+
+
+# tags are the classes' names: the error locations drop them as they drop pydantic's own union branches
+DeviceField = Annotated[
+    Annotated[Name, Tag("Name")]
+    | Annotated[EdsDevice, Tag("EdsDevice")]
+    | Annotated[ProfileDevice, Tag("ProfileDevice")],
+    Discriminator(_device_form),
+]
+
+
 class TxQueue(SpecModel):
     """How a node hands its frames to the CAN controller."""
 
@@ -344,8 +403,10 @@ class Node(SpecModel):
     node_id: Int | None = Field(None, description="CANopen node id 1..127, or an FTT-CAN/CAN station number")
     buses: list[Name] = Field(min_length=1)
     role: Literal["master", "slave"] = "slave"
-    device: Name | EdsDevice | None = Field(
-        None, description="CANopen device profile: a built-in name (e.g. 'epos4') or {eds: file.eds}"
+    device: DeviceField | None = Field(
+        None,
+        description="CANopen device profile: a built-in name ('epos4', the generic 'cia301' and 'cia402'), "
+        "{eds: file.eds}, or {profile: cia301, objects: [...]} for a device without a vendor file",
     )
     heartbeat: DurationField | None = Field(None, description="CANopen producer heartbeat time (0x1017)")
     heartbeat_timeout: DurationField | None = Field(
