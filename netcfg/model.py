@@ -228,7 +228,20 @@ class Bus:
 
     @property
     def is_can(self) -> bool:
+        """Its frames arbitrate as CAN's do (ISO 11898-1): classical CAN, CAN FD, CANopen and FTT-CAN."""
         return self.protocol != "ethernet-udp"
+
+    @property
+    def offsets_unused(self) -> str | None:
+        """None when a periodic message's offset places its releases on its sender's clock, as the CAN offset
+        analysis (timing.can_offsets) takes them: any bus whose frames arbitrate as CAN's, classical or FD (their
+        frame times come from the bus's frame timing), unless something else releases them. Else why the
+        analysis of this bus cannot use an offset, in the user's terms."""
+        if not self.is_can:
+            return "the Ethernet analysis takes every sender's releases at any phase"
+        if self.canopen is not None:
+            return "on a CANopen bus SYNC, the master's loop and PDO events release the frames, not an offset"
+        return None
 
 
 @dataclass(frozen=True)
