@@ -243,6 +243,21 @@ class Bus:
             return "on a CANopen bus SYNC, the master's loop and PDO events release the frames, not an offset"
         return None
 
+    @property
+    def identifiers_fixed(self) -> str | None:
+        """None when the bus's identifiers are free priorities that `netcfg tune` may reorder (classical CAN and
+        CAN FD arbitrate alike); else why they are not, in the user's terms."""
+        if not self.is_can:
+            return "an Ethernet message's id names it and gives it no priority: the switches queue frames in order"
+        if self.canopen is not None:
+            return "CiA 301 COB-IDs, the predefined connection set its devices expect"
+        if self.ftt is not None:
+            return (
+                "the master schedules the synchronous window, where offset: auto places the messages, and tune's "
+                "search is not the asynchronous window's analysis"
+            )
+        return None
+
 
 @dataclass(frozen=True)
 class FlowStep:
