@@ -187,6 +187,19 @@ def test_offsets_whose_hyperperiod_is_too_long_are_one_warning(tmp_path: Path) -
     }
     (w,) = _unused(check(_write(tmp_path, data)))
     assert "'m1', 'm2', 'm3'" in w["message"] and "512" in w["message"]
+    # the same periods on FTT-CAN's synchronous window: the master's schedule places every release, so no warning
+    ftt = {
+        "system": "ftt_long_hyper",
+        "buses": [{"name": "b", "protocol": "ftt-can", "bitrate": "1 Mbit/s", "ftt": {"ec": "1 ms", "tm_size": 1}}],
+        "nodes": [{"name": "master", "role": "master", "buses": ["b"]}, *({"name": n, "buses": ["b"]} for n in "ac")],
+        "messages": [
+            {"name": f"s{i}", "ftt_id": i, "producer": "a", "consumers": ["c"], "size": 8, "period": f"{p} EC",
+             "offset": f"{i} EC"}
+            for i, p in enumerate((1, 23, 29))
+        ],
+    }
+    report = check(_write(tmp_path, ftt, "ftt.yaml"))
+    assert report["ok"] and not _unused(report)
 
 
 def test_the_shipped_specs_use_every_offset_they_give() -> None:
