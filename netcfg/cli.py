@@ -164,7 +164,11 @@ def _dispatch(args: argparse.Namespace) -> int:
             options = ImportOptions(
                 args.bitrate, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
             )
-            return command(args.spec, args.output, args.robust, args.force, args.format, options)
+            try:
+                return command(args.spec, args.output, args.robust, args.force, args.format, options)
+            except OSError as exc:  # the spec or DBC cannot be read (tune itself reports what it cannot write)
+                print(f"netcfg: {_io_problem(exc, 'read', args.spec)}", file=sys.stderr)
+                return 2
         if args.command == "init":
             from netcfg.init_spec import init_command
 

@@ -298,3 +298,29 @@ def test_each_bus_kind_says_its_own_reason_to_keep_its_identifiers(tmp_path: Pat
     assert "synchronous window" in reasons["cambada"]
     assert "CiA 301" in reasons["allex2"] and "synchronous window" not in reasons["allex2"]
     assert "Ethernet" in reasons["ntua_sahr"] and "no priority" in reasons["ntua_sahr"]
+
+
+def test_tune_a_can_fd_dbc_with_checks_bit_rates(tmp_path: Path) -> None:
+    """The wrong-order CAN FD bus above as a DBC (the tuned spec's DBC renumbered back to the original identifiers):
+    `check F.dbc --bitrate 1M --data-bitrate 5M` refuses it (fast 452.4 us > 300 us, as by hand above), `tune` with
+    the same options renumbers it, and check accepts what it wrote (fast 226.2 us)."""
+    from netcfg.tune import edit_dbc_ids
+
+    tuned, _ = _tune(tmp_path, _write(tmp_path, FD_WRONG), "tuned.yaml")
+    assert cli("build", str(tuned), "-o", str(tmp_path / "out")).returncode == 0
+    new = {m["name"]: m["id"] for m in yaml.safe_load(tuned.read_text())["messages"]}
+    good = (tmp_path / "out" / "dbc" / "bus.dbc").read_text(encoding="latin-1")
+    wrong = tmp_path / "wrong.dbc"
+    wrong.write_text(edit_dbc_ids(good, {new[m["name"]]: m["id"] for m in FD_WRONG["messages"]}), encoding="latin-1")
+    rates = ("--bitrate", "1M", "--data-bitrate", "5M")
+    before = json.loads(cli("check", str(wrong), *rates, "--format", "json").stdout)
+    assert not before["ok"] and _wcrt(before)["fast"] == 452.4
+    fixed, _ = _tune(tmp_path, wrong, "fixed.dbc", *rates)
+    after = json.loads(cli("check", str(fixed), *rates, "--format", "json").stdout)
+    assert after["ok"] and _wcrt(after)["fast"] == 226.2
+
+
+def test_tune_of_a_missing_file_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    for name in ("missing.yaml", "missing.dbc"):
+        run = cli("tune", str(tmp_path / name), "-o", str(tmp_path / f"out{Path(name).suffix}"))
+        assert run.returncode == 2 and "Traceback" not in run.stderr and "cannot read" in run.stderr
