@@ -240,7 +240,7 @@ class Bus:
         if not self.is_can:
             return "the Ethernet analysis takes every sender's releases at any phase"
         if self.canopen is not None:
-            return "a CANopen bus is analysed without offsets: SYNC, the master's loop and PDO events release its frames"
+            return "a CANopen bus is analysed without offsets: SYNC, the master's loop and PDO events release frames"
         return None
 
     @property
