@@ -112,6 +112,7 @@ def _analyze_once(m: model.Model, diags: Collector, acc: _Analysis) -> dict[str,
             buses.append(analyze_can(m, bus, diags, acc))
     for row, bus in zip(buses, m.buses.values()):
         row["assumes"] = assumptions(bus, tuple(q["node"] for q in row.get("tx_queues", ())))
+        check_offsets(m, bus, diags)
     nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
     return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
 
@@ -326,8 +327,8 @@ def rta_frames(
 def release_offsets(m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]:
     """Messages released at a fixed offset of their sender's clock -> (sender, offset): periodic at one period,
     with an offset, and not sent by a task as it finishes (then the task's end, not the offset, releases it).
-    CANopen buses have none: the master's loop and SYNC, not an offset, release their PDOs."""
-    if bus.protocol not in ("can", "ftt-can"):
+    CANopen and Ethernet buses have none (model.Bus.offsets_unused says why)."""
+    if bus.offsets_unused is not None:
         return {}
     return {
         msg.name: (msg.producer, msg.offset_ns)
@@ -338,6 +339,61 @@ def release_offsets(m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]
         and msg.period_ns == msg.interval_ns
         and not flows.sending_tasks(m, msg)
     }
+
+
+def offset_ignored(m: model.Model, bus: model.Bus, msg: model.Message) -> tuple[str, str] | None:
+    """(why, what to do) when the analysis that bounds `msg` cannot use the offset the spec gave it; None when it
+    has none or it is used (release_offsets takes it, or FTT-CAN's schedule takes it as the first EC)."""
+    if msg.offset_ns is None or msg.offset_auto or msg.implicit:  # SYNC and heartbeats: netcfg's own
+        return None
+    if (why := bus.offsets_unused) is not None:
+        return why, "its bounds hold for any offset; drop it"
+    if msg.window == "sync":
+        return None
+    if senders := flows.sending_tasks(m, msg):
+        return (
+            f"task '{senders[0]}' sends it as it finishes (a step before it in a flow), so the task's end releases it",
+            f"drop the offset, or give the task '{senders[0]}' the offset instead",
+        )
+    if msg.window == "async":
+        return (
+            "FTT-CAN's asynchronous window is analysed with every release at any phase",
+            "drop the offset, or make it synchronous (window: sync), where the offset is its first EC",
+        )
+    return None
+
+
+def check_offsets(m: model.Model, bus: model.Bus, diags: Collector) -> None:
+    """A warning for each offset the analysis of this bus cannot use, and for each sender whose offsets unroll
+    into more releases than the offset analysis follows (it then takes them at any phase)."""
+    for msg in bus.messages:
+        if (ignored := offset_ignored(m, bus, msg)) is not None:
+            why, fix = ignored
+            diags.add(
+                "offset-unused",
+                f"the analysis does not use the offset {format_ns(msg.offset_ns or 0)} of '{msg.name}': {why}; "
+                f"{fix}",
+                m.source.at((*msg.path, "offset")),
+                "warning",
+            )
+    offsets = release_offsets(m, bus)
+    fifo_of = fifo_senders(m, bus)
+    # where can_offsets gives the bound: not in FTT-CAN's windows (the master's schedule uses synchronous offsets)
+    periods = {
+        msg.name: msg.period_ns
+        for msg in bus.messages
+        if msg.name in offsets and msg.name not in fifo_of and msg.window is None
+    }
+    for node, names in can_offsets.too_long({n: (offsets[n][0], t) for n, t in periods.items() if t}).items():
+        first = m.messages[names[0]]
+        diags.add(
+            "offset-unused",
+            f"the analysis does not use the offsets of node '{node}' ({', '.join(repr(n) for n in names)}): their "
+            f"periods' hyperperiod unrolls into more than {can_offsets.MAX_JOBS} releases, so they are taken at any "
+            "phase; choose periods that divide each other (harmonic), or drop the offsets",
+            m.source.at((*first.path, "offset")),
+            "warning",
+        )
 
 
 def error_model(bus: model.Bus) -> can_errors.ErrorModel | None:

@@ -108,6 +108,9 @@ def main(argv: list[str] | None = None) -> int:
     p_tune.add_argument("--force", action="store_true", help="replace OUT.yaml if it exists")
     p_tune.add_argument("--format", choices=("text", "json"), default="text")
     p_tune.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k")
+    p_tune.add_argument("--data-bitrate", type=_bitrate, help="DBC input with CAN FD frames: the data-phase bit rate")
+    p_tune.add_argument("--default-period", type=_duration_ns, metavar="T",
+                        help="DBC input: analyse messages that give no cycle time as periodic every T, e.g. 100ms")
     args = parser.parse_args(argv)
     if args.command not in BATCH_COMMANDS:
         return _dispatch(args)
@@ -158,7 +161,14 @@ def _dispatch(args: argparse.Namespace) -> int:
         if args.command == "tune":
             from netcfg.tune import command
 
-            return command(args.spec, args.output, args.robust, args.force, args.format, args.bitrate)
+            options = ImportOptions(
+                args.bitrate, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
+            )
+            try:
+                return command(args.spec, args.output, args.robust, args.force, args.format, options)
+            except OSError as exc:  # the spec or DBC cannot be read (tune itself reports what it cannot write)
+                print(f"netcfg: {_io_problem(exc, 'read', args.spec)}", file=sys.stderr)
+                return 2
         if args.command == "init":
             from netcfg.init_spec import init_command
 

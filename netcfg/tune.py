@@ -1,4 +1,4 @@
-"""`netcfg tune`: identifiers and offsets that make a CAN bus schedulable with the most slack.
+"""`netcfg tune`: identifiers and offsets that make a CAN or CAN FD bus schedulable with the most slack.
 
 Identifiers: Audsley's optimal priority assignment (Audsley 1991; shown to be optimal for CAN's revised
 response-time analysis by Davis and Burns 2009, "Robust priority assignment for messages on Controller Area
@@ -12,13 +12,16 @@ number of errors the whole bus tolerates.
 
 Offsets: then, per sender, the periodic messages it releases from its own clock are spread over their hyperperiod,
 each placed where its releases are farthest from the releases already placed (the heuristic of Grenier, Havet and
-Navet 2008, "Pushing the limits of CAN"), and the result is kept only when the smallest slack on the bus, by the
-offset-aware analysis (netcfg.timing.can_offsets), is larger than with the spec's own offsets.
+Navet 2008, "Pushing the limits of CAN"), and the result is kept only when, by the offset-aware analysis
+(netcfg.timing.can_offsets), it shortens some message's bound and lengthens none.
 
-What is kept: every message's producer, size, period, deadline and jitter; identifiers pinned with
-`tune: {id: fixed}`, offsets pinned with `tune: {offset: fixed}`; a node's `id_range`; on CANopen buses every
-COB-ID (CiA 301's predefined connection set, which devices expect) and on FTT-CAN buses the synchronous messages
-(the master schedules them; `offset: auto` places them). Only plain CAN buses are re-identified.
+What changes: nothing on a bus where nothing is judged (no message has a deadline); on a bus whose messages all
+meet their deadlines the identifiers stay (any other order lengthens some bound; `--robust` reorders them anyway,
+for the error frames survived), so tuning an accepted spec lengthens no bound. What is kept: every message's
+producer, size, period, deadline and jitter; identifiers pinned with `tune: {id: fixed}`, offsets pinned with
+`tune: {offset: fixed}`; a node's `id_range`; every bus whose identifiers are not free priorities
+(model.Bus.identifiers_fixed says why: CANopen, FTT-CAN, Ethernet). CAN and CAN FD buses are re-identified alike:
+they arbitrate the same way, their frame times come from the bus's frame timing.
 """
 
 from __future__ import annotations
@@ -35,11 +38,12 @@ from typing import Any
 import numpy as np
 
 from netcfg import jsontext, model
-from netcfg.analyze import analysis_jitter, release_offsets, rta_frames
+from netcfg.analyze import analysis_jitter, error_model, release_offsets, rta_frames
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
 from netcfg.spec.schema import Spec
 from netcfg.timing import can_offsets, can_rta, clocks, flows, load
+from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.frames import arbitration_key, bits_to_ns
 
 ERROR_FRAME_BITS = 31  # an error frame: 6-bit flag, up to 6 superposed, 8-bit delimiter, 3-bit intermission
@@ -270,27 +274,39 @@ def round_step(ns: int, least: int) -> int:
     return best
 
 
-def slacks(
-    frames: list[can_rta.CanFrame], tau: int, offsets: dict[str, tuple[str, int]], ppm: int = 0
-) -> list[float]:
-    """Every deadline - bound on the bus, smallest first (ns; -inf for a missing bound): comparing these lists
-    maximises the smallest slack, then the next smallest, and so on."""
-    res = can_offsets.analyse(frames, tau, offsets, ppm)
-    out = []
-    for f in frames:
-        r = res[f.name].wcrt_ns
-        if f.d_ns is not None:
-            out.append(f.d_ns - r if r is not None else -float("inf"))
-    return sorted(out)
+def bounds(
+    frames: list[can_rta.CanFrame],
+    tau: int,
+    offsets: dict[str, tuple[str, int]],
+    ppm: int = 0,
+    errors: ErrorModel | None = None,
+) -> dict[str, int | None]:
+    """Every message's bound by the offset-aware analysis check uses (None: unbounded)."""
+    return {name: r.wcrt_ns for name, r in can_offsets.analyse(frames, tau, offsets, ppm, errors).items()}
+
+
+def no_longer(after: dict[str, int | None], before: dict[str, int | None]) -> bool:
+    """No bound in `after` is longer than in `before` (an unbounded one only where it was unbounded already)."""
+    return all(b is None or (a is not None and a <= b) for a, b in ((after[n], before[n]) for n in before))
 
 
 # -- the whole spec ---------------------------------------------------------------------------------------------
-def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPlan:
+def plan_bus(
+    m: model.Model, spec: Spec, bus: model.Bus, robust: bool, rows: list[dict[str, Any]] | None = None
+) -> BusPlan:
+    """What tune changes on one bus; `rows` are check's messages of the bus before (their verdicts). Nothing
+    changes where nothing is judged (no message has a deadline), and a bus whose messages all meet their deadlines
+    keeps its identifiers (unless robust): reordering them lengthens some bound, and tune makes none longer there."""
     plan = BusPlan(bus.name)
-    if bus.protocol != "can":
+    if (why := bus.identifiers_fixed) is not None:
+        plan.notes.append(f"bus '{bus.name}' ({bus.protocol}): identifiers and offsets kept: {why}")
+        return plan
+    verdicts = [row["schedulable"] for row in rows or ()]
+    if rows is not None and all(v is None for v in verdicts):
         plan.notes.append(
-            f"bus '{bus.name}' ({bus.protocol}): identifiers kept"
-            + (" (CiA 301 COB-IDs)" if bus.protocol == "canopen" else " (the master schedules its synchronous window)")
+            f"bus '{bus.name}': nothing analysed (none of its {len(bus.messages)} messages has a deadline, a period "
+            "or a minimum inter-arrival time), so nothing changed; give them periods (a DBC's GenMsgCycleTime, or "
+            "--default-period T)"
         )
         return plan
     pins = {msg.name: msg.tune for msg in spec.messages if msg.tune is not None}
@@ -313,8 +329,15 @@ def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPla
         )
         for msg in bus.messages
     ]
-    ids, plan.errors_tolerated = audsley(items, tau, robust, bus.clock_tolerance_ppm)
-    plan.ids = {name: ident for name, ident in ids.items() if ident != m.messages[name].id}
+    if robust or False in verdicts:
+        ids, plan.errors_tolerated = audsley(items, tau, robust, bus.clock_tolerance_ppm)
+        plan.ids = {name: ident for name, ident in ids.items() if ident != m.messages[name].id}
+    else:
+        ids = {msg.name: msg.id for msg in bus.messages}
+        plan.notes.append(
+            f"bus '{bus.name}': identifiers kept (every message meets its deadline; reordering would lengthen some "
+            "bound; --robust reorders them for the most error frames survived)"
+        )
     # offsets, on the new identifiers
     new = [
         can_rta.CanFrame(f.name, ids[f.name], f.extended, f.c_ns, f.t_ns, f.j_ns, f.d_ns)
@@ -348,17 +371,22 @@ def plan_bus(m: model.Model, spec: Spec, bus: model.Bus, robust: bool) -> BusPla
             f"offsets of {len(too_long)} node(s) kept ({', '.join(too_long[:5])}{more}): their "
             f"periods' hyperperiod unrolls into more than {can_offsets.MAX_JOBS} releases"
         )
-    if after == before:
-        pass
-    elif slacks(new, tau, after, bus.clock_tolerance_ppm) > slacks(new, tau, before, bus.clock_tolerance_ppm):
-        plan.offsets = {name: o for name, (_, o) in after.items() if before.get(name, (None, None))[1] != o}
-    else:
-        plan.notes.append(f"bus '{bus.name}': offsets kept (spreading them would not add slack)")
+    if after != before:
+        ppm, errors = bus.clock_tolerance_ppm, error_model(bus)
+        was, now = bounds(new, tau, before, ppm, errors), bounds(new, tau, after, ppm, errors)
+        if now != was and no_longer(now, was):
+            plan.offsets = {name: o for name, (_, o) in after.items() if before.get(name, (None, None))[1] != o}
+        else:
+            plan.notes.append(f"bus '{bus.name}': offsets kept (spreading them would shorten no bound or lengthen one)")
     return plan
 
 
-def plan(m: model.Model, spec: Spec, robust: bool = False) -> list[BusPlan]:
-    return [plan_bus(m, spec, bus, robust) for bus in m.buses.values() if bus.is_can]
+def plan(
+    m: model.Model, spec: Spec, robust: bool = False, report: dict[str, Any] | None = None
+) -> list[BusPlan]:
+    """Every bus's plan; `report` is check's analysis of the spec as it is (its verdicts decide what may change)."""
+    rows = {b["name"]: b["messages"] for b in report["buses"]} if report is not None else {}
+    return [plan_bus(m, spec, bus, robust, rows.get(bus.name)) for bus in m.buses.values()]
 
 
 def summary_rows(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -387,14 +415,13 @@ def _duration_text(ns: int) -> str:
     return f"{ns} ns"
 
 
-def _read_dbc(path: Path, diags: Collector, bitrate: int | None) -> tuple[Spec | None, model.Model | None]:
-    """The spec `netcfg import dbc` would write for this DBC, and its model."""
+def _read_dbc(path: Path, diags: Collector, options: ImportOptions) -> tuple[Spec | None, model.Model | None]:
+    """The spec `netcfg import dbc` would write for this DBC (with check's DBC options), and its model."""
     from pydantic import ValidationError
 
     from netcfg.check import load_dbc
     from netcfg.importers.dbc import import_dbc
 
-    options = ImportOptions(bitrate)
     imported = import_dbc(path, options, Collector())
     if imported is None:
         return None, load_dbc(path, diags, options)
@@ -428,8 +455,11 @@ def edit_dbc_ids(text: str, ids: dict[int, int]) -> str:
     return _DBC_ID.sub(lambda mt: mt.group(1) + str(ids.get(int(mt.group(2)), int(mt.group(2)))), text)
 
 
-def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bitrate: int | None = None) -> int:
-    """netcfg tune SPEC -o OUT.yaml; exit 0 written, 1 no assignment or the spec has errors, 2 I/O or usage."""
+def command(
+    source: Path, output: Path, robust: bool, force: bool, fmt: str, options: ImportOptions | None = None
+) -> int:
+    """netcfg tune SPEC -o OUT.yaml; exit 0 written, 1 no assignment or the spec has errors, 2 I/O or usage.
+    `options`: a DBC's bit rates and --default-period, as `check F.dbc` takes them."""
     from netcfg.analyze import analyze
     from netcfg.check import analyse_spec
     from netcfg.diagnostics import sort_diagnostics
@@ -445,8 +475,9 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
         return 2
     diags = Collector()
     is_dbc = source.suffix.lower() == ".dbc"
+    dbc_options = options or ImportOptions()
     if is_dbc:
-        spec, m = _read_dbc(source, diags, bitrate)
+        spec, m = _read_dbc(source, diags, dbc_options)
     else:
         spec, smap = read_spec(source, diags)
         m = resolve(spec, smap, diags, source.parent) if spec is not None else None
@@ -458,7 +489,7 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
     report = analyze(m, diags)
     before = {**report, "ok": not diags.errors}
     try:
-        plans = plan(m, spec, robust)
+        plans = plan(m, spec, robust, report)
     except NoAssignment as exc:
         print(f"netcfg: {source}: {exc}; nothing was written", file=sys.stderr)
         return 1
@@ -479,7 +510,7 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
     try:
         output.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_bytes(data)
-        _, after = analyse_spec(tmp, ImportOptions(bitrate) if is_dbc else None)
+        _, after = analyse_spec(tmp, dbc_options if is_dbc else None)
         if after["errors"]:
             tmp.unlink()
             print(

@@ -16,6 +16,7 @@ from netcfg.resolve.suggest import did_you_mean, nodes_on_bus
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.units import Duration, format_ns
+from netcfg.timing.frames import arbitration_key
 
 
 class FttProtocol(CanProtocol):
@@ -135,6 +136,26 @@ class FttProtocol(CanProtocol):
         if bus.ftt is not None:
             taken[(False, bus.ftt.tm_id)] = "the FTT-CAN trigger message"
         return taken
+
+    def check_message_id(self, bus: model.Bus, m: model.Message) -> None:
+        """The trigger message outranks every other frame: the analyses (and the FTT-CAN papers) start each EC's
+        windows when it ends, so a frame that wins arbitration against it would delay every EC it is queued at.
+        The TM is taken as a standard frame (as the simulator and the live master send it), which for an extended
+        bus is the stricter reading too."""
+        if bus.ftt is None or arbitration_key(m.id, m.extended) > arbitration_key(bus.ftt.tm_id, False):
+            return
+        tm = f"0x{bus.ftt.tm_id:03X}"
+        if self.r.smap.has((*m.path, "id")):
+            fix = f"give '{m.name}' an identifier above {tm} or the bus a smaller 'tm_id'"
+        else:  # sync_id_base + its FTT id
+            fix = f"raise the bus's 'sync_id_base' above {tm}, give '{m.name}' an 'id' above it, or lower 'tm_id'"
+        self.r.err(
+            "ftt-tm-id",
+            f"identifier 0x{m.id:03X} of {m.window or 'the'} message '{m.name}' is at or above the priority of the "
+            f"trigger message (tm_id {tm}): the trigger message must have the highest priority on an FTT-CAN bus, "
+            f"else a frame queued at an EC's start delays the trigger message and every window after it; {fix}",
+            self.r.key_or_item(m.path, "id"),
+        )
 
     # -- triggers and FTT ids ----------------------------------------------------------------------------------
     def resolve_triggers(self) -> None:

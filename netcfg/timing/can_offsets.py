@@ -65,6 +65,25 @@ class Transaction:
     key: np.ndarray  # arbitration key of each job's message
 
 
+def unrolled_jobs(periods: Sequence[int]) -> int:
+    """Jobs of one sender's offset messages with these periods over their hyperperiod."""
+    hyper = lcm(*periods)
+    return sum(hyper // t for t in periods)
+
+
+def too_long(members: Mapping[str, tuple[str, int]]) -> dict[str, list[str]]:
+    """Message -> (sender, period) of the messages with an offset: the senders whose unrolling passes MAX_JOBS
+    (transactions leaves them out, so their offsets are not used), each with its messages in name order."""
+    by_node: dict[str, list[tuple[str, int]]] = {}
+    for name, (node, period) in members.items():
+        by_node.setdefault(node, []).append((name, period))
+    return {
+        node: sorted(n for n, _ in group)
+        for node, group in sorted(by_node.items())
+        if len(group) > 1 and unrolled_jobs([t for _, t in group]) > MAX_JOBS
+    }
+
+
 def transactions(frames: Sequence[CanFrame], offsets: Mapping[str, tuple[str, int]]) -> list[Transaction]:
     """Group the frames with a known offset by sender and unroll each group; a group of one message gains
     nothing from offsets and is left out, as is one whose unrolling is too long."""
@@ -82,9 +101,9 @@ def transactions(frames: Sequence[CanFrame], offsets: Mapping[str, tuple[str, in
         members = by_node[node]
         if len(members) < 2:
             continue
-        period = lcm(*(f.t_ns for f, _ in members if f.t_ns))
-        if sum(period // f.t_ns for f, _ in members if f.t_ns) > MAX_JOBS:
+        if unrolled_jobs([f.t_ns for f, _ in members if f.t_ns]) > MAX_JOBS:
             continue
+        period = lcm(*(f.t_ns for f, _ in members if f.t_ns))
         jobs = sorted(
             (
                 (f.priority_key, (o + k * f.t_ns) % period, f)
