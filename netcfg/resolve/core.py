@@ -502,7 +502,10 @@ class Resolver:
             period = round(1_000_000_000 / rate)  # at least 1: units.parse_frequency admits at most 1 GHz
         kind = m.type
         if pdo is not None:
-            kind, period, mit = rules.pdo_timing(pdo, bus, kind, period, mit, path)
+            timing = rules.pdo_timing(pdo, bus, kind, period, mit, path)
+            if timing is None:
+                return None
+            kind, period, mit = timing
         if kind is None:
             if period is not None:
                 kind = "periodic"
@@ -529,7 +532,8 @@ class Resolver:
             if mit is None or mit <= 0:
                 self.err("min-interarrival", "a sporadic message needs 'min_interarrival' above zero", path)
                 return None
-            if m.period is not None or m.rate is not None:
+            # a PDO's own settings may make a message with a period sporadic (an event timer between its sends)
+            if (m.period is not None or m.rate is not None) and (pdo is None or m.type == "sporadic"):
                 self.err(
                     "message-type",
                     "sporadic messages have 'min_interarrival', not a period",

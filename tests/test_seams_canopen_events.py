@@ -1,0 +1,150 @@
+"""Event-driven TPDOs (transmission type 254/255) and the objects a device must have for what the spec sets.
+
+Seam 02 (tests/data/seams/02-canopen-event-timer-hides-events.yaml, its header the derivation): by CiA 301
+(7.3.3 and 0x1800 sub 2/3/5) an event-driven TPDO goes out on every application event, its event timer is one more
+event, due when the TPDO has been silent that long, and only the inhibit time (sub 3) spaces two sends. An event
+timer therefore adds sends and never bounds them: the worst-case minimum inter-arrival is the inhibit time.
+Frame figures: an 8-byte classical frame with 11-bit id is 135 bits worst case (47 + 64 data bits + 24 stuff bits),
+1,080 us at 125 kbit/s and 135 us at 1 Mbit/s.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from conftest import ROOT, bus, check, cli, message, runtime_config_of
+
+from netcfg import cia301
+from netcfg.sim.montecarlo import run_once
+from netcfg.sim.results import summary
+from netcfg.sim.scenario import SimOptions
+
+SEAMS = ROOT / "tests" / "data" / "seams"
+SEAM = SEAMS / "02-canopen-event-timer-hides-events.yaml"
+EDS = SEAMS / "drive_et.eds"
+MS = 1_000_000
+PDO_LINE = 32  # the seam file's line of d1_state's `pdo:` (its event_timer key is on it)
+
+
+def _seam(tmp_path: Path, drop: str = "", add: str = "") -> Path:
+    """The seam spec, its d1_state's PDO without `drop` and with the key line `add` after its producer (one line, so
+    the PDO moves to line PDO_LINE + 1), saved beside a copy of drive_et.eds."""
+    shutil.copy(EDS, tmp_path / EDS.name)
+    text = SEAM.read_text(encoding="utf-8")
+    pdo = "pdo: {tpdo: 1, transmission: 255, event_timer: 100 ms, inhibit: 1 ms, map: [0x6064, 0x606C]}"
+    assert text.splitlines()[PDO_LINE - 1].strip() == pdo
+    text = text.replace(pdo, pdo.replace(drop, ""))
+    if add:
+        text = text.replace("    producer: d1\n", f"    producer: d1\n    {add}\n")
+    path = tmp_path / "spec.yaml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+NO_INHIBIT = "inhibit: 1 ms, "
+
+
+def _errors(report: dict[str, Any], code: str) -> list[dict[str, Any]]:
+    return [e for e in report["errors"] if e["code"] == code]
+
+
+def test_seam_is_analysed_at_the_inhibit_time_and_refused() -> None:
+    """Seam header: d1_state goes out at most every inhibit time, 1 ms, whatever its 100 ms event timer; 1,080 us of
+    frame every 1,000 us is 108 % of the bus, so check refuses the spec as overloaded."""
+    report = check(SEAM)
+    d1 = message(bus(report, "can0"), "d1_state")
+    assert (d1["kind"], d1["interval_us"], d1["period_us"]) == ("sporadic", 1000.0, None)
+    assert d1["frame_us_worst"] == 1080.0
+    assert d1["utilization"] == pytest.approx(1.08)
+    assert report["ok"] is False
+    assert _errors(report, "overload")
+
+
+def test_cli_refuses_the_seam() -> None:
+    proc = cli("check", str(SEAM))
+    assert proc.returncode == 1
+    assert "Traceback" not in proc.stderr
+    assert "[overload]" in proc.stderr
+
+
+@pytest.mark.parametrize(
+    "add",
+    [
+        "",  # nothing says how often the application triggers it
+        "min_interarrival: 20 ms",  # the application's own gap: a timer expiry may still fall just before an event
+    ],
+    ids=["nothing", "min_interarrival"],
+)
+def test_event_timer_without_inhibit_is_refused_at_the_timer(tmp_path: Path, add: str) -> None:
+    """Without an inhibit time the timer may run out just before an application event (CiA 301 7.3.3: it is due
+    after that long without a send, whatever comes next), so nothing bounds the gap between two sends: one error,
+    at d1_state's event_timer, that says to give an inhibit time."""
+    report = check(_seam(tmp_path, NO_INHIBIT, add))
+    assert [(e["code"], e["line"]) for e in report["errors"]] == [("event-timer", PDO_LINE + bool(add))]
+    (err,) = report["errors"]
+    assert "inhibit" in err["message"] and err["column"] > 1
+
+
+def test_event_timer_without_inhibit_exits_1_without_traceback(tmp_path: Path) -> None:
+    proc = cli("check", str(_seam(tmp_path, NO_INHIBIT)))
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert f"spec.yaml:{PDO_LINE}:" in proc.stderr and "[event-timer]" in proc.stderr
+
+
+def test_on_demand_application_leaves_the_timer_periodic(tmp_path: Path) -> None:
+    """Application events only at start-up and mode changes: in the steady state the timer alone sends, every
+    100 ms: 1,080 us / 100 ms = 1.08 % (what check printed for the seam before, now only where it holds)."""
+    report = check(_seam(tmp_path, NO_INHIBIT, "type: on-demand"))
+    assert report["ok"], report["errors"]
+    d1 = message(bus(report, "can0"), "d1_state")
+    assert (d1["kind"], d1["period_us"]) == ("periodic", 100_000.0)
+    assert d1["utilization"] == pytest.approx(0.0108)
+
+
+def test_application_period_within_the_timer_stands(tmp_path: Path) -> None:
+    """Application sends every 20 ms, no longer than the 100 ms timer: the timer, restarted by every send, never
+    runs out, so the TPDO is periodic at 20 ms: 1,080 us / 20 ms = 5.4 %."""
+    report = check(_seam(tmp_path, NO_INHIBIT, "period: 20 ms"))
+    assert report["ok"], report["errors"]
+    d1 = message(bus(report, "can0"), "d1_state")
+    assert (d1["kind"], d1["period_us"], d1["utilization"]) == ("periodic", 20_000.0, pytest.approx(0.054))
+
+
+def test_application_period_beyond_the_timer_falls_to_the_inhibit_time(tmp_path: Path) -> None:
+    """Application sends every 200 ms, the timer at 100 ms runs out between them and may fall just before one: only
+    the 1 ms inhibit time spaces them, as in the seam (108 %)."""
+    report = check(_seam(tmp_path, add="period: 200 ms"))
+    d1 = message(bus(report, "can0"), "d1_state")
+    assert (d1["kind"], d1["interval_us"]) == ("sporadic", 1000.0)
+    assert _errors(report, "overload")
+
+
+def test_the_rule_itself() -> None:
+    """cia301.tpdo_timing for type 255, SYNC 10 ms, timer 100 ms, inhibit 1 ms (10 x 100 us): the cases above, and
+    without a timer the inhibit time stays a floor under the application's own minimum gap (max(20 ms, 1 ms))."""
+    sync = 10 * MS
+    assert cia301.tpdo_timing(255, sync, 100, 10) == ("sporadic", None, 1 * MS)
+    assert cia301.tpdo_timing(254, sync, 100, 10, mit_ns=20 * MS) == ("sporadic", None, 1 * MS)
+    assert cia301.tpdo_timing(255, sync, 100, None) == ("sporadic", None, None)
+    assert cia301.tpdo_timing(255, sync, 100, None, "on-demand") == ("periodic", 100 * MS, None)
+    assert cia301.tpdo_timing(255, sync, 100, None, period_ns=100 * MS) == ("periodic", 100 * MS, None)
+    assert cia301.tpdo_timing(255, sync, None, 10, mit_ns=20 * MS) == (None, None, 20 * MS)
+    assert cia301.tpdo_timing(255, sync, None, 10) == (None, None, 1 * MS)
+
+
+def test_simulator_sends_at_the_inhibit_time(tmp_path: Path) -> None:
+    """The seam at 1 Mbit/s (135 us every 1 ms: 13.5 %, schedulable): runtime.json carries d1_state sporadic at the
+    inhibit time, and the simulator, drawing it at that worst rate, sends it about 200 times in 200 ms (one per ms,
+    +-1 for the random phase and 50 ppm drift); at the event timer it would be 2."""
+    data = yaml.safe_load(_seam(tmp_path).read_text(encoding="utf-8"))
+    data["buses"][0]["bitrate"] = "1 Mbit/s"
+    cfg = runtime_config_of(tmp_path / "spec.yaml", data)
+    d1 = next(m for m in cfg.messages if m.name == "d1_state")
+    assert (d1.kind, d1.interval_ns) == ("sporadic", 1 * MS)
+    _, res = run_once(cfg, SimOptions(duration_ns=200 * MS, seed=1))
+    count = next(m["count"] for m in summary(res)["messages"] if m["name"] == "d1_state")
+    assert 199 <= count <= 201
