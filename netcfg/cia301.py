@@ -18,6 +18,7 @@ TIME_ID = 0x100
 SDO_TX_BASE = 0x580  # server -> client
 SDO_RX_BASE = 0x600  # client -> server
 HEARTBEAT_BASE = 0x700
+HEARTBEAT_TIME = 0x1017  # producer heartbeat time in ms (CiA 301 7.5.2.19)
 LSS_IDS = (0x7E4, 0x7E5)
 
 # Restricted COB-IDs (CiA 301 v4.2, table 74): never to be used for PDOs, whatever nodes exist.

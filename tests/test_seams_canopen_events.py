@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 import yaml
-from conftest import ROOT, bus, check, cli, message, runtime_config_of
+from conftest import ROOT, bus, check, check_data, cli, message, runtime_config_of
 
 from netcfg import cia301
 from netcfg.sim.montecarlo import run_once
@@ -148,3 +148,46 @@ def test_simulator_sends_at_the_inhibit_time(tmp_path: Path) -> None:
     _, res = run_once(cfg, SimOptions(duration_ns=200 * MS, seed=1))
     count = next(m["count"] for m in summary(res)["messages"] if m["name"] == "d1_state")
     assert 199 <= count <= 201
+
+
+# -- heartbeats against the device (as event timers are checked against 0x18xx sub 5)
+
+
+def _heartbeat_spec(tmp_path: Path, eds_text: str, heartbeat: str) -> dict[str, Any]:
+    (tmp_path / "drive.eds").write_text(eds_text, encoding="utf-8")
+    data: dict[str, Any] = yaml.safe_load(_seam(tmp_path).read_text(encoding="utf-8"))
+    data["nodes"][1] = {
+        "name": "d1",
+        "node_id": 1,
+        "device": {"eds": "drive.eds"},
+        "heartbeat": heartbeat,
+        "buses": ["can0"],
+    }
+    data["nodes"] = data["nodes"][:2]
+    data["messages"] = [data["messages"][1] | {"producer": "d1"}]  # the synchronous TPDO only
+    return data
+
+
+def test_heartbeat_on_a_device_with_a_writable_1017_is_accepted(tmp_path: Path) -> None:
+    """drive_et.eds has 0x1017 rw: the heartbeat is the device's to send."""
+    report = check_data(tmp_path, _heartbeat_spec(tmp_path, EDS.read_text(encoding="utf-8"), "100 ms"))
+    assert report["ok"], report["errors"]
+
+
+@pytest.mark.parametrize(("heartbeat", "ok"), [("100 ms", True), ("50 ms", False)])
+def test_read_only_1017_holds_only_its_own_value(tmp_path: Path, heartbeat: str, ok: bool) -> None:
+    """0x1017 read-only with default 100 (ms): a 100 ms heartbeat needs no write; 50 ms would need one the device
+    refuses, so it is an error at the node's heartbeat key."""
+    text = EDS.read_text(encoding="utf-8")
+    block = text[text.index("[1017]") :]
+    block = block[: block.index("\n\n")]
+    text = text.replace(block, block.replace("AccessType=rw", "AccessType=ro"))
+    report = check_data(tmp_path, _heartbeat_spec(tmp_path, text, heartbeat))
+    if ok:
+        assert report["ok"], report["errors"]
+    else:
+        saved = (tmp_path / "spec.yaml").read_text(encoding="utf-8").splitlines()
+        line = next(k for k, text in enumerate(saved, 1) if text.strip().startswith("heartbeat:"))
+        errors = [(e["code"], e["line"]) for e in report["errors"]]
+        assert errors == [("heartbeat", line)]
+        assert "not writable" in report["errors"][0]["message"]

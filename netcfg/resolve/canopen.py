@@ -297,6 +297,24 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
         return None
 
 
+def device_has_heartbeat(r: Resolver, dev: DeviceProfile | None, hb_ns: int, path: Path) -> bool:
+    """A node's heartbeat is its producer heartbeat time (0x1017), which the DCF sets and the master writes by SDO: the
+    device must have it writable, or hold that very value, as the event timer is checked against 0x18xx sub 5."""
+    if dev is None:
+        return True
+    entry = dev.lookup(cia301.HEARTBEAT_TIME, 0)
+    if entry is not None and (entry.writable or entry.default == hb_ns // 1_000_000):
+        return True
+    why = "has no producer heartbeat time (0x1017)" if entry is None else f"has 0x1017 {entry.access} (not writable)"
+    r.err(
+        "heartbeat",
+        f"device {dev.name} ({dev.source}) {why}: it cannot send this heartbeat, and the master's SDO write of it "
+        "would abort; drop 'heartbeat' from this node",
+        path,
+    )
+    return False
+
+
 def sync_task(r: Resolver, node: str, t: schema.Task, path: Path, period: int | None) -> tuple[str | None, int | None]:
     """A SYNC-driven task takes its period from its node's CANopen bus."""
     buses = [b for b in r.spec_nodes[node].buses if b in r.model.buses and r.model.buses[b].canopen]

@@ -263,6 +263,9 @@ class Resolver:
                     (*path, "heartbeat_timeout"),
                 )
                 hb_timeout = None
+            whole_ms = hb is not None and not hb % 1_000_000 and hb <= 65_535_000_000
+            if hb and whole_ms and not canopen.device_has_heartbeat(self, device, hb, (*path, "heartbeat")):
+                hb = hb_timeout = None  # reported; no heartbeat the device cannot send
             if hb and hb_timeout is None:
                 # Lely dcfgen's default heartbeat_multiplier (3.0): two heartbeats may be lost; 0x1016 holds 16 bits
                 hb_timeout = min(3 * hb, 65_535_000_000)
