@@ -11,6 +11,7 @@ Frame figures: an 8-byte classical frame with 11-bit id is 135 bits worst case (
 from __future__ import annotations
 
 import shutil
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -191,3 +192,75 @@ def test_read_only_1017_holds_only_its_own_value(tmp_path: Path, heartbeat: str,
         errors = [(e["code"], e["line"]) for e in report["errors"]]
         assert errors == [("heartbeat", line)]
         assert "not writable" in report["errors"][0]["message"]
+
+
+# -- the live master and the simulated drives (`netcfg run --simulated-drives`)
+
+EFFORT_SYNC = 'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2"]}'
+EFFORT_EVENT = 'pdo: {tpdo: 2, transmission: 255, event_timer: 40 ms, inhibit: 10 ms, map: [0x6077, "0x30D1:2"]}'
+CYCLES = 25  # x ALLEX-2's 20 ms SYNC period: 0.5 s of cycle
+
+
+@pytest.fixture(scope="module")
+def event_build(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """specs/allex2.yaml with hip_l on drive_et.eds (the EPOS4's objects with the TPDO event timer, sub 5) and its
+    hip_l_effort TPDO event-driven: type 255, event timer 40 ms, inhibit 10 ms; built as `netcfg build` does."""
+    from netcfg.cli import main
+
+    folder = tmp_path_factory.mktemp("event_build")
+    shutil.copy(EDS, folder / EDS.name)
+    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
+    assert text.count(EFFORT_SYNC) == 6 and text.count("    device: epos4\n") == 6
+    text = text.replace(EFFORT_SYNC, EFFORT_EVENT, 1)  # the first: hip_l_effort
+    text = text.replace("    device: epos4\n", "    device: {eds: drive_et.eds}\n", 1)  # the first: hip_l
+    (folder / "spec.yaml").write_text(text, encoding="utf-8")
+    assert main(["build", str(folder / "spec.yaml"), "-o", str(folder / "out")]) == 0
+    return folder / "out"
+
+
+def _operate(out: Path, channel: str, **hip_l: Any) -> tuple[Any, Any]:
+    import can
+
+    import netcfg.runtime as rt
+    from netcfg.runtime.drives import DriveBench
+    from netcfg.runtime.operate import BusLog, Plan, operate
+
+    cfg = rt.load(out / "runtime.json")
+    options = {"hip_l": hip_l} if hip_l else None
+    with (
+        DriveBench(cfg, out / "canopen", channel=channel, options=options) as bench,
+        BusLog(can.Bus(interface="virtual", channel=channel), None) as bus,
+    ):
+        outcome = operate(cfg, bus, Plan(cycles=CYCLES))
+        sent = dict(bench["hip_l"].event_tpdos_sent)
+    return outcome, sent
+
+
+def test_simulated_drive_sends_its_event_tpdo_per_event_timer(event_build: Path) -> None:
+    """The drive is OPERATIONAL for at least the 0.5 s of cycle; its event timer sends TPDO2 whenever it has been
+    silent 40 ms, so at least 0.5 / 0.04 - 1 = 11 sends (more: set-up and CiA 402 enabling come first); the
+    master, allowing the timer plus the analysed response time, reports nothing and the run is ok."""
+    from netcfg.run_cli import result_document
+
+    outcome, sent = _operate(event_build, f"events-ok-{uuid.uuid4().hex[:8]}")
+    assert outcome.run is not None and outcome.run.cycles == CYCLES
+    assert sent.get(2, 0) >= 11
+    assert [e for _, e in outcome.events if e.kind == "tpdo-silent"] == []
+    assert result_document(outcome)["ok"] is True
+
+
+def test_master_reports_a_tpdo_silent_beyond_its_event_timer(event_build: Path) -> None:
+    """A drive that ignores its event timer sends TPDO2 only on application events: its mapped torque and current
+    stay 0 under the bench's velocity model, so once, at the first SYNC. The master reports it silent beyond its
+    40 ms event timer once (0.5 s of cycle leave no doubt), for hip_l, without stopping anything, and the run is not
+    ok."""
+    from netcfg.run_cli import result_document
+
+    outcome, sent = _operate(event_build, f"events-mute-{uuid.uuid4().hex[:8]}", no_event_timer=True)
+    assert outcome.run is not None and outcome.run.cycles == CYCLES
+    assert sent.get(2, 0) <= 1
+    silent = [(e.node, e.kind, e.action) for _, e in outcome.events if e.kind == "tpdo-silent"]
+    assert silent == [("hip_l", "tpdo-silent", "continue")]
+    assert "hip_l_effort" in next(e.text for _, e in outcome.events if e.kind == "tpdo-silent")
+    doc = result_document(outcome)
+    assert doc["ok"] is False and any(e["kind"] == "tpdo-silent" for e in doc["events"])
