@@ -264,3 +264,29 @@ def test_master_reports_a_tpdo_silent_beyond_its_event_timer(event_build: Path) 
     assert "hip_l_effort" in next(e.text for _, e in outcome.events if e.kind == "tpdo-silent")
     doc = result_document(outcome)
     assert doc["ok"] is False and any(e["kind"] == "tpdo-silent" for e in doc["events"])
+
+
+def test_bus_yml_import_of_an_event_timer_tpdo_without_inhibit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The seam at 1 Mbit/s built, its bus.yml's d1 TPDO1 given inhibit_time 0, imported back: nothing bounds the
+    application's sends, so the importer says to give the TPDO an inhibit time (a min_interarrival would not do, see
+    above) and makes it on-demand; check then counts the timer's own sends, periodic at its 100 ms."""
+    from netcfg.cli import main
+
+    data = yaml.safe_load(_seam(tmp_path).read_text(encoding="utf-8"))
+    data["buses"][0]["bitrate"] = "1 Mbit/s"
+    (tmp_path / "spec.yaml").write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    assert main(["build", str(tmp_path / "spec.yaml"), "-o", str(tmp_path / "out")]) == 0
+    bus_yml = tmp_path / "out" / "canopen" / "bus.yml"
+    text = bus_yml.read_text(encoding="utf-8")
+    assert text.count("inhibit_time: 10\n") == 1  # d1's TPDO1: 1 ms in units of 100 us
+    bus_yml.write_text(text.replace("inhibit_time: 10\n", "inhibit_time: 0\n"), encoding="utf-8")
+    capsys.readouterr()
+    assert main(["import", "bus-yml", str(bus_yml), "-o", str(tmp_path / "back.yaml")]) == 0
+    warned = capsys.readouterr().err
+    assert "[bus-yml-timing]" in warned and "give the TPDO an inhibit_time" in warned
+    report = check(tmp_path / "back.yaml")
+    assert report["ok"], report["errors"]
+    d1 = message(bus(report, "can0"), "d1_state")
+    assert (d1["kind"], d1["period_us"]) == ("periodic", 100_000.0)

@@ -787,15 +787,18 @@ class BusYmlImporter:
             if kind_of != "on-demand":
                 return []  # netcfg derives the timing from the transmission type, event timer and inhibit time
             message["type"] = "on-demand"
+            # with an event timer only an inhibit time can bound it (cia301.tpdo_timing), without one a min_interarrival
+            fix = "the TPDO an inhibit_time" if event else "the spec's message a min_interarrival"
             self.warn(
                 "bus-yml-timing",
                 f"TPDO '{message['name']}' (transmission type {tt}) has no inhibit time: netcfg cannot bound how "
                 "often it is sent on events and leaves those out of the load (type: on-demand; an event timer's own "
-                "sends are counted); give the spec's message a min_interarrival (or the TPDO an inhibit time, with an "
-                "event timer) if it is sent on events in operation",
+                f"sends are counted); give {fix} if it is sent on events in operation",
                 where,
                 key=True,
             )
+            if event:
+                return ["sent on events with no bound on their rate (not in the load) and every event_timer"]
             return ["sent on events only, with no bound on its rate: on-demand (not in the steady-state load)"]
         if kind_of == "sporadic":
             message["min_interarrival"] = duration((interval or 0) // 1000)
