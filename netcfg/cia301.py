@@ -18,6 +18,7 @@ TIME_ID = 0x100
 SDO_TX_BASE = 0x580  # server -> client
 SDO_RX_BASE = 0x600  # client -> server
 HEARTBEAT_BASE = 0x700
+HEARTBEAT_TIME = 0x1017  # producer heartbeat time in ms (CiA 301 7.5.2.19)
 LSS_IDS = (0x7E4, 0x7E5)
 
 # Restricted COB-IDs (CiA 301 v4.2, table 74): never to be used for PDOs, whatever nodes exist.
@@ -161,19 +162,33 @@ def tpdo_timing(
     mit_ns: int | None = None,
 ) -> tuple[Literal["periodic", "sporadic", "on-demand"] | None, int | None, int | None]:
     """When a TPDO goes out (0x1800: sub 2 transmission type, sub 3 inhibit time, sub 5 event timer) ->
-    (kind, period_ns, minimum inter-arrival ns); kind stays None when nothing but the inhibit time bounds it.
+    (kind, period_ns, minimum inter-arrival ns); kind stays None when nothing but the inhibit time bounds it, and an
+    event-timer TPDO that nothing bounds comes back sporadic with no minimum inter-arrival.
 
     Types 1-240 send on every n-th SYNC, whatever period was given; type 0 (acyclic synchronous) at most once per
-    SYNC; 254/255 with an event timer every event timer. A period or minimum inter-arrival time given by the spec
-    stands for the others, and the inhibit time is a floor under the gap between event-driven sends."""
+    SYNC. Types 254/255 send on every application event, which the spec's period or minimum inter-arrival describes;
+    the inhibit time is a floor under the gap between two sends, whatever caused them. The event timer (CiA 301
+    7.3.3, 0x1800 sub 5) is one more event, due when the TPDO has been silent that long: it adds sends and never
+    bounds them. So with an event timer:
+    - application events only outside the steady state (on-demand): the timer alone sends, every event timer;
+    - application events every period, no longer than the event timer: the timer, restarted by every send, never
+      runs out, and the period stands;
+    - otherwise the timer may run out just before an application event, and only the inhibit time spaces the two:
+      sporadic at the inhibit time (the spec's minimum inter-arrival, about the application alone, cannot)."""
+    timer_ns = (event_timer_ms or 0) * 1_000_000
+    inhibit_ns = (inhibit_100us or 0) * 100_000
     if 1 <= transmission <= 240:
         period_ns, kind = transmission * sync_ns, kind or "periodic"
     elif transmission == 0 and period_ns is None and mit_ns is None:
         mit_ns, kind = sync_ns, kind or "sporadic"
-    elif transmission >= 254 and event_timer_ms and period_ns is None and mit_ns is None:
-        period_ns, kind = event_timer_ms * 1_000_000, kind or "periodic"
+    elif transmission >= 254 and timer_ns:
+        if kind == "on-demand":
+            return "periodic", timer_ns, None
+        if period_ns is not None and kind != "sporadic" and period_ns <= timer_ns:
+            return "periodic", period_ns, None
+        return "sporadic", None, inhibit_ns or None
     if inhibit_100us and kind != "periodic":
-        mit_ns = max(mit_ns or 0, inhibit_100us * 100_000)
+        mit_ns = max(mit_ns or 0, inhibit_ns)
     return kind, period_ns, mit_ns
 
 

@@ -407,6 +407,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
         and run is not None
         and all(n["missing"] == 0 and not n["lost"] and not n["emcy"] and not n["errors"] for n in started)
         and not read["overruns"]
+        and not any(e.kind == "tpdo-silent" for _, e in outcome.events)
     )
     return {
         "system": system,

@@ -86,6 +86,7 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "pdo_readonly_in_rpdo.yaml": (26, "pdo-direction", "read-only"),
     "tpdo_number_above_device.yaml": (30, "pdo-number", "TPDO 5 does not exist"),
     "epos4_event_timer.yaml": (31, "event-timer", "no TPDO event timer"),
+    "heartbeat_not_on_device.yaml": (17, "heartbeat", "no producer heartbeat time (0x1017)"),
     "unknown_device_profile.yaml": (16, "unknown-device", "'epos9'"),
     "eds_file_missing.yaml": (16, "eds-missing", "not found"),
     "ftt_period_not_ec_multiple.yaml": (23, "ec-multiple", "not a whole number"),

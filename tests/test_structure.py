@@ -2,8 +2,9 @@
 
 Sources of the numbers:
 * CiA 301 v4.2, object 0x1800 (TPDO communication parameter): sub 2 transmission type (1-240: every n-th SYNC;
-  0: acyclic synchronous, at most once per SYNC; 254/255: event-driven, timed by sub 5), sub 3 inhibit time in
-  units of 100 us, sub 5 event timer in ms;
+  0: acyclic synchronous, at most once per SYNC; 254/255: event-driven, on application events and on sub 5's
+  timer, CiA 301 7.3.3), sub 3 inhibit time in units of 100 us (the least gap between two sends), sub 5 event timer
+  in ms (due after that long without a send);
 * seed 000: ALLEX-2's SYNC period of 20 ms;
 * specs/ntua_sahr.yaml: mcu_hip.sample runs every 66,667 ns and the flow hip_loop chains it to hip_encoder, sent at
   15 kHz (seed 001 section 6.3.2), i.e. every round(1e9 / 15,000) = 66,667 ns: the same rate.
@@ -35,11 +36,13 @@ def test_every_protocol_of_the_spec_language_has_a_resolver() -> None:
 
 def test_tpdo_timing_by_transmission_type() -> None:
     """CiA 301 0x1800: type 3 every 3rd SYNC (60 ms); type 0 at most once per SYNC; type 254 with a 10 ms event
-    timer every 10 ms; type 255 without a timer but with an inhibit time of 50 x 100 us: at most every 5 ms; type
-    255 with neither: nothing bounds it."""
+    timer: the timer adds sends to the application's, so only an inhibit time bounds it (50 x 100 us: every 5 ms;
+    none: sporadic with no bound); type 255 without a timer but with an inhibit time of 50 x 100 us: at most every
+    5 ms; type 255 with neither: nothing bounds it."""
     assert cia301.tpdo_timing(3, SYNC_NS, None, None) == ("periodic", 60_000_000, None)
     assert cia301.tpdo_timing(0, SYNC_NS, None, None) == ("sporadic", None, SYNC_NS)
-    assert cia301.tpdo_timing(254, SYNC_NS, 10, None) == ("periodic", 10_000_000, None)
+    assert cia301.tpdo_timing(254, SYNC_NS, 10, None) == ("sporadic", None, None)
+    assert cia301.tpdo_timing(254, SYNC_NS, 10, 50) == ("sporadic", None, 5_000_000)
     assert cia301.tpdo_timing(255, SYNC_NS, None, 50) == (None, None, 5_000_000)
     assert cia301.tpdo_timing(255, SYNC_NS, None, None) == (None, None, None)
     # a synchronous type fixes the period whatever was given; the inhibit time is a floor for event-driven ones

@@ -32,11 +32,12 @@ Mapping (spec <- bus.yml):
   0x680 upwards in its processing order (file order; alphabetical node order after ros2_canopen's preprocessor);
   any other COB-ID becomes `id` (bit 29 = extended; bit 30, no RTR, is dropped). inhibit_time is in 100 us,
   event_timer in ms (CiA 301).
-- timing: TPDOs are timed by their transmission type (netcfg derives it); an event-driven TPDO with neither event
-  timer nor inhibit time has no bound on its rate and becomes `type: on-demand` (warning). An RPDO is sent by the
-  master: synchronous types every n SYNC periods, type 0 at most once per SYNC, event-driven ones with event_timer
-  every event_timer (dcfgen gives the master's mirrored TPDO that timer), without one once per SYNC period: the
-  ros2_canopen drivers write their targets every control cycle, which runs on the SYNC period.
+- timing: TPDOs are timed by their transmission type (netcfg derives it); an event-driven TPDO without an inhibit
+  time has no bound on its rate and becomes `type: on-demand` (warning; an event timer's sends are still counted).
+  An RPDO is sent by the master: synchronous types every n SYNC periods, type 0 at most once per SYNC,
+  event-driven ones with event_timer every event_timer (dcfgen gives the master's mirrored TPDO that timer),
+  without one once per SYNC period: the ros2_canopen drivers write their targets every control cycle, which runs on
+  the SYNC period.
 - `sdo` writes: netcfg does not send SDOs; they stay as comments with one warning per node, and a write to an
   object netcfg configures itself (SYNC 0x1005-0x1007, heartbeat 0x1017, PDO parameters 0x1400-0x1BFF) contradicts
   the timing netcfg proves: an error (with --lenient a warning).
@@ -797,14 +798,18 @@ class BusYmlImporter:
             if kind_of != "on-demand":
                 return []  # netcfg derives the timing from the transmission type, event timer and inhibit time
             message["type"] = "on-demand"
+            # with an event timer only an inhibit time can bound it (cia301.tpdo_timing), without one a min_interarrival
+            fix = "the TPDO an inhibit_time" if event else "the spec's message a min_interarrival"
             self.warn(
                 "bus-yml-timing",
-                f"TPDO '{message['name']}' (transmission type {tt}) has neither event timer nor inhibit time: "
-                "netcfg cannot bound how often it is sent and leaves it out of the load (type: on-demand); give the "
-                "spec's message a min_interarrival if it is sent in operation",
+                f"TPDO '{message['name']}' (transmission type {tt}) has no inhibit time: netcfg cannot bound how "
+                "often it is sent on events and leaves those out of the load (type: on-demand; an event timer's own "
+                f"sends are counted); give {fix} if it is sent on events in operation",
                 where,
                 key=True,
             )
+            if event:
+                return ["sent on events with no bound on their rate (not in the load) and every event_timer"]
             return ["sent on events only, with no bound on its rate: on-demand (not in the steady-state load)"]
         if kind_of == "sporadic":
             message["min_interarrival"] = duration((interval or 0) // 1000)

@@ -113,7 +113,7 @@ class CanopenProtocol(CanProtocol):
         period: int | None,
         mit: int | None,
         path: Path,
-    ) -> tuple[MessageKind | None, int | None, int | None]:
+    ) -> tuple[MessageKind | None, int | None, int | None] | None:
         # CANopen PDOs: the transmission type says when a TPDO goes out (CiA 301, 0x1800 sub 2).
         if pdo.kind != "tpdo" or bus.canopen is None:
             return kind, period, mit
@@ -126,7 +126,28 @@ class CanopenProtocol(CanProtocol):
                 f"{format_ns(tt * sync)}; the period {format_ns(period)} disagrees (drop it)",
                 (*path, "period"),
             )
-        return cia301.tpdo_timing(tt, sync, pdo.event_timer_ms, pdo.inhibit_100us, kind, period, mit)
+        timing = cia301.tpdo_timing(tt, sync, pdo.event_timer_ms, pdo.inhibit_100us, kind, period, mit)
+        if timing[0] == "sporadic" and timing[2] is None and pdo.event_timer_ms:
+            node = self.r.model.nodes.get(pdo.device_node)
+            dev = node.device if node is not None else None
+            if dev is not None and not dev.tpdo_event_timer:
+                return None  # a timer the device lacks is reported at the PDO
+            fix = (
+                "give it an 'inhibit' time (the shortest gap the bus can take; the device holds every send to it)"
+                if dev is None or dev.tpdo_inhibit_time
+                else f"device {dev.name} has no inhibit time, so drop the event timer and give 'min_interarrival'"
+            )
+            said = ", whatever 'min_interarrival' says of the application," if mit is not None else ""
+            self.r.err(
+                "event-timer",
+                f"TPDO {pdo.number} (transmission type {tt}) is sent on every application event and whenever its "
+                f"event timer runs out; the timer may run out just before an application event{said} so only an "
+                f"inhibit time (0x18xx sub-index 3) bounds how often it is sent: {fix}, or say 'type: on-demand' if "
+                "application events come only at start-up and mode changes",
+                (*path, "pdo", "event_timer"),
+            )
+            return None
+        return timing
 
     def message_id(self, m: schema.Message, pdo: model.Pdo | None, path: Path) -> int | None:
         ident = m.id
@@ -321,6 +342,24 @@ def _with_objects(r: Resolver, base: DeviceProfile, device: schema.ProfileDevice
             default=o.default,
         )
     return dataclasses.replace(base, name=base.name, source=f"spec:{device.profile}", objects=objects)
+
+
+def device_has_heartbeat(r: Resolver, dev: DeviceProfile | None, hb_ns: int, path: Path) -> bool:
+    """A node's heartbeat is its producer heartbeat time (0x1017), which the DCF sets and the master writes by SDO: the
+    device must have it writable, or hold that very value, as the event timer is checked against 0x18xx sub 5."""
+    if dev is None:
+        return True
+    entry = dev.lookup(cia301.HEARTBEAT_TIME, 0)
+    if entry is not None and (entry.writable or entry.default == hb_ns // 1_000_000):
+        return True
+    why = "has no producer heartbeat time (0x1017)" if entry is None else f"has 0x1017 {entry.access} (not writable)"
+    r.err(
+        "heartbeat",
+        f"device {dev.name} ({dev.source}) {why}: it cannot send this heartbeat, and the master's SDO write of it "
+        "would abort; drop 'heartbeat' from this node",
+        path,
+    )
+    return False
 
 
 def sync_task(r: Resolver, node: str, t: schema.Task, path: Path, period: int | None) -> tuple[str | None, int | None]:

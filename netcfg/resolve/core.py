@@ -265,6 +265,9 @@ class Resolver:
                     (*path, "heartbeat_timeout"),
                 )
                 hb_timeout = None
+            whole_ms = hb is not None and not hb % 1_000_000 and hb <= 65_535_000_000
+            if hb and whole_ms and not canopen.device_has_heartbeat(self, device, hb, (*path, "heartbeat")):
+                hb = hb_timeout = None  # reported; no heartbeat the device cannot send
             if hb and hb_timeout is None:
                 # Lely dcfgen's default heartbeat_multiplier (3.0): two heartbeats may be lost; 0x1016 holds 16 bits
                 hb_timeout = min(3 * hb, 65_535_000_000)
@@ -521,7 +524,10 @@ class Resolver:
             period = round(1_000_000_000 / rate)  # at least 1: units.parse_frequency admits at most 1 GHz
         kind = m.type
         if pdo is not None:
-            kind, period, mit = rules.pdo_timing(pdo, bus, kind, period, mit, path)
+            timing = rules.pdo_timing(pdo, bus, kind, period, mit, path)
+            if timing is None:
+                return None
+            kind, period, mit = timing
         if kind is None:
             if period is not None:
                 kind = "periodic"
@@ -548,7 +554,8 @@ class Resolver:
             if mit is None or mit <= 0:
                 self.err("min-interarrival", "a sporadic message needs 'min_interarrival' above zero", path)
                 return None
-            if m.period is not None or m.rate is not None:
+            # a PDO's own settings may make a message with a period sporadic (an event timer between its sends)
+            if (m.period is not None or m.rate is not None) and (pdo is None or m.type == "sporadic"):
                 self.err(
                     "message-type",
                     "sporadic messages have 'min_interarrival', not a period",

@@ -60,8 +60,9 @@ class BusProtocol:
         period: int | None,
         mit: int | None,
         path: Path,
-    ) -> tuple[MessageKind | None, int | None, int | None]:
-        """-> (kind, period, min. interarrival) after the PDO's own timing settings."""
+    ) -> tuple[MessageKind | None, int | None, int | None] | None:
+        """-> (kind, period, min. interarrival) after the PDO's own timing settings; None when they leave the rate
+        unbounded (reported here)."""
         return kind, period, mit
 
     def release_offset(

@@ -116,7 +116,8 @@ class MasterCycle:
 
     `timing` is a simulator's hook (None on real hardware, where time passes by itself): how long the computation
     takes in virtual time, and how late each wait ends. `on_frame` sees every frame the cycle does not take itself
-    (heartbeats, EMCY, ...) with the clock's time, `after_cycle` each cycle's record (False ends the run there):
+    (heartbeats, EMCY, ...) and every event-driven TxPDO (types 254/255, whose event timers supervision watches)
+    with the clock's time, `after_cycle` each cycle's record (False ends the run there):
     supervision and a live view hang on them.
 
     With a SYNC counter on the bus (runtime.json's sync_overflow, CiA 301 0x1019) the SYNC carries one byte: 1 on
@@ -193,6 +194,7 @@ class MasterCycle:
         self._due_every = math.lcm(*self._every.values())  # the pattern of due TxPDOs repeats this often
         self._due_at: dict[int, tuple[str, ...]] = {}  # sync_number % _due_every -> due TxPDOs (_due)
         self._by_id = {(m.id, m.extended): m for m in tpdos}
+        self._event_ids = {(m.id, m.extended) for m in tpdos if m.pdo is not None and m.pdo.transmission >= 254}
         self._last: dict[str, dict[str, Number]] = {m.name: _rest_values(m) for m in self.rpdos}
         self._rpdo_names = {m.name for m in self.rpdos}
         self._frames: dict[str, can.Message] = {}  # RxPDO -> its frame for the values in _last (_frame)
@@ -261,9 +263,10 @@ class MasterCycle:
             # anything already queued cannot answer the SYNC about to go out
             late = other = 0
             while (stale := bus.recv(timeout=0)) is not None:
-                if (stale.arbitration_id, bool(stale.is_extended_id)) in self._by_id:
+                key = (stale.arbitration_id, bool(stale.is_extended_id))
+                if key in self._by_id and key not in self._event_ids:
                     late += 1
-                else:
+                else:  # an event-driven TxPDO answers no SYNC: it is not late
                     other += 1
                     if self.on_frame is not None:
                         self.on_frame(stale, clock.now())
@@ -304,6 +307,8 @@ class MasterCycle:
                     if self.on_frame is not None:
                         self.on_frame(frame, t)
                     continue
+                if self.on_frame is not None and (got.id, got.extended) in self._event_ids:
+                    self.on_frame(frame, t)  # taken as a sample too, and seen by supervision
                 if got.name in arrivals:
                     duplicates[got.name] += 1
                     continue

@@ -6,6 +6,9 @@ server and an NMT slave; this module adds what a LocalNode does not do on its ow
 - it answers each SYNC with its synchronous TPDOs (transmission type n: every n-th SYNC since it entered
   OPERATIONAL; type 0: on a SYNC after the mapped data changed), built from the PDO configuration in its own object
   dictionary as the master wrote it over SDO, so a wrong configuration shows up on the wire;
+- it sends its event-driven TPDOs (types 254/255) on application events, taken to be a change of the mapped values
+  seen at a SYNC, and whenever one has been silent for its event timer (0x18xx sub 5), never sooner than its inhibit
+  time (sub 3) after its last send, as CiA 301 7.3.3 has it;
 - it applies received RPDOs to its object dictionary (types 0-240 at the next SYNC, 254/255 at once);
 - it checks PDO writes the way CiA 301 devices do (mapping changed only while the PDO is disabled and sub-index 0 is 0,
   only mappable objects, at most 64 bits), so a master that skips a step fails here as it would on a drive;
@@ -154,6 +157,12 @@ class _PdoSlot:
     transmission: int
     sync_start: int
     entries: tuple[tuple[int, int, int], ...]  # (index, sub, bits)
+    inhibit_100us: int = 0  # TPDOs: sub 3, the least gap between two sends
+    event_timer_ms: int = 0  # TPDOs: sub 5, a send due after this long without one (0: off)
+
+    @property
+    def event_driven(self) -> bool:
+        return self.valid and bool(self.entries) and self.transmission >= 254
 
     @property
     def bits(self) -> int:
@@ -181,7 +190,8 @@ class SimulatedDrive:
 
     Faults (for tests): `identity=(vendor_id, product_code)` puts other values in 0x1018; `silent=True` answers
     nothing at all (a drive that is off, or has another node id or bit rate); `abort_writes={index: abort_code}`
-    aborts every SDO write to those objects with that code.
+    aborts every SDO write to those objects with that code; `no_event_timer=True` ignores the TPDOs' event timers
+    (a firmware without them that accepts the write anyway).
 
     `response_delay_s`: the TPDOs answering a SYNC are sampled when it arrives and sent that long after it (measured
     on `clock`, which must count real seconds), from a ResponseScheduler thread: the bench's, shared by its drives,
@@ -202,6 +212,7 @@ class SimulatedDrive:
         identity: tuple[int, int] | None = None,
         silent: bool = False,
         abort_writes: Mapping[int, int] | None = None,
+        no_event_timer: bool = False,
     ) -> None:
         od = object_dictionary if isinstance(object_dictionary, canopen.ObjectDictionary) else str(object_dictionary)
         self.node = canopen.LocalNode(node_id, od)
@@ -212,6 +223,7 @@ class SimulatedDrive:
         self.model = model
         self.silent = silent
         self.abort_writes = dict(abort_writes or {})
+        self.no_event_timer = no_event_timer
         self.network: canopen.Network | None = None
         self.bus: can.BusABC | None = None
         self._notifier: can.Notifier | None = None
@@ -221,6 +233,7 @@ class SimulatedDrive:
         self.sdo_writes: list[tuple[int, int]] = []  # accepted SDO writes, in order
         self.syncs = 0  # SYNCs received while OPERATIONAL
         self.tpdos_sent = 0
+        self.event_tpdos_sent: dict[int, int] = {}  # event-driven TPDO number -> sends
         self.rpdos_applied = 0
         self.rpdo_length_errors = 0  # CiA 301 would send EMCY 0x8210
         self.errors: list[str] = []
@@ -233,6 +246,12 @@ class SimulatedDrive:
         self._sync_started: set[int] = set()
         self._last_acyclic: dict[int, bytes] = {}
         self._pending: dict[int, tuple[_PdoSlot, bytes]] = {}
+        # event-driven TPDOs, shared by the frame thread (application events at SYNC) and the scheduler (timers)
+        self._event_lock = threading.Lock()
+        self._event_epoch = 0  # counts entries to OPERATIONAL: timers of an earlier one do nothing
+        self._event_last: dict[int, float] = {}  # TPDO number -> its last send (or the entry to OPERATIONAL)
+        self._event_sent: dict[int, bytes] = {}  # TPDO number -> the payload it last sent
+        self._event_held: set[int] = set()  # TPDOs with an application event held back by the inhibit time
 
         # the PDO slots the object dictionary has (0-based), looked up once
         self._rx_slots = tuple(n for n in range(PDO_SLOTS) if self.has(RPDO_COMM + n, 1))
@@ -386,6 +405,8 @@ class SimulatedDrive:
             transmission=self._int(comm + n, 2, 255),
             sync_start=self._int(comm + n, 6),
             entries=tuple(entries),
+            inhibit_100us=self._int(comm + n, 3) if comm == TPDO_COMM else 0,
+            event_timer_ms=self._int(comm + n, 5) if comm == TPDO_COMM else 0,
         )
 
     def _rebuild(self) -> None:
@@ -523,6 +544,7 @@ class SimulatedDrive:
             self._last_acyclic.clear()
             self._pending.clear()
             self._rebuild()
+            self._start_event_timers()
 
     def _on_sync(self, data: bytes) -> None:
         assert self.network is not None
@@ -540,6 +562,8 @@ class SimulatedDrive:
             self.model(self)
         answers: list[tuple[_PdoSlot, bytes]] = []
         for slot in self._tpdos:
+            if slot.event_driven:
+                self._application_event(slot)
             if not slot.valid or not slot.entries:
                 continue
             every = cia301.sync_every(slot.transmission)
@@ -568,6 +592,89 @@ class SimulatedDrive:
         else:
             for slot, payload in answers:
                 self._send(slot, payload)
+
+    # --- event-driven TPDOs (CiA 301 7.3.3) ------------------------------------------------------------------------
+
+    def _start_event_timers(self) -> None:
+        """Entering OPERATIONAL: every event-driven TPDO's timer starts now."""
+        now = self.clock.now()
+        with self._event_lock:
+            self._event_epoch += 1
+            self._event_last.clear()
+            self._event_sent.clear()
+            self._event_held.clear()
+            for slot in self._tpdos:
+                if slot.event_driven:
+                    self._event_last[slot.number] = now
+                    if slot.event_timer_ms and not self.no_event_timer:
+                        self._later(slot.event_timer_ms / 1e3, slot.number, self._timer_due)
+
+    def _later(self, delay_s: float, number: int, action: Callable[[int, int], None]) -> None:
+        if self._scheduler is not None:
+            epoch = self._event_epoch
+            self._scheduler.call_later(max(delay_s, 0.0), lambda: self._guarded(action, number, epoch))
+
+    def _guarded(self, action: Callable[[int, int], None], number: int, epoch: int) -> None:
+        try:
+            action(number, epoch)
+        except Exception as exc:  # kept like on_frame's: the scheduler goes on
+            log.exception("%s: error in TPDO%d's timing", self.name, number)
+            self.errors.append(f"TPDO{number}: {exc!r}")
+
+    def _event_slot(self, number: int, epoch: int) -> _PdoSlot | None:
+        """The TPDO as the drive holds it now, if its timers still apply (same spell in OPERATIONAL, event-driven)."""
+        if epoch != self._event_epoch or self.silent or self.node.nmt.state != "OPERATIONAL":
+            return None
+        slot = next((s for s in self._tpdos if s.number == number), None)
+        return slot if slot is not None and slot.event_driven else None
+
+    def _application_event(self, slot: _PdoSlot) -> None:
+        """A SYNC saw the mapped values: changed since the last send, that is an application event; it goes out now
+        or, within the inhibit time of the last send, once that has passed."""
+        payload = self._pack(slot)
+        with self._event_lock:
+            if self._event_sent.get(slot.number) == payload or slot.number in self._event_held:
+                return
+            wait = slot.inhibit_100us / 1e4 - (self.clock.now() - self._event_last.get(slot.number, -1e9))
+            if wait > 0:
+                self._event_held.add(slot.number)
+                self._later(wait, slot.number, self._inhibit_over)
+                return
+            self._event_send(slot, payload)
+
+    def _inhibit_over(self, number: int, epoch: int) -> None:
+        with self._event_lock:
+            self._event_held.discard(number)
+            slot = self._event_slot(number, epoch)
+            if slot is not None:
+                self._event_send(slot, self._pack(slot))
+
+    def _timer_due(self, number: int, epoch: int) -> None:
+        """The event timer: a send when the TPDO has been silent that long (the inhibit time permitting), and the next
+        expiry one timer after the last send, whatever caused it."""
+        with self._event_lock:
+            slot = self._event_slot(number, epoch)
+            if slot is None or not slot.event_timer_ms:
+                return
+            timer_s, inhibit_s = slot.event_timer_ms / 1e3, slot.inhibit_100us / 1e4
+            silent = self.clock.now() - self._event_last.get(number, 0.0)
+            if silent < timer_s - 1e-6:
+                wait = timer_s - silent  # a send since restarted it
+            elif silent < inhibit_s:
+                wait = inhibit_s - silent  # due, but held back by the inhibit time
+            elif number in self._event_held:
+                wait = timer_s  # a held application event goes out now and restarts the timer
+            else:
+                self._event_send(slot, self._pack(slot))
+                wait = timer_s
+            self._later(wait, number, self._timer_due)
+
+    def _event_send(self, slot: _PdoSlot, payload: bytes) -> None:
+        """Under _event_lock: one send of an event-driven TPDO; its timer restarts."""
+        self._event_last[slot.number] = self.clock.now()
+        self._event_sent[slot.number] = payload
+        self._send(slot, payload)
+        self.event_tpdos_sent[slot.number] = self.event_tpdos_sent.get(slot.number, 0) + 1
 
     def _send(self, slot: _PdoSlot, payload: bytes) -> None:
         network, bus = self.network, self.bus

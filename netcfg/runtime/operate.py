@@ -386,6 +386,8 @@ class _Operation:
             self.stop_requested = f"stop_all: {event.text}"
         elif event.action == "stop_node" and node.stopped_at_s is None:
             node.stopped_at_s = at_s
+            if self.supervisor is not None:
+                self.supervisor.quiet.add(event.node)  # its TPDOs stop with it
             self._nmt(NMT_PRE_OPERATIONAL, node.node_id)  # its PDOs stop; SDO still answers for the safe stop
 
     def stop(self, reason: str = "stop()") -> None:

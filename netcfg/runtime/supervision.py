@@ -13,6 +13,13 @@ lost node is reported once; a heartbeat after that is reported as its return. De
 a master that checks once per SYNC period T reports a loss between the consumer time and the consumer time + T
 after the last heartbeat.
 
+An event-driven TxPDO (transmission type 254/255) with an event timer must come at least once per event timer
+(CiA 301 7.3.3: the timer sends it when nothing else has); counted from the supervision's start or its last frame,
+the master allows the timer plus the analysed worst-case response time (runtime.json's wcrt_ns: the frame queued at
+the expiry may wait that long for the bus) and reports a TPDO silent beyond that once, as a "tpdo-silent" event
+(action "continue": the master cannot tell a drive's stale data from a quiet one, it says so). A node found lost or
+stopped is not reported again for its TPDOs.
+
 It imports only the standard library, python-can (types), canopen and netcfg.runtime.
 """
 
@@ -63,7 +70,7 @@ class Event:
 
     time: float
     node: str
-    kind: str  # "lost" | "back" | "emcy"
+    kind: str  # "lost" | "back" | "emcy" | "tpdo-silent"
     action: str  # stop_all | stop_node | continue
     text: str
 
@@ -83,10 +90,24 @@ class _Watched:
     emcys: list[EmcyRecord] = field(default_factory=list)
 
 
+@dataclass
+class _Timed:
+    """An event-driven TxPDO with an event timer: due within `limit_s` of its last frame."""
+
+    name: str
+    node: str
+    limit_s: float
+    timer_ms: int
+    last: float | None = None
+    silent: bool = False  # reported, not yet heard again
+
+
 class Supervisor:
     def __init__(self, cfg: RuntimeConfig, bus: Bus, nodes: list[str] | None = None) -> None:
         self.bus = bus
         self.watched: dict[str, _Watched] = {}
+        self.timed: dict[tuple[int, bool], _Timed] = {}  # (CAN id, extended) -> an event-timer TxPDO
+        self.quiet: set[str] = set()  # nodes the master stopped: their TPDOs are not expected
         self._by_id: dict[int, _Watched] = {}
         self.started: float | None = None
         self.events: list[Event] = []
@@ -104,14 +125,28 @@ class Supervisor:
             )
             self.watched[name] = w
             self._by_id[node.node_id] = w
+        for m in cfg.messages_on(bus.name):
+            p = m.pdo
+            if p is None or p.kind != "tpdo" or p.transmission < 254 or not p.event_timer_ms:
+                continue
+            if p.node in self.watched and any(cfg.node(c).role == "master" for c in m.consumers):
+                limit_ns = p.event_timer_ms * 1_000_000 + (m.wcrt_ns or 0)
+                self.timed[(m.id, m.extended)] = _Timed(m.name, p.node, limit_ns / 1e9, p.event_timer_ms)
 
     def start(self, t: float) -> None:
         """Supervision begins: every supervised node must send a heartbeat within its consumer time from now."""
         self.started = t
 
     def feed(self, frame: can.Message, t: float) -> bool:
-        """Hand one frame to the consumers; True when it was a heartbeat or an EMCY of a supervised node."""
-        if frame.is_extended_id or frame.is_error_frame or frame.is_remote_frame:
+        """Hand one frame to the consumers; True when it was a heartbeat or an EMCY of a supervised node or an
+        event-timer TxPDO."""
+        if frame.is_error_frame or frame.is_remote_frame:
+            return False
+        timed = self.timed.get((frame.arbitration_id, bool(frame.is_extended_id)))
+        if timed is not None:
+            timed.last, timed.silent = t, False
+            return True
+        if frame.is_extended_id:
             return False
         can_id, data = frame.arbitration_id, bytes(frame.data)
         if cia301.HEARTBEAT_BASE < can_id <= cia301.HEARTBEAT_BASE + 127 and len(data) >= 1:
@@ -168,6 +203,23 @@ class Supervisor:
                 f"(consumer heartbeat time {1e3 * w.timeout_s:.0f} ms)",
             )
             found.append(event)
+        for timed in self.timed.values():
+            since = timed.last if timed.last is not None else self.started
+            if timed.silent or since is None or timed.node in self.quiet or self.watched[timed.node].lost_at:
+                continue
+            if round((t - since) * 1e9) <= round(timed.limit_s * 1e9):
+                continue
+            timed.silent = True
+            found.append(
+                Event(
+                    t,
+                    timed.node,
+                    "tpdo-silent",
+                    "continue",
+                    f"{timed.name} ({timed.node}) silent for {1e3 * (t - since):.1f} ms, beyond its event timer of "
+                    f"{timed.timer_ms} ms and its worst-case response time ({1e3 * timed.limit_s:.1f} ms in all)",
+                )
+            )
         self.events += found
         return found
 
