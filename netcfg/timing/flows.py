@@ -772,7 +772,8 @@ def synchronised_canopen(
             outs = []
             ahead = [before_next_sync(ref, hi) for ref in step.refs] if step.kind == "message" else []
             for ref, k_sync in zip(step.refs, ahead):
-                if i == 0 and sampled:  # the sample is its own cycle's TPDO, queued at or after the start
+                # the start's sample goes out in its own cycle's TPDO, queued at or after the start
+                if i == 0 and sampled and ref in st.every and sampled[n] % st.every[ref] == 0:
                     outs.append((lo + st.frame_ns[ref], cycle_end(sampled[n])))
                     continue
                 if ref in st.every:
