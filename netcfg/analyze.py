@@ -626,8 +626,9 @@ def analyze_sync(
                 if c.completion_ns is None
                 else f"{c.completion_ns / 1000:g} us after SYNC, {(c.completion_ns - c.limit_ns) / 1000:g} us too late"
             )
-            # a drive's tx_delay can be most of the cycle: then it is what to change
-            slow = [n for n in c.tpdos if c.delay_ns and delays[n] == c.delay_ns]
+            # a drive's tx_delay that alone takes more than the overshoot is what to change
+            late_by = None if c.completion_ns is None else c.completion_ns - c.limit_ns
+            slow = [n for n in c.tpdos if late_by is not None and delays[n] == c.delay_ns >= late_by]
             waits = (
                 f" ({bus_msgs[slow[0]].producer} queues {slow[0]} its tx_delay of "
                 f"{format_ns(c.delay_ns)} after SYNC's reception)"
@@ -638,9 +639,9 @@ def analyze_sync(
                 "sync-cycle",
                 f"SYNC cycle {c.index} of bus '{bus.name}': the last of its {len(c.tpdos)} "
                 f"synchronous TPDOs completes {how} for {c.limit_name} ({c.limit_ns / 1000:g} us){waits}; lengthen "
-                "the cycle, move TPDOs to other cycles (transmission type n > 1), "
-                + ("shorten that tx_delay " if slow else "")
-                + "or raise the bit rate",
+                "the cycle, move TPDOs to other cycles (transmission type n > 1)"
+                + (", shorten that tx_delay" if slow else "")
+                + " or raise the bit rate",
                 m.source.at((*bus.path, "canopen")),
             )
             break
