@@ -142,8 +142,8 @@ def test_04_a_cycle_above_its_bound_is_a_violation(tmp_path: Path) -> None:
     rc, doc, stderr = simulate(runtime, "--duration", "2s")
     assert doc["protocols"]["can0"][0]["sync_completion_us"]["max"] > 730
     assert rc == 1 and doc["exceeds_analysis"] == ["can0.sync_cycle"]
-    assert any(v.startswith("bus can0 SYNC -> last TPDO took up to") for v in doc["violations"])
-    assert "outside the analysis: bus can0 SYNC -> last TPDO" in stderr
+    assert any(v.startswith("bus can0: SYNC -> last TPDO took up to") for v in doc["violations"])
+    assert "outside the analysis: bus can0: SYNC -> last TPDO" in stderr
     text = cli("simulate", str(runtime), "--duration", "2s")
     assert text.returncode == 1 and "analysed 730 us" in text.stdout
 

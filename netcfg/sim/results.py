@@ -234,7 +234,7 @@ def summary(res: RunResult) -> dict[str, Any]:
         texts = [text for i, rep in enumerate(reps) for text in _run_texts(rep.get("violations", []), i, res.runs)]
         if texts:
             exceeded.append(f"{bus}.sync_cycle")
-            violations += [f"bus {bus} {text}" for text in texts]
+            violations += [f"bus {bus}: {text}" for text in texts]
     duration = res.duration_ns / 1e9
     out: dict[str, Any] = {
         "system": res.system,
