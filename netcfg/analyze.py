@@ -630,8 +630,18 @@ def analyze_sync(
 
     co = bus.canopen
     assert co is not None
-    cycles = canopen_sync.analyse(bus, {name: worst for name, (_, worst) in frame_ns.items()}, error_model(bus))
+    # one release model: each message's jitter as the response-time analysis takes it (rta_frames), each TPDO's
+    # queueing delay after SYNC as the flows take it
+    delays = {msg.name: m.nodes[msg.producer].tx_delay_ns for msg in bus.messages}
+    cycles = canopen_sync.analyse(
+        bus,
+        {name: worst for name, (_, worst) in frame_ns.items()},
+        {msg.name: acc.jitter(msg) for msg in bus.messages},
+        delays,
+        error_model(bus),
+    )
     sync_msg = next(msg for msg in bus.messages if msg.implicit == "SYNC")
+    bus_msgs = {msg.name: msg for msg in bus.messages}
     loop = canopen_sync.master_loop(m, bus)
     acc.canopen[bus.name] = flows.SyncTimes(
         period_ns=co.sync_period_ns,
@@ -640,7 +650,7 @@ def analyze_sync(
         frame_ns={name: nominal for name, (nominal, _) in frame_ns.items()},
         completion_ns=[c.completion_ns for c in cycles],
         master=loop,
-        release_delay_ns={msg.name: m.nodes[msg.producer].tx_delay_ns for msg in bus.messages},
+        release_delay_ns=delays,
         ahead_of_sync=frozenset(
             msg.name
             for msg in bus.messages
@@ -662,6 +672,7 @@ def analyze_sync(
                 **({"error_us": us(c.error_ns)} if bus.errors is not None else {}),
                 "sync_us": us(c.sync_ns),
                 "tpdos_us": us(c.tpdos_ns),
+                **({"tx_delay_us": us(c.delay_ns)} if c.delay_ns else {}),
             }
         )
     for c in cycles:
@@ -671,11 +682,22 @@ def analyze_sync(
                 if c.completion_ns is None
                 else f"{c.completion_ns / 1000:g} us after SYNC, {(c.completion_ns - c.limit_ns) / 1000:g} us too late"
             )
+            # a drive's tx_delay that alone takes more than the overshoot is what to change
+            late_by = None if c.completion_ns is None else c.completion_ns - c.limit_ns
+            slow = [n for n in c.tpdos if late_by is not None and delays[n] == c.delay_ns >= late_by]
+            waits = (
+                f" ({bus_msgs[slow[0]].producer} queues {slow[0]} its tx_delay of "
+                f"{format_ns(c.delay_ns)} after SYNC's reception)"
+                if slow
+                else ""
+            )
             diags.add(
                 "sync-cycle",
                 f"SYNC cycle {c.index} of bus '{bus.name}': the last of its {len(c.tpdos)} "
-                f"synchronous TPDOs completes {how} for {c.limit_name} ({c.limit_ns / 1000:g} us); lengthen "
-                "the cycle, move TPDOs to other cycles (transmission type n > 1) or raise the bit rate",
+                f"synchronous TPDOs completes {how} for {c.limit_name} ({c.limit_ns / 1000:g} us){waits}; lengthen "
+                "the cycle, move TPDOs to other cycles (transmission type n > 1)"
+                + (", shorten that tx_delay" if slow else "")
+                + " or raise the bit rate",
                 m.source.at((*bus.path, "canopen")),
             )
             break

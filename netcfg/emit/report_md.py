@@ -704,14 +704,17 @@ def _sync_cycle_figure(bus: Bus, b: dict[str, Any]) -> Figure:
 
     handles = []
     if worst is not None:
-        # W = blocking + SYNC + the cycle's synchronous TPDOs + other frames released meanwhile (canopen_sync)
+        # W = blocking + SYNC + the drives' tx_delay + the cycle's synchronous TPDOs + other frames released
+        # meanwhile (canopen_sync)
         done = worst["completion_us"]
         blocking, sync_tx, tpdos = worst["blocking_us"], worst["sync_us"], worst["tpdos_us"]
+        delay = worst.get("tx_delay_us", 0.0)
         parts = [
             ("a frame already on the bus", blocking, "#bfbfbf"),
             ("SYNC", sync_tx, TM_COLOUR),
+            ("the drives' tx_delay (the bus may idle)", delay, "#fff2cc"),
             (f"the {worst['tpdos']} synchronous TPDOs", tpdos, PALETTE[0]),
-            ("other frames released meanwhile", round(done - blocking - sync_tx - tpdos, 3), PALETTE[1]),
+            ("other frames released meanwhile", round(done - blocking - sync_tx - delay - tpdos, 3), PALETTE[1]),
         ]
         start = 0.0
         for name, length, col in parts:

@@ -230,6 +230,11 @@ def summary(res: RunResult) -> dict[str, Any]:
                 "within_analysis": within,
             }
         )
+    for bus, reps in res.protocols.items():  # a protocol's own cycles held against its analysis (CANopen's SYNC)
+        texts = [text for i, rep in enumerate(reps) for text in _run_texts(rep.get("violations", []), i, res.runs)]
+        if texts:
+            exceeded.append(f"{bus}.sync_cycle")
+            violations += [f"bus {bus}: {text}" for text in texts]
     duration = res.duration_ns / 1e9
     out: dict[str, Any] = {
         "system": res.system,
@@ -276,6 +281,11 @@ def summary(res: RunResult) -> dict[str, Any]:
     elif res.error_model:
         out["note"] = "bit errors were injected within every bus's error assumption: the analysis bounds this run"
     return out
+
+
+def _run_texts(texts: list[str], run: int, runs: int) -> list[str]:
+    """A protocol report's lines, each naming its run when there are several."""
+    return [f"{f'run {run + 1} ' if runs > 1 else ''}{text}" for text in texts]
 
 
 def _breach_text(check: dict[str, Any]) -> str:
@@ -378,6 +388,10 @@ def _protocol_text(bus: str, rep: dict[str, Any]) -> list[str]:
         out = [f"  bus {bus}: CANopen master, {rep['mode'].upper()} mode, period {rep['period_us']:.0f} us"]
         if "cycles" in rep:
             out.append(f"    {rep['cycles']} cycles, {rep['incomplete_cycles']} incomplete")
+        done = rep.get("sync_completion_us")
+        if done and done["max"] is not None:
+            bound = "no bound" if done["analysed"] is None else f"{done['analysed']:g} us"
+            out.append(f"    SYNC -> last TPDO up to {done['max']:g} us, analysed {bound}")
         for drive, d in rep["drives"].items():
             p = d["period_us"] or {}
             out.append(

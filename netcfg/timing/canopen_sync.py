@@ -1,13 +1,16 @@
 """The CANopen SYNC cycle (CiA 301): does every synchronous TPDO answer in time?
 
 In cycle k the SYNC producer sends SYNC; every TPDO with transmission type n in 1..240 and k % n == 0 (and
-every acyclic synchronous TPDO, type 0, in the worst case) is queued on its reception. The last of them is
-done, at the latest, when the bus has carried: one frame already on the bus when SYNC was queued (blocking),
-SYNC itself, all synchronous TPDOs of that cycle, and every other frame that can be released meanwhile
-(RPDOs written by the master, event-driven PDOs, heartbeats, ...). A message with release jitter J can have an
-instance released late in one period and the next on time, so up to ceil((W + J) / T) of its instances fall inside
-a window of length W (the CAN response-time analysis' interference term, Davis et al. 2007, eq. 8):
-    W_k = B + C_SYNC + sum over TPDOs due in k of C + sum over others of ceil((W_k + J) / T) * C
+every acyclic synchronous TPDO, type 0, in the worst case) is queued its drive's tx_delay D after its reception.
+The last of them is done, at the latest, when the bus has carried: one frame already on the bus when SYNC was
+queued (blocking), SYNC itself, all synchronous TPDOs of that cycle, and every other frame that can be released
+meanwhile (RPDOs written by the master, event-driven PDOs, heartbeats, ...), with the bus idle at most while the
+drives wait out their delays: from SYNC's reception to the last TPDO's queueing, at most the largest D of the
+cycle's TPDOs (before it SYNC is pending, after it a TPDO). A message with release jitter J can have an instance
+released late in one period and the next on time, so up to ceil((W + J) / T) of its instances fall inside a window
+of length W (the CAN response-time analysis' interference term, Davis et al. 2007, eq. 8); J is the one that
+analysis uses, a sending task's response-time variation included (analyze's holistic jitter):
+    W_k = B + C_SYNC + max D + sum over TPDOs due in k of C + sum over others of ceil((W_k + J) / T) * C
 It must fit the synchronous window (0x1007), the master's read window and the communication cycle (0x1006).
 With a bit-error model (netcfg.timing.can_errors) W_k gains E(W_k) = (n + ceil(W_k / T_err)) * (error frame + the
 largest frame on the bus): any frame in the window may be hit and sent again.
@@ -22,6 +25,7 @@ the samples it collected, and its SYNC keeps its period.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from math import lcm
 
@@ -43,6 +47,7 @@ class SyncCycle:
     sync_ns: int = 0  # SYNC itself,
     tpdos_ns: int = 0  # the cycle's synchronous TPDOs; the rest of W_k is other frames released meanwhile
     error_ns: int = 0  # E(W_k): what bit errors may take in the window
+    delay_ns: int = 0  # the largest tx_delay of the cycle's TPDOs: the bus may idle that long
 
 
 @dataclass(frozen=True)
@@ -81,7 +86,15 @@ def sync_transmissions(bus: model.Bus) -> dict[str, int]:
     return out
 
 
-def analyse(bus: model.Bus, frame_ns: dict[str, int], errors: ErrorModel | None = None) -> list[SyncCycle]:
+def analyse(
+    bus: model.Bus,
+    frame_ns: Mapping[str, int],
+    jitter_ns: Mapping[str, int],
+    delay_ns: Mapping[str, int],
+    errors: ErrorModel | None = None,
+) -> list[SyncCycle]:
+    """Every cycle of the pattern. `frame_ns`: worst-case frame times; `jitter_ns`: each message's release jitter as
+    the response-time analysis takes it; `delay_ns`: each TPDO's queueing delay after SYNC's reception."""
     co = bus.canopen
     assert co is not None
     sync_msg = next(m for m in bus.messages if m.implicit == "SYNC")
@@ -106,14 +119,15 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int], errors: ErrorModel | None 
     for k in range(cycles):
         due = tuple(name for name, n in every.items() if k % n == 0)
         tpdos = sum(frame_ns[n] for n in due)
-        fixed = frame_ns[sync_msg.name] + tpdos + blocking
-        terms = {"blocking_ns": blocking, "sync_ns": frame_ns[sync_msg.name], "tpdos_ns": tpdos}
+        delay = max((delay_ns.get(n, 0) for n in due), default=0)
+        fixed = frame_ns[sync_msg.name] + tpdos + blocking + delay
+        terms = {"blocking_ns": blocking, "sync_ns": frame_ns[sync_msg.name], "tpdos_ns": tpdos, "delay_ns": delay}
         if rate >= 1:
             out.append(SyncCycle(k, due, None, limit_ns, limit_name, **terms))
             continue
         w = fixed + sum(frame_ns[m.name] for m in others)
         while True:
-            nxt = fixed + sum(frame_ns[m.name] * _instances(w, m, ppm) for m in others) + lost(w)
+            nxt = fixed + sum(frame_ns[m.name] * _instances(w, jitter_ns[m.name], m, ppm) for m in others) + lost(w)
             if nxt == w:
                 break
             w = nxt
@@ -121,9 +135,9 @@ def analyse(bus: model.Bus, frame_ns: dict[str, int], errors: ErrorModel | None 
     return out
 
 
-def _instances(window_ns: int, m: model.Message, ppm: int) -> int:
+def _instances(window_ns: int, jitter_ns: int, m: model.Message, ppm: int) -> int:
     """Instances of `m` released inside a window of this length: ceil((W + J) / T), W + J counted on its sender's
     clock (within +-ppm); once for an aperiodic one."""
     if not m.interval_ns:
         return 1
-    return -(-longest_local(window_ns + m.jitter_ns, ppm) // m.interval_ns)
+    return -(-longest_local(window_ns + jitter_ns, ppm) // m.interval_ns)

@@ -714,12 +714,21 @@ def synchronised_canopen(
                     return k, (latest if worst_path else max(r, earliest))
             k += 1
 
-    def tpdo_end(name: str, r: int, worst_path: bool) -> int:
-        k, t = on_sync(st.every[name], (s_best, s_worst), r, worst_path)
-        if not worst_path:
-            return t + st.frame_ns[name]
-        done = st.completion_ns[k % cycles]  # after the SYNC was queued, which is up to the master's jitter late
+    def cycle_end(k: int) -> int:
+        """The latest end of cycle k's synchronous TPDOs: the analysis counts from the SYNC's queueing, which is up
+        to the master's jitter late."""
+        done = st.completion_ns[k % cycles]
         return k * period + jitter + (done if done is not None else period)
+
+    def tpdo_end(name: str, r: int, worst_path: bool) -> int:
+        """The end of the first TPDO that carries data ready at r. Its drive samples at the SYNC's reception or
+        as it queues the TPDO, its tx_delay later (either may be the device's): the best path takes data ready up to
+        the latest of those instants, and no TPDO goes out before the earliest queueing."""
+        delay = st.release_delay_ns.get(name, 0)
+        k, t = on_sync(st.every[name], (s_best, s_worst + delay), r, worst_path)
+        if not worst_path:
+            return max(t, k * period + s_best + delay) + st.frame_ns[name]
+        return cycle_end(k)
 
     for step in flow.steps:
         for ref in step.refs:
@@ -739,18 +748,21 @@ def synchronised_canopen(
         """The cycle whose SYNC is certain to follow a message queued at r through the SYNC producer's FIFO."""
         return r // period + 1 if ref in st.ahead_of_sync else None
 
+    sampled: list[int] = []  # a flow that starts at a synchronous TPDO: the cycle whose sample each start takes
     for k in range(2 * hyper):
         if first.kind == "task" and m.task(head).sync_bus == bus:
             early, late = activation(m.task(head))
             starts.append(k * period + early)
             spread = late - early
         elif first.kind == "message" and head in st.every and k % st.every[head] == 0:
+            # sampled at the SYNC's reception, or as the TPDO is queued its tx_delay later (tpdo_end)
             starts.append(k * period + s_best)
+            sampled.append(k)
             spread = s_worst - s_best + st.release_delay_ns.get(head, 0)
     if not starts:
         return None
     runs: list[Run] = []
-    for start in starts:
+    for n, start in enumerate(starts):
         # the worst case from the earliest start, the best case from the latest
         lo, hi = start + spread, start
         got: tuple[int, int] | None = None
@@ -760,6 +772,10 @@ def synchronised_canopen(
             outs = []
             ahead = [before_next_sync(ref, hi) for ref in step.refs] if step.kind == "message" else []
             for ref, k_sync in zip(step.refs, ahead):
+                # the start's sample goes out in its own cycle's TPDO, queued at or after the start
+                if i == 0 and sampled and ref in st.every and sampled[n] % st.every[ref] == 0:
+                    outs.append((lo + st.frame_ns[ref], cycle_end(sampled[n])))
+                    continue
                 if ref in st.every:
                     outs.append((tpdo_end(ref, lo, False), tpdo_end(ref, hi, True)))
                     continue
