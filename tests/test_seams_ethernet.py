@@ -22,7 +22,7 @@ from netcfg.emit.runtime_json import runtime_document
 from netcfg.sim.ethernet import EthernetNetwork
 from netcfg.sim.scenario import SimOptions, simulate
 from netcfg.spec import schema
-from netcfg.timing.ethernet import QUEUE_FRAMES
+from netcfg.timing.ethernet import QUEUE_FRAMES, Input, Queue, fifo_queue
 
 SEAMS = Path(__file__).parent / "data" / "seams"
 QUEUE_05 = SEAMS / "05-ethernet-queue-overflow.yaml"
@@ -203,3 +203,14 @@ def test_06b_simulated_runs_stay_inside_the_bounds() -> None:
     for first in ("0", "6"):
         code, doc = cli_json("simulate", str(TREE_06B), "--duration", "5s", "--runs", "6", "--seed", first, "--jobs=1")
         assert code == 0 and not doc["exceeds_analysis"] and doc["lost"] == 0, doc.get("violations")
+
+
+def test_backlog_of_small_frames_behind_a_long_one() -> None:
+    """A NIC with one 1400-byte datagram (117.36 us, every 10 ms) and a minimum frame every 13.44 us, released
+    together: while the long frame is sent (0 .. 117.36 us) the short ones released at 0, 13.44, .., 107.52 us
+    queue (9 of them); at 120.96 us the tenth arrives while the first is on the wire: 10 frames at once, the most,
+    for after that they leave twice as fast as they come. The busy period: 117.36 + 18 x 6.72 = 238.32 us; the
+    longest delay 117.36 + 6.72 = 124.08 us (both released at 0, the short one last). Counting departures only
+    at the long frame's pace would say 18."""
+    q = fifo_queue([Input(False, ((117_360, 10 * MS, 0), (6_720, 13_440, 0)))])
+    assert q == Queue(busy_period_ns=238_320, delay_ns=124_080, backlog=10)

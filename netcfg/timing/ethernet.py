@@ -22,8 +22,9 @@ jitters depend on each other, so they are iterated from zero jitter until nothin
 most MAX_ROUNDS times (holistic analysis, Tindell and Clark 1994).
 
 The same windows bound the backlog, in frames, that the queue must hold (the simulator drops a frame that finds
-its queue full): at most N(a) - floor(a / C_max) frames are there at time a, N(a) the frames that can arrive in
-[0, a] (over one input link at most floor(a / C_min) + 1 of them) and floor(a / C_max) those sent by then.
+its queue full): at time a at most N(a) - floor(a / C_max) frames are there, N(a) the frames that can arrive in
+[0, a] (over one input link at most floor(a / C_min) + 1 of them) and floor(a / C_max) those sent by then, and at
+most the one being sent plus floor((W(a) - a) / C_min), as many as the work still queued can hold.
 """
 
 from __future__ import annotations
@@ -331,10 +332,18 @@ def fifo_queue(inputs: list[Input]) -> Queue | None:
             cross = sum(c * _count(a, t, j, True) for c, t, j in inp.flows) - longest
             if a < cross < busy:
                 points.add(cross)
+    c_min = min(c for c, _, _ in flows)
     delay = backlog = 0
-    for a in sorted(points):
-        delay = max(delay, _work(inputs, a, True) - a)
-        backlog = max(backlog, _frames(inputs, a) - a // c_max)
+    # frames there at a: at most the arrivals minus those sent (non-increasing between two points), and at most
+    # the one being sent plus the frames the work still queued can hold (largest at one end of the interval)
+    order = sorted(points)
+    counts = []
+    for a in order:
+        queued = _work(inputs, a, True) - a
+        delay = max(delay, queued)
+        counts.append((_frames(inputs, a) - a // c_max, 1 + max(queued, 0) // c_min))
+    for (by_frames, by_work), after in zip(counts, [*counts[1:], counts[-1]]):
+        backlog = max(backlog, min(by_frames, max(by_work, after[1])))
     return Queue(busy, delay, backlog)
 
 
