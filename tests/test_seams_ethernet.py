@@ -214,3 +214,17 @@ def test_backlog_of_small_frames_behind_a_long_one() -> None:
     at the long frame's pace would say 18."""
     q = fifo_queue([Input(False, ((117_360, 10 * MS, 0), (6_720, 13_440, 0)))])
     assert q == Queue(busy_period_ns=238_320, delay_ns=124_080, backlog=10)
+
+
+def test_a_nic_queue_off_ethernet_is_flagged_where_it_is_written(tmp_path: Path) -> None:
+    """nic_queue describes an Ethernet NIC; on a node only on CAN it does nothing: one warning at the key."""
+    data = {
+        "system": "can_only",
+        "buses": [{"name": "can0", "protocol": "can", "bitrate": "500 kbit/s"}],
+        "nodes": [{"name": "c", "buses": ["can0"], "nic_queue": 5}, {"name": "d", "buses": ["can0"]}],
+        "messages": [{"name": "m", "id": 0x10, "producer": "c", "consumers": ["d"], "size": 1, "period": "10 ms"}],
+    }
+    report = check_data(tmp_path, data)
+    assert report["ok"] and [w["code"] for w in report["warnings"]] == ["wrong-section"]
+    line = (tmp_path / "spec.yaml").read_text(encoding="utf-8").splitlines()[report["warnings"][0]["line"] - 1]
+    assert line[report["warnings"][0]["column"] - 1 :].startswith("5")
