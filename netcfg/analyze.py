@@ -120,11 +120,14 @@ def _analyze_once(m: model.Model, diags: Collector, acc: _Analysis) -> dict[str,
 def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
     """What the bounds of this bus rest on, in the user's terms (the README explains each)."""
     if bus.protocol == "ethernet-udp":
+        from netcfg.timing.ethernet import QUEUE_FRAMES
+
         return [
-            "full-duplex links; store-and-forward switches with FIFO egress queues that never drop, each switch's "
-            "latency as given",
+            "full-duplex links; store-and-forward switches with FIFO egress queues, each switch's latency as given; "
+            f"every NIC's and egress port's queue as deep as given ({QUEUE_FRAMES} frames unless the spec says), "
+            "never filled (the check refuses a backlog above it)",
             "each message released at most once per period (or rate) with at most its jitter; upstream queueing "
-            "adds to the jitter seen downstream",
+            "adds to the jitter seen downstream; frames that reach a port over one link come one after another",
             "no frame loss and no other traffic than the spec's",
         ]
     queues = (
@@ -952,6 +955,7 @@ def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Ana
         rows.append(row)
     link_rows = []
     by_name = {msg.name: msg for msg in bus.messages}
+    depths = ethernet.queue_depths(bus, m.nodes)
     for ll in links:
         n = len(ll.senders)
         # f_transm of a sender on this link: the rate of all its messages there (seed 001: f_transm < f_max / n)
@@ -972,7 +976,9 @@ def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Ana
                 "f_max_hz": round(f_max, 3),
                 "f_max_per_sender_hz": round(f_max / n, 3),
                 "busy_period_us": us(ll.busy_period_ns),
-                "ok": ll.utilization < 1,
+                "backlog_frames": None if ll.queue is None else ll.queue.backlog,
+                "queue_frames": depths[(ll.src, ll.dst)].depth,
+                "ok": ll.utilization < 1 and _queue_holds(m, bus, ll, depths[(ll.src, ll.dst)], diags),
             }
         )
         if ll.utilization >= 1:
@@ -995,6 +1001,34 @@ def analyze_ethernet(m: model.Model, bus: model.Bus, diags: Collector, acc: _Ana
         "f_max_hz": round(f_max, 3),
         "links": link_rows,
     }
+
+
+def _queue_holds(m: model.Model, bus: model.Bus, ll: ethernet.LinkLoad, at: ethernet.QueueAt, diags: Collector) -> bool:
+    """A transmit queue that can fill is refused: the frame that finds it full is dropped, which no bound covers."""
+    if ll.queue is None or ll.queue.backlog <= at.depth:
+        return True
+    held = ll.queue.backlog
+    if at.switch is None:
+        where = (
+            f"node '{ll.src}' can have {held} frames at once in its NIC's transmit queue (link {ll.src} -> {ll.dst})"
+        )
+        fix = f"give the node 'nic_queue: {held}' or more"
+        pos = m.source.at((*m.nodes[ll.src].path, "nic_queue"))
+    elif at.port is None:
+        where = f"switch '{ll.src}' (its port to {ll.dst}) can have {held} frames at once in its egress queue"
+        fix = f"give the switch 'queue: {held}' or more"
+        pos = m.source.at((*at.switch.path, "queue"))
+    else:
+        where = f"switch '{ll.src}' port {at.port} (to {ll.dst}) can have {held} frames at once in its egress queue"
+        fix = f"give the port 'queue: {held}' or more"
+        pos = m.source.at(at.switch.queue_paths[at.port])
+    diags.add(
+        "queue-overflow",
+        f"{where} on bus '{bus.name}', but the queue holds {at.depth}: {held - at.depth} would be dropped; {fix}, "
+        "or spread the messages' releases with offsets",
+        pos,
+    )
+    return False
 
 
 def _later(a: ethernet.PathDelay, b: ethernet.PathDelay) -> bool:

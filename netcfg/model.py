@@ -10,6 +10,7 @@ from fractions import Fraction
 from typing import TYPE_CHECKING, Literal
 
 from netcfg.devices import DeviceProfile
+from netcfg.timing.ethernet import QUEUE_FRAMES
 from netcfg.timing.frames import canfd_padded_size
 
 if TYPE_CHECKING:
@@ -73,6 +74,7 @@ class Node:
     on_emcy: str = "stop_all"
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
     tx_queue: TxQueue = TxQueue()
+    nic_queue: int = QUEUE_FRAMES  # Ethernet: frames its NIC's transmit queue holds
 
 
 @dataclass(frozen=True)
@@ -195,6 +197,10 @@ class Switch:
     ports: dict[int, str]  # port number -> node or switch on the other end
     cables_m: dict[int, float]  # port number -> cable length
     latency_ns: int
+    queues: dict[int, int] = field(default_factory=dict)  # port number -> frames its egress queue holds
+    queue_paths: dict[int, Path] = field(default_factory=dict)  # port number -> where the spec sets its depth
+    queue: int = QUEUE_FRAMES  # the same for a port the spec does not list (a cable listed at its other end)
+    path: Path = ()
 
 
 @dataclass(frozen=True)

@@ -128,11 +128,13 @@ def render(report: dict[str, Any]) -> str:
                     f"{ll['frames_per_s'] / 1000:.2f}",
                     f"{ll['f_max_per_sender_hz'] / 1000:.2f}",
                     f"{ll['utilization']:.2%}",
+                    f"{'-' if ll['backlog_frames'] is None else ll['backlog_frames']} / {ll['queue_frames']}",
                     num(ll["ok"], false="NO"),
                 ]
                 for ll in bus["links"]
             ]
-            out.extend(table(["link", "senders", "kHz", "f_max/n kHz", "load", "ok"], rows, "lrrrrl"))
+            head = ["link", "senders", "kHz", "f_max/n kHz", "load", "queue (frames)", "ok"]
+            out.extend(table(head, rows, "lrrrrrl"))
     if report.get("nodes"):
         out.append("")
         out.append("processors (worst-case response of each task from its nominal release, jitter included, us):")

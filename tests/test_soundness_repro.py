@@ -141,12 +141,18 @@ def test_simulate_exits_1_with_one_line_per_measured_range_outside_the_analysis(
 
 
 def test_06_ethernet_jitter_propagates_across_switches() -> None:
-    """x_a and x_b leave swa/swb bunched behind two 123.04 us frames (busy period 313.28 us, jitter
-    313.28 - 6.72 = 306.56 us); on sw->r each counts ceil((w + 306.56) / 33.6) frames:
-    w = 2 * ceil((w + 306.56) / 33.6) * 6.72 + 6.72 = 221.76 us, so v <= 2 x 6.72 + 221.76 - 6.72 = 228.48 us."""
+    """x_a (6.72 us every 33.6 us) shares swa -> sw with b_a1 and b_a2 (123.04 us each, released together but
+    serialised by ba's own link, so the second arrives 123.04 us after the first). A frame arriving at a of a busy
+    period waits for what arrived in [0, a]: 6.72 x (floor(a / 33.6) + 1) + min(246.08, a + 123.04) - a, largest
+    (149.92 us) for a in [100.8, 123.04], so x_a may wait 149.92 - 6.72 = 143.2 us there: its jitter on sw -> r.
+    x_a and x_b each bring at most min(6.72 x (floor((a + 143.2) / 33.6) + 1), a + 6.72) (one link each), v one
+    frame: 2 x min(...) + 6.72 - a peaks at a = 33.6 with 2 x 40.32 + 6.72 - 33.6 = 53.76 us. So v waits at most
+    53.76 - 6.72 = 47.04 us and takes 2 x 6.72 + 47.04 = 60.48 us; x_a 3 x 6.72 + 143.2 + 47.04 = 210.4 us.
+    Without the upstream jitter v would be 2 x 6.72 + 13.44 = 26.88 us, below the 32.6 us the simulator measures."""
     lan = bus(check(next(DATA.glob("06-*.yaml"))), "lan")
-    assert next(ll for ll in lan["links"] if (ll["from"], ll["to"]) == ("sw", "r"))["busy_period_us"] == 221.76
-    assert message(lan, "v")["wcrt_us"] == 228.48
+    assert message(lan, "v")["wcrt_us"] == 60.48
+    x_a = message(lan, "x_a")
+    assert x_a["wcrt_us"] == 210.4 and x_a["delay_us"]["switch"] == 190.24  # 143.2 + 47.04
 
 
 MULTI_RATE = {

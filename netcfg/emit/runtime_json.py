@@ -100,7 +100,7 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
         "nodes": list(b.nodes),
         "canopen": canopen,
         "ftt": _ftt(m, b),
-        "ethernet": {"switches": [_switch(s) for s in b.switches]} if b.protocol == "ethernet-udp" else None,
+        "ethernet": _ethernet(m, b) if b.protocol == "ethernet-udp" else None,
     }
 
 
@@ -160,11 +160,23 @@ def _ftt(m: model.Model, b: model.Bus) -> dict[str, Any] | None:
     }
 
 
+def _ethernet(m: model.Model, b: model.Bus) -> dict[str, Any]:
+    """The cabling and every transmit queue's depth (the nodes' NICs, the switches' egress ports)."""
+    return {
+        "switches": [_switch(s) for s in b.switches],
+        "nics": [{"node": n, "queue": m.nodes[n].nic_queue} for n in b.nodes],
+    }
+
+
 def _switch(s: model.Switch) -> dict[str, Any]:
     return {
         "name": s.name,
         "latency_ns": s.latency_ns,
-        "ports": [{"port": p, "to": s.ports[p], "cable_m": s.cables_m.get(p, 0.0)} for p in sorted(s.ports)],
+        "queue": s.queue,
+        "ports": [
+            {"port": p, "to": s.ports[p], "cable_m": s.cables_m.get(p, 0.0), "queue": s.queues[p]}
+            for p in sorted(s.ports)
+        ],
     }
 
 

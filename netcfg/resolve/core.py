@@ -301,8 +301,8 @@ class Resolver:
             if n.tx_queue.policy == "fifo" and not on_can:
                 self.warn(
                     "wrong-section",
-                    f"node '{n.name}' is on no CAN bus: its tx_queue has no effect (Ethernet's queues are the switches'"
-                    " egress FIFOs): remove it",
+                    f"node '{n.name}' is on no CAN bus: its tx_queue has no effect (an Ethernet NIC's queue is its "
+                    "nic_queue): remove it",
                     (*path, "tx_queue"),
                 )
 

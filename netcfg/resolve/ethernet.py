@@ -8,7 +8,16 @@ from netcfg.resolve.protocol import BusProtocol
 from netcfg.resolve.suggest import did_you_mean
 from netcfg.spec import schema
 from netcfg.spec.source import Path
+from netcfg.timing.ethernet import QUEUE_FRAMES
 from netcfg.timing.frames import APP_ID_BYTES, MAX_UDP_PAYLOAD
+
+
+def _queue_path(bus: Path, j: int, k: int, port: schema.SwitchPort, switch: schema.Switch) -> Path:
+    """Where a port's queue depth is written: its own `queue`, its switch's, or (the default) the port."""
+    sw = (*bus, "ethernet", "switches", j)
+    if port.queue is None and switch.queue is not None:
+        return (*sw, "queue")
+    return (*sw, "ports", k, "queue")
 
 
 class EthernetProtocol(BusProtocol):
@@ -21,13 +30,37 @@ class EthernetProtocol(BusProtocol):
         if b.ethernet:
             bus.switches = [
                 model.Switch(
-                    s.name, {p.port: p.to for p in s.ports}, {p.port: p.cable for p in s.ports}, s.latency.ns or 0
+                    s.name,
+                    {p.port: p.to for p in s.ports},
+                    {p.port: p.cable for p in s.ports},
+                    s.latency.ns or 0,
+                    {p.port: p.queue or s.queue or QUEUE_FRAMES for p in s.ports},
+                    {p.port: _queue_path(path, j, k, p, s) for k, p in enumerate(s.ports)},
+                    s.queue or QUEUE_FRAMES,
+                    (*path, "ethernet", "switches", j),
                 )
-                for s in b.ethernet.switches
+                for j, s in enumerate(b.ethernet.switches)
             ]
 
     def resolve_items(self) -> None:
         self.resolve_topologies()
+        self.resolve_nic_queues()
+
+    def resolve_nic_queues(self) -> None:
+        """A node's nic_queue is its NIC's on every Ethernet bus it is on; elsewhere it means nothing."""
+        ethernet = {b.name for b in self.r.spec.buses if b.protocol == self.name}
+        for i, n in enumerate(self.r.spec.nodes):
+            if n.nic_queue is None or n.name not in self.r.model.nodes:
+                continue
+            if ethernet.intersection(n.buses):
+                self.r.model.nodes[n.name].nic_queue = n.nic_queue
+            else:
+                self.r.warn(
+                    "wrong-section",
+                    f"node '{n.name}' is on no Ethernet bus: its nic_queue has no effect (CAN queues are tx_queue): "
+                    "remove it",
+                    ("nodes", i, "nic_queue"),
+                )
 
     def check_payload(self, m: schema.Message, size: int, path: Path) -> None:
         if APP_ID_BYTES + size > MAX_UDP_PAYLOAD:

@@ -359,6 +359,7 @@ class SwitchPort:
     port: int
     to: str
     cable_m: float
+    queue: int | None = None  # frames its egress queue holds (None: a file written before the key)
 
 
 @dataclass(frozen=True)
@@ -366,11 +367,17 @@ class Switch:
     name: str
     latency_ns: int
     ports: tuple[SwitchPort, ...]
+    queue: int | None = None  # the egress queue's depth of a port not listed (None: a file written before the key)
 
 
 @dataclass(frozen=True)
 class EthernetParams:
     switches: tuple[Switch, ...]
+    # (node, frames its NIC's transmit queue holds) per node of the bus; None: a file written before the key
+    nic_queues: tuple[tuple[str, int], ...] | None = None
+
+    def nic_queue(self, node: str) -> int | None:
+        return dict(self.nic_queues or ()).get(node)
 
 
 @dataclass(frozen=True)

@@ -221,10 +221,12 @@ def _bus(d: dict[str, Any]) -> Bus:
                 Switch(
                     s["name"],
                     s["latency_ns"],
-                    tuple(SwitchPort(p["port"], p["to"], float(p["cable_m"])) for p in s["ports"]),
+                    tuple(SwitchPort(p["port"], p["to"], float(p["cable_m"]), p.get("queue")) for p in s["ports"]),
+                    s.get("queue"),
                 )
                 for s in eth["switches"]
-            )
+            ),
+            None if eth.get("nics") is None else tuple((n["node"], n["queue"]) for n in eth["nics"]),
         ),
     )
 

@@ -142,7 +142,10 @@ FTT = obj(
 )
 ETHERNET = obj(
     null=True,
-    switches=lst(obj(name=name(), latency_ns=ns(), ports=lst(obj(port=i(0, U16), to=name(), cable_m=num(0, 1e6))))),
+    switches=lst(obj(name=name(), latency_ns=ns(), queue=i(1, 1_000_000, optional=True),
+                     ports=lst(obj(port=i(0, U16), to=name(), cable_m=num(0, 1e6),
+                                   queue=i(1, 1_000_000, optional=True))))),
+    nics=lst(obj(node=name(), queue=i(1, 1_000_000)), optional=True),
 )
 BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),

@@ -67,8 +67,9 @@ class SimOptions:
     trace: bool = False
     master: MasterTiming = field(default_factory=MasterTiming)
     drive_delay_ns: int | None = None  # drives' SYNC -> TPDO queueing delay; None: the node's tx_delay
-    # Ethernet: egress buffer per switch port in frames (None: netcfg.sim.ethernet.QUEUE_FRAMES), and per receiving
-    # node the (BCET, WCET) of consuming one frame (None: the node's on_message task for that message, if any)
+    # Ethernet: every transmit queue's depth in frames, NICs and switch ports alike (None: each its own from the
+    # runtime configuration), and per receiving node the (BCET, WCET) of consuming one frame (None: the node's
+    # on_message task for that message, if any)
     eth_queue_frames: int | None = None
     eth_processing_ns: Mapping[str, tuple[int, int]] | None = None
     # compute the run's streams at once where netcfg.sim.whole_run (Ethernet) or netcfg.sim.ftt_whole_run (FTT-CAN)

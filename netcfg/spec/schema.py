@@ -232,6 +232,13 @@ class SwitchPort(SpecModel):
     port: Int = Field(ge=1, le=1024)
     to: Name = Field(description="the node or switch on the other end of the cable")
     cable: Float = Field(0.0, ge=0, le=100_000, description="cable length in metres (Tprop at 0.7 c)")
+    queue: Int | None = Field(
+        None,
+        ge=1,
+        le=1_000_000,
+        description="frames the port's egress queue holds, counting the one being sent (default: the switch's "
+        "queue); a frame that finds it full is dropped, and `check` refuses a spec that can fill it",
+    )
 
 
 class Switch(SpecModel):
@@ -240,6 +247,13 @@ class Switch(SpecModel):
     latency: DurationField = Field(
         default_factory=lambda: _ns(0),
         description="store-and-forward multiplexing delay Tmux after a frame is fully received",
+    )
+    queue: Int | None = Field(
+        None,
+        ge=1,
+        le=1_000_000,
+        description="frames each of its ports' egress queues holds, counting the one being sent, unless the port "
+        "says (default 64, as the simulator's)",
     )
 
 
@@ -437,6 +451,14 @@ class Node(SpecModel):
         None,
         description="receiver processing: Ethernet Tpost; on CAN, from a frame's reception to the start of the tasks "
         "it starts (its message, trigger message or SYNC)",
+    )
+    nic_queue: Int | None = Field(
+        None,
+        ge=1,
+        le=1_000_000,
+        description="Ethernet: frames the node's network interface queues for sending, counting the one being "
+        "sent (default 64, as the simulator's); a frame that finds it full is dropped, and `check` refuses a spec "
+        "that can fill it",
     )
     tasks: list[Task] = Field(default_factory=list)
     scheduling: Literal["preemptive", "non-preemptive"] = Field(

@@ -16,7 +16,8 @@ a chunk of simulated time at a time with numpy), events.py (chained frames and t
 frame), results.py (what the run measured), network.py (EthernetNetwork: the one object a scenario builds).
 """
 
-from netcfg.sim.ethernet.links import CHUNK_NS, QUEUE_FRAMES
+from netcfg.sim.ethernet.links import CHUNK_NS
 from netcfg.sim.ethernet.network import EthernetNetwork
+from netcfg.timing.ethernet import QUEUE_FRAMES
 
 __all__ = ["CHUNK_NS", "QUEUE_FRAMES", "EthernetNetwork"]

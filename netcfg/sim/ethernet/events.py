@@ -97,7 +97,7 @@ class EventLinks(Topology):
         """FIFO with tail drop, frame by frame, for the frames arriving at or before the horizon; each frame served
         goes on to the next links or is delivered (the scalar twin of _transmit and _forward)."""
         waiting, ends, frame, route = link.waiting, link.ends, self._frame, link.route
-        busy, cap, crash, d = link.busy_until, self.queue_frames, link.crash_ns, self.duration
+        busy, cap, crash, d = link.busy_until, link.queue_frames, link.crash_ns, self.duration
         prop, lat = link.prop_ns, link.latency_ns
         frames, busy_ns, qmax, seq = link.frames, link.busy_ns, link.max_queue, self._seq
         at, delivered, quiet = self.sim.at, self._delivered, self._finished

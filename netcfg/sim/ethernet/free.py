@@ -140,7 +140,7 @@ class FreeRunning(EventLinks):
             tw = t[waits]
             held = len(link.tail) - np.searchsorted(link.tail, tw, side="right")
             queue = int((waits - np.searchsorted(end[:keep], tw, side="right") + held).max())
-        if keep and queue >= self.queue_frames:
+        if keep and queue >= link.queue_frames:
             ok, end = self._transmit_lossy(link, t, c)
             gone = np.ones(len(t), dtype=bool)
             gone[ok] = False
@@ -155,7 +155,7 @@ class FreeRunning(EventLinks):
         if not len(end):
             return
         link.busy_until = int(end[-1])
-        link.tail = np.concatenate([link.tail, end[-self.queue_frames :]])[-self.queue_frames :]
+        link.tail = np.concatenate([link.tail, end[-link.queue_frames :]])[-link.queue_frames :]
         start = end - c
         d = self.duration
         link.frames += int((start < d).sum())
@@ -168,7 +168,7 @@ class FreeRunning(EventLinks):
         Only the last queue_frames ends can still be at the port later (a frame is accepted only when fewer are),
         so link.tail keeps just those."""
         ends = deque(link.tail.tolist())
-        busy, cap, crash = link.busy_until, self.queue_frames, link.crash_ns
+        busy, cap, crash = link.busy_until, link.queue_frames, link.crash_ns
         accepted: list[int] = []
         out: list[int] = []
         qmax = link.max_queue

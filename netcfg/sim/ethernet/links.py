@@ -1,9 +1,11 @@
 """The pieces a switched Ethernet run is made of: a link (one direction of one cable, its transmitter and egress
 queue), a receiving node's FIFO server, and the frame batches that flow between them.
 
-Egress queues are finite (`queue_frames`, counting the frame being sent): a frame that finds its port full is
-dropped (tail drop) and counted per port and per message. Seed 001 (section 6.2.2.5) warns of exactly this: "the
-port's buffer may overflow and lead to unexpected delays or data loss".
+Transmit queues are finite (each link's `queue_frames`, counting the frame being sent: the depth the runtime
+configuration gives the sending NIC or switch port, by default netcfg.timing.ethernet.QUEUE_FRAMES as the analysis
+assumes too): a frame that finds its queue full is dropped (tail drop) and counted per port and per message. Seed
+001 (section 6.2.2.5) warns of exactly this: "the port's buffer may overflow and lead to unexpected delays or data
+loss"; `netcfg check` refuses a spec whose queues can fill.
 """
 
 from __future__ import annotations
@@ -18,10 +20,6 @@ if TYPE_CHECKING:
     from netcfg.runtime import Task
     from netcfg.sim.flows import FlowTracker
 
-# Egress buffer per port, in frames: an assumption, not a datasheet figure. Small unmanaged switches share a packet
-# memory of a few tens of kilobytes among their ports; 64 frames per port is of that order for minimum-size frames.
-# Override with queue_frames= (or SimOptions.eth_queue_frames).
-QUEUE_FRAMES = 64
 CHUNK_NS = 5_000_000  # simulated time computed at once; frames fare the same for any value (random draws for
 # jitter may come in another order)
 
@@ -46,6 +44,7 @@ class Link:
     prop_ns: int
     latency_ns: int  # the switch at the far end (Tmux) before the next egress queue; 0 at a node
     crash_ns: int  # the sending node crashed: nothing starts from then on (NEVER for a switch)
+    queue_frames: int  # frames its transmit queue holds, counting the one being sent
     busy_until: int = 0
     frames: int = 0
     busy_ns: int = 0

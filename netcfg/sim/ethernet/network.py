@@ -9,7 +9,7 @@ import numpy as np
 
 from netcfg.runtime import Bus, Message
 from netcfg.sim.engine import NEVER
-from netcfg.sim.ethernet.links import _I64, QUEUE_FRAMES, Link
+from netcfg.sim.ethernet.links import _I64, Link
 from netcfg.sim.ethernet.results import Results
 from netcfg.timing.frames import udp_message_ns
 
@@ -26,7 +26,8 @@ class EthernetNetwork(Results):
         queue_frames: int | None = None,
         processing_ns: Mapping[str, tuple[int, int]] | None = None,
     ) -> None:
-        """queue_frames, processing_ns: default to the options' eth_queue_frames and eth_processing_ns. processing:
+        """queue_frames, processing_ns: default to the options' eth_queue_frames and eth_processing_ns; queue_frames
+        None: each NIC and port holds what the runtime configuration says (QUEUE_FRAMES if it says nothing). processing:
         node -> (BCET, WCET) of consuming one frame; by default a node's on_message task for that message, else 0
         (no server)."""
         self.sc = sc
@@ -34,8 +35,8 @@ class EthernetNetwork(Results):
         self.sim = sc.sim
         self.duration = sc.opts.duration_ns
         q = queue_frames if queue_frames is not None else sc.opts.eth_queue_frames
-        self.queue_frames = QUEUE_FRAMES if q is None else int(q)
-        if self.queue_frames < 1:
+        self.queue_frames = None if q is None else int(q)  # one depth for every queue, else each its own
+        if self.queue_frames is not None and self.queue_frames < 1:
             raise ValueError(f"bus '{bus.name}': an egress queue must hold at least one frame")
         processing = processing_ns if processing_ns is not None else sc.opts.eth_processing_ns or {}
         self.messages: list[Message] = list(sc.cfg.messages_on(bus.name))

@@ -134,7 +134,7 @@ class Results(FreeRunning):
                     "utilization": round(link.busy_ns / d, 6) if d else 0.0,
                     "utilization_offered": round(link.offered, 6),
                     "max_queue": link.max_queue,
-                    "queue_frames": self.queue_frames,
+                    "queue_frames": link.queue_frames,
                     "queued_at_end": held,
                     "lost": link.lost,
                 }

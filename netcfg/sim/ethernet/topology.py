@@ -18,7 +18,7 @@ from netcfg.sim.engine import NEVER, Simulator
 from netcfg.sim.ethernet.links import _I64, Link, Listen, Server
 from netcfg.sim.streams import PeriodicStreams
 from netcfg.timing import load
-from netcfg.timing.ethernet import propagation_ns
+from netcfg.timing.ethernet import QUEUE_FRAMES, propagation_ns
 
 if TYPE_CHECKING:
     from netcfg.sim.run import SimRun
@@ -31,7 +31,7 @@ class Topology:
     bus: Bus
     sim: Simulator
     duration: int
-    queue_frames: int
+    queue_frames: int | None  # every queue's depth when the run's options set one
     messages: list[Message]
     index: dict[str, int]  # message name -> index
     owned: set[str]
@@ -70,10 +70,18 @@ class Topology:
                 cables[(x, y)] = metres
 
         switches = bus.ethernet.switches if bus.ethernet else ()
+        self.depth: dict[tuple[str, str], int | None] = {}  # (from, to) -> its transmit queue's depth, if given
         for sw in switches:
             self.switch_latency[sw.name] = sw.latency_ns
             for port in sw.ports:
                 edge(sw.name, port.to, port.cable_m)
+                self.depth[(sw.name, port.to)] = port.queue
+        queue = {sw.name: sw.queue for sw in switches}  # a port the file does not list (a cable listed at its far end)
+        for a, b in cables:
+            if a in queue:
+                self.depth.setdefault((a, b), queue[a])
+            elif bus.ethernet is not None:
+                self.depth[(a, b)] = bus.ethernet.nic_queue(a)
         if not switches and len(bus.nodes) == 2:
             edge(bus.nodes[0], bus.nodes[1], 0.0)
         self.adj = adj
@@ -86,7 +94,8 @@ class Topology:
             prop = propagation_ns(self.cables.get((a, b), 0.0))  # per hop, as the analysis' Tprop
             crash = NEVER if a in self.switch_latency else self.sc.crash_at.get(a, NEVER)
             latency = self.switch_latency.get(b, 0)
-            link = self.links[(a, b)] = Link(len(self.links), a, b, prop, latency, crash)
+            depth = self.queue_frames or self.depth.get((a, b)) or QUEUE_FRAMES
+            link = self.links[(a, b)] = Link(len(self.links), a, b, prop, latency, crash, depth)
         return link
 
     def _path(self, src: str, dst: str) -> list[str]:
