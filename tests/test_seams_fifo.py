@@ -165,8 +165,8 @@ def test_seam_11_a_dropped_message_is_an_error() -> None:
 
 
 def test_messages_that_may_be_lost_have_no_bound_and_no_error(tmp_path: Path) -> None:
-    """may_be_lost on all three: no error, no warning, no bound (unbounded: dropped) and no verdict. On m2 alone:
-    m0 and m1 can still be dropped, the error names those two."""
+    """may_be_lost on all three: no error, no warning, no bound (unbounded: dropped) and no verdict, in check and
+    in --explain. On m2 alone: m0 and m1 can still be dropped, the error names those two."""
     data = _seam(SEAM_11)
     for msg in data["messages"]:
         msg["may_be_lost"] = True
@@ -175,6 +175,9 @@ def test_messages_that_may_be_lost_have_no_bound_and_no_error(tmp_path: Path) ->
     for name in ("m0", "m1", "m2"):
         row = message(bus(report, "b"), name)
         assert (row["wcrt_us"], row["unbounded"], row["schedulable"]) == (None, "dropped", None)
+    explained = cli("check", str(tmp_path / "spec.yaml"), "--explain", "m2")
+    assert explained.returncode == 0 and "be dropped: no bound" in explained.stdout  # no verdict to miss
+    assert cli("check", str(SEAM_11), "--explain", "m2").returncode == 1  # the seam's m2 is promised delivery
     some = _seam(SEAM_11)
     some["messages"][2]["may_be_lost"] = True
     report = check_data(tmp_path, some, "some.yaml")
