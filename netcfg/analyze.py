@@ -269,7 +269,7 @@ def set_verdict(row: dict[str, Any], wcrt_ns: int | None, deadline_ns: int | Non
 def report_deadlines(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:
     by_name = {msg.name: msg for msg in bus.messages}
     for row in rows:
-        if row["schedulable"] is False:
+        if row["schedulable"] is False and row.get("unbounded") != "dropped":  # check_tx_queues names those
             msg = by_name[row["name"]]
             if row["wcrt_us"] is None and row.get("unbounded") == "iterations":
                 text = (
@@ -452,22 +452,42 @@ def fifo_senders(m: model.Model, bus: model.Bus) -> dict[str, str]:
     return {msg.name: msg.producer for msg in bus.messages if m.nodes[msg.producer].tx_queue.fifo}
 
 
+def fifo_inputs(m: model.Model, bus: model.Bus) -> tuple[dict[str, int], dict[str, int]]:
+    """What the FIFO analysis takes of the spec besides the frames: the offsets of the FIFO members released at a
+    fixed offset of their node's clock, and the depth of each FIFO that drops a frame queued into it when full."""
+    fifo_of = fifo_senders(m, bus)
+    offsets = {name: o for name, (_, o) in release_offsets(m, bus).items() if name in fifo_of}
+    drops = {
+        node: m.nodes[node].tx_queue.depth for node in set(fifo_of.values()) if m.nodes[node].tx_queue.on_full == "drop"
+    }
+    return offsets, drops
+
+
 def bus_responses(
     m: model.Model, bus: model.Bus, frames: list[can_rta.CanFrame], tau: int
 ) -> can_fifo.FifoAnalysis:
-    """Every message's response on a CAN bus: FIFO queues (can_fifo) around the priority-queued analysis, with
-    release offsets (can_offsets) for the priority-queued senders that keep them."""
+    """Every message's response on a CAN bus: FIFO queues (can_fifo, with their members' offsets) around the
+    priority-queued analysis, with release offsets (can_offsets) for the priority-queued senders that keep them."""
     fifo_of = fifo_senders(m, bus)
     offsets = {name: o for name, o in release_offsets(m, bus).items() if name not in fifo_of}
     ppm, errors = bus.clock_tolerance_ppm, error_model(bus)
+    fifo_offsets, drops = fifo_inputs(m, bus)
     return can_fifo.analyse(
-        frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors
+        frames,
+        tau,
+        fifo_of,
+        lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors),
+        ppm,
+        errors,
+        fifo_offsets,
+        drops,
     )
 
 
 def tx_queue_rows(m: model.Model, bus: model.Bus, fifo: can_fifo.FifoAnalysis) -> list[dict[str, Any]]:
-    """Each FIFO transmit queue on the bus: its bound and its backlog. Under the analysis's premise (each member
-    sent within its period) at most one instance of each member is queued at a time: the backlog is their number."""
+    """Each FIFO transmit queue on the bus: its largest bound and its backlog. Under the analysis's premise (each
+    member sent within its period) at most one instance of each member is queued at a time, and with offsets only
+    the members that can be queued together (can_fifo): the backlog is the most of them."""
     rows = []
     for node, q in fifo.queues.items():
         spec = m.nodes[node].tx_queue
@@ -478,13 +498,16 @@ def tx_queue_rows(m: model.Model, bus: model.Bus, fifo: can_fifo.FifoAnalysis) -
                 "depth": spec.depth,
                 "on_full": spec.on_full,
                 "messages": list(q.members),
-                "backlog_max": None if q.queue_ns is None else len(q.members),
+                "backlog_max": None if q.queue_ns is None else q.backlog,
+                "together": list(q.together),
+                "by_offsets": q.narrowed,
                 "lowest": q.lowest,
                 "blocking_us": us(q.blocking_ns),
                 "queued_us": us(q.queued_ns),
                 "interference_us": us(q.interference_ns),
                 "error_us": us(q.error_ns),
                 "queue_us": us(q.queue_ns),
+                "dropped": [name for name in q.members if name in fifo.dropped],
                 **({"unbounded": q.limit} if q.limit else {}),
             }
         )
@@ -492,8 +515,9 @@ def tx_queue_rows(m: model.Model, bus: model.Bus, fifo: can_fifo.FifoAnalysis) -
 
 
 def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:
-    """A FIFO that can hold more frames than its depth: with drop, frames are lost (a warning); with block, the
-    sending task waits for a slot, which no task bound here includes (an error)."""
+    """A FIFO that can hold more frames than its depth: with drop, the messages whose frames can find it full are
+    lost then and have no bound (an error, unless each may be lost); with block, the sending task waits for a
+    slot, which no task bound here includes (an error)."""
     for row in rows:
         node = m.nodes[row["node"]]
         backlog = row["backlog_max"]
@@ -501,7 +525,7 @@ def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], 
             continue
         held = "an unbounded number of" if backlog is None else f"up to {backlog}"
         at = m.source.at((*node.path, "tx_queue"))
-        if row["on_full"] == "drop":
+        if row["on_full"] == "drop" and backlog is None:  # its members have no bound already: one error each
             diags.add(
                 "tx-queue",
                 f"node '{node.name}' can have {held} frames in its FIFO transmit queue on bus '{bus.name}', more "
@@ -509,6 +533,19 @@ def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], 
                 at,
                 "warning",
             )
+        elif row["on_full"] == "drop":
+            lost = [name for name in row["dropped"] if not m.messages[name].may_be_lost]
+            if lost:
+                names = ", ".join(f"'{name}'" for name in lost)
+                diags.add(
+                    "tx-queue",
+                    f"node '{node.name}' can have {held} frames in its FIFO transmit queue on bus '{bus.name}', "
+                    f"more than its depth of {row['depth']}, and drops a frame queued into it when full: "
+                    f"{names} can find it full and be lost, so {'it has' if len(lost) == 1 else 'they have'} no "
+                    "response time; raise the depth, keep the messages apart with offsets, or mark each message "
+                    "the system can lose with may_be_lost: true",
+                    at,
+                )
         else:
             diags.add(
                 "tx-queue",
@@ -583,7 +620,8 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     else:
         for row, msg in zip(rows, bus.messages):
             r = plain[msg.name]
-            set_verdict(row, r.wcrt_ns, msg.deadline_ns)
+            # a message the spec allows to lose, that its queue can drop, is promised nothing
+            set_verdict(row, r.wcrt_ns, None if r.limit == "dropped" and msg.may_be_lost else msg.deadline_ns)
             row["blocking_us"] = us(r.blocking_ns)
             row["busy_period_us"] = us(r.busy_period_ns)
             row["instances"] = r.instances

@@ -16,7 +16,15 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import jsontext, model
-from netcfg.analyze import analysis_jitter, bus_responses, error_model, fifo_senders, release_offsets, rta_frames
+from netcfg.analyze import (
+    analysis_jitter,
+    bus_responses,
+    error_model,
+    fifo_inputs,
+    fifo_senders,
+    release_offsets,
+    rta_frames,
+)
 from netcfg.check import load_model
 from netcfg.diagnostics import Collector, sort_diagnostics
 from netcfg.importers import ImportOptions
@@ -103,7 +111,7 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
     bound = with_offsets[name].wcrt_ns
     queue = next((q for q in fifo.queues.values() if name in q.members), None)
     if queue is not None:
-        out.update(_fifo_terms(m, frames, queue, tau, ppm, errors))
+        out.update(_fifo_terms(m, frames, queue, name, tau, ppm, errors))
     elif r.wcrt_ns is not None:
         q = r.worst_instance
         t_me = me.t_ns or can_rta.ONE_SHOT
@@ -121,7 +129,8 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
                 "largest_frame_us": _us(largest),
             }
         out["interferers"] = _interferers([f for f in frames if f.priority_key < me.priority_key], w, tau, ppm)
-    out["meets"] = None if me.d_ns is None else bound is not None and bound <= me.d_ns
+    promised = not (msg.may_be_lost and with_offsets[name].limit == "dropped")  # as check's verdict: none
+    out["meets"] = None if me.d_ns is None or not promised else bound is not None and bound <= me.d_ns
     out["slack_us"] = None if me.d_ns is None or bound is None else _us(me.d_ns - bound)
     if out["meets"] in (None, True):
         out["fix"] = None
@@ -136,6 +145,7 @@ def _fifo_terms(
     m: model.Model,
     frames: list[can_rta.CanFrame],
     q: can_fifo.FifoQueue,
+    name: str,
     tau: int,
     ppm: int,
     errors: ErrorModel | None,
@@ -143,17 +153,24 @@ def _fifo_terms(
     """The FIFO bound's terms (Davis, Kollmann, Pollex, Slomka 2011): the frames that can be ahead in the queue,
     the blocking and the other nodes' frames above the queue's lowest-priority message, with their hits."""
     by_name = {f.name: f for f in frames}
-    lowest = by_name[q.lowest]
+    b = q.bounds.get(name)  # the member's own bound; the queue's largest when it has none
+    if b is None:
+        b = can_fifo.FifoBound(
+            q.members, q.lowest, q.blocking_ns, q.queued_ns, q.c_min_ns, q.interference_ns, q.queue_ns, q.limit,
+            q.error_ns,
+        )
+    lowest = by_name[b.lowest]
     out: dict[str, Any] = {
         "queue": {
             "node": q.node,
             "depth": m.nodes[q.node].tx_queue.depth,
             "on_full": m.nodes[q.node].tx_queue.on_full,
-            "lowest": q.lowest,
-            "frames": [{"name": n, "id": by_name[n].id, "c_us": _us(by_name[n].c_ns)} for n in q.members],
-            "queued_us": _us(q.queued_ns),
-            "c_min_us": _us(q.c_min_ns),
-            "queue_us": _us(q.queue_ns),
+            "lowest": b.lowest,
+            "frames": [{"name": n, "id": by_name[n].id, "c_us": _us(by_name[n].c_ns)} for n in b.together],
+            "members": len(q.members),
+            "queued_us": _us(b.queued_ns),
+            "c_min_us": _us(b.c_min_ns),
+            "queue_us": _us(b.queue_ns),
             "unbounded": q.limit,
         },
         "blocking": _blocking([f for f in frames if f.name not in q.members], lowest),
@@ -162,17 +179,17 @@ def _fifo_terms(
         "worst_instance": 0,
         "interferers": [],
     }
-    if q.queue_ns is None:
+    if q.queue_ns is None or b.queue_ns is None:
         return out
-    w = q.queue_ns - q.c_min_ns
+    w = b.queue_ns - b.c_min_ns
     out["w_us"] = _us(w)
     if errors is not None:  # E(w + C_MIN), the largest frame of the bus resent (can_fifo)
-        out["error_term_us"] = _us(q.error_ns)
+        out["error_term_us"] = _us(b.error_ns)
         out["error_term"] = {
             "burst": errors.burst,
             "interval_us": _us(errors.interval_ns),
-            "window_us": _us(q.queue_ns),
-            "errors": errors.errors_in(q.queue_ns),
+            "window_us": _us(b.queue_ns),
+            "errors": errors.errors_in(b.queue_ns),
             "error_frame_us": _us(errors.error_frame_ns),
             "largest_frame_us": _us(max(f.c_ns for f in frames)),
         }
@@ -214,8 +231,9 @@ def _priority_queue(
     offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
     ppm = bus.clock_tolerance_ppm
     errors = error_model(bus)
+    kept = {n: o for n, o in fifo_inputs(m, bus)[0].items() if n in fifo_of}
     res = can_fifo.analyse(
-        frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors
+        frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors, kept
     )
     r = res.responses[me.name].wcrt_ns
     if r is None or me.d_ns is None or r > me.d_ns:
@@ -244,10 +262,17 @@ def _meets(
     ppm: int,
     errors: ErrorModel | None = None,
     fifo_of: dict[str, str] | None = None,
+    fifo_offsets: dict[str, int] | None = None,
 ) -> int | None:
     """The bound of `name` in this variant of the bus, or None when it still misses its deadline."""
     res = can_fifo.analyse(
-        frames, tau, fifo_of or {}, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors
+        frames,
+        tau,
+        fifo_of or {},
+        lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors),
+        ppm,
+        errors,
+        fifo_offsets,
     ).responses
     f = next(f for f in frames if f.name == name)
     r = res[name].wcrt_ns
@@ -261,6 +286,7 @@ def one_change(
     priority), else a longer period for the one interferer that needs the smallest slow-down."""
     fifo_of = fifo_senders(m, bus)
     offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
+    fifo_offsets = fifo_inputs(m, bus)[0]
     errors = error_model(bus)
     taken = {(f.extended, f.id) for f in frames}
     others = [f for f in frames if f.name != me.name]
@@ -268,7 +294,7 @@ def one_change(
         if (me.extended, ident) in taken:
             continue
         trial = [*others, replace(me, id=ident)]
-        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of)
+        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of, fifo_offsets)
         if r is not None:
             above = [f for f in others if f.priority_key > trial[-1].priority_key and f.priority_key < me.priority_key]
             passed = min(above, key=lambda f: f.priority_key).name if above else None
@@ -291,7 +317,7 @@ def one_change(
         for factor in (2, 3, 4, 5, 10, 20, 50, 100):
             period = f.t_ns * factor
             trial = [replace(g, t_ns=period, d_ns=max(g.d_ns or 0, period)) if g is f else g for g in frames]
-            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of)
+            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of, fifo_offsets)
             if r is not None:
                 if best is None or factor < best["factor"]:
                     best = {
@@ -434,8 +460,8 @@ def _fifo_text(doc: dict[str, Any]) -> list[str]:
     """The FIFO bound (Davis, Kollmann, Pollex, Slomka 2011) in the shape of the priority-queue derivation."""
     q = doc["queue"]
     lines = [
-        f"  queue      '{q['node']}' sends through a FIFO (depth {q['depth']}, {q['on_full']} when full); any of its "
-        f"frames can be ahead, each once, and while one heads the queue it loses to every frame above "
+        f"  queue      '{q['node']}' sends through a FIFO (depth {q['depth']}, {q['on_full']} when full); any of the "
+        f"frames below can be ahead, each once, and while one heads the queue it loses to every frame above "
         f"'{q['lowest']}', the queue's lowest-priority message (ECRTS 2011, section 4):",
         f"    {'in the queue':20} {'id':>6} {'C/us':>8}",
         *(f"    {x['name']:20} {_hex(x['id']):>6} {x['c_us']:>8g}" for x in q["frames"]),
@@ -444,6 +470,7 @@ def _fifo_text(doc: dict[str, Any]) -> list[str]:
     if q["queue_us"] is None:
         why = {
             "fifo": "a member waits longer than its period, so two of its frames can be queued at once",
+            "dropped": "its frame can find the queue full, and the queue drops it",
             "load": "the other nodes' frames above its lowest-priority message load the bus to 100 % or more",
         }.get(q["unbounded"] or "", "the bound needs too many steps of the analysis")
         return [*lines, f"  no bounded response: {why}"]
@@ -454,9 +481,20 @@ def _fifo_text(doc: dict[str, Any]) -> list[str]:
     )
     lines.extend(_interferer_lines(doc, "(no other node's frame above the queue's lowest-priority message)"))
     lines.append(_error_line(doc, "w + C_MIN", "the bus's largest frame"))
+    r = doc["jitter_us"] + doc["w_us"] + q["c_min_us"]
+    if doc["unbounded"] == "dropped":
+        return [
+            *lines,
+            f"  R = J + w + C_MIN = {r:g} us for the frames that get through, but a frame can find the queue full "
+            "and be dropped: no bound",
+        ]
     lines.append(
         f"  R = J + w + C_MIN = {doc['jitter_us']:g} + {doc['w_us']:g} + {q['c_min_us']:g} = {doc['wcrt_us']:g} us "
-        "(the same queuing bound for every frame of the queue)"
+        + (
+            "(the same queuing bound for every frame of the queue)"
+            if len(q["frames"]) == q.get("members", len(q["frames"]))
+            else "(only the frames listed can be queued with this one: its release offset keeps the others apart)"
+        )
     )
     return lines
 

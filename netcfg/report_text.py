@@ -201,10 +201,18 @@ def tx_queue_text(q: dict[str, Any]) -> str:
     head = f"FIFO, depth {q['depth']}, {q['on_full']} when full, {len(q['messages'])} messages"
     if q["queue_us"] is None:
         return f"{head}; no bound ({q.get('unbounded')})"
+    apart, n = q.get("by_offsets", False), len(q.get("together", ()))
     return (
-        f"{head} sharing one bound of {num(q['queue_us'])} us (blocking {num(q['blocking_us'])} + the whole queue "
-        f"{num(q['queued_us'])} + other nodes' frames above {q['lowest']} {num(q['interference_us'])}"
+        (
+            f"{head} kept apart by their offsets, the longest bound {num(q['queue_us'])} us (blocking "
+            f"{num(q['blocking_us'])} + the frames that can be queued together ({n}) "
+            if apart
+            else f"{head} sharing one bound of {num(q['queue_us'])} us (blocking {num(q['blocking_us'])} + the whole "
+            "queue "
+        )
+        + f"{num(q['queued_us'])} + other nodes' frames above {q['lowest']} {num(q['interference_us'])}"
         + (f" + bit errors {num(q['error_us'])}" if q.get("error_us") else "")
         + "); at most "
-        f"{q['backlog_max']} frames queued"
+        f"{q['backlog_max']} frame{'s' if q['backlog_max'] != 1 else ''} queued"
+        + (f"; can drop {', '.join(q['dropped'])}" if q.get("dropped") else "")
     )

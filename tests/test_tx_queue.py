@@ -184,11 +184,13 @@ def test_a_full_fifo_drops_or_blocks() -> None:
 
 
 def test_a_fifo_deeper_than_its_depth_is_flagged(tmp_path: Path) -> None:
-    """host queues two messages; a depth of 1 can overflow: dropped frames are a warning, a blocked writer (which
-    no task bound includes) an error."""
+    """host queues two messages; a depth of 1 can overflow: a blocked writer (which no task bound includes) is an
+    error, and so is a dropped frame, whose message then has no response time. `low` states no offset, so it can
+    be queued at any time: either message can find the other queued (test_seams_fifo keeps them apart)."""
     drop = check_data(tmp_path, _spec({"policy": "fifo", "depth": 1, "on_full": "drop"}), "drop.yaml")
-    assert drop["ok"] and [w["code"] for w in drop["warnings"]] == ["tx-queue"]
-    assert "up to 2 frames" in drop["warnings"][0]["message"]
+    assert not drop["ok"] and [e["code"] for e in drop["errors"]] == ["tx-queue"]
+    assert "up to 2 frames" in drop["errors"][0]["message"]
+    assert "'high', 'low' can find it full" in drop["errors"][0]["message"]
     block = check_data(tmp_path, _spec({"policy": "fifo", "depth": 1}), "block.yaml")
     assert not block["ok"] and [e["code"] for e in block["errors"]] == ["tx-queue"]
     assert block["errors"][0]["line"] > 1

@@ -165,19 +165,27 @@ def _tx_queues_view(b: dict[str, Any]) -> list[str]:
     """One sentence per FIFO transmit queue on the bus: its shared bound and the terms that make it up."""
     out = []
     for q in b.get("tx_queues", ()):
+        apart = q.get("by_offsets", False)
         bound = (
             f"**{num(q['queue_us'])} us** from queuing to the end of the frame (blocking {num(q['blocking_us'])} + "
-            f"every frame of the queue {num(q['queued_us'])} + other nodes' frames above {cell(q['lowest'])}, its "
+            + (
+                f"the frames that can be queued together ({len(q['together'])}) {num(q['queued_us'])}"
+                if apart
+                else f"every frame of the queue {num(q['queued_us'])}"
+            )
+            + f" + other nodes' frames above {cell(q['lowest'])}, its "
             f"lowest-priority message, {num(q['interference_us'])}"
             + (f" + bit errors {num(q['error_us'])}" if q.get("error_us") else "")
             + "), plus each message's own release jitter; at most "
-            f"{q['backlog_max']} frames queued at once"
+            f"{q['backlog_max']} frame{'s' if q['backlog_max'] != 1 else ''} queued at once"
+            + (f"; {', '.join(cell(n) for n in q['dropped'])} can be dropped" if q.get("dropped") else "")
             if q["queue_us"] is not None
             else "**no bound** (" + cell(q.get("unbounded")) + ")"
         )
+        share = "kept apart by their offsets, the longest bound" if apart else "share one bound"
         out.append(
             f"{cell(q['node'])}: FIFO, depth {q['depth']}, {q['on_full']} when full; its {len(q['messages'])} "
-            f"messages share one bound: {bound}"
+            f"messages {share}: {bound}"
         )
     return out
 

@@ -510,6 +510,7 @@ class Resolver:
             description=m.description,
             fd=fd,
             brs=brs,
+            may_be_lost=m.may_be_lost,
         )
 
     def resolve_timing(self, m: schema.Message, bus: model.Bus, pdo: model.Pdo | None, path: Path, ec: int | None):

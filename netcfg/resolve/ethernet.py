@@ -77,6 +77,12 @@ class EthernetProtocol(BusProtocol):
     def check_fields(self, m: schema.Message, path: Path) -> None:
         if m.extended is not None:
             self.r.err("wrong-section", "'extended' is a CAN setting", (*path, "extended"))
+        if "may_be_lost" in m.model_fields_set:
+            self.r.err(
+                "wrong-section",
+                "'may_be_lost' is a CAN setting (a FIFO transmit queue that drops)",
+                (*path, "may_be_lost"),
+            )
 
     def check_identifiers(self, bus: model.Bus) -> None:
         seen: dict[tuple[str, int], str] = {}

@@ -577,6 +577,11 @@ class Message(SpecModel):
     min_interarrival: DurationField | None = None
     deadline: DurationField | None = Field(None, description="default: the period (or min_interarrival)")
     jitter: DurationField | None = Field(None, description="queuing jitter of the release")
+    may_be_lost: Bool = Field(
+        False,
+        description="CAN: the system tolerates losing some of its frames: when its sender's FIFO transmit queue "
+        "(on_full: drop) can be full as one is queued, it gets no bound (unbounded: dropped) instead of an error",
+    )
     window: Literal["sync", "async"] | None = Field(None, description="FTT-CAN window (default: sync if periodic)")
     ftt_id: Int | None = Field(None, ge=0, description="FTT-CAN synchronous id (bit in the EC-schedule)")
     udp: Udp | None = None

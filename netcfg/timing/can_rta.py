@@ -53,8 +53,9 @@ MAX_ITERATIONS = 20_000  # fixed-point steps per message (busy period and every 
 MANY_CLASSES = 512
 
 # why a response time is None: the load reaches the capacity, or the bound needs more than MAX_ITERATIONS, or a
-# FIFO transmit queue can hold two instances of one message (can_fifo)
-Limit = Literal["load", "iterations", "fifo"]
+# FIFO transmit queue can hold two instances of one message, or can be full when a frame that it drops is queued
+# (can_fifo)
+Limit = Literal["load", "iterations", "fifo", "dropped"]
 
 
 @dataclass(frozen=True)
