@@ -12,7 +12,7 @@ from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, flows, load
-from netcfg.timing.frames import bits_to_ns, can_frame_bits
+from netcfg.timing.frames import bits_to_ns, frame_bits
 
 # The analyses of FTT-CAN, CANopen's SYNC cycle, Ethernet and node CPUs are imported by the functions that run them:
 # a spec that has none of these loads none of them.
@@ -786,7 +786,7 @@ def analyze_ftt(
     tm_ns = sched.tm_ns
     return {
         "ec_us": us(bus.ftt.ec_ns),
-        "tm_bits": can_frame_bits(bus.ftt.tm_size, bus.id_bits == 29),
+        "tm_bits": frame_bits(bus.ftt.tm_size, bus.id_bits == 29).total,
         "tm_us": us(tm_ns),
         "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
         "lsw_us": us(sched.lsw_ns),

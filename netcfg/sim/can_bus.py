@@ -23,9 +23,9 @@ from netcfg.timing.frames import (
     bits_to_ns,
     can_frame_bits_exact_batch,
     can_frame_bits_of,
-    canfd_frame_bits,
     canfd_frame_bits_exact,
     canfd_frame_bits_exact_batch,
+    frame_bits,
 )
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
@@ -161,11 +161,8 @@ class CanBus:
         src.key = arbitration_key(can_id, extended)
         # in exact mode each frame's length comes from its payload (_duration); dur_ns is then the worst case
         mode: FrameStuffing = "worst" if self.stuffing == "exact" else FRAME_BITS[self.stuffing]
-        if fd:
-            assert mode != "exact"
-            src.dur_ns = canfd_frame_bits(size, extended, brs, mode).ns(self.bitrate, self.data_bitrate)
-        else:
-            src.dur_ns = bits_to_ns(can_frame_bits_of(can_id, extended, bytes(size), mode), self.bitrate)
+        assert mode != "exact"
+        src.dur_ns = frame_bits(size, extended, fd, brs, mode).ns(self.bitrate, self.data_bitrate)
         self.sources.append(src)
         self.by_name[name] = src
         self._keys.append(src.key)
