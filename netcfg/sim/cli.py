@@ -294,7 +294,7 @@ def trace_frames(sc: Any) -> list[TraceFrame]:
         rec = bus.record
         for m, end, data in zip(rec.msg, rec.end, rec.data):
             src = bus.sources[m]
-            payload = data if data is not None else bytes(src.size)
+            payload = data if data is not None else src.rest  # every field at rest, inside its range
             if src.fd:  # sent padded to its CAN FD length, as netcfg.runtime does
                 payload += bytes([CANFD_PADDING]) * (canfd_padded_size(src.size) - src.size)
             out.append(TraceFrame(end, name, src.can_id, src.extended, payload, fd=src.fd, brs=src.brs))

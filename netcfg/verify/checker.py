@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from netcfg.cia301 import sync_every
-from netcfg.runtime import Bus, Message, RuntimeConfig
+from netcfg.runtime import Bus, Message, RuntimeConfig, columns
 from netcfg.timing.can_errors import first_breach
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_MAX_PAYLOAD, frame_bits
 from netcfg.timing.load import FrameTiming, exact_rate, frame_timing, rate_hz
@@ -446,24 +446,16 @@ class Checker:
                 st.jitter_out[2:] = [float(beyond[k]), int(ends[k]), int(iv[k])]
 
     def _ranges(self, st: _MessageState, t: NDArray[np.int64], data: NDArray[np.uint8]) -> None:
-        raw64 = np.ascontiguousarray(data).view("<u8").ravel()
-        for sig in st.msg.signals:
+        """Signals decoded as the codec decodes them (byte order, sign, float, multiplexing: netcfg.runtime.columns),
+        each in the frames that carry it; a signal beyond the bytes a batch keeps (PAYLOAD_COLUMNS) is not seen."""
+        signals = [s for s in st.msg.signals if columns.fits(s, data.shape[1])]
+        carried = columns.present_rows(signals, data)
+        for sig in signals:
             if sig.minimum is None and sig.maximum is None:
                 continue
-            raw = (raw64 >> np.uint64(sig.start_bit)) & np.uint64((1 << sig.bits) - 1 if sig.bits < 64 else ~0)
-            value: NDArray[np.float64]
-            if sig.is_float:
-                value = (raw.astype(np.uint32).view(np.float32) if sig.bits == 32 else raw.view(np.float64)).astype(
-                    np.float64
-                )
-            elif sig.signed:
-                sign = np.uint64(1 << (sig.bits - 1))
-                value = ((raw ^ sign).astype(np.int64) - np.int64(1 << (sig.bits - 1))).astype(np.float64)
-            else:
-                value = raw.astype(np.float64)
-            value = value * sig.scale + sig.offset
-            low = value < sig.minimum if sig.minimum is not None else np.zeros(len(value), bool)
-            high = value > sig.maximum if sig.maximum is not None else np.zeros(len(value), bool)
+            value = columns.physical(sig, columns.take(sig, data))
+            low = carried[sig.name] & (value < sig.minimum if sig.minimum is not None else False)
+            high = carried[sig.name] & (value > sig.maximum if sig.maximum is not None else False)
             out = low | high
             if out.any():
                 rec = st.range_out.setdefault(sig.name, [0, int(t[out][0]), None])
