@@ -481,6 +481,8 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     # (nominal, worst-case) frame time of each message: without and with stuff bits
     frame_ns = {name: (t.nominal_ns, t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
+    for row, msg in zip(rows, bus.messages):  # the release jitter analysed: the spec's and its sender's spread
+        row["jitter_us"], row["jitter_ns"] = us(acc.jitter(msg)), acc.jitter(msg)
     tau = bits_to_ns(1, bus.bitrate)
     errors = error_model(bus)
     if errors is not None:

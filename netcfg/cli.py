@@ -364,6 +364,8 @@ def cmd_build(spec: Path, output: Path | None) -> int:
         names = ", ".join(kept[:5]) + (f" (+{len(kept) - 5} more)" if len(kept) > 5 else "")
         print(f"netcfg: warning: {target} holds {len(kept)} file(s) netcfg did not write; kept: {names}",
               file=sys.stderr)
+    for note in report.get("notes") or []:
+        print(f"netcfg: note: {target / note}", file=sys.stderr)
     print(f"wrote {len(files)} files to {target}")
     return 0
 

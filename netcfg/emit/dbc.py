@@ -13,7 +13,9 @@ Timing, as attributes of the message (BA_ ... BO_):
     NetcfgPeriod, NetcfgMinInterarrival, NetcfgOffset, NetcfgJitter, NetcfgDeadline
                           FLOAT ms, exact (whole nanoseconds): what the Gen* attributes round, and the release
                           jitter and deadline, which they cannot say. netcfg's DBC importer reads them first,
-                          so spec -> DBC -> spec keeps every timing field.
+                          so spec -> DBC -> spec keeps every timing field. NetcfgJitter is the release jitter
+                          the analysis gave the message: its own and, for a message a task sends, that task's
+                          response-time spread (a DBC has no tasks), so `check` of the DBC times it the same.
 A message given only as a size gets one unsigned signal spanning its payload, `<message>_raw` (netcfg.runtime
 reads and writes it under the same name), so a bus monitor still shows its bytes; a CAN FD payload of more than 8
 bytes gets `<message>_raw0`, `_raw1`, ... of 8 bytes each (a DBC signal has at most 64 bits). Comments say what
@@ -27,6 +29,7 @@ spec's order, so the output is byte-identical across builds.
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Mapping
 from typing import Any
 
 import cantools.database.can as cdb
@@ -66,8 +69,38 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     files = {}
     for bus in m.buses.values():
         if bus.is_can:
-            files[f"dbc/{bus.name}.dbc"] = dbc_text(m, bus).encode(ENCODING, errors="replace")
+            files[f"dbc/{bus.name}.dbc"] = dbc_text(m, bus, release_jitter(report)).encode(ENCODING, errors="replace")
     return files
+
+
+def unsaid(m: model.Model) -> dict[str, list[str]]:
+    """Per DBC file, what of its bus's timing a DBC cannot say, so that `netcfg check` of that file bounds the
+    bus's messages otherwise than check of the spec (everything else it says: frames, periods, offsets, release
+    jitter, deadlines, bit rates). `netcfg build` prints these."""
+    out: dict[str, list[str]] = {}
+    for bus in m.buses.values():
+        if not bus.is_can:
+            continue
+        lost = []
+        if bus.ftt is not None:
+            lost.append("the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames as "
+                        "free-running CAN, trigger message included")
+        fifo = [name for name in bus.nodes if m.nodes[name].tx_queue.fifo]
+        if fifo:
+            lost.append(f"the FIFO transmit queue of {', '.join(fifo)}: check of the DBC assumes priority queues")
+        if bus.errors is not None:
+            lost.append("the bus's error model: check of the DBC assumes an error-free bus")
+        if lost:
+            out[f"dbc/{bus.name}.dbc"] = lost
+    return out
+
+
+def release_jitter(report: dict[str, Any]) -> dict[str, int]:
+    """Each CAN message's release jitter as the analysis took it (check's jitter_ns): the spec's and what the task
+    that sends it adds, which a DBC, having no tasks, can only say as the message's own (NetcfgJitter)."""
+    return {
+        row["name"]: row["jitter_ns"] for bus in report.get("buses", ()) for row in bus["messages"] if "jitter_ns" in row
+    }
 
 
 CANTOOLS_SHORT_NAME = 32  # cantools shortens longer names as it writes (keeping the long one as an attribute)
@@ -91,7 +124,7 @@ def write(db: cdb.Database) -> str:
     return dump_string(once, sort_signals=None, sort_attribute_signals=None)
 
 
-def dbc_text(m: model.Model, bus: model.Bus) -> str:
+def dbc_text(m: model.Model, bus: model.Bus, jitter: Mapping[str, int] | None = None) -> str:
     """The bus's DBC file as cantools writes it.
 
     Before writing, cantools renames every node throughout every frame's sender and receiver lists: nodes x
@@ -100,10 +133,10 @@ def dbc_text(m: model.Model, bus: model.Bus) -> str:
     cantools to shorten, it writes the database without its nodes and their one line, `BU_:`, is filled in.
     Nodes carry no comment or attribute here, so the bytes are those of the long way (a test compares)."""
     if any(len(name) > CANTOOLS_SHORT_NAME for name in bus.nodes):
-        return write(database(m, bus))
-    text = write(database(m, bus, with_nodes=False))
+        return write(database(m, bus, jitter=jitter))
+    text = write(database(m, bus, with_nodes=False, jitter=jitter))
     if text.count(_NO_NODES) != 1:  # a cantools that writes the line differently: take the long way
-        return write(database(m, bus))
+        return write(database(m, bus, jitter=jitter))
     return text.replace(_NO_NODES, f"\r\nBU_: {' '.join(bus.nodes)}\r\n")
 
 
@@ -121,8 +154,12 @@ _EXACT_MS = {
 }
 
 
-def database(m: model.Model, bus: model.Bus, with_nodes: bool = True) -> cdb.Database:
-    messages = [_message(m, msg) for msg in bus.messages]
+def database(
+    m: model.Model, bus: model.Bus, with_nodes: bool = True, jitter: Mapping[str, int] | None = None
+) -> cdb.Database:
+    """The bus as a cantools database; `jitter`: each message's release jitter as analysed (release_jitter),
+    else the spec's own."""
+    messages = [_message(m, msg, (jitter or {}).get(msg.name, msg.jitter_ns)) for msg in bus.messages]
     tm = _trigger_message(m, bus)
     if tm is not None:
         messages.append(tm)
@@ -173,7 +210,7 @@ def _ms(ns: int) -> float:
     return ns / 1_000_000  # a double holds every whole-ns duration below 2^53 ns exactly enough to round back
 
 
-def _timing(msg: model.Message) -> DbcSpecifics:
+def _timing(msg: model.Message, jitter_ns: int) -> DbcSpecifics:
     """The message's timing attributes (see the module docstring)."""
     attrs: OrderedDict[str, DbcAttribute] = OrderedDict()
     kind = {"periodic": 0, "sporadic": 1}.get(msg.kind, 2)
@@ -190,14 +227,14 @@ def _timing(msg: model.Message) -> DbcSpecifics:
         attrs["NetcfgMinInterarrival"] = _Attribute(_ms(msg.interval_ns), _EXACT_MS["NetcfgMinInterarrival"])
     if offset_ns is not None and msg.kind == "periodic":
         attrs["NetcfgOffset"] = _Attribute(_ms(offset_ns), _EXACT_MS["NetcfgOffset"])
-    if msg.jitter_ns:
-        attrs["NetcfgJitter"] = _Attribute(_ms(msg.jitter_ns), _EXACT_MS["NetcfgJitter"])
+    if jitter_ns:
+        attrs["NetcfgJitter"] = _Attribute(_ms(jitter_ns), _EXACT_MS["NetcfgJitter"])
     if msg.deadline_ns is not None:
         attrs["NetcfgDeadline"] = _Attribute(_ms(msg.deadline_ns), _EXACT_MS["NetcfgDeadline"])
     return DbcSpecifics(attributes=attrs)
 
 
-def _message(m: model.Model, msg: model.Message) -> cdb.Message:
+def _message(m: model.Model, msg: model.Message, jitter_ns: int) -> cdb.Message:
     receivers = sorted(msg.consumers)
     if msg.signals:
         signals = [
@@ -219,7 +256,7 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
         ]
     else:
         signals = []
-    specifics = _timing(msg)
+    specifics = _timing(msg, jitter_ns)
     if msg.fd and not msg.brs:
         specifics.attributes["CANFD_BRS"] = _Attribute("0", CANFD_BRS)
     return cdb.Message(
