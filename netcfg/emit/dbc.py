@@ -98,9 +98,8 @@ def unsaid(m: model.Model) -> dict[str, list[str]]:
 def release_jitter(report: dict[str, Any]) -> dict[str, int]:
     """Each CAN message's release jitter as the analysis took it (check's jitter_ns): the spec's and what the task
     that sends it adds, which a DBC, having no tasks, can only say as the message's own (NetcfgJitter)."""
-    return {
-        row["name"]: row["jitter_ns"] for bus in report.get("buses", ()) for row in bus["messages"] if "jitter_ns" in row
-    }
+    rows = (row for bus in report.get("buses", ()) for row in bus["messages"])
+    return {row["name"]: row["jitter_ns"] for row in rows if "jitter_ns" in row}
 
 
 CANTOOLS_SHORT_NAME = 32  # cantools shortens longer names as it writes (keeping the long one as an attribute)

@@ -183,11 +183,30 @@ def resting_payload(fields: Iterable[Field], size: int) -> bytes:
     """`size` bytes with every field the frame then carries at its resting value (resting_raw); a multiplexer
     rests too, so the fields it selects at its resting value are the ones present."""
     fields = list(fields)
-    rest = {f.name: f.from_raw(resting_raw(f)) for f in fields}
+    raws = {f.name: resting_raw(f) for f in fields}
+    options = selectors(fields)
+    for f in fields:  # a multiplexer rests at the selector nearest 0, so that it selects something
+        if f.name in options:
+            raws[f.name] = min(options[f.name], key=lambda raw: (abs(f.from_raw(raw)), raw))
     word = 0
-    for f in present(fields, rest):
-        word |= _place(f, resting_raw(f))
+    for f in present(fields, {f.name: f.from_raw(raws[f.name]) for f in fields}):
+        word |= _place(f, raws[f.name])
     return (word & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
+
+
+def selectors(fields: Iterable[Field]) -> dict[str, list[int]]:
+    """Per multiplexer, the bit patterns that select one of its fields and lie inside its own range, in order."""
+    fields = list(fields)
+    by_name = {f.name: f for f in fields}
+    out: dict[str, set[int]] = {}
+    for f in fields:
+        switch = by_name.get(f.mux) if f.mux is not None else None
+        if switch is None:
+            continue
+        mask = (1 << switch.bits) - 1
+        inside = {v & mask for v in f.mux_values if _inside(switch, switch.from_raw(v & mask))}
+        out.setdefault(switch.name, set()).update(inside)
+    return {name: sorted(values) for name, values in out.items() if values}
 
 
 def present(fields: Iterable[Field], values: Mapping[str, Number | str] | None = None) -> list[Field]:

@@ -12,7 +12,7 @@ from collections.abc import Iterable
 import numpy as np
 from numpy.typing import NDArray
 
-from netcfg.runtime.codec import Field, raw_interval
+from netcfg.runtime.codec import Field, raw_interval, selectors
 
 __all__ = ["fill_in_range", "fits", "physical", "place", "present_rows", "take"]
 
@@ -75,8 +75,10 @@ def _rows_of(f: Field, by_name: dict[str, Field], data: NDArray[np.uint8], seen:
 def fill_in_range(fields: Iterable[Field], data: NDArray[np.uint8], rng: np.random.Generator) -> None:
     """Random payloads (data, in place) made to decode inside every present field's [minimum, maximum]: each
     such field's raw value drawn uniformly from those in range (codec.raw_interval; a float uniformly between
-    its limits). Multiplexers are drawn before the fields they select; bits of no limited field stay as they are."""
+    its limits). Multiplexers are drawn first, among the values that select a field; bits of no limited
+    field stay as they are."""
     by_name = {f.name: f for f in fields}
+    options = selectors(by_name.values())
     todo = [f for f in by_name.values() if fits(f, data.shape[1])]
     done: set[str] = set()
     while todo:  # multiplexers first: a field is drawn once the one that selects it is
@@ -84,7 +86,12 @@ def fill_in_range(fields: Iterable[Field], data: NDArray[np.uint8], rng: np.rand
         if not ready:
             break  # a cycle of multiplexers: nothing of it is ever present
         for f in ready:
-            _draw(f, data, rng, _rows_of(f, by_name, data, frozenset()))
+            rows = _rows_of(f, by_name, data, frozenset())
+            if f.name in options:  # a multiplexer selects one of its fields (codec.selectors)
+                choice = np.array(options[f.name], np.uint64)[rng.integers(0, len(options[f.name]), len(data))]
+                place(f, data, choice, rows)
+            else:
+                _draw(f, data, rng, rows)
             done.add(f.name)
         todo = [f for f in todo if f.name not in done]
 
