@@ -112,8 +112,26 @@ def _analyze_once(m: model.Model, diags: Collector, acc: _Analysis) -> dict[str,
             buses.append(analyze_can(m, bus, diags, acc))
     for row, bus in zip(buses, m.buses.values()):
         row["assumes"] = assumptions(bus, tuple(q["node"] for q in row.get("tx_queues", ())))
+        warn_if_nothing_analysed(m, bus, diags)
     nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
     return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
+
+
+def warn_if_nothing_analysed(m: model.Model, bus: model.Bus, diags: Collector) -> None:
+    """A bus whose every message is on-demand carries no analysed load: its 0.0 % and the verdict say nothing of
+    its timing (a DBC without cycle times imports that way), which a user must not read as a pass."""
+    if not bus.messages or any(msg.kind != "on-demand" for msg in bus.messages):
+        return
+    if any(d.code == "dbc-not-analysed" for d in diags.items):  # check F.dbc: each message has said so already
+        return
+    diags.add(
+        "not-analysed",
+        f"bus '{bus.name}': all {len(bus.messages)} of its messages are on-demand, so nothing on it is analysed and "
+        "its 0.0 % load says nothing of its timing; give its messages a period (or min_interarrival for sporadic "
+        "ones), or for a DBC assume one with --default-period T (check, import dbc, init --from dbc)",
+        m.source.at(bus.path),
+        "warning",
+    )
 
 
 def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:

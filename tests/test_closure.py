@@ -23,7 +23,7 @@ from typing import Any
 
 import cantools
 import pytest
-from conftest import ROOT
+from conftest import ROOT, cli
 
 from netcfg import runtime
 from netcfg.check import analyse_spec, check
@@ -226,3 +226,37 @@ def test_simulated_payloads_decode_inside_ranges(case: Case, stuffing: str) -> N
             assert low <= values[sig.name] <= high, (msg.name, sig.name, values[sig.name], low, high)
     if any(s.minimum is not None or s.maximum is not None for m in db.messages for s in m.signals):
         assert limited, "no simulated frame of a message with limited signals"
+
+
+def test_check_warns_when_nothing_on_a_bus_is_analysed(tmp_path: Path) -> None:
+    """toyota_prius_2010_pt.dbc gives no cycle time, so the spec `init --from dbc` writes has all 26 messages
+    on-demand (0.0 %): check said "OK (0 errors, 0 warnings)". It now warns once, naming the bus and the way to give
+    periods; with --default-period the same file is analysed and the warning is gone."""
+    spec = tmp_path / "prius.yaml"
+    proc = cli("init", "--from", "dbc", str(DBC_DIR / "toyota_prius_2010_pt.dbc"), "--bitrate", "500k", "-o", str(spec))
+    assert proc.returncode == 0, proc.stderr
+    report = check(spec)
+    warned = [w for w in report["warnings"] if w["code"] == "not-analysed"]
+    assert len(warned) == 1 and "bus 'can0'" in warned[0]["message"] and "--default-period" in warned[0]["message"]
+    lines = spec.read_text(encoding="utf-8").splitlines()
+    at = (warned[0]["file"], warned[0]["line"], warned[0]["column"])
+    assert at == (str(spec), lines.index("  - name: can0") + 1, 5)  # the bus's list item
+    periodic = check(DBC_DIR / "toyota_prius_2010_pt.dbc", ImportOptions(500_000, default_period_ns=100_000_000))
+    assert periodic["buses"][0]["utilization"] > 0
+    assert not [w for w in periodic["warnings"] if w["code"] == "not-analysed"]
+
+
+def test_init_takes_the_dbc_options_of_import(tmp_path: Path) -> None:
+    """init --from dbc has --bitrate, --data-bitrate and --default-period with import dbc's meaning: the same
+    spec from both, for the CAN FD DBC build writes for specs/arm_canfd.yaml (its Baudrate_CANFD says 5 Mbit/s;
+    --data-bitrate 4M wins) with every message made periodic."""
+    case = next(c for c in CASES if c.name == "arm_canfd")
+    dbc = tmp_path / "arm.dbc"
+    dbc.write_bytes(emit_dbc.emit(*analysed(case)[:2])["dbc/arm.dbc"])
+    options = ("--bitrate", "1M", "--data-bitrate", "4M", "--default-period", "2ms")
+    by_init, by_import = tmp_path / "init.yaml", tmp_path / "import.yaml"
+    assert cli("init", "--from", "dbc", str(dbc), *options, "-o", str(by_init)).returncode == 0
+    assert cli("import", "dbc", str(dbc), *options, "-o", str(by_import)).returncode == 0
+    text = by_init.read_text(encoding="utf-8")
+    assert text == by_import.read_text(encoding="utf-8")
+    assert 'data_bitrate: "4 Mbit/s"' in text
