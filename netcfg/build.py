@@ -36,7 +36,7 @@ def build(spec: Path, out: Path | None, worker: Background | None = None) -> tup
         if model is None or not report["ok"]:
             return report, None, {}
         files = emit_all(model, report, worker)
-        report["notes"] = [f"{name}: it cannot say {what}" for name, lost in unsaid(model).items() for what in lost]
+        report["notes"] = [f"{name}: it cannot say {u.what}" for name, lost in unsaid(model).items() for u in lost]
     finally:
         worker.close()
     target = out if out is not None else Path("generated") / model.system

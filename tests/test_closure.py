@@ -23,6 +23,7 @@ from typing import Any
 
 import cantools
 import pytest
+import yaml
 from conftest import ROOT, cli
 
 from netcfg import runtime
@@ -151,7 +152,7 @@ def test_dbc_build_writes_checks_the_same(case: Case, tmp_path: Path) -> None:
     notes = emit_dbc.unsaid(model)
     for bus in report["buses"]:
         name = f"dbc/{bus['name']}.dbc"
-        if name not in checks or name in notes:
+        if name not in checks or not all(u.bounds_kept for u in notes.get(name, ())):
             continue
         got = {m["name"]: m for b in checks[name]["buses"] for m in b["messages"]}
         assert set(got) == {m["name"] for m in bus["messages"]}
@@ -169,19 +170,38 @@ def test_arm_command_keeps_its_task_jitter_in_the_dbc(tmp_path: Path) -> None:
 
 
 def test_build_names_what_a_dbc_cannot_say(tmp_path: Path) -> None:
-    """The two specs whose DBC check differs say why in the build: ALLEX-2's master sends through a FIFO queue
-    (specs/allex2.yaml: tx_queue fifo), CAMBADA runs FTT-CAN (its EC windows, not arbitration, bound it)."""
+    """CAMBADA runs FTT-CAN: its elementary-cycle windows, not arbitration, bound its messages, which a DBC cannot
+    say; build says so, and there check of the DBC does give other bounds. ALLEX-2's CANopen SYNC cycle is named
+    too, though its frames' bounds are kept (test_dbc_build_writes_checks_the_same holds it to them)."""
     from netcfg.build import build
 
     for spec, file, what in (
-        ("allex2", "dbc/can0.dbc", "FIFO transmit queue of master"),
         ("cambada", "dbc/lowlevel.dbc", "FTT-CAN elementary cycle"),
+        ("allex2", "dbc/can0.dbc", "CANopen SYNC cycle"),
     ):
         report, _, _ = build(ROOT / "specs" / f"{spec}.yaml", tmp_path / spec)
         assert any(n.startswith(f"{file}: it cannot say the {what}") for n in report["notes"]), report["notes"]
-        case = next(c for c in CASES if c.name == spec)  # ... and there check of the DBC does differ
-        got = {m["name"]: m["wcrt_us"] for b in dbc_checks(case, tmp_path)[file]["buses"] for m in b["messages"]}
-        assert any(got[m["name"]] != m["wcrt_us"] for b in report["buses"] for m in b["messages"])
+    case = next(c for c in CASES if c.name == "cambada")
+    checked = dbc_checks(case, tmp_path)["dbc/lowlevel.dbc"]
+    got = {m["name"]: m["wcrt_us"] for b in checked["buses"] for m in b["messages"]}
+    assert any(got[m["name"]] != m["wcrt_us"] for b in analysed(case)[1]["buses"] for m in b["messages"])
+
+
+def test_dbc_carries_fifo_queues_clocks_and_error_models(tmp_path: Path) -> None:
+    """What the DBC carries in netcfg's attributes comes back: ALLEX-2's master sends through a 16-deep FIFO
+    (specs/allex2.yaml), which delays its SYNC behind its RPDOs (2880 us against 190 us by priority); a bus's
+    clock tolerance and error model (here 50 ppm and a burst of 2 plus one error per 10 ms, on arm_canfd) change
+    every bound. check of each DBC gives the spec's wcrt per message."""
+    data = yaml.safe_load((ROOT / "specs" / "arm_canfd.yaml").read_text(encoding="utf-8"))
+    data["buses"][0].update(clock_tolerance=50, errors={"burst": 2, "interval": "10 ms", "ber": 1e-7})
+    spec = tmp_path / "arm_errors.yaml"
+    spec.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    for path in (ROOT / "specs" / "allex2.yaml", spec):
+        case = Case(path.stem, path)
+        want = {m["name"]: m["wcrt_us"] for b in analysed(case)[1]["buses"] for m in b["messages"]}
+        (checked,) = dbc_checks(case, tmp_path).values()
+        assert {m["name"]: m["wcrt_us"] for b in checked["buses"] for m in b["messages"]} == want
+    assert want["arm_command"] > 326.2  # the error model costs something
 
 
 def decoder(case: Case) -> Any:

@@ -16,6 +16,11 @@ Timing, as attributes of the message (BA_ ... BO_):
                           so spec -> DBC -> spec keeps every timing field. NetcfgJitter is the release jitter
                           the analysis gave the message: its own and, for a message a task sends, that task's
                           response-time spread (a DBC has no tasks), so `check` of the DBC times it the same.
+Beside them, netcfg's node and bus attributes carry what else check's bounds depend on, where the spec differs
+from what a DBC implies: a node's FIFO transmit queue (BU_ NetcfgTxQueue fifo, NetcfgTxQueueDepth,
+NetcfgTxQueueOnFull), the senders' clock tolerance (NetcfgClockTolerance, ppm) and the error model
+(NetcfgErrorBurst, NetcfgErrorInterval in ms, NetcfgErrorBer). What no attribute carries (a protocol's schedule)
+unsaid() lists and build prints.
 A message given only as a size gets one unsigned signal spanning its payload, `<message>_raw` (netcfg.runtime
 reads and writes it under the same name), so a bus monitor still shows its bytes; a CAN FD payload of more than 8
 bytes gets `<message>_raw0`, `_raw1`, ... of 8 bytes each (a DBC signal has at most 64 bits). Comments say what
@@ -30,7 +35,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import cantools.database.can as cdb
 from cantools.database.can.formats.dbc import DbcSpecifics, dump_string
@@ -63,6 +68,29 @@ BAUDRATE_CANFD = DbcAttributeDefinition(
     "Baudrate_CANFD", default_value=2_000_000, type_name="INT", minimum=0, maximum=16_000_000
 )
 CANFD_BRS = DbcAttributeDefinition("CANFD_BRS", default_value="1", kind="BO_", type_name="ENUM", choices=["0", "1"])
+# netcfg's node attributes: a FIFO transmit queue (spec: tx_queue), which the analysis bounds otherwise
+# netcfg's bus attributes, written where the spec says what the importer's defaults do not: the senders' clock
+# tolerance (ppm) and the error model (burst, interval in ms exact to the ns, the environment's bit error rate)
+CLOCK_TOLERANCE = DbcAttributeDefinition(
+    "NetcfgClockTolerance", default_value=100, type_name="INT", minimum=0, maximum=10_000
+)
+ERROR_BURST = DbcAttributeDefinition("NetcfgErrorBurst", default_value=0, type_name="INT", minimum=0, maximum=10_000)
+ERROR_INTERVAL = DbcAttributeDefinition(
+    "NetcfgErrorInterval", default_value=0, type_name="FLOAT", minimum=0, maximum=2**31 - 1
+)
+ERROR_BER = DbcAttributeDefinition("NetcfgErrorBer", default_value=1e-6, type_name="FLOAT", minimum=0, maximum=1)
+DEFAULT_CLOCK_TOLERANCE_PPM = 100  # the spec's default (and so the importer's): written only when another
+QUEUE_POLICIES = ["priority", "fifo"]  # the ENUMs' values, in order (the spec's tx_queue policy and on_full)
+QUEUE_ON_FULL = ["block", "drop"]
+TX_QUEUE = DbcAttributeDefinition(
+    "NetcfgTxQueue", default_value="priority", kind="BU_", type_name="ENUM", choices=QUEUE_POLICIES
+)
+TX_QUEUE_DEPTH = DbcAttributeDefinition(
+    "NetcfgTxQueueDepth", default_value=10, kind="BU_", type_name="INT", minimum=1, maximum=2**31 - 1
+)
+TX_QUEUE_ON_FULL = DbcAttributeDefinition(
+    "NetcfgTxQueueOnFull", default_value="block", kind="BU_", type_name="ENUM", choices=QUEUE_ON_FULL
+)
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
@@ -73,23 +101,29 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     return files
 
 
-def unsaid(m: model.Model) -> dict[str, list[str]]:
-    """Per DBC file, what of its bus's timing a DBC cannot say, so that `netcfg check` of that file bounds the
-    bus's messages otherwise than check of the spec (everything else it says: frames, periods, offsets, release
-    jitter, deadlines, bit rates). `netcfg build` prints these."""
-    out: dict[str, list[str]] = {}
+class Unsaid(NamedTuple):
+    """Something of a bus's timing its DBC cannot say; bounds_kept: check of the DBC still gives every message the
+    spec's bound (what is lost is judged beside the bounds)."""
+
+    what: str
+    bounds_kept: bool
+
+
+def unsaid(m: model.Model) -> dict[str, list[Unsaid]]:
+    """Per DBC file, what of its bus's timing a DBC cannot say, so that `netcfg check` of that file does not judge
+    it (everything else it says: frames, periods, offsets, release jitter, deadlines, bit rates, and in netcfg's
+    attributes FIFO transmit queues, clock tolerance and the error model). `netcfg build` prints these."""
+    out: dict[str, list[Unsaid]] = {}
     for bus in m.buses.values():
         if not bus.is_can:
             continue
         lost = []
         if bus.ftt is not None:
-            lost.append("the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames as "
-                        "free-running CAN, trigger message included")
-        fifo = [name for name in bus.nodes if m.nodes[name].tx_queue.fifo]
-        if fifo:
-            lost.append(f"the FIFO transmit queue of {', '.join(fifo)}: check of the DBC assumes priority queues")
-        if bus.errors is not None:
-            lost.append("the bus's error model: check of the DBC assumes an error-free bus")
+            lost.append(Unsaid("the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames "
+                               "as free-running CAN, trigger message included, so its bounds are not the bus's", False))
+        if bus.canopen is not None:
+            lost.append(Unsaid("the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the "
+                               "DBC bounds each frame as check of the spec does, but does not judge the cycle", True))
         if lost:
             out[f"dbc/{bus.name}.dbc"] = lost
     return out
@@ -131,8 +165,8 @@ def dbc_text(m: model.Model, bus: model.Bus, jitter: Mapping[str, int] | None = 
     names, which are DBC names already, that pass changes nothing; so when no node name is long enough for
     cantools to shorten, it writes the database without its nodes and their one line, `BU_:`, is filled in.
     Nodes carry no comment or attribute here, so the bytes are those of the long way (a test compares)."""
-    if any(len(name) > CANTOOLS_SHORT_NAME for name in bus.nodes):
-        return write(database(m, bus, jitter=jitter))
+    if any(len(name) > CANTOOLS_SHORT_NAME or m.nodes[name].tx_queue.fifo for name in bus.nodes):
+        return write(database(m, bus, jitter=jitter))  # a node with attributes is written by cantools
     text = write(database(m, bus, with_nodes=False, jitter=jitter))
     if text.count(_NO_NODES) != 1:  # a cantools that writes the line differently: take the long way
         return write(database(m, bus, jitter=jitter))
@@ -163,13 +197,20 @@ def database(
     if tm is not None:
         messages.append(tm)
     messages.sort(key=lambda x: (x.is_extended_frame, x.frame_id, x.name))
-    nodes = [cdb.Node(name) for name in bus.nodes] if with_nodes else []
+    nodes = [_node(m.nodes[name]) for name in bus.nodes] if with_nodes else []
     # DBName (Vector's database attribute) carries the bus name; cantools writes Baudrate itself from the Bus
     db_name = DbcAttributeDefinition("DBName", default_value="", type_name="STRING")
     specifics = DbcSpecifics(
         attributes=OrderedDict(DBName=DbcAttribute(bus.name, db_name)),
         attribute_definitions=OrderedDict(DBName=db_name, GenMsgSendType=_SEND_TYPE, **_INT_MS, **_EXACT_MS),
     )
+    for name, definition, value in _bus_attributes(bus):
+        specifics.attribute_definitions[name] = definition
+        specifics.attributes[name] = DbcAttribute(value, definition)
+    if any(m.nodes[name].tx_queue.fifo for name in bus.nodes):
+        specifics.attribute_definitions.update(
+            NetcfgTxQueue=TX_QUEUE, NetcfgTxQueueDepth=TX_QUEUE_DEPTH, NetcfgTxQueueOnFull=TX_QUEUE_ON_FULL
+        )
     if bus.protocol == "can-fd":
         # Vector's CAN FD attributes: BusType "CAN FD" makes cantools write each frame's VFrameFormat (and read it
         # back as is_fd); Baudrate_CANFD is the data rate; CANFD_BRS (default 1) marks frames without bit-rate switch
@@ -185,6 +226,33 @@ def database(
         dbc_specifics=specifics,
         sort_signals=None,  # our signals are already in start-bit order; keep it
     )
+
+
+def _bus_attributes(bus: model.Bus) -> list[tuple[str, DbcAttributeDefinition, Any]]:
+    """netcfg's bus attributes of this bus: what of its timing model differs from what a DBC implies."""
+    out: list[tuple[str, DbcAttributeDefinition, Any]] = []
+    if bus.clock_tolerance_ppm != DEFAULT_CLOCK_TOLERANCE_PPM:
+        out.append(("NetcfgClockTolerance", CLOCK_TOLERANCE, bus.clock_tolerance_ppm))
+    if bus.errors is not None:
+        out += [
+            ("NetcfgErrorBurst", ERROR_BURST, bus.errors.burst),
+            ("NetcfgErrorInterval", ERROR_INTERVAL, _ms(bus.errors.interval_ns)),
+            ("NetcfgErrorBer", ERROR_BER, bus.errors.ber),
+        ]
+    return out
+
+
+def _node(node: model.Node) -> cdb.Node:
+    """A node; one with a FIFO transmit queue says so in netcfg's node attributes (NetcfgTxQueue, its depth and
+    what a full queue does), which netcfg's DBC importer reads back as the node's tx_queue."""
+    q = node.tx_queue
+    if not q.fifo:
+        return cdb.Node(node.name)
+    attrs: OrderedDict[str, DbcAttribute] = OrderedDict()  # an ENUM's value is its index, as GenMsgSendType's
+    attrs["NetcfgTxQueue"] = DbcAttribute(QUEUE_POLICIES.index("fifo"), TX_QUEUE)
+    attrs["NetcfgTxQueueDepth"] = DbcAttribute(q.depth, TX_QUEUE_DEPTH)
+    attrs["NetcfgTxQueueOnFull"] = DbcAttribute(QUEUE_ON_FULL.index(q.on_full), TX_QUEUE_ON_FULL)
+    return cdb.Node(node.name, dbc_specifics=DbcSpecifics(attributes=attrs))
 
 
 def sanitise(text: str) -> str:
