@@ -24,7 +24,7 @@ from typing import Any
 import cantools
 import pytest
 import yaml
-from conftest import ROOT, cli
+from conftest import ROOT, cli, runtime_config_of
 
 from netcfg import runtime
 from netcfg.check import analyse_spec, check
@@ -280,3 +280,62 @@ def test_init_takes_the_dbc_options_of_import(tmp_path: Path) -> None:
     text = by_init.read_text(encoding="utf-8")
     assert text == by_import.read_text(encoding="utf-8")
     assert 'data_bitrate: "4 Mbit/s"' in text
+
+
+def test_resting_values_are_the_nearest_to_zero_inside_each_range() -> None:
+    """Hand values (physical = raw * scale + offset): opendbc's WHEEL_SPEED_RL (16 bits, 0.01, -67.67, [0, 250])
+    rests at raw 6767 (0 km/h, or the next raw up where 6767 * 0.01 - 67.67 rounds below 0); a 10-bit field with
+    offset -512 in [-512, 511] at raw 512 (0); vw_mqb's MO_obere_Drehzahlgrenze (8 bits, scale 50, [50, 12750])
+    at its minimum, raw 1 (50); a signed field in [-5, -2] at -2; a multiplexer in [0, 3] whose fields are
+    selected by 2 and 3 rests at 2 (the selector nearest 0), and only the field it selects is set."""
+    from netcfg.runtime.codec import Field, decode, resting_payload, resting_raw
+
+    wheel = Field("WHEEL_SPEED_RL", 0, 16, scale=0.01, offset=-67.67, minimum=0, maximum=250)
+    assert resting_raw(wheel) in (6767, 6768) and 0 <= wheel.from_raw(resting_raw(wheel)) <= 0.01
+    assert resting_raw(Field("x", 0, 10, offset=-512, minimum=-512, maximum=511)) == 512
+    assert Field("rpm", 0, 8, scale=50, minimum=50, maximum=12750).from_raw(
+        resting_raw(Field("rpm", 0, 8, scale=50, minimum=50, maximum=12750))
+    ) == 50
+    signed = Field("s", 0, 8, signed=True, minimum=-5, maximum=-2)
+    assert signed.from_raw(resting_raw(signed)) == -2
+    fields = [
+        Field("mux", 0, 2, minimum=0, maximum=3),
+        Field("a", 8, 8, offset=10, minimum=10, maximum=20, mux="mux", mux_values=(2,)),
+        Field("b", 8, 8, minimum=1, maximum=5, mux="mux", mux_values=(3,)),
+    ]
+    assert decode(fields, resting_payload(fields, 2)) == {"mux": 2, "a": 10.0}
+
+
+def test_verify_decodes_big_endian_and_multiplexed_signals_as_the_codec(tmp_path: Path) -> None:
+    """A big-endian 12-bit signal (start bit 7, DBC numbering: bits 7..0 of byte 0, then 7..4 of byte 1) in
+    [0, 100] and a multiplexed one: frames encoded by netcfg.runtime.codec with in-range values verify clean, one
+    with 101 is one range violation; a frame whose multiplexer does not select the signal is not judged by it
+    (before, verify read every signal little-endian and whether or not its multiplexer selected it)."""
+    from netcfg.runtime.codec import encode
+
+    spec = {
+        "system": "be",
+        "buses": [{"name": "can0", "protocol": "can", "bitrate": "500 kbit/s"}],
+        "nodes": [{"name": "a", "buses": ["can0"]}, {"name": "b", "buses": ["can0"]}],
+        "messages": [
+            {
+                "name": "m", "id": 0x10, "producer": "a", "consumers": ["b"], "period": "10 ms", "size": 4,
+                "signals": [
+                    {"name": "speed", "bits": 12, "start_bit": 7, "byte_order": "big_endian", "min": 0, "max": 100},
+                    {"name": "sel", "bits": 2, "start_bit": 16, "min": 0, "max": 3},
+                    {"name": "temp", "bits": 8, "start_bit": 24, "min": 10, "max": 20,
+                     "mux": {"signal": "sel", "values": [1]}},
+                ],
+            }
+        ],
+    }
+    cfg = runtime_config_of(tmp_path / "be.yaml", spec)
+    (m,) = cfg.messages
+    ok = [encode(m.fields, 4, {"speed": v, "sel": 1, "temp": 15}) for v in (0, 55, 100)]
+    unselected = encode(m.fields, 4, {"speed": 7, "sel": 2})  # temp's byte is 0, outside [10, 20], but absent
+    bad = encode([f for f in m.fields if f.name != "speed"], 4, {"sel": 1, "temp": 15})
+    bad = (int.from_bytes(bad, "little") | (101 >> 4) | ((101 & 0xF) << 12)).to_bytes(4, "little")
+    frames = [(k * 10_000_000, "can0", 0x10, False, data) for k, data in enumerate([*ok, unselected, bad])]
+    report = check_frames(cfg, frames)
+    assert report["violations_by_kind"] == {"range": 1}
+    assert "signal speed outside [0, 100] in 1 frame(s), worst 101" in report["violations"][0]["detail"]
