@@ -164,7 +164,7 @@ def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
         if bus.errors is None
         else "bit errors: "
         + can_errors.describe(bus.errors.burst, format_ns(bus.errors.interval_ns))
-        + ", each an error frame of up to 31 bits and a retransmission",
+        + f", each an error frame of up to {can_errors.ERROR_FRAME_BITS} bits and a retransmission",
     ]
     if bus.ftt is not None:
         out += [
