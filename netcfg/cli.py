@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     p_tune.add_argument("--robust", action="store_true", help="Davis & Burns' robust assignment: most error frames")
     p_tune.add_argument("--force", action="store_true", help="replace OUT.yaml if it exists")
     p_tune.add_argument("--format", choices=("text", "json"), default="text")
-    p_tune.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k")
+    _add_dbc_options(p_tune)
     args = parser.parse_args(argv)
     if args.command not in BATCH_COMMANDS:
         return _dispatch(args)
@@ -145,7 +145,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         if args.command == "tune":
             from netcfg.tune import command
 
-            return command(args.spec, args.output, args.robust, args.force, args.format, args.bitrate)
+            return command(args.spec, args.output, args.robust, args.force, args.format, _import_options(args))
         if args.command == "init":
             from netcfg.init_spec import init_command
 
@@ -161,7 +161,7 @@ def _dispatch(args: argparse.Namespace) -> int:
 
 def _add_dbc_options(parser: argparse.ArgumentParser) -> None:
     """What a DBC does not say, the same for every command that reads one (check F.dbc, import dbc, init --from
-    dbc): the bit rates and the period of messages that give no cycle time."""
+    dbc, tune F.dbc): the bit rates and the period of messages that give no cycle time."""
     parser.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate (wins over the file's), e.g. 1M")
     parser.add_argument("--data-bitrate", type=_bitrate,
                         help="DBC input with CAN FD frames: the data-phase bit rate (wins over the file's)")

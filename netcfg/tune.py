@@ -386,14 +386,13 @@ def _duration_text(ns: int) -> str:
     return f"{ns} ns"
 
 
-def _read_dbc(path: Path, diags: Collector, bitrate: int | None) -> tuple[Spec | None, model.Model | None]:
+def _read_dbc(path: Path, diags: Collector, options: ImportOptions) -> tuple[Spec | None, model.Model | None]:
     """The spec `netcfg import dbc` would write for this DBC, and its model."""
     from pydantic import ValidationError
 
     from netcfg.check import load_dbc
     from netcfg.importers.dbc import import_dbc
 
-    options = ImportOptions(bitrate)
     imported = import_dbc(path, options, Collector())
     if imported is None:
         return None, load_dbc(path, diags, options)
@@ -427,7 +426,9 @@ def edit_dbc_ids(text: str, ids: dict[int, int]) -> str:
     return _DBC_ID.sub(lambda mt: mt.group(1) + str(ids.get(int(mt.group(2)), int(mt.group(2)))), text)
 
 
-def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bitrate: int | None = None) -> int:
+def command(
+    source: Path, output: Path, robust: bool, force: bool, fmt: str, options: ImportOptions | None = None
+) -> int:
     """netcfg tune SPEC -o OUT.yaml; exit 0 written, 1 no assignment or the spec has errors, 2 I/O or usage."""
     from netcfg.analyze import analyze
     from netcfg.check import analyse_spec
@@ -445,7 +446,7 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
     diags = Collector()
     is_dbc = source.suffix.lower() == ".dbc"
     if is_dbc:
-        spec, m = _read_dbc(source, diags, bitrate)
+        spec, m = _read_dbc(source, diags, options or ImportOptions())
     else:
         spec, smap = read_spec(source, diags)
         m = resolve(spec, smap, diags, source.parent) if spec is not None else None
@@ -478,7 +479,7 @@ def command(source: Path, output: Path, robust: bool, force: bool, fmt: str, bit
     try:
         output.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_bytes(data)
-        _, after = analyse_spec(tmp, ImportOptions(bitrate) if is_dbc else None)
+        _, after = analyse_spec(tmp, (options or ImportOptions()) if is_dbc else None)
         if after["errors"]:
             tmp.unlink()
             print(
