@@ -12,7 +12,7 @@ from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, flows, load
-from netcfg.timing.frames import bits_to_ns, can_frame_bits
+from netcfg.timing.frames import bits_to_ns, frame_bits
 
 # The analyses of FTT-CAN, CANopen's SYNC cycle, Ethernet and node CPUs are imported by the functions that run them:
 # a spec that has none of these loads none of them.
@@ -113,8 +113,26 @@ def _analyze_once(m: model.Model, diags: Collector, acc: _Analysis) -> dict[str,
     for row, bus in zip(buses, m.buses.values()):
         row["assumes"] = assumptions(bus, tuple(q["node"] for q in row.get("tx_queues", ())))
         check_offsets(m, bus, diags)
+        warn_if_nothing_analysed(m, bus, diags)
     nodes = [analyze_node(m, node, acc, diags) for node in m.nodes.values() if node.tasks]
     return {"buses": buses, "nodes": nodes, "flows": [analyze_flow(m, f, acc, diags) for f in m.flows.values()]}
+
+
+def warn_if_nothing_analysed(m: model.Model, bus: model.Bus, diags: Collector) -> None:
+    """A bus whose every message is on-demand carries no analysed load: its 0.0 % and the verdict say nothing of
+    its timing (a DBC without cycle times imports that way), which a user must not read as a pass."""
+    if not bus.messages or any(msg.kind != "on-demand" for msg in bus.messages):
+        return
+    if any(d.code == "dbc-not-analysed" for d in diags.items):  # check F.dbc: each message has said so already
+        return
+    diags.add(
+        "not-analysed",
+        f"bus '{bus.name}': all {len(bus.messages)} of its messages are on-demand, so nothing on it is analysed and "
+        "its 0.0 % load says nothing of its timing; give its messages a period (or min_interarrival for sporadic "
+        "ones), or for a DBC assume one with --default-period T (check, import dbc, init --from dbc)",
+        m.source.at(bus.path),
+        "warning",
+    )
 
 
 def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
@@ -150,7 +168,7 @@ def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
         if bus.errors is None
         else "bit errors: "
         + can_errors.describe(bus.errors.burst, format_ns(bus.errors.interval_ns))
-        + ", each an error frame of up to 31 bits and a retransmission",
+        + f", each an error frame of up to {can_errors.ERROR_FRAME_BITS} bits and a retransmission",
     ]
     if bus.ftt is not None:
         out += [
@@ -577,6 +595,8 @@ def analyze_can(m: model.Model, bus: model.Bus, diags: Collector, acc: _Analysis
     # (nominal, worst-case) frame time of each message: without and with stuff bits
     frame_ns = {name: (t.nominal_ns, t.tx_ns) for name, t in timings.items()}
     rows = [message_row(msg, timings[msg.name]) for msg in bus.messages]
+    for row, msg in zip(rows, bus.messages):  # the release jitter analysed: the spec's and its sender's spread
+        row["jitter_us"], row["jitter_ns"] = us(acc.jitter(msg)), acc.jitter(msg)
     tau = bits_to_ns(1, bus.bitrate)
     errors = error_model(bus)
     if errors is not None:
@@ -905,7 +925,7 @@ def analyze_ftt(
     tm_ns = sched.tm_ns
     return {
         "ec_us": us(bus.ftt.ec_ns),
-        "tm_bits": can_frame_bits(bus.ftt.tm_size, bus.id_bits == 29),
+        "tm_bits": frame_bits(bus.ftt.tm_size, bus.id_bits == 29).total,
         "tm_us": us(tm_ns),
         "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
         "lsw_us": us(sched.lsw_ns),

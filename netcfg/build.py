@@ -13,6 +13,7 @@ from typing import Any
 
 from netcfg.check import analyse_spec
 from netcfg.emit import Background, Files, emit_all
+from netcfg.emit.dbc import unsaid
 from netcfg.inputs import read_input_bytes
 from netcfg.outputs import check_output_folder, write_tree
 
@@ -23,7 +24,8 @@ def build(spec: Path, out: Path | None, worker: Background | None = None) -> tup
     worker: the emitters' background worker, best started before this module is imported (Background.start());
     it is closed on return.
 
-    report["kept"] lists the files of the user's that were found in netcfg's output folder and kept there.
+    report["kept"] lists the files of the user's that were found in netcfg's output folder and kept there;
+    report["notes"] what of the spec a written file cannot say (a DBC: netcfg.emit.dbc.unsaid).
     Raises OutputError (an OSError) when the output folder is one netcfg must not replace."""
     if worker is None:
         worker = Background.start()  # it imports what the report needs while the spec is analysed here
@@ -34,6 +36,7 @@ def build(spec: Path, out: Path | None, worker: Background | None = None) -> tup
         if model is None or not report["ok"]:
             return report, None, {}
         files = emit_all(model, report, worker)
+        report["notes"] = [f"{name}: it cannot say {u.what}" for name, lost in unsaid(model).items() for u in lost]
     finally:
         worker.close()
     target = out if out is not None else Path("generated") / model.system

@@ -45,15 +45,12 @@ def main(argv: list[str] | None = None) -> int:
     p_check.add_argument("specs", nargs="+", type=Path, metavar="SPEC", help="a spec, a DBC, or a folder of specs")
     p_check.add_argument("--format", choices=("text", "json"), default="text")
     p_check.add_argument("-q", "--quiet", action="store_true", help="print only errors and warnings")
-    p_check.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k or '500 kbit/s'")
+    _add_dbc_options(p_check)
     p_check.add_argument("--lenient", action="store_true",
                          help="DBC input: accepted; what cannot be mapped is a warning anyway (see --default-period)")
-    p_check.add_argument("--default-period", type=_duration_ns, metavar="T",
-                         help="DBC input: analyse messages that give no cycle time as periodic every T, e.g. 100ms")
     p_check.add_argument("--werror", action="append", default=[], metavar="CODE",
                          help="treat warnings with this code as errors (repeatable), e.g. dbc-no-receiver")
     p_check.add_argument("--explain", metavar="MESSAGE", help="derive one CAN message's bound and what would fix it")
-    p_check.add_argument("--data-bitrate", type=_bitrate, help="DBC input with CAN FD frames: the data-phase bit rate")
     p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
     p_build.add_argument("spec", type=Path, metavar="SPEC")
     p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
@@ -61,11 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     p_import.add_argument("kind", choices=("dbc", "bus-yml"))
     p_import.add_argument("source", type=Path, metavar="FILE")
     p_import.add_argument("-o", "--output", type=Path, required=True, metavar="SPEC", help="the spec to write")
-    p_import.add_argument("--bitrate", type=_bitrate, help="the bus bit rate (wins over the file's)")
-    p_import.add_argument("--data-bitrate", type=_bitrate, help="CAN FD data-phase bit rate (wins over the file's)")
+    _add_dbc_options(p_import)
     p_import.add_argument("--lenient", action="store_true", help="what cannot be mapped is a warning, not an error")
-    p_import.add_argument("--default-period", type=_duration_ns, metavar="T",
-                          help="DBC: messages that give no cycle time are periodic every T, e.g. 100ms")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
     _add_init_and_diff(sub)
     p_sim = sub.add_parser("simulate", help="run the runtime configuration in the discrete-event simulator")
@@ -107,10 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     p_tune.add_argument("--robust", action="store_true", help="Davis & Burns' robust assignment: most error frames")
     p_tune.add_argument("--force", action="store_true", help="replace OUT.yaml if it exists")
     p_tune.add_argument("--format", choices=("text", "json"), default="text")
-    p_tune.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate, e.g. 500k")
-    p_tune.add_argument("--data-bitrate", type=_bitrate, help="DBC input with CAN FD frames: the data-phase bit rate")
-    p_tune.add_argument("--default-period", type=_duration_ns, metavar="T",
-                        help="DBC input: analyse messages that give no cycle time as periodic every T, e.g. 100ms")
+    _add_dbc_options(p_tune)
     args = parser.parse_args(argv)
     if args.command not in BATCH_COMMANDS:
         return _dispatch(args)
@@ -136,18 +127,11 @@ def _dispatch(args: argparse.Namespace) -> int:
         if args.command == "check" and args.explain:
             from netcfg.explain import command as explain_command
 
-            options = ImportOptions(
-                args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
-            )
-            return explain_command(args.specs, args.explain, args.format, options)
+            return explain_command(args.specs, args.explain, args.format, _import_options(args))
         if args.command == "check":
-            options = ImportOptions(
-                args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
-            )
-            return cmd_check(args.specs, args.format, options, frozenset(args.werror), args.quiet)
+            return cmd_check(args.specs, args.format, _import_options(args), frozenset(args.werror), args.quiet)
         if args.command == "import":
-            options = ImportOptions(args.bitrate, args.lenient, args.output, args.default_period, args.data_bitrate)
-            return cmd_import(args.kind, args.source, args.output, options)
+            return cmd_import(args.kind, args.source, args.output, _import_options(args, args.output))
         if args.command == "build":
             return cmd_build(args.spec, args.output)
         if args.command == "schema":
@@ -161,18 +145,15 @@ def _dispatch(args: argparse.Namespace) -> int:
         if args.command == "tune":
             from netcfg.tune import command
 
-            options = ImportOptions(
-                args.bitrate, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
-            )
             try:
-                return command(args.spec, args.output, args.robust, args.force, args.format, options)
+                return command(args.spec, args.output, args.robust, args.force, args.format, _import_options(args))
             except OSError as exc:  # the spec or DBC cannot be read (tune itself reports what it cannot write)
                 print(f"netcfg: {_io_problem(exc, 'read', args.spec)}", file=sys.stderr)
                 return 2
         if args.command == "init":
             from netcfg.init_spec import init_command
 
-            return init_command(args.source, args.file or args.dbc, args.output, ImportOptions(args.bitrate))
+            return init_command(args.source, args.file or args.dbc, args.output, _import_options(args))
         if args.command == "diff":
             from netcfg.diff import diff_command
 
@@ -180,6 +161,21 @@ def _dispatch(args: argparse.Namespace) -> int:
     except BrokenPipeError:  # e.g. `netcfg check x | head`
         return 0
     return 2  # pragma: no cover - argparse rejects unknown commands
+
+
+def _add_dbc_options(parser: argparse.ArgumentParser) -> None:
+    """What a DBC does not say, the same for every command that reads one (check F.dbc, import dbc, init --from
+    dbc, tune F.dbc): the bit rates and the period of messages that give no cycle time."""
+    parser.add_argument("--bitrate", type=_bitrate, help="DBC input: the bus bit rate (wins over the file's), e.g. 1M")
+    parser.add_argument("--data-bitrate", type=_bitrate,
+                        help="DBC input with CAN FD frames: the data-phase bit rate (wins over the file's)")
+    parser.add_argument("--default-period", type=_duration_ns, metavar="T",
+                        help="DBC input: messages that give no cycle time are periodic every T, e.g. 100ms")
+
+
+def _import_options(args: argparse.Namespace, output: Path | None = None) -> ImportOptions:
+    """The options _add_dbc_options defines (and --lenient, where the command has it) as the importer takes them."""
+    return ImportOptions(args.bitrate, getattr(args, "lenient", False), output, args.default_period, args.data_bitrate)
 
 
 def _add_init_and_diff(sub: Any) -> None:
@@ -190,7 +186,7 @@ def _add_init_and_diff(sub: Any) -> None:
     p_init.add_argument("file", nargs="?", type=Path, metavar="FILE", help="with --from dbc: the DBC file")
     p_init.add_argument("--dbc", type=Path, metavar="FILE", help="the same as --from dbc FILE")
     p_init.add_argument("-o", "--output", type=Path, metavar="SPEC", help="the spec to write (default: stdout)")
-    p_init.add_argument("--bitrate", type=_bitrate, help="with a DBC: the bus bit rate")
+    _add_dbc_options(p_init)
     p_diff = sub.add_parser("diff", help="what changed between two specs or two build folders, in timing terms")
     p_diff.add_argument("old", type=Path, metavar="A", help="a spec or a build folder")
     p_diff.add_argument("new", type=Path, metavar="B", help="a spec or a build folder")
@@ -374,6 +370,8 @@ def cmd_build(spec: Path, output: Path | None) -> int:
         names = ", ".join(kept[:5]) + (f" (+{len(kept) - 5} more)" if len(kept) > 5 else "")
         print(f"netcfg: warning: {target} holds {len(kept)} file(s) netcfg did not write; kept: {names}",
               file=sys.stderr)
+    for note in report.get("notes") or []:
+        print(f"netcfg: note: {target / note}", file=sys.stderr)
     print(f"wrote {len(files)} files to {target}")
     return 0
 

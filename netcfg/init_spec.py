@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from netcfg.importers import ImportOptions
@@ -76,7 +77,7 @@ def init_command(source: str | None, dbc: Path | None, output: Path | None, opti
             return 2
         from netcfg.cli import cmd_import
 
-        return cmd_import("dbc", dbc, output, ImportOptions(options.bitrate, options.lenient, output))
+        return cmd_import("dbc", dbc, output, replace(options, output=output))
     text = starting_spec(source, output)
     if output is None:
         sys.stdout.write(text)

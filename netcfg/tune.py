@@ -42,11 +42,10 @@ from netcfg.analyze import analysis_jitter, error_model, release_offsets, rta_fr
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
 from netcfg.spec.schema import Spec
-from netcfg.timing import can_offsets, can_rta, clocks, flows, load
+from netcfg.timing import can_errors, can_offsets, can_rta, clocks, flows, load
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.frames import arbitration_key, bits_to_ns
 
-ERROR_FRAME_BITS = 31  # an error frame: 6-bit flag, up to 6 superposed, 8-bit delimiter, 3-bit intermission
 MAX_ERRORS = 64
 MAX_STEPS = 20_000
 
@@ -159,7 +158,7 @@ def audsley(
 
     def errors_survived(it: Item) -> int:
         mask = waiting.copy()
-        recovery = ERROR_FRAME_BITS * tau + int(max(c[mask].max(initial=0), it.c_ns))
+        recovery = can_errors.ERROR_FRAME_BITS * tau + int(max(c[mask].max(initial=0), it.c_ns))
         lo, hi = 0, MAX_ERRORS
         while lo < hi:  # the most error frames (each with its retransmission) it survives
             mid = (lo + hi + 1) // 2

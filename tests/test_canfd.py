@@ -308,15 +308,16 @@ def test_dbc_marks_fd_frames_so_cantools_reads_them_as_fd(tmp_path: Path) -> Non
 
 def test_check_an_fd_dbc_gives_the_specs_figures(tmp_path: Path) -> None:
     """`netcfg check arm.dbc --bitrate 1M --data-bitrate 5M` on the DBC netcfg wrote for arm_canfd.yaml: the
-    same frames (56 bytes travel as 64 either way), so the same load, 67.9 %; the DBC has no tasks, so the command
-    has no sender jitter: 56.6 + 169.6 = 226.2 us."""
+    same frames (56 bytes travel as 64 either way), so the same load, 67.9 %; the DBC has no tasks, but it carries
+    the command's release jitter from the control task as NetcfgJitter (WCET 150 - BCET 50 = 100 us), so the same
+    bound as the spec's: 100 + 56.6 + 169.6 = 326.2 us (README)."""
     dbc = build_to(tmp_path) / "dbc" / "arm.dbc"
     proc = cli("check", str(dbc), "--bitrate", "1M", "--data-bitrate", "5M", "--format", "json")
     assert proc.returncode == 0, proc.stderr
     b = json.loads(proc.stdout)["buses"][0]
     assert (b["protocol"], b["bitrate"], b["data_bitrate"]) == ("can-fd", 1_000_000, 5_000_000)
     assert b["utilization"] == pytest.approx((FD64_US + 9 * FD8_US) / 1000)
-    assert message(b, "arm_command")["wcrt_us"] == pytest.approx(FD8_US + FD64_US)
+    assert message(b, "arm_command")["wcrt_us"] == pytest.approx((150 - 50) + FD8_US + FD64_US)
     # without --data-bitrate the DBC's own Baudrate_CANFD (5 Mbit/s) is used; --data-bitrate wins over it
     slower = json.loads(cli("check", str(dbc), "--data-bitrate", "2M", "--format", "json").stdout)["buses"][0]
     assert slower["data_bitrate"] == 2_000_000

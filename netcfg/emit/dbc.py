@@ -13,7 +13,14 @@ Timing, as attributes of the message (BA_ ... BO_):
     NetcfgPeriod, NetcfgMinInterarrival, NetcfgOffset, NetcfgJitter, NetcfgDeadline
                           FLOAT ms, exact (whole nanoseconds): what the Gen* attributes round, and the release
                           jitter and deadline, which they cannot say. netcfg's DBC importer reads them first,
-                          so spec -> DBC -> spec keeps every timing field.
+                          so spec -> DBC -> spec keeps every timing field. NetcfgJitter is the release jitter
+                          the analysis gave the message: its own and, for a message a task sends, that task's
+                          response-time spread (a DBC has no tasks), so `check` of the DBC times it the same.
+Beside them, netcfg's node and bus attributes carry what else check's bounds depend on, where the spec differs
+from what a DBC implies: a node's FIFO transmit queue (BU_ NetcfgTxQueue fifo, NetcfgTxQueueDepth,
+NetcfgTxQueueOnFull), the senders' clock tolerance (NetcfgClockTolerance, ppm) and the error model
+(NetcfgErrorBurst, NetcfgErrorInterval in ms, NetcfgErrorBer). What no attribute carries (a protocol's schedule)
+unsaid() lists and build prints.
 A message given only as a size gets one unsigned signal spanning its payload, `<message>_raw` (netcfg.runtime
 reads and writes it under the same name), so a bus monitor still shows its bytes; a CAN FD payload of more than 8
 bytes gets `<message>_raw0`, `_raw1`, ... of 8 bytes each (a DBC signal has at most 64 bits). Comments say what
@@ -27,7 +34,8 @@ spec's order, so the output is byte-identical across builds.
 from __future__ import annotations
 
 from collections import OrderedDict
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
 import cantools.database.can as cdb
 from cantools.database.can.formats.dbc import DbcSpecifics, dump_string
@@ -60,14 +68,72 @@ BAUDRATE_CANFD = DbcAttributeDefinition(
     "Baudrate_CANFD", default_value=2_000_000, type_name="INT", minimum=0, maximum=16_000_000
 )
 CANFD_BRS = DbcAttributeDefinition("CANFD_BRS", default_value="1", kind="BO_", type_name="ENUM", choices=["0", "1"])
+# netcfg's node attributes: a FIFO transmit queue (spec: tx_queue), which the analysis bounds otherwise
+# netcfg's bus attributes, written where the spec says what the importer's defaults do not: the senders' clock
+# tolerance (ppm) and the error model (burst, interval in ms exact to the ns, the environment's bit error rate)
+CLOCK_TOLERANCE = DbcAttributeDefinition(
+    "NetcfgClockTolerance", default_value=100, type_name="INT", minimum=0, maximum=10_000
+)
+ERROR_BURST = DbcAttributeDefinition("NetcfgErrorBurst", default_value=0, type_name="INT", minimum=0, maximum=10_000)
+ERROR_INTERVAL = DbcAttributeDefinition(
+    "NetcfgErrorInterval", default_value=0, type_name="FLOAT", minimum=0, maximum=2**31 - 1
+)
+ERROR_BER = DbcAttributeDefinition("NetcfgErrorBer", default_value=1e-6, type_name="FLOAT", minimum=0, maximum=1)
+DEFAULT_CLOCK_TOLERANCE_PPM = 100  # the spec's default (and so the importer's): written only when another
+QUEUE_POLICIES = ["priority", "fifo"]  # the ENUMs' values, in order (the spec's tx_queue policy and on_full)
+QUEUE_ON_FULL = ["block", "drop"]
+TX_QUEUE = DbcAttributeDefinition(
+    "NetcfgTxQueue", default_value="priority", kind="BU_", type_name="ENUM", choices=QUEUE_POLICIES
+)
+TX_QUEUE_DEPTH = DbcAttributeDefinition(
+    "NetcfgTxQueueDepth", default_value=10, kind="BU_", type_name="INT", minimum=1, maximum=2**31 - 1
+)
+TX_QUEUE_ON_FULL = DbcAttributeDefinition(
+    "NetcfgTxQueueOnFull", default_value="block", kind="BU_", type_name="ENUM", choices=QUEUE_ON_FULL
+)
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     files = {}
     for bus in m.buses.values():
         if bus.is_can:
-            files[f"dbc/{bus.name}.dbc"] = dbc_text(m, bus).encode(ENCODING, errors="replace")
+            files[f"dbc/{bus.name}.dbc"] = dbc_text(m, bus, release_jitter(report)).encode(ENCODING, errors="replace")
     return files
+
+
+class Unsaid(NamedTuple):
+    """Something of a bus's timing its DBC cannot say; bounds_kept: check of the DBC still gives every message the
+    spec's bound (what is lost is judged beside the bounds)."""
+
+    what: str
+    bounds_kept: bool
+
+
+def unsaid(m: model.Model) -> dict[str, list[Unsaid]]:
+    """Per DBC file, what of its bus's timing a DBC cannot say, so that `netcfg check` of that file does not judge
+    it (everything else it says: frames, periods, offsets, release jitter, deadlines, bit rates, and in netcfg's
+    attributes FIFO transmit queues, clock tolerance and the error model). `netcfg build` prints these."""
+    out: dict[str, list[Unsaid]] = {}
+    for bus in m.buses.values():
+        if not bus.is_can:
+            continue
+        lost = []
+        if bus.ftt is not None:
+            lost.append(Unsaid("the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames "
+                               "as free-running CAN, trigger message included, so its bounds are not the bus's", False))
+        if bus.canopen is not None:
+            lost.append(Unsaid("the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the "
+                               "DBC bounds each frame as check of the spec does, but does not judge the cycle", True))
+        if lost:
+            out[f"dbc/{bus.name}.dbc"] = lost
+    return out
+
+
+def release_jitter(report: dict[str, Any]) -> dict[str, int]:
+    """Each CAN message's release jitter as the analysis took it (check's jitter_ns): the spec's and what the task
+    that sends it adds, which a DBC, having no tasks, can only say as the message's own (NetcfgJitter)."""
+    rows = (row for bus in report.get("buses", ()) for row in bus["messages"])
+    return {row["name"]: row["jitter_ns"] for row in rows if "jitter_ns" in row}
 
 
 CANTOOLS_SHORT_NAME = 32  # cantools shortens longer names as it writes (keeping the long one as an attribute)
@@ -91,7 +157,7 @@ def write(db: cdb.Database) -> str:
     return dump_string(once, sort_signals=None, sort_attribute_signals=None)
 
 
-def dbc_text(m: model.Model, bus: model.Bus) -> str:
+def dbc_text(m: model.Model, bus: model.Bus, jitter: Mapping[str, int] | None = None) -> str:
     """The bus's DBC file as cantools writes it.
 
     Before writing, cantools renames every node throughout every frame's sender and receiver lists: nodes x
@@ -99,11 +165,11 @@ def dbc_text(m: model.Model, bus: model.Bus) -> str:
     names, which are DBC names already, that pass changes nothing; so when no node name is long enough for
     cantools to shorten, it writes the database without its nodes and their one line, `BU_:`, is filled in.
     Nodes carry no comment or attribute here, so the bytes are those of the long way (a test compares)."""
-    if any(len(name) > CANTOOLS_SHORT_NAME for name in bus.nodes):
-        return write(database(m, bus))
-    text = write(database(m, bus, with_nodes=False))
+    if any(len(name) > CANTOOLS_SHORT_NAME or m.nodes[name].tx_queue.fifo for name in bus.nodes):
+        return write(database(m, bus, jitter=jitter))  # a node with attributes is written by cantools
+    text = write(database(m, bus, with_nodes=False, jitter=jitter))
     if text.count(_NO_NODES) != 1:  # a cantools that writes the line differently: take the long way
-        return write(database(m, bus))
+        return write(database(m, bus, jitter=jitter))
     return text.replace(_NO_NODES, f"\r\nBU_: {' '.join(bus.nodes)}\r\n")
 
 
@@ -121,19 +187,30 @@ _EXACT_MS = {
 }
 
 
-def database(m: model.Model, bus: model.Bus, with_nodes: bool = True) -> cdb.Database:
-    messages = [_message(m, msg) for msg in bus.messages]
+def database(
+    m: model.Model, bus: model.Bus, with_nodes: bool = True, jitter: Mapping[str, int] | None = None
+) -> cdb.Database:
+    """The bus as a cantools database; `jitter`: each message's release jitter as analysed (release_jitter),
+    else the spec's own."""
+    messages = [_message(m, msg, (jitter or {}).get(msg.name, msg.jitter_ns)) for msg in bus.messages]
     tm = _trigger_message(m, bus)
     if tm is not None:
         messages.append(tm)
     messages.sort(key=lambda x: (x.is_extended_frame, x.frame_id, x.name))
-    nodes = [cdb.Node(name) for name in bus.nodes] if with_nodes else []
+    nodes = [_node(m.nodes[name]) for name in bus.nodes] if with_nodes else []
     # DBName (Vector's database attribute) carries the bus name; cantools writes Baudrate itself from the Bus
     db_name = DbcAttributeDefinition("DBName", default_value="", type_name="STRING")
     specifics = DbcSpecifics(
         attributes=OrderedDict(DBName=DbcAttribute(bus.name, db_name)),
         attribute_definitions=OrderedDict(DBName=db_name, GenMsgSendType=_SEND_TYPE, **_INT_MS, **_EXACT_MS),
     )
+    for name, definition, value in _bus_attributes(bus):
+        specifics.attribute_definitions[name] = definition
+        specifics.attributes[name] = DbcAttribute(value, definition)
+    if any(m.nodes[name].tx_queue.fifo for name in bus.nodes):
+        specifics.attribute_definitions.update(
+            NetcfgTxQueue=TX_QUEUE, NetcfgTxQueueDepth=TX_QUEUE_DEPTH, NetcfgTxQueueOnFull=TX_QUEUE_ON_FULL
+        )
     if bus.protocol == "can-fd":
         # Vector's CAN FD attributes: BusType "CAN FD" makes cantools write each frame's VFrameFormat (and read it
         # back as is_fd); Baudrate_CANFD is the data rate; CANFD_BRS (default 1) marks frames without bit-rate switch
@@ -149,6 +226,33 @@ def database(m: model.Model, bus: model.Bus, with_nodes: bool = True) -> cdb.Dat
         dbc_specifics=specifics,
         sort_signals=None,  # our signals are already in start-bit order; keep it
     )
+
+
+def _bus_attributes(bus: model.Bus) -> list[tuple[str, DbcAttributeDefinition, Any]]:
+    """netcfg's bus attributes of this bus: what of its timing model differs from what a DBC implies."""
+    out: list[tuple[str, DbcAttributeDefinition, Any]] = []
+    if bus.clock_tolerance_ppm != DEFAULT_CLOCK_TOLERANCE_PPM:
+        out.append(("NetcfgClockTolerance", CLOCK_TOLERANCE, bus.clock_tolerance_ppm))
+    if bus.errors is not None:
+        out += [
+            ("NetcfgErrorBurst", ERROR_BURST, bus.errors.burst),
+            ("NetcfgErrorInterval", ERROR_INTERVAL, _ms(bus.errors.interval_ns)),
+            ("NetcfgErrorBer", ERROR_BER, bus.errors.ber),
+        ]
+    return out
+
+
+def _node(node: model.Node) -> cdb.Node:
+    """A node; one with a FIFO transmit queue says so in netcfg's node attributes (NetcfgTxQueue, its depth and
+    what a full queue does), which netcfg's DBC importer reads back as the node's tx_queue."""
+    q = node.tx_queue
+    if not q.fifo:
+        return cdb.Node(node.name)
+    attrs: OrderedDict[str, DbcAttribute] = OrderedDict()  # an ENUM's value is its index, as GenMsgSendType's
+    attrs["NetcfgTxQueue"] = DbcAttribute(QUEUE_POLICIES.index("fifo"), TX_QUEUE)
+    attrs["NetcfgTxQueueDepth"] = DbcAttribute(q.depth, TX_QUEUE_DEPTH)
+    attrs["NetcfgTxQueueOnFull"] = DbcAttribute(QUEUE_ON_FULL.index(q.on_full), TX_QUEUE_ON_FULL)
+    return cdb.Node(node.name, dbc_specifics=DbcSpecifics(attributes=attrs))
 
 
 def sanitise(text: str) -> str:
@@ -173,7 +277,7 @@ def _ms(ns: int) -> float:
     return ns / 1_000_000  # a double holds every whole-ns duration below 2^53 ns exactly enough to round back
 
 
-def _timing(msg: model.Message) -> DbcSpecifics:
+def _timing(msg: model.Message, jitter_ns: int) -> DbcSpecifics:
     """The message's timing attributes (see the module docstring)."""
     attrs: OrderedDict[str, DbcAttribute] = OrderedDict()
     kind = {"periodic": 0, "sporadic": 1}.get(msg.kind, 2)
@@ -190,14 +294,14 @@ def _timing(msg: model.Message) -> DbcSpecifics:
         attrs["NetcfgMinInterarrival"] = _Attribute(_ms(msg.interval_ns), _EXACT_MS["NetcfgMinInterarrival"])
     if offset_ns is not None and msg.kind == "periodic":
         attrs["NetcfgOffset"] = _Attribute(_ms(offset_ns), _EXACT_MS["NetcfgOffset"])
-    if msg.jitter_ns:
-        attrs["NetcfgJitter"] = _Attribute(_ms(msg.jitter_ns), _EXACT_MS["NetcfgJitter"])
+    if jitter_ns:
+        attrs["NetcfgJitter"] = _Attribute(_ms(jitter_ns), _EXACT_MS["NetcfgJitter"])
     if msg.deadline_ns is not None:
         attrs["NetcfgDeadline"] = _Attribute(_ms(msg.deadline_ns), _EXACT_MS["NetcfgDeadline"])
     return DbcSpecifics(attributes=attrs)
 
 
-def _message(m: model.Model, msg: model.Message) -> cdb.Message:
+def _message(m: model.Model, msg: model.Message, jitter_ns: int) -> cdb.Message:
     receivers = sorted(msg.consumers)
     if msg.signals:
         signals = [
@@ -219,7 +323,7 @@ def _message(m: model.Model, msg: model.Message) -> cdb.Message:
         ]
     else:
         signals = []
-    specifics = _timing(msg)
+    specifics = _timing(msg, jitter_ns)
     if msg.fd and not msg.brs:
         specifics.attributes["CANFD_BRS"] = _Attribute("0", CANFD_BRS)
     return cdb.Message(

@@ -53,6 +53,9 @@ needs it any more):
   in one frame or reach outside it keeps only its size (a warning naming message and signal).
 - names (system, bus, nodes, messages, signals) are made safe (letters, digits, '_', starting with a letter, no C
   keyword) and collisions (also differing only in case) get a suffix _2, _3 ... in file order, with a warning.
+- netcfg's own node and bus attributes (written by netcfg.emit.dbc): NetcfgTxQueue fifo (with NetcfgTxQueueDepth,
+  NetcfgTxQueueOnFull) -> the node's tx_queue; NetcfgClockTolerance -> clock_tolerance; NetcfgErrorInterval (ms,
+  with NetcfgErrorBurst, NetcfgErrorBer) -> errors. Only where the DBC gives them (BA_).
 - comments: where each item came from (BO_/SG_/BU_ line, attribute values), written above it by write_spec;
   what the spec has no key for (signal comments, further BO_TX_BU_ senders) goes there too. Positions of the
   messages and signals are kept, so that `netcfg check F.dbc` places a later error (a duplicate identifier)
@@ -545,13 +548,19 @@ class _Importer:
                 self.comments[("buses", 0, "data_bitrate")] = data_rate[1]
         if db.buses and db.buses[0].comment:
             bus["description"] = db.buses[0].comment.strip()
+        self.bus_model(db, bus)
 
         nodes = self.nodes(db)
         messages = [m for m in (self.message(db, msg, nodes) for msg in db.messages) if m is not None]
         if messages and all(m.get("extended") for m in messages):
             bus["id_bits"] = 29
         node_list = [
-            {"name": n.name, "buses": [bus["name"]], **({"description": n.description} if n.description else {})}
+            {
+                "name": n.name,
+                "buses": [bus["name"]],
+                **({"description": n.description} if n.description else {}),
+                **({"tx_queue": n.tx_queue} if n.tx_queue else {}),
+            }
             for n in nodes.values()
         ]
         for i, n in enumerate(nodes.values()):
@@ -564,6 +573,30 @@ class _Importer:
             return None
         data: dict[str, Any] = {"system": system, "buses": [bus], "nodes": node_list, "messages": messages}
         return data, self.comments
+
+    def bus_model(self, db: Database, bus: dict[str, Any]) -> None:
+        """netcfg's bus attributes (written by netcfg.emit.dbc where the spec differs from the defaults): the
+        senders' clock tolerance and the error model, only where the DBC gives them (BA_)."""
+        attrs = db.dbc.attributes if db.dbc is not None else {}
+
+        def given(name: str) -> Any:
+            return attrs[name].value if name in attrs else None
+
+        def origin(name: str) -> str:
+            line = self.lines.attributes.get(name)
+            return f'BA_ "{name}" {attrs[name].value}' + (f", line {line}" if line else "")
+
+        if given("NetcfgClockTolerance") is not None:
+            bus["clock_tolerance"] = int(given("NetcfgClockTolerance"))
+            self.comments[("buses", 0, "clock_tolerance")] = origin("NetcfgClockTolerance")
+        if given("NetcfgErrorInterval") is not None:
+            errors: dict[str, Any] = {"interval": _ms_exact(float(given("NetcfgErrorInterval")))}
+            if given("NetcfgErrorBurst") is not None:
+                errors["burst"] = int(given("NetcfgErrorBurst"))
+            if given("NetcfgErrorBer") is not None:
+                errors["ber"] = float(given("NetcfgErrorBer"))
+            bus["errors"] = errors
+            self.comments[("buses", 0, "errors")] = origin("NetcfgErrorInterval")
 
     def nodes(self, db: Database) -> dict[str, _Node]:
         """Declared nodes (BU_) first, then the senders and receivers nobody declared, in file order."""
@@ -578,6 +611,10 @@ class _Importer:
             name, why = names.claim(node.name)
             line = f", line {at[0]}" if at else ""
             out[node.name] = _Node(name, f"BU_ {node.name}{line}", (node.comment or "").strip() or None)
+            queue = _tx_queue(db, node)
+            if queue is not None:
+                out[node.name].tx_queue = queue
+                out[node.name].origin += ", NetcfgTxQueue (netcfg's node attributes)"
             if why:
                 self.add("dbc-name", f"node '{node.name}': {why}; imported as '{name}'", at, "warning")
         for msg in db.messages:
@@ -951,6 +988,28 @@ class _Node:
     name: str
     origin: str
     description: str | None
+    tx_queue: dict[str, Any] | None = None  # the spec's tx_queue, from netcfg's node attributes
+
+
+TX_QUEUE_ATTRIBUTES = {"policy": "NetcfgTxQueue", "depth": "NetcfgTxQueueDepth", "on_full": "NetcfgTxQueueOnFull"}
+
+
+def _tx_queue(db: Database, node: Any) -> dict[str, Any] | None:
+    """A node's transmit queue from netcfg's node attributes (written by netcfg.emit.dbc), or None: ENUM values
+    are read by their index into the definition's choices, as cantools keeps them."""
+    attrs = node.dbc.attributes if node.dbc is not None else {}
+    if TX_QUEUE_ATTRIBUTES["policy"] not in attrs:
+        return None
+    out: dict[str, Any] = {}
+    for key, name in TX_QUEUE_ATTRIBUTES.items():
+        if name not in attrs:
+            continue
+        value = attrs[name].value
+        choices = getattr(db.dbc.attribute_definitions.get(name) if db.dbc else None, "choices", None)
+        if choices and isinstance(value, int) and 0 <= value < len(choices):
+            value = choices[value]
+        out[key] = value
+    return out if out.get("policy") == "fifo" else None
 
 
 Positions = dict[DataPath, tuple[int, int]]

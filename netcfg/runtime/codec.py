@@ -134,6 +134,81 @@ class Field:
         return raw * self.scale + self.offset
 
 
+def raw_interval(f: Field) -> tuple[int, int] | None:
+    """The raw integers (signed as the field is) whose physical values lie inside [minimum, maximum] and which fit
+    the field's bits; None when there are none (a range the layout cannot reach) or the field is a float."""
+    if f.is_float:
+        return None
+    lo, hi = f.raw_range()
+    if f.scale == 0:
+        inside = (f.minimum is None or f.offset >= f.minimum) and (f.maximum is None or f.offset <= f.maximum)
+        return (lo, hi) if inside else None
+    bounds = [(f.minimum, math.ceil), (f.maximum, math.floor)] if f.scale > 0 else [(f.maximum, math.ceil),
+                                                                                    (f.minimum, math.floor)]
+    (low, up), (high, down) = bounds
+    if low is not None:
+        lo = max(lo, up((low - f.offset) / f.scale))
+    if high is not None:
+        hi = min(hi, down((high - f.offset) / f.scale))
+    while lo <= hi and not _inside(f, f.from_raw(lo & ((1 << f.bits) - 1))):  # the float rounding at the edges
+        lo += 1
+    while lo <= hi and not _inside(f, f.from_raw(hi & ((1 << f.bits) - 1))):
+        hi -= 1
+    return (lo, hi) if lo <= hi else None
+
+
+def _inside(f: Field, value: Number) -> bool:
+    return (f.minimum is None or value >= f.minimum) and (f.maximum is None or value <= f.maximum)
+
+
+def resting_raw(f: Field) -> int:
+    """The bit pattern of the field's resting value: the value nearest 0 inside its [minimum, maximum] that its
+    layout can carry (0 itself when the range holds it). What a simulated frame carries when nothing sets the
+    field, so that a trace decodes inside every signal's range. A range no raw value reaches: raw 0."""
+    mask = (1 << f.bits) - 1
+    if f.is_float:
+        value = min(max(0.0, f.minimum if f.minimum is not None else 0.0), f.maximum if f.maximum is not None else 0.0)
+        raw = f.to_raw(value) if _inside(f, value) else 0
+        # binary32 may round a bound outwards: the neighbouring bit patterns are the neighbouring floats
+        return next((r for r in (raw, raw + 1, raw - 1) if _inside(f, f.from_raw(r & mask))), raw) & mask
+    interval = raw_interval(f)
+    if interval is None:
+        return 0
+    lo, hi = interval
+    zero = 0 if f.scale == 0 else round(-f.offset / f.scale)  # the raw value of physical 0
+    return min(max(zero, lo), hi) & mask
+
+
+def resting_payload(fields: Iterable[Field], size: int) -> bytes:
+    """`size` bytes with every field the frame then carries at its resting value (resting_raw); a multiplexer
+    rests too, so the fields it selects at its resting value are the ones present."""
+    fields = list(fields)
+    raws = {f.name: resting_raw(f) for f in fields}
+    options = selectors(fields)
+    for f in fields:  # a multiplexer rests at the selector nearest 0, so that it selects something
+        if f.name in options:
+            raws[f.name] = min(options[f.name], key=lambda raw: (abs(f.from_raw(raw)), raw))
+    word = 0
+    for f in present(fields, {f.name: f.from_raw(raws[f.name]) for f in fields}):
+        word |= _place(f, raws[f.name])
+    return (word & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
+
+
+def selectors(fields: Iterable[Field]) -> dict[str, list[int]]:
+    """Per multiplexer, the bit patterns that select one of its fields and lie inside its own range, in order."""
+    fields = list(fields)
+    by_name = {f.name: f for f in fields}
+    out: dict[str, set[int]] = {}
+    for f in fields:
+        switch = by_name.get(f.mux) if f.mux is not None else None
+        if switch is None:
+            continue
+        mask = (1 << switch.bits) - 1
+        inside = {v & mask for v in f.mux_values if _inside(switch, switch.from_raw(v & mask))}
+        out.setdefault(switch.name, set()).update(inside)
+    return {name: sorted(values) for name, values in out.items() if values}
+
+
 def present(fields: Iterable[Field], values: Mapping[str, Number | str] | None = None) -> list[Field]:
     """The fields a frame carries: every plain field, and a multiplexed one when its multiplexer is present
     and holds one of its values. `values` maps multiplexer names to their (physical or named) values."""

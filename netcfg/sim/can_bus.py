@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from netcfg.runtime.codec import Field, resting_payload
+from netcfg.runtime.columns import fill_in_range
 from netcfg.sim.engine import EARLY, LATE, NEVER, Simulator
 from netcfg.timing.frames import (
     FrameStuffing,
@@ -23,9 +25,9 @@ from netcfg.timing.frames import (
     bits_to_ns,
     can_frame_bits_exact_batch,
     can_frame_bits_of,
-    canfd_frame_bits,
     canfd_frame_bits_exact,
     canfd_frame_bits_exact_batch,
+    frame_bits,
 )
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
@@ -61,6 +63,8 @@ class CanSource:
     gated: bool = False  # FTT-CAN asynchronous traffic: only inside the asynchronous window
     fd: bool = False  # CAN FD: arbitration and tail at the bus's bit rate, the data phase (brs) at its data rate
     brs: bool = False
+    fields: tuple[Field, ...] = ()  # the payload's layout (netcfg.runtime.codec)
+    rest: bytes = b""  # what a frame nobody gives a payload carries: every field at its resting value
 
 
 @dataclass
@@ -156,16 +160,15 @@ class CanBus:
         gated: bool = False,
         fd: bool = False,
         brs: bool = False,
+        fields: tuple[Field, ...] = (),
     ) -> int:
         src = CanSource(len(self.sources), name, can_id, extended, size, producer, gated=gated, fd=fd, brs=brs)
+        src.fields, src.rest = fields, resting_payload(fields, size)
         src.key = arbitration_key(can_id, extended)
         # in exact mode each frame's length comes from its payload (_duration); dur_ns is then the worst case
         mode: FrameStuffing = "worst" if self.stuffing == "exact" else FRAME_BITS[self.stuffing]
-        if fd:
-            assert mode != "exact"
-            src.dur_ns = canfd_frame_bits(size, extended, brs, mode).ns(self.bitrate, self.data_bitrate)
-        else:
-            src.dur_ns = bits_to_ns(can_frame_bits_of(can_id, extended, bytes(size), mode), self.bitrate)
+        assert mode != "exact"
+        src.dur_ns = frame_bits(size, extended, fd, brs, mode).ns(self.bitrate, self.data_bitrate)
         self.sources.append(src)
         self.by_name[name] = src
         self._keys.append(src.key)
@@ -230,7 +233,7 @@ class CanBus:
         """Queue a frame now (a reactive sender: a task, the CANopen master, the FTT-CAN master)."""
         now = self.sim.now
         if data is None and self.stuffing == "exact" and self.sources[source].size:
-            data = self.sim.rng.integers(0, 256, self.sources[source].size, dtype=np.uint8).tobytes()
+            data = self._payloads(self.sources[source], 1)[0].tobytes()
         self._seq += 1
         item = (self._keys[source], now, self._seq, source, data)
         if self._fifo_of[source] < 0:
@@ -362,7 +365,7 @@ class CanBus:
         for s in np.unique(new).tolist():
             src = self.sources[s]
             rows = np.flatnonzero(new == s)
-            payloads = self.sim.rng.integers(0, 256, (len(rows), src.size), dtype=np.uint8)
+            payloads = self._payloads(src, len(rows))
             if src.fd:
                 nominal, fast = canfd_frame_bits_exact_batch(src.can_id, src.extended, src.brs, payloads)
                 durations = [
@@ -378,10 +381,16 @@ class CanBus:
                 self._exact[(s, blob)] = dur
         return data
 
+    def _payloads(self, src: CanSource, n: int) -> np.ndarray:
+        """n seeded random payloads of the source, each field inside its [minimum, maximum]."""
+        payloads = self.sim.rng.integers(0, 256, (n, src.size), dtype=np.uint8)
+        fill_in_range(src.fields, payloads, self.sim.rng)
+        return payloads
+
     def _duration(self, src: CanSource, data: bytes | None) -> int:
         if self.stuffing != "exact":
             return src.dur_ns
-        payload = data if data is not None else bytes(src.size)
+        payload = data if data is not None else src.rest
         known = self._exact.get((src.index, payload))
         if known is not None:
             return known

@@ -19,7 +19,7 @@ from netcfg.sim.montecarlo import progress_bar, run_batch, run_once
 from netcfg.sim.results import histograms, log_check, outside_error_assumption, summary, text
 from netcfg.sim.scenario import SimOptions
 from netcfg.spec.units import format_ns, parse_duration_option
-from netcfg.timing.frames import CANFD_PADDING, can_frame_bits, canfd_frame_bits, canfd_padded_size
+from netcfg.timing.frames import CANFD_PADDING, canfd_padded_size, frame_bits
 
 if TYPE_CHECKING:
     from netcfg.sim.trace import TraceFrame
@@ -85,10 +85,7 @@ def work_problem(cfg: runtime.RuntimeConfig, duration_ns: int, max_events: int) 
 
 def _frame_bits(m: runtime.Message) -> int:
     """Bits of one frame in the worst case (both phases of a CAN FD frame): what a bit error can hit."""
-    if m.fd:
-        fd = canfd_frame_bits(m.size, m.extended, m.brs)
-        return fd.nominal + fd.data
-    return can_frame_bits(min(m.size, 8), m.extended)
+    return frame_bits(m.size, m.extended, m.fd, m.brs).total
 
 
 def fault_problem(cfg: runtime.RuntimeConfig, faults: tuple[Fault, ...]) -> str | None:
@@ -297,7 +294,7 @@ def trace_frames(sc: Any) -> list[TraceFrame]:
         rec = bus.record
         for m, end, data in zip(rec.msg, rec.end, rec.data):
             src = bus.sources[m]
-            payload = data if data is not None else bytes(src.size)
+            payload = data if data is not None else src.rest  # every field at rest, inside its range
             if src.fd:  # sent padded to its CAN FD length, as netcfg.runtime does
                 payload += bytes([CANFD_PADDING]) * (canfd_padded_size(src.size) - src.size)
             out.append(TraceFrame(end, name, src.can_id, src.extended, payload, fd=src.fd, brs=src.brs))

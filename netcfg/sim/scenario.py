@@ -327,7 +327,7 @@ class Scenario:
         ftt = bus.ftt if bus.protocol == "ftt-can" and sync else None
         for m in self.cfg.messages_on(bus.name):
             gated = ftt is not None and m.window != "sync"
-            src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs)
+            src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs, m.fields)
             self.msg_source[m.name] = (can, src)
         for node in self.cfg.nodes:
             if node.tx_queue.fifo and bus.name in node.buses:

@@ -328,9 +328,18 @@ class FdFrameBits:
     nominal: int
     data: int
 
-    def ns(self, bitrate: int, data_bitrate: int) -> int:
+    def ns(self, bitrate: int, data_bitrate: int | None = None) -> int:
         """Transmission time: the nominal bits at the arbitration rate, the data-phase bits at the data rate."""
-        return bits_to_ns(self.nominal, bitrate) + (bits_to_ns(self.data, data_bitrate) if self.data else 0)
+        if not self.data:
+            return bits_to_ns(self.nominal, bitrate)
+        if data_bitrate is None:
+            raise ValueError("a CAN FD frame with bit-rate switch needs the bus's data bit rate")
+        return bits_to_ns(self.nominal, bitrate) + bits_to_ns(self.data, data_bitrate)
+
+    @property
+    def total(self) -> int:
+        """Bits at both rates together: what a bit error can hit."""
+        return self.nominal + self.data
 
 
 def canfd_frame_bits(size: int, extended: bool = False, brs: bool = True, stuffing: Stuffing = "worst") -> FdFrameBits:
@@ -356,6 +365,19 @@ def canfd_frame_bits(size: int, extended: bool = False, brs: bool = True, stuffi
     if not brs:
         return FdFrameBits(nominal + data, 0)
     return FdFrameBits(nominal, data)
+
+
+def frame_bits(
+    size: int, extended: bool = False, fd: bool = False, brs: bool = False, stuffing: Stuffing = "worst"
+) -> FdFrameBits:
+    """Bits of one CAN data frame of `size` payload bytes at each rate: the one entry point every command that
+    times a frame by its size goes through (check, verify, the simulator, tune, the reports). A classical frame
+    (fd False) has all its bits at the nominal rate; a CAN FD frame is padded to its DLC length and, with brs,
+    has its data phase at the data rate (canfd_frame_bits)."""
+    if fd:
+        return canfd_frame_bits(size, extended, brs, stuffing)
+    return FdFrameBits(can_frame_bits(size, extended, stuffing), 0)
+
 
 CANFD_PADDING = 0x00  # what pads a payload to its frame length when netcfg sends one (ISO 11898-1 leaves it open)
 

@@ -37,7 +37,8 @@ from math import lcm
 from netcfg import model
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
-from netcfg.timing.frames import arbitration_key, bits_to_ns, can_frame_bits
+from netcfg.timing.frames import arbitration_key, frame_bits
+from netcfg.timing.load import frame_timing
 
 
 @dataclass(frozen=True)
@@ -138,7 +139,7 @@ def macro_cycle(periods: list[int]) -> int:
 
 def tm_time_ns(tm_size: int, extended: bool, bitrate: int) -> int:
     """Worst-case transmission time of the trigger message: a data frame of tm_size bytes."""
-    return bits_to_ns(can_frame_bits(tm_size, extended), bitrate)
+    return frame_bits(tm_size, extended).ns(bitrate)
 
 
 def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
@@ -149,7 +150,7 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
     for m in bus.messages:
         if m.window != "sync" or m.ftt_id is None or m.period_ns is None:
             continue
-        bits = can_frame_bits(m.size, m.extended)
+        timing = frame_timing(m, bus.bitrate, bus.data_bitrate)
         out.append(
             SrtEntry(
                 ftt_id=m.ftt_id,
@@ -160,8 +161,8 @@ def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
                 size=m.size,
                 can_id=m.id,
                 extended=m.extended,
-                c_bits=bits,
-                c_ns=bits_to_ns(bits, bus.bitrate),
+                c_bits=timing.bits_worst,
+                c_ns=timing.tx_ns,
                 period_ec=m.period_ns // ec,
                 fastest_period_ec=(m.interval_ns or m.period_ns) // ec,
                 init_ec=(m.offset_ns or 0) // ec,

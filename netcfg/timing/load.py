@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import TYPE_CHECKING, Protocol
 
-from netcfg.timing.frames import FdFrameBits, bits_to_ns, can_frame_bits, canfd_frame_bits, udp_message_bytes
+from netcfg.timing.frames import FdFrameBits, bits_to_ns, frame_bits, udp_message_bytes
 
 if TYPE_CHECKING:  # annotations only: the simulator reads runtime messages and needs no spec model
     from netcfg import model
@@ -27,27 +27,38 @@ class FrameTiming:
     fd_worst: FdFrameBits | None = None  # CAN FD: the worst case's bits at the arbitration and at the data rate
 
 
-def frame_timing(msg: model.Message, bitrate: int, data_bitrate: int | None = None) -> FrameTiming:
-    """One CAN data frame: classical, or CAN FD (msg.fd) with its data phase at data_bitrate when msg.brs."""
-    if msg.fd:
-        if data_bitrate is None:
-            raise ValueError(f"CAN FD message '{msg.name}' needs the bus's data bit rate")
-        fd_worst = canfd_frame_bits(msg.size, msg.extended, msg.brs, "worst")
-        fd_nominal = canfd_frame_bits(msg.size, msg.extended, msg.brs, "nominal")
-        tx = fd_worst.ns(bitrate, data_bitrate)
-        return FrameTiming(
-            fd_worst.nominal + fd_worst.data,
-            fd_nominal.nominal + fd_nominal.data,
-            tx,
-            tx / msg.interval_ns if msg.interval_ns else 0.0,
-            fd_nominal.ns(bitrate, data_bitrate),
-            fd_worst,
-        )
-    worst = can_frame_bits(msg.size, msg.extended, "worst")
-    nominal = can_frame_bits(msg.size, msg.extended, "nominal")
-    tx = bits_to_ns(worst, bitrate)
+class Framed(Protocol):
+    """What a frame's length depends on: a spec's message (netcfg.model) and a runtime one (netcfg.runtime)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def size(self) -> int: ...
+    @property
+    def extended(self) -> bool: ...
+    @property
+    def fd(self) -> bool: ...
+    @property
+    def brs(self) -> bool: ...
+    @property
+    def interval_ns(self) -> int | None: ...
+
+
+def frame_timing(msg: Framed, bitrate: int, data_bitrate: int | None = None) -> FrameTiming:
+    """One CAN data frame: classical, or CAN FD (msg.fd) with its data phase at data_bitrate when msg.brs. What
+    `check` times a message with, and so verify, the simulator and tune (netcfg.timing.frames.frame_bits)."""
+    if msg.fd and data_bitrate is None:
+        raise ValueError(f"CAN FD message '{msg.name}' needs the bus's data bit rate")
+    worst = frame_bits(msg.size, msg.extended, msg.fd, msg.brs, "worst")
+    nominal = frame_bits(msg.size, msg.extended, msg.fd, msg.brs, "nominal")
+    tx = worst.ns(bitrate, data_bitrate)
     return FrameTiming(
-        worst, nominal, tx, tx / msg.interval_ns if msg.interval_ns else 0.0, bits_to_ns(nominal, bitrate)
+        worst.total,
+        nominal.total,
+        tx,
+        tx / msg.interval_ns if msg.interval_ns else 0.0,
+        nominal.ns(bitrate, data_bitrate),
+        worst if msg.fd else None,
     )
 
 

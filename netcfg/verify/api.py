@@ -8,7 +8,7 @@ from typing import Any
 
 from netcfg.runtime import RuntimeConfig
 from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker
-from netcfg.verify.frames import ERROR, EXTENDED, PAYLOAD_COLUMNS, Batch, ChannelTable
+from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, PAYLOAD_COLUMNS, Batch, ChannelTable
 from netcfg.verify.logs import read_log
 
 __all__ = ["check_frames", "verify_log"]
@@ -41,7 +41,8 @@ def check_frames(
     frames: Iterable[tuple[Any, ...]],
     window_us: int = DEFAULT_WINDOW_US,
 ) -> dict[str, Any]:
-    """Frames as (end time in ns, bus name, identifier, extended, payload[, error frame]), in time order -> the
+    """Frames as (end time in ns, bus name, identifier, extended, payload[, error frame[, CAN FD[, bit-rate
+    switch]]]), in time order -> the
     report. For a program that holds its frames already (the simulator's trace, netcfg.sim.trace.TraceFrame);
     times are taken to the microsecond, as a log file would carry them."""
     table = ChannelTable()
@@ -56,7 +57,8 @@ def check_frames(
         t.append((t_ns + 500) // 1000)
         ch.append(table.index(channel))
         ids.append(can_id)
-        flags.append((EXTENDED if extended else 0) | (ERROR if len(frame) > 5 and frame[5] else 0))
+        error, fd, brs = (bool(x) for x in (*frame[5:8], False, False, False)[:3])
+        flags.append((EXTENDED if extended else 0) | (ERROR if error else 0) | (FD if fd else 0) | (BRS if brs else 0))
         lengths.append(len(data))
         payload += bytes(data[:PAYLOAD_COLUMNS]).ljust(PAYLOAD_COLUMNS, b"\0")
     checker = Checker(cfg, table.names, window_us=window_us)

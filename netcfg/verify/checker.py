@@ -44,12 +44,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from netcfg.cia301 import sync_every
-from netcfg.runtime import Bus, Message, RuntimeConfig
+from netcfg.runtime import Bus, Message, RuntimeConfig, columns
 from netcfg.timing.can_errors import first_breach
-from netcfg.timing.frames import bits_to_ns, can_frame_bits
-from netcfg.timing.load import exact_rate, rate_hz
+from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_MAX_PAYLOAD, frame_bits
+from netcfg.timing.load import FrameTiming, exact_rate, frame_timing, rate_hz
 from netcfg.verify.canopen import ServiceLog
-from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE, Batch, ChannelTable, batch_from_messages
+from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, REMOTE, Batch, ChannelTable, batch_from_messages
 
 if TYPE_CHECKING:
     import can
@@ -68,6 +68,7 @@ class VerifyError(ValueError):
 class _MessageState:
     msg: Message
     bus: int
+    timing: FrameTiming  # the frame as check times it (netcfg.timing.load.frame_timing)
     period_us: float | None  # periodic: the period; sporadic: None
     min_gap_us: float | None  # sporadic: the least admissible interval
     slack_us: float  # analysed jitter + worst-case response - best transmission time
@@ -158,7 +159,7 @@ class Checker:
         # a log stamps a frame's end; FTT-CAN's analysis counts from the EC's start, where the trigger message
         # starts: its shortest transmission (no stuff bits) is added back, so a reported late frame is surely late
         self._ref_offset = {
-            b: bits_to_ns(can_frame_bits(bus_.ftt.tm_size, False, "nominal"), bus_.bitrate) // 1000 if bus_.ftt else 0
+            b: frame_bits(bus_.ftt.tm_size, False, stuffing="nominal").ns(bus_.bitrate) // 1000 if bus_.ftt else 0
             for b, bus_ in enumerate(self.buses)
         }
         self.frames = 0
@@ -167,7 +168,7 @@ class Checker:
         self.unplaced_error_ns: list[int] = []  # error frames without a channel: held against every bus
         self.first_t: int | None = None
         self.last_t: int | None = None
-        self.window_bits: list[NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in self.buses]
+        self.window_ns: list[NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in self.buses]  # busy time per window
         self.unknown: dict[tuple[int, int, bool], list[int]] = {}  # (bus, id, extended) -> [count, first_t]
         self.services = {
             b: ServiceLog({n.node_id: n.name for n in cfg.nodes if n.name in bus_.nodes and n.node_id})
@@ -178,14 +179,13 @@ class Checker:
         self.violation_count: dict[str, int] = {}
         self.warnings: list[dict[str, Any]] = []
         self.warning_count = 0
-        # worst-case bits of a classical frame by [extended][payload bytes] (netcfg.timing.frames)
-        self._bits = np.array([[can_frame_bits(s, x, "worst") for s in range(9)] for x in (False, True)], np.int64)
+        self._frame_ns: dict[int, int] = {}  # kind of frame (_frames_ns) -> its worst-case time
 
     # --- setup --------------------------------------------------------------------------------------------------
 
     def _state(self, m: Message, bus: int) -> _MessageState:
-        bitrate = self.buses[bus].bitrate
-        best_tx_us = bits_to_ns(can_frame_bits(m.size, m.extended, "nominal"), bitrate) / 1000
+        timing = frame_timing(m, self.buses[bus].bitrate, self.buses[bus].data_bitrate)
+        best_tx_us = timing.nominal_ns / 1000
         wcrt_us = None if m.wcrt_ns is None else m.wcrt_ns / 1000
         # the analysed response counts from the nominal release and includes the queuing jitter (Davis et al.
         # 2007, eq. 13: R = J + w + C), so frames lie within [C_best, R] after their nominal instants
@@ -205,7 +205,7 @@ class Checker:
             ref = "sync"  # a synchronous TPDO answers the SYNC (netcfg.timing.canopen_sync)
         elif ftt is not None and m.window == "sync":
             ref = "tm"  # a synchronous FTT-CAN message goes in the EC its trigger message opens (netcfg.timing.ftt)
-        st = _MessageState(m, bus, period, min_gap, slack, wcrt_us, ref)
+        st = _MessageState(m, bus, timing, period, min_gap, slack, wcrt_us, ref)
         if period is not None:
             st.period_edges = np.linspace(0.0, 2.0 * period, HIST_BINS + 1)
         elif min_gap is not None:
@@ -280,7 +280,7 @@ class Checker:
                 "with --bus BUS"
             )
         ext = (batch.flags & EXTENDED) != 0
-        self._load(t[keep], bus[keep], ext[keep], batch.length[keep])
+        self._load(t[keep], bus[keep], batch.flags[keep], batch.length[keep])
         key = _key_array(bus, batch.can_id, ext)
         pos = np.searchsorted(self._keys, key)
         pos_c = np.minimum(pos, max(len(self._keys) - 1, 0))
@@ -303,21 +303,39 @@ class Checker:
             if len(times):
                 self._last_ref[b] = int(times[-1])
 
-    def _load(self, t: NDArray[np.int64], bus: NDArray[np.int64], ext: NDArray[np.bool_], length: Any) -> None:
+    def _load(self, t: NDArray[np.int64], bus: NDArray[np.int64], flags: NDArray[np.uint8], length: Any) -> None:
         if not len(t) or self.first_t is None:
             return
-        bits = self._bits[ext.astype(np.int64), np.minimum(length, 8).astype(np.int64)]
+        dur = self._frames_ns(bus, flags, length)
         window = (t - self.first_t) // self.window_us
         for b in range(len(self.buses)):
             sel = bus == b
             if not sel.any():
                 continue
-            counts = np.bincount(window[sel], weights=bits[sel]).astype(np.int64)
-            acc = self.window_bits[b]
+            counts = np.bincount(window[sel], weights=dur[sel]).astype(np.int64)
+            acc = self.window_ns[b]
             if len(counts) > len(acc):
                 acc = np.concatenate([acc, np.zeros(len(counts) - len(acc), np.int64)])
             acc[: len(counts)] += counts
-            self.window_bits[b] = acc
+            self.window_ns[b] = acc
+
+    def _frames_ns(self, bus: NDArray[np.int64], flags: NDArray[np.uint8], length: Any) -> NDArray[np.int64]:
+        """Each frame's worst-case time on the wire as check times it (netcfg.timing.frames.frame_bits): from its
+        format (extended, CAN FD, bit-rate switch) and payload length, once per kind of frame."""
+        kinds = (bus.astype(np.int64) << 16) | (flags.astype(np.int64) & (EXTENDED | FD | BRS)) << 8
+        kinds |= np.asarray(length, np.int64) & 0xFF
+        unique, inverse = np.unique(kinds, return_inverse=True)
+        durations = np.empty(len(unique), np.int64)
+        for k, kind in enumerate(unique.tolist()):
+            got = self._frame_ns.get(kind)
+            if got is None:
+                b, f, n = kind >> 16, kind >> 8 & 0xFF, kind & 0xFF
+                fd = bool(f & FD)
+                size = min(n, CANFD_MAX_PAYLOAD if fd else CAN_MAX_PAYLOAD)  # a remote frame's DLC may say more
+                bits = frame_bits(size, bool(f & EXTENDED), fd, bool(f & BRS))
+                got = self._frame_ns[kind] = bits.ns(self.buses[b].bitrate, self.buses[b].data_bitrate)
+            durations[k] = got
+        return durations[inverse.ravel()]
 
     def _message(
         self,
@@ -428,24 +446,16 @@ class Checker:
                 st.jitter_out[2:] = [float(beyond[k]), int(ends[k]), int(iv[k])]
 
     def _ranges(self, st: _MessageState, t: NDArray[np.int64], data: NDArray[np.uint8]) -> None:
-        raw64 = np.ascontiguousarray(data).view("<u8").ravel()
-        for sig in st.msg.signals:
+        """Signals decoded as the codec decodes them (byte order, sign, float, multiplexing: netcfg.runtime.columns),
+        each in the frames that carry it; a signal beyond the bytes a batch keeps (PAYLOAD_COLUMNS) is not seen."""
+        signals = [s for s in st.msg.signals if columns.fits(s, data.shape[1])]
+        carried = columns.present_rows(signals, data)
+        for sig in signals:
             if sig.minimum is None and sig.maximum is None:
                 continue
-            raw = (raw64 >> np.uint64(sig.start_bit)) & np.uint64((1 << sig.bits) - 1 if sig.bits < 64 else ~0)
-            value: NDArray[np.float64]
-            if sig.is_float:
-                value = (raw.astype(np.uint32).view(np.float32) if sig.bits == 32 else raw.view(np.float64)).astype(
-                    np.float64
-                )
-            elif sig.signed:
-                sign = np.uint64(1 << (sig.bits - 1))
-                value = ((raw ^ sign).astype(np.int64) - np.int64(1 << (sig.bits - 1))).astype(np.float64)
-            else:
-                value = raw.astype(np.float64)
-            value = value * sig.scale + sig.offset
-            low = value < sig.minimum if sig.minimum is not None else np.zeros(len(value), bool)
-            high = value > sig.maximum if sig.maximum is not None else np.zeros(len(value), bool)
+            value = columns.physical(sig, columns.take(sig, data))
+            low = carried[sig.name] & (value < sig.minimum if sig.minimum is not None else False)
+            high = carried[sig.name] & (value > sig.maximum if sig.maximum is not None else False)
             out = low | high
             if out.any():
                 rec = st.range_out.setdefault(sig.name, [0, int(t[out][0]), None])
@@ -663,10 +673,8 @@ class Checker:
 
     def _bus_report(self, b: int) -> dict[str, Any]:
         bus = self.buses[b]
-        bits = self.window_bits[b]
         window_ns = self.window_us * 1000
-        # bits_to_ns over the array: exact at every standard bit rate, rounded up otherwise
-        load = np.round(-(-bits * 1_000_000_000 // bus.bitrate) / window_ns, 6).tolist()
+        load = np.round(self.window_ns[b] / window_ns, 6).tolist()
         bound = self.window_bound(b)
         analysed = self._utilization(b)
         over = np.flatnonzero(np.array(load[:-1]) > bound)  # the last window is cut short by the log's end
@@ -699,9 +707,8 @@ class Checker:
         """The bus's worst-case utilisation as the analysis computes it (netcfg.timing: worst-case stuffing, each
         message at its fastest admissible rate), over every frame the log can show: FTT-CAN's trigger message
         included (the analysis reports it apart, as the TM overhead)."""
-        bus = self.buses[b]
         return sum(
-            bits_to_ns(can_frame_bits(st.msg.size, st.msg.extended, "worst"), bus.bitrate) * rate_hz(st.msg) / 1e9
+            st.timing.tx_ns * rate_hz(st.msg) / 1e9
             for st in self.states
             if st.bus == b and st.msg.kind != "on-demand"
         )
@@ -709,12 +716,11 @@ class Checker:
     def window_bound(self, b: int) -> float:
         """The most a window of window_us can carry by the analysis: every periodic or sporadic message as often
         as its period, jitter and response allow (ceil((W + slack) / T) frames), on-demand messages once."""
-        bus = self.buses[b]
         total_ns = 0
         for st in self.states:
             if st.bus != b:
                 continue
-            tx = bits_to_ns(can_frame_bits(st.msg.size, st.msg.extended, "worst"), bus.bitrate)
+            tx = st.timing.tx_ns
             fastest = st.msg.interval_ns  # a periodic message's fastest admissible period, a sporadic one's minimum
             gap = fastest / 1000 if fastest and st.msg.kind != "on-demand" else None
             frames = 1 if not gap else int(np.ceil((self.window_us + st.slack_us) / gap))

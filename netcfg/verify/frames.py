@@ -13,13 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ERROR", "EXTENDED", "FD", "REMOTE", "Batch", "ChannelTable", "batch_from_messages"]
+__all__ = ["BRS", "ERROR", "EXTENDED", "FD", "REMOTE", "Batch", "ChannelTable", "batch_from_messages"]
 
 # bits of Batch.flags
 EXTENDED = 1
 FD = 2
 ERROR = 4
 REMOTE = 8
+BRS = 16  # a CAN FD frame with bit-rate switch: its data phase at the data rate
 
 PAYLOAD_COLUMNS = 8  # bytes kept per frame: classical CAN payloads whole, the first 8 of a CAN FD payload
 
@@ -100,6 +101,7 @@ def batch_from_messages(messages: Iterable[object], channels: ChannelTable) -> B
             | (FD if msg.is_fd else 0)  # type: ignore[attr-defined]
             | (ERROR if msg.is_error_frame else 0)  # type: ignore[attr-defined]
             | (REMOTE if msg.is_remote_frame else 0)  # type: ignore[attr-defined]
+            | (BRS if msg.is_fd and msg.bitrate_switch else 0)  # type: ignore[attr-defined]
         )
         data = bytes(msg.data or b"")  # type: ignore[attr-defined]
         # a remote frame carries a DLC but no data
