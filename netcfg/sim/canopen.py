@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
-from netcfg.cia301 import SDO_RX_BASE, SDO_TX_BASE, sync_every
+from netcfg.cia301 import NMT_STATE_OPERATIONAL, SDO_RX_BASE, SDO_TX_BASE, sync_every
 from netcfg.runtime import Bus, Task
 from netcfg.runtime.canopen_master import MasterCycle, MasterRun
 from netcfg.sim.can_bus import CanBus
@@ -56,6 +56,10 @@ class CanopenMaster:
         self.tpdos = [m for m in msgs if m.name in self.every]
         self.drives = sorted({m.producer for m in self.tpdos} | {c for m in self.rpdos for c in m.consumers})
         self.owned = {self.sync.name} | {m.name for m in self.rpdos} | {m.name for m in self.tpdos}
+        # the run starts with every node started (NMT start precedes it): their heartbeats say OPERATIONAL
+        for m in msgs:
+            if m.implicit == "heartbeat" and m.name in can.by_name:
+                can.by_name[m.name].rest = bytes([NMT_STATE_OPERATIONAL])
         # the master's own SYNC tasks are its computation, run by the live master (work_s), not on SYNC reception
         self.master_tasks = [t for t in sc.cfg.node(self.master).tasks if t.sync_bus == bus.name]
         self.samples: dict[str, list[int]] = {d: [] for d in self.drives}  # SDO mode: drive -> instants of samples
