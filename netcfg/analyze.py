@@ -719,6 +719,7 @@ def analyze_sync(
         ),
     )
     check_master_loop(m, bus, loop, diags)
+    check_event_timer_periods(m, bus, acc, diags)
     rows = []
     for c in cycles:
         rows.append(
@@ -801,6 +802,27 @@ def analyze_sync(
         "max_tpdos_per_cycle": max((len(c.tpdos) for c in cycles), default=0),
         "cycles": rows[:64],
     }
+
+
+def check_event_timer_periods(m: model.Model, bus: model.Bus, acc: _Analysis, diags: Collector) -> None:
+    """An event-driven TPDO taken as periodic (cia301.tpdo_timing: application events every period, which keeps its
+    event timer from running out) holds only while a late event still comes before the timer: period + release
+    jitter below it. Resolve knew the spec's jitter; the sending task's spread is known here."""
+    for msg in bus.messages:
+        p = msg.pdo
+        if p is None or p.kind != "tpdo" or p.transmission < 254 or not p.event_timer_ms or msg.kind != "periodic":
+            continue
+        timer, period, jitter = p.event_timer_ms * 1_000_000, msg.period_ns or 0, acc.jitter(msg)
+        if period >= timer or period + jitter < timer:
+            continue  # the timer alone (on-demand), or the timer is never reached
+        diags.add(
+            "event-timer",
+            f"TPDO '{msg.name}' is written every {format_ns(period)} with up to {format_ns(jitter)} release jitter "
+            f"(its sending task's response-time spread), so its {format_ns(timer)} event timer can run out before a "
+            "late write, and the two sends come an inhibit time apart: lengthen the event timer beyond "
+            f"{format_ns(period + jitter)}, or take the period out and let the inhibit time bound it",
+            m.source.at((*msg.path, "pdo", "event_timer")),
+        )
 
 
 def check_master_loop(m: model.Model, bus: model.Bus, loop: canopen_sync.MasterLoop, diags: Collector) -> None:

@@ -161,6 +161,7 @@ def tpdo_timing(
     kind: Literal["periodic", "sporadic", "on-demand"] | None = None,
     period_ns: int | None = None,
     mit_ns: int | None = None,
+    jitter_ns: int = 0,
 ) -> tuple[Literal["periodic", "sporadic", "on-demand"] | None, int | None, int | None]:
     """When a TPDO goes out (0x1800: sub 2 transmission type, sub 3 inhibit time, sub 5 event timer) ->
     (kind, period_ns, minimum inter-arrival ns); kind stays None when nothing but the inhibit time bounds it, and an
@@ -172,8 +173,8 @@ def tpdo_timing(
     7.3.3, 0x1800 sub 5) is one more event, due when the TPDO has been silent that long: it adds sends and never
     bounds them. So with an event timer:
     - application events only outside the steady state (on-demand): the timer alone sends, every event timer;
-    - application events every period, no longer than the event timer: the timer, restarted by every send, never
-      runs out, and the period stands;
+    - application events every period, which even a late one (period + release jitter) keeps shorter than the event
+      timer: the timer, restarted by every send, never runs out, and the period stands;
     - otherwise the timer may run out just before an application event, and only the inhibit time spaces the two:
       sporadic at the inhibit time (the spec's minimum inter-arrival, about the application alone, cannot)."""
     timer_ns = (event_timer_ms or 0) * 1_000_000
@@ -185,7 +186,7 @@ def tpdo_timing(
     elif transmission >= 254 and timer_ns:
         if kind == "on-demand":
             return "periodic", timer_ns, None
-        if period_ns is not None and kind != "sporadic" and period_ns <= timer_ns:
+        if period_ns is not None and kind != "sporadic" and period_ns + jitter_ns < timer_ns:
             return "periodic", period_ns, None
         return "sporadic", None, inhibit_ns or None
     if inhibit_100us and kind != "periodic":

@@ -132,7 +132,11 @@ def test_the_rule_itself() -> None:
     assert cia301.tpdo_timing(254, sync, 100, 10, mit_ns=20 * MS) == ("sporadic", None, 1 * MS)
     assert cia301.tpdo_timing(255, sync, 100, None) == ("sporadic", None, None)
     assert cia301.tpdo_timing(255, sync, 100, None, "on-demand") == ("periodic", 100 * MS, None)
-    assert cia301.tpdo_timing(255, sync, 100, None, period_ns=100 * MS) == ("periodic", 100 * MS, None)
+    # a period that keeps the timer from running out stands; one equal to the timer ties with it (the timer may
+    # fire a hair before the write: two sends, nothing between them), and so does one that jitter makes reach it
+    assert cia301.tpdo_timing(255, sync, 100, None, period_ns=99 * MS) == ("periodic", 99 * MS, None)
+    assert cia301.tpdo_timing(255, sync, 100, None, period_ns=100 * MS) == ("sporadic", None, None)
+    assert cia301.tpdo_timing(255, sync, 100, 10, period_ns=90 * MS, jitter_ns=10 * MS) == ("sporadic", None, 1 * MS)
     assert cia301.tpdo_timing(255, sync, None, 10, mit_ns=20 * MS) == (None, None, 20 * MS)
     assert cia301.tpdo_timing(255, sync, None, 10) == (None, None, 1 * MS)
 

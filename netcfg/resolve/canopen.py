@@ -113,6 +113,7 @@ class CanopenProtocol(CanProtocol):
         period: int | None,
         mit: int | None,
         path: Path,
+        jitter: int = 0,
     ) -> tuple[MessageKind | None, int | None, int | None] | None:
         # CANopen PDOs: the transmission type says when a TPDO goes out (CiA 301, 0x1800 sub 2).
         if pdo.kind != "tpdo" or bus.canopen is None:
@@ -126,7 +127,7 @@ class CanopenProtocol(CanProtocol):
                 f"{format_ns(tt * sync)}; the period {format_ns(period)} disagrees (drop it)",
                 (*path, "period"),
             )
-        timing = cia301.tpdo_timing(tt, sync, pdo.event_timer_ms, pdo.inhibit_100us, kind, period, mit)
+        timing = cia301.tpdo_timing(tt, sync, pdo.event_timer_ms, pdo.inhibit_100us, kind, period, mit, jitter)
         if timing[0] == "sporadic" and timing[2] is None and pdo.event_timer_ms:
             node = self.r.model.nodes.get(pdo.device_node)
             dev = node.device if node is not None else None

@@ -525,7 +525,8 @@ class Resolver:
             period = round(1_000_000_000 / rate)  # at least 1: units.parse_frequency admits at most 1 GHz
         kind = m.type
         if pdo is not None:
-            timing = rules.pdo_timing(pdo, bus, kind, period, mit, path)
+            spec_jitter = (m.jitter.to_ns(ec) or 0) if m.jitter is not None else 0  # reported below if in EC
+            timing = rules.pdo_timing(pdo, bus, kind, period, mit, path, spec_jitter)
             if timing is None:
                 return None
             kind, period, mit = timing

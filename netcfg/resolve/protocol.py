@@ -60,9 +60,10 @@ class BusProtocol:
         period: int | None,
         mit: int | None,
         path: Path,
+        jitter: int = 0,
     ) -> tuple[MessageKind | None, int | None, int | None] | None:
-        """-> (kind, period, min. interarrival) after the PDO's own timing settings; None when they leave the rate
-        unbounded (reported here)."""
+        """-> (kind, period, min. interarrival) after the PDO's own timing settings (`jitter`: the spec's release
+        jitter of the message); None when they leave the rate unbounded (reported here)."""
         return kind, period, mit
 
     def release_offset(
