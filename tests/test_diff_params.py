@@ -24,7 +24,9 @@ def with_deadline(text: str) -> str:
 
 def test_an_offset_change_is_listed_with_the_flow_verdict_it_changes(tmp_path: Path) -> None:
     """motor_setpoints (M1) fixed at 1 EC instead of `offset: auto`: 1 EC is CAMBADA's 5 ms elementary cycle
-    (seed 002), so diff lists its offset as 5,000 us on the new side, and the motion flow through it."""
+    (seed 002), so diff lists its offset as 5,000 us on the new side, against the 5 EC = 25,000 us of Table 2's init
+    time that `offset: auto` finds, and the motion flow through it: within its 30 ms deadline before (Table 3: at
+    most 27.7 ms with FTT-CAN), and the verdict the change gives it after."""
     before = with_deadline(CAMBADA)
     line = next(x for x in before.splitlines() if "period: 6 EC, offset: auto" in x)
     after = before.replace(line, line.replace("offset: auto", "offset: 1 EC"))
@@ -33,10 +35,9 @@ def test_an_offset_change_is_listed_with_the_flow_verdict_it_changes(tmp_path: P
     assert proc.returncode == 1, proc.stderr
     doc = json.loads(proc.stdout)
     (m,) = [x for x in doc["messages"] if x["name"] == "motor_setpoints"]
-    checked = json.loads(cli("check", str(a), "--format", "json").stdout)
-    was = next(x for bus in checked["buses"] for x in bus["messages"] if x["name"] == "motor_setpoints")
-    assert m["a"]["offset_us"] == was["offset_us"] and m["b"]["offset_us"] == 5_000
+    assert m["a"]["offset_us"] == 25_000 and m["b"]["offset_us"] == 5_000
     flow = next(f for f in doc["flows"] if f["name"] == "motion")
+    assert flow["a"]["meets_deadline"] is True
     text = cli("diff", str(a), str(b)).stdout
     assert "message motor_setpoints: offset us" in text
     for side in "ab":
