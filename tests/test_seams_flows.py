@@ -1,0 +1,107 @@
+"""End-to-end flows where features meet: a sporadic message whose send a run skips, a join whose items take
+different paths. The specs in tests/data/seams keep their headers (what netcfg printed, what the simulator
+measured, the derivation); every figure asserted here is derived there or in the test's docstring.
+
+Frame times (ISO 11898-1, 11-bit identifier, s data bytes): 47 + 8s bits nominal, 47 + 8s + (34 + 8s - 1) // 4
+with worst-case stuffing; an 8-byte frame at 500 kbit/s is 222 us nominal, 270 us at worst. Flows count clocks
+within the default 100 ppm: a wait of w ns on a node's clock is w + ceil(w / 10,000) ns of real time.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from conftest import check, check_data, runtime_config
+
+from netcfg.sim.montecarlo import run_once
+from netcfg.sim.results import summary
+from netcfg.sim.scenario import SimOptions
+
+SEAMS = Path(__file__).parent / "data" / "seams"
+S = 1_000_000_000
+
+
+def flow(report: dict[str, Any], name: str) -> dict[str, Any]:
+    found: dict[str, Any] = next(f for f in report["flows"] if f["name"] == name)
+    return found
+
+
+def simulated(path: Path, seeds: range) -> list[dict[str, Any]]:
+    """`netcfg simulate SPEC --duration 10s --seed N` for each seed, as its JSON document."""
+    cfg = runtime_config(path)
+    return [summary(run_once(cfg, SimOptions(duration_ns=10 * S, seed=seed))[1]) for seed in seeds]
+
+
+def measured_max(result: dict[str, Any], name: str) -> float:
+    worst: float = next(f for f in result["flows"] if f["name"] == name)["latency_us"]["max"]
+    return worst
+
+
+def test_09_side_input_waits_for_the_run_that_sends() -> None:
+    """Seam 09's derivation. m3 (8 bytes, 0x110) waits for one frame of m2 (blocking) and one of m1: 3 x 270 =
+    810 us from its release, so it is at gw by 300 (t4's WCET) + 810 = 1,110 us. gw.t2 (5 ms, 100..2000 us) sends
+    m2 (sporadic, 5 ms) only when 5 ms have passed since its last send: after a run that sent, ending up to
+    2,000 us after its start, run n later ends no sooner than n x 5 ms (less 100 ppm) + 100 us, so it surely
+    sends once n x 4,999.5 + 100 >= 2,000 + 5,000: n = 2. m3's data (renewed only every 20 ms) waits up to two
+    periods for the start of a run that sends, 10,001 us at 100 ppm, then 2,000 us for it to end; m2 (the lowest
+    identifier of three 8-byte frames) takes 810 us: 1,110 + 10,001 + 2,000 + 810 = 13,921 us ("~14 ms").
+    The trig flow is not loosened: m1 renews t1's data every 5 ms, so the run that sends reads data at most one
+    m1 period (5,000.5 us) old whichever runs skipped: 300 + 540 (m1: m3's blocking and its own frame) + 5,000.5
+    + 2,000 + 810 = 8,650.5 us. Simulated, seeds 0-5 (side up to 12,490.1 us, seed 2) stay inside."""
+    path = SEAMS / "09-sporadic-send-skip-side-input.yaml"
+    report = check(path)
+    assert (flow(report, "side")["latency_min_us"], flow(report, "side")["latency_max_us"]) == (644, 13_921)
+    assert flow(report, "trig")["latency_max_us"] == 8_650.5
+    for result in simulated(path, range(6)):
+        assert result["violations"] == []
+        assert measured_max(result, "side") <= 13_921
+
+
+def test_09b_event_gateway_waits_one_more_trigger_interval() -> None:
+    """Seam 09b: gw.t2 starts on m1's deliveries, so its runs follow m1: m1 is queued as t1 ends (100..300 us:
+    200 us of release spread) and delivered 222..540 us later (318 us more), so n runs apart t2's starts lie
+    within n x 5 ms -+ 518 us. After a run that sent, run n later surely sends once n x 4,999.5 - 518 + 100 >=
+    2,000 + 5,000: n = 2, so m3's data waits up to 10,000 + 518 us for a sending run, 10,519.052 us at 100 ppm
+    (the message-started task's "period" of 0 used to add nothing): 1,110 + 10,519.052 + 2,000 + 810 =
+    14,439.052 us. The trig flow starts t2 with its own data, each skipped run's data superseded by the next m1:
+    300 + 540 + 2,000 + 810 = 3,650 us. Simulated, seeds 0-5 (side up to 12,725.6 us, seed 4) stay inside."""
+    path = SEAMS / "09b-sporadic-send-skip-event-gateway.yaml"
+    report = check(path)
+    assert flow(report, "side")["latency_max_us"] == pytest.approx(14_439.052)
+    assert flow(report, "trig")["latency_max_us"] == 3_650
+    for result in simulated(path, range(6)):
+        assert result["violations"] == []
+        assert measured_max(result, "side") <= 14_439.052
+
+
+def test_10_a_task_started_from_outside_counts_its_message_release_spread() -> None:
+    """Seam 10's e2e3 (t4 -> m3 -> gw.t2 -> m2 -> dst.t3): gw.t2 reads m3 whenever m1 comes, and m1 is queued as
+    t1 ends, 32..98 us after its start: consecutive deliveries of m1 are up to 2,000 + 66 (that release spread)
+    + 48 (270 - 222, m1's delivery variation, alone on b0) = 2,114 us apart, 2,114.212 us at 100 ppm. On b1
+    (1 Mbit/s) m3 (2 bytes: 75 us at worst) waits for m2 (1 byte: 65 us) and m2 for m3: 140 us each. So
+    1,210 (t4's WCET) + 140 + 2,114.212 + 201 (t2's WCET) + 140 = 3,805.212 us (it was 3,739.205, without the
+    66 us spread)."""
+    report = check(SEAMS / "10-flow-join-best-case.yaml")
+    assert flow(report, "e2e3")["latency_max_us"] == pytest.approx(3_805.212)
+
+
+def test_a_sporadic_message_two_tasks_send_carries_a_skipped_run_s_data_with_the_next_send(tmp_path: Path) -> None:
+    """Seam 09 with a second sender of m2 on gw, t5 (5 ms, 100..300 us), the first step of flow `other`
+    (t5 -> m2 -> dst.t3). A run of t5 that ends less than 5 ms after t2's last send sends nothing, and its data
+    leaves with the next m2, whoever sends it (the message carries gw's freshest output); this was measured up
+    to 5,546 us against 3,110. After any send each sender's first run to end 5 ms later sends: t2's starts up to
+    5,000 - 100 (its BCET) + 5,000 (a period) after that send and ends 2,000 later, 11,900 us; t5's, behind t2 on
+    gw's processor (2,300 us), 12,200 us. So t5 ends by 2,300 us (processor analysis), m2 is released up to
+    11,900 us (11,901.19 at 100 ppm) after that and takes 810 us: 2,300 + 11,901.19 + 810 = 15,011.19 us."""
+    data = yaml.safe_load((SEAMS / "09-sporadic-send-skip-side-input.yaml").read_text(encoding="utf-8"))
+    data["nodes"][2]["tasks"].append({"name": "t5", "period": "5 ms", "wcet": "300 us", "bcet": "100 us"})
+    data["flows"].append({"name": "other", "chain": ["gw.t5", "m2", "dst.t3"]})
+    report = check_data(tmp_path, data)
+    assert flow(report, "other")["latency_max_us"] == pytest.approx(15_011.19)
+    cfg = runtime_config(tmp_path / "spec.yaml")
+    for seed in range(6):
+        result = summary(run_once(cfg, SimOptions(duration_ns=10 * S, seed=seed))[1])
+        assert result["violations"] == []
