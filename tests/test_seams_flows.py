@@ -77,6 +77,21 @@ def test_09b_event_gateway_waits_one_more_trigger_interval() -> None:
         assert measured_max(result, "side") <= 14_439.052
 
 
+def test_10_join_best_case_counts_each_item_from_its_own_path() -> None:
+    """Seam 10's derivation: m1 is at gw 32 (t1's BCET) + 299 (tx_delay) + 222 (its nominal frame) = 553 us after
+    t1 starts at the earliest, m3 403 + 63 = 466 us after t4 starts; gw.t2 starts on m1 once m3 is in, and
+    dst.t3 starts 67 + 55 us after m1's arrival: the join's age, from the older stamp, is at least 553 + 122 =
+    675 us (it was 1,046: m1's path counted from t4's BCET). The single paths keep their best cases: e2e 675 us,
+    e2e3 403 + 63 + 67 + 55 = 588 us. Simulated, seeds 0-7 (744.1 us at least, seed 3) stay inside."""
+    path = SEAMS / "10-flow-join-best-case.yaml"
+    report = check(path)
+    assert flow(report, "join")["latency_min_us"] == 675
+    assert flow(report, "e2e")["latency_min_us"] == 675
+    assert flow(report, "e2e3")["latency_min_us"] == 588
+    for result in simulated(path, range(8)):
+        assert result["violations"] == []
+
+
 def test_10_a_task_started_from_outside_counts_its_message_release_spread() -> None:
     """Seam 10's e2e3 (t4 -> m3 -> gw.t2 -> m2 -> dst.t3): gw.t2 reads m3 whenever m1 comes, and m1 is queued as
     t1 ends, 32..98 us after its start: consecutive deliveries of m1 are up to 2,000 + 66 (that release spread)

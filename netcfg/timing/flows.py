@@ -12,7 +12,8 @@ Two models, reported side by side where both apply (seed 002, Table 3 and Figure
   triggered task starts, so each step takes the first instance at or after the moment its data is ready,
   and the latency range comes out of the schedule itself, over every instance of the macro-cycle.
 
-A step may hold several items in parallel; the data of all of them is needed, so the step ends with the last.
+A step may hold several items in parallel; the data of all of them is needed, so the step ends with the last
+(at the earliest, each item along its own path: its data's age counts from a stamp no newer than its inputs').
 A reader that joins data of different first-step items takes the oldest, and may first take it only once the
 other items have data at least as new: the wait for their next release (their offsets' distance on one clock or
 EC grid, else up to a period), but never longer than the oldest data's own renewal.
@@ -132,9 +133,12 @@ def unsynchronised(
         for ref in step.refs:
             # of a join, per stream it reads: (wait for the rest, renewal); None where no rate bounds it
             heads: list[tuple[int | None, int | None]] = []
+            base = 0  # its inputs' earliest: the age of its data, counted from a stamp no newer than theirs
             if i:
                 assert prev is not None
-                read = sorted({streams[r] for r in step_inputs(prev, step.kind, ref, consumers, producer)})
+                inputs = step_inputs(prev, step.kind, ref, consumers, producer)
+                base = max(item_lo[r] for r in inputs)
+                read = sorted({streams[r] for r in inputs})
                 carried[ref] = read[0] if len(read) == 1 else tuple(sorted({o for s in read for o in s}))
                 if len(read) > 1:
                     heads = [
@@ -154,7 +158,7 @@ def unsynchronised(
                     # its data leaves with the next send, by whichever sender
                     gap = rates.renewal(msg)
                     wait = _add(wait, None if gap is None else clocks.longest_real(gap, ppm))
-                outs.append((lo + tx + d.best_ns, _add(_add(_add(hi, wait), tx), d.worst_ns)))
+                outs.append((base + tx + d.best_ns, _add(_add(_add(hi, wait), tx), d.worst_ns)))
                 periods.append(rates.renewal(msg))
             else:
                 task = m.task(ref)
@@ -171,8 +175,8 @@ def unsynchronised(
                 wait = _read_wait(event, period, refresh, heads, ppm) if i else 0
                 start_hi = _add(_add(hi, wait), after)
                 end_hi = _add(start_hi, task_response(task, task_ns))
-                # at the earliest, its message's frame and rx_delay; the step's other items need only be in by then
-                start_lo = max(lo, item_lo[task.on_message] + after) if event else lo  # type: ignore[index]
+                # at the earliest, its message's frame and rx_delay; the other items it reads need only be in by then
+                start_lo = max(base, item_lo[task.on_message] + after) if event else base  # type: ignore[index]
                 outs.append((start_lo, start_hi) if last else (start_lo + task.bcet_ns, end_hi))
                 periods.append(period if starter is not None else period or 0)
         item_lo = {ref: o[0] for ref, o in zip(step.refs, outs)}
