@@ -120,3 +120,36 @@ def test_a_sporadic_message_two_tasks_send_carries_a_skipped_run_s_data_with_the
     for seed in range(6):
         result = summary(run_once(cfg, SimOptions(duration_ns=10 * S, seed=seed))[1])
         assert result["violations"] == []
+
+
+SERVO = """\
+system: servo
+buses:
+  - {name: b, protocol: can, bitrate: 1 Mbit/s}
+nodes:
+  - name: host
+    buses: [b]
+    tasks: [{name: control, period: 1 ms, wcet: 100 us, bcet: 50 us}]
+  - name: drive
+    buses: [b]
+    rx_delay: 10 us
+    tx_delay: 20 us
+    tasks: [{name: apply, on_message: cmd, wcet: 80 us, bcet: 30 us}]
+messages:
+  - {name: cmd, id: 0x100, producer: host, consumers: [drive], size: 8, period: 1 ms}
+  - {name: state, id: 0x180, producer: drive, consumers: [host], size: 8, period: STATE}
+flows:
+  - {name: loop, chain: [host.control, cmd, drive.apply, state, host.control]}
+"""
+
+
+def test_a_task_a_message_starts_inherits_the_message_s_whole_response_jitter(tmp_path: Path) -> None:
+    """Tindell and Clark (1994): a task a message activates inherits the message's response jitter, from its
+    nominal release. At 1 Mbit/s an 8-byte frame takes 111 us nominal, 135 at worst; cmd is released as
+    host.control ends (50..100 us: 50 us of release jitter), and reaches the drive 111..270 us after that (one
+    frame of state may hold it up). So drive.apply starts up to 50 + 270 - 111 = 209 us late, and its response
+    from its nominal release is 209 + 80 = 289 us (it was 239: the release jitter control adds was left out)."""
+    (tmp_path / "servo.yaml").write_text(SERVO.replace("STATE", "1 ms"), encoding="utf-8")
+    report = check(tmp_path / "servo.yaml")
+    apply = next(t for n in report["nodes"] for t in n["tasks"] if t["name"] == "apply")
+    assert apply["wcrt_us"] == 289
