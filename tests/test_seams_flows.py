@@ -153,3 +153,40 @@ def test_a_task_a_message_starts_inherits_the_message_s_whole_response_jitter(tm
     report = check(tmp_path / "servo.yaml")
     apply = next(t for n in report["nodes"] for t in n["tasks"] if t["name"] == "apply")
     assert apply["wcrt_us"] == 289
+
+
+def test_a_drive_answers_every_command_with_the_run_the_command_starts(tmp_path: Path) -> None:
+    """The request/response servo loop (a new user's finding): drive.apply runs on cmd (every 1 ms), so it runs at
+    cmd's rate, and state, at that rate too and named after it in the flow, is its reply: sent as apply ends,
+    tx_delay later (it ran free at its own period, runtime.json sent_by []).
+    At 1 Mbit/s an 8-byte frame takes 111 us nominal, 135 at worst. cmd (the higher identifier's priority) is
+    released as control ends (50..100 us: 50 us of release jitter) and waits for one frame of state at worst:
+    135 + 135 = 270 us from its release, 111 at best. state's release jitter is cmd's response spread from its
+    nominal release, 50 + (270 - 111) = 209 us, and apply's variation, 80 - 30 = 50 us: 259 us; its WCRT is
+    259 + 135 (one cmd frame) + 135 = 529 us, and apply's from its nominal release 209 + 80 = 289 us. The flow
+    counts each delay once, the reply's jitter being its path: 100 + 270 + 10 (rx_delay) + 80 + 20 (tx_delay) +
+    270 + 1,000.1 (control's next run, at 100 ppm) = 1,750.1 us. The reply is back 750 us after control starts
+    at the latest, so control's next run, one period later on the same clock, reads it: measured, every sample
+    is one period (1,000 us within the simulator's 50 ppm); running free, state made the loop up to 2 ms."""
+    (tmp_path / "servo.yaml").write_text(SERVO.replace("STATE", "1 ms"), encoding="utf-8")
+    report = check(tmp_path / "servo.yaml")
+    messages = {m["name"]: m for b in report["buses"] for m in b["messages"]}
+    assert messages["state"]["wcrt_us"] == 529
+    apply = next(t for n in report["nodes"] for t in n["tasks"] if t["name"] == "apply")
+    assert apply["wcrt_us"] == 289
+    assert flow(report, "loop")["latency_max_us"] == 1_750.1
+    cfg = runtime_config(tmp_path / "servo.yaml")
+    assert cfg.message("state").sent_by == ("drive.apply",)
+    for seed in range(3):
+        result = summary(run_once(cfg, SimOptions(duration_ns=S, seed=seed))[1])
+        assert result["violations"] == []
+        latency = next(f for f in result["flows"] if f["name"] == "loop")["latency_us"]
+        assert latency["min"] >= 999.95 and latency["max"] <= 1_000.05
+
+
+def test_a_reply_at_another_rate_still_runs_at_its_own(tmp_path: Path) -> None:
+    """The rule is the one for periodic tasks: a message at a rate other than its task's runs at its own (state
+    every 2 ms samples apply's latest output); only one at the rate of the command that starts the task is its
+    reply."""
+    (tmp_path / "servo.yaml").write_text(SERVO.replace("STATE", "2 ms"), encoding="utf-8")
+    assert runtime_config(tmp_path / "servo.yaml").message("state").sent_by == ()

@@ -463,11 +463,7 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
     """True when the task before the message in the flow sends it as it finishes (same rate)."""
     if prev is None or prev.kind != "task":
         return False
-    for ref in prev.refs:
-        task = m.task(ref)
-        if task.node == msg.producer and _same_rate(m, task, msg):
-            return True
-    return False
+    return any(m.task(ref).node == msg.producer and same_rate(m, m.task(ref), msg) for ref in prev.refs)
 
 
 def queue_delay(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> int:
@@ -479,27 +475,21 @@ def queue_delay(m: model.Model, msg: model.Message, prev: model.FlowStep | None)
     return m.nodes[msg.producer].tx_delay_ns if any(ref in senders for ref in prev.refs) else 0
 
 
-def _same_rate(m: model.Model, task: model.Task, msg: model.Message) -> bool:
-    """A task runs at a message's rate: its period is the message's nominal, fastest or slowest one."""
-    return task_period(m, task) in {msg.period_ns, msg.interval_ns, message_period(msg)}
+def same_rate(m: model.Model, task: model.Task, msg: model.Message) -> bool:
+    """A task runs at a message's rate: its period is the message's nominal, fastest or slowest one. A task that
+    a message starts runs at that message's rate (as often as it comes)."""
+    if task.on_message is not None:
+        starter = m.messages[task.on_message]
+        rates = {starter.period_ns, starter.interval_ns, message_period(starter)} - {None}
+    else:
+        rates = {task_period(m, task)}
+    return bool(rates & {msg.period_ns, msg.interval_ns, message_period(msg)})
 
 
 def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
     """The tasks (node.task) that send a message as they finish, for the simulator and masters (runtime.json's
-    sent_by): in some flow, a task on the producer in the step before the message, at the message's rate (the
-    rule of _sent_by_producer); for a sporadic message any such task, whose run raises the event (at most once
-    per minimum inter-arrival time, the load the analysis assumes)."""
-    out = set()
-    for flow in m.flows.values():
-        for i, step in enumerate(flow.steps):
-            prev = flow.steps[i - 1] if i else None
-            if step.kind != "message" or msg.name not in step.refs or prev is None or prev.kind != "task":
-                continue
-            for ref in prev.refs:
-                task = m.task(ref)
-                if task.node == msg.producer and (_same_rate(m, task, msg) or msg.kind == "sporadic"):
-                    out.add(ref)
-    return tuple(sorted(out))
+    sent_by), as netcfg.resolve.flows decides them."""
+    return m.sent_by.get(msg.name, ())
 
 
 def synchronised(
