@@ -190,3 +190,48 @@ def test_a_reply_at_another_rate_still_runs_at_its_own(tmp_path: Path) -> None:
     reply."""
     (tmp_path / "servo.yaml").write_text(SERVO.replace("STATE", "2 ms"), encoding="utf-8")
     assert runtime_config(tmp_path / "servo.yaml").message("state").sent_by == ()
+
+
+TWO_DRIVES = """\
+system: servo2
+buses:
+  - {name: b, protocol: can, bitrate: 1 Mbit/s}
+nodes:
+  - name: host
+    buses: [b]
+    tasks:
+      - {name: control, period: 1 ms, wcet: 100 us, bcet: 50 us}
+      - {name: use, on_message: s1, wcet: 30 us, bcet: 10 us}
+  - name: d1
+    buses: [b]
+    rx_delay: 10 us
+    tx_delay: 20 us
+    tasks: [{name: apply, on_message: cmd, wcet: 80 us, bcet: 30 us}]
+  - name: d2
+    buses: [b]
+    rx_delay: 10 us
+    tx_delay: 20 us
+    tasks: [{name: apply, on_message: cmd, wcet: 280 us, bcet: 30 us}]
+messages:
+  - {name: cmd, id: 0x100, producer: host, consumers: [d1, d2], size: 8, period: 1 ms}
+  - {name: s1, id: 0x180, producer: d1, consumers: [host], size: 8, period: 1 ms}
+  - {name: s2, id: 0x181, producer: d2, consumers: [host], size: 8, period: 1 ms}
+flows:
+  - {name: both, chain: [host.control, cmd, [d1.apply, d2.apply], [s1, s2], host.use]}
+"""
+
+
+def test_a_task_one_reply_starts_may_take_the_other_reply_of_the_command_before(tmp_path: Path) -> None:
+    """Two drives answer every command; host.use starts on s1 and reads s2 too. s2's reply to this command may
+    come after s1's (d2 takes longer), and then use takes s2's reply to the command before, one control period
+    older. At 1 Mbit/s (8-byte frames, 135 us at worst), from their releases cmd waits for one reply frame (270
+    us), s1 for s2's and cmd's frames and s2 for s1's and cmd's (405 us each). The replies are in by 100 + 270 +
+    10 + 280 (d2's apply) + 20 + 405 = 1,085 us, the bound the analysis gave (measured up to 1,479 us), and use
+    may take data one period (1,000.1 us at 100 ppm) older: 2,085.1 us."""
+    (tmp_path / "two.yaml").write_text(TWO_DRIVES, encoding="utf-8")
+    report = check(tmp_path / "two.yaml")
+    assert flow(report, "both")["unsynchronised"]["delivery_max_us"] == 1_085
+    assert flow(report, "both")["latency_max_us"] == 2_085.1
+    cfg = runtime_config(tmp_path / "two.yaml")
+    for seed in range(3):
+        assert summary(run_once(cfg, SimOptions(duration_ns=2 * S, seed=seed))[1])["violations"] == []

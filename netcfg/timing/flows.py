@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 from netcfg import model
 from netcfg.timing import clocks
 from netcfg.timing.flow_inputs import step_inputs
+from netcfg.timing.frames import arbitration_key
 
 if TYPE_CHECKING:  # only in annotations: a spec without FTT-CAN or CANopen loads neither analysis
     from netcfg.timing.canopen_sync import MasterLoop
@@ -112,6 +113,7 @@ def unsynchronised(
     refresh: int | None = None  # how often the data reaching this step is renewed
     unknown = False  # ... at no known rate
     item_lo: dict[str, int] = {}  # the step before's items: each one's earliest
+    item_hi: dict[str, int | None] = {}  # ... and latest
     delivery: tuple[int, int | None] | None = None
     prev: model.FlowStep | None = None
     ppm = clock_tolerance(m)
@@ -134,6 +136,7 @@ def unsynchronised(
             # of a join, per stream it reads: (wait for the rest, renewal); None where no rate bounds it
             heads: list[tuple[int | None, int | None]] = []
             base = 0  # its inputs' earliest: the age of its data, counted from a stamp no newer than theirs
+            inputs: tuple[str, ...] = ()
             if i:
                 assert prev is not None
                 inputs = step_inputs(prev, step.kind, ref, consumers, producer)
@@ -173,6 +176,10 @@ def unsynchronised(
                 if i and not event and not last:
                     period = rates.sending_runs(task, flow.steps[i + 1], period)
                 wait = _read_wait(event, period, refresh, heads, ppm) if i else 0
+                if event and not heads and _may_start_first(rates, task, inputs, item_lo, item_hi, after):
+                    # it takes the other items' freshest data as its message starts it: this stamp's may come
+                    # later, and then it takes the one before, each stamp reaching them within their latest
+                    wait = None if wait is None or not refresh else max(wait, clocks.longest_real(refresh, ppm))
                 start_hi = _add(_add(hi, wait), after)
                 end_hi = _add(start_hi, task_response(task, task_ns))
                 # at the earliest, its message's frame and rx_delay; the other items it reads need only be in by then
@@ -180,6 +187,7 @@ def unsynchronised(
                 outs.append((start_lo, start_hi) if last else (start_lo + task.bcet_ns, end_hi))
                 periods.append(period if starter is not None else period or 0)
         item_lo = {ref: o[0] for ref, o in zip(step.refs, outs)}
+        item_hi = {ref: o[1] for ref, o in zip(step.refs, outs)}
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
         if step.kind == "message":
@@ -192,6 +200,27 @@ def unsynchronised(
             streams = carried
         prev = step
     return (lo, hi), delivery
+
+
+def _may_start_first(
+    rates: Rates,
+    task: model.Task,
+    inputs: tuple[str, ...],
+    item_lo: dict[str, int],
+    item_hi: dict[str, int | None],
+    after: int,
+) -> bool:
+    """A task its message starts, which also reads other items of the step before, may start before one of
+    those has this stamp's data: that one's latest comes after the message's earliest (and rx_delay), unless it
+    is surely queued ahead of the message."""
+    on = task.on_message
+    assert on is not None
+    start = item_lo[on] + after
+    for x in inputs:
+        latest = item_hi[x]
+        if x != on and (latest is None or latest > start) and not rates.queued_ahead(x, on):
+            return True
+    return False
 
 
 def _outside_starter(m: model.Model, task: model.Task, prev: model.FlowStep | None) -> model.Message | None:
@@ -329,6 +358,20 @@ class Rates:
             return None
         need = msg.interval_ns + busy - sender.bcet_ns + runs.spread
         return max(1, -(-need // fastest))
+
+    def queued_ahead(self, first: str, then: str) -> bool:
+        """A message is delivered before another whenever both carry the same data: the same tasks queue both on
+        one CAN bus as they end, every run (no send skipped), in a transmit queue by priority, and it wins
+        arbitration (resent after an error, it still goes first)."""
+        a, b = self.m.messages[first], self.m.messages[then]
+        senders = sending_tasks(self.m, a)
+        if not senders or senders != sending_tasks(self.m, b) or a.bus != b.bus or not self.m.buses[a.bus].is_can:
+            return False
+        if {first, then} & self.scheduled or self.m.nodes[a.producer].tx_queue.fifo:
+            return False
+        if any(self.skips_sends(msg, self.m.task(t)) for msg in (a, b) for t in senders):
+            return False
+        return arbitration_key(a.id, a.extended) < arbitration_key(b.id, b.extended)
 
     def sending_runs(self, task: model.Task, nxt: model.FlowStep, period: int | None) -> int | None:
         """How often a task that reads data it did not start with takes it on to the next step: every `period`,
