@@ -235,3 +235,46 @@ def test_a_task_one_reply_starts_may_take_the_other_reply_of_the_command_before(
     cfg = runtime_config(tmp_path / "two.yaml")
     for seed in range(3):
         assert summary(run_once(cfg, SimOptions(duration_ns=2 * S, seed=seed))[1])["violations"] == []
+
+
+LOSSY = """\
+system: lossy
+buses:
+  - {name: b, protocol: can, bitrate: 1 Mbit/s}
+nodes:
+  - name: host
+    buses: [b]
+    tasks: [{name: control, period: 2 ms, wcet: 100 us, bcet: 50 us}]
+  - name: d0
+    buses: [b]
+    tasks: [{name: apply, on_message: cmd, wcet: 600 us, bcet: 10 us}]
+  - name: d1
+    buses: [b]
+    tasks: [{name: apply, on_message: cmd, wcet: 100 us, bcet: 10 us}]
+messages:
+  - {name: cmd, id: 0x100, producer: host, consumers: [d0, d1], size: 8, period: 2 ms}
+  - {name: s0, id: 0x180, producer: d0, consumers: [host], size: 2, min_interarrival: 2 ms}
+  - {name: s1, id: 0x181, producer: d1, consumers: [host], size: 2, min_interarrival: 2 ms}
+flows:
+  - {name: both, chain: [host.control, cmd, [d0.apply, d1.apply], [s0, s1], host.control]}
+"""
+
+
+def test_a_join_whose_item_skipped_a_send_waits_for_its_next(tmp_path: Path) -> None:
+    """Two drives answer each command with a sporadic reply (2 ms minimum inter-arrival, the command's period):
+    a reply that would come sooner than 2 ms after the last is skipped, so d0 may answer commands k-1 and k+1 and
+    d1 k-1 and k: control, reading the oldest of the two replies, then takes command k's data only at its run
+    after d0's next reply, two control periods on (measured 4,000 us; analysed 3,195.2 as if each item had every
+    stamp). At 1 Mbit/s (8-byte cmd 111..135 us, 2-byte replies 63..75 us), from their releases cmd waits for a
+    reply frame (75 + 135 = 210 us) and s0 for s1's and cmd's frames (75 + 135 + 75 = 285 us): the replies are in
+    by 100 + 210 + 600 + 285 = 1,195 us. A reply's runs follow cmd's deliveries, 2 ms apart within 50 (control's
+    variation) + 99 (210 - 111) = 149 us; after a send, the run n later surely sends once n x 1,999.8 (2 ms less
+    100 ppm) - 149 + 10 >= 600 + 2,000: n = 2, so a reply's data is renewed up to 4,149 us apart (4,149.415 at
+    100 ppm), and control may take data that much older: 1,195 + 4,149.415 = 5,344.415 us."""
+    (tmp_path / "lossy.yaml").write_text(LOSSY, encoding="utf-8")
+    report = check(tmp_path / "lossy.yaml")
+    assert flow(report, "both")["unsynchronised"]["delivery_max_us"] == 1_195
+    assert flow(report, "both")["latency_max_us"] == pytest.approx(5_344.415)
+    cfg = runtime_config(tmp_path / "lossy.yaml")
+    for seed in range(3):
+        assert summary(run_once(cfg, SimOptions(duration_ns=2 * S, seed=seed))[1])["violations"] == []

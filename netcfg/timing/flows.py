@@ -181,9 +181,15 @@ def unsynchronised(
                     # later, and then it takes the one before, each stamp reaching them within their latest
                     wait = None if wait is None or not refresh else max(wait, clocks.longest_real(refresh, ppm))
                 start_hi = _add(_add(hi, wait), after)
-                end_hi = _add(start_hi, task_response(task, task_ns))
                 # at the earliest, its message's frame and rx_delay; the other items it reads need only be in by then
                 start_lo = max(base, item_lo[task.on_message] + after) if event else base  # type: ignore[index]
+                lossy = bool(i) and not heads and len(inputs) > 1 and any(rates.drops(x) for x in inputs)
+                if lossy:
+                    # it takes the oldest of its items' freshest data, and one of them may have sent nothing of
+                    # this stamp's: that one's next may be a whole renewal later
+                    wait = None if wait is None or not refresh else max(wait, clocks.longest_real(refresh, ppm))
+                    start_hi = _add(_add(hi, wait), after)
+                end_hi = _add(start_hi, task_response(task, task_ns))
                 outs.append((start_lo, start_hi) if last else (start_lo + task.bcet_ns, end_hi))
                 periods.append(period if starter is not None else period or 0)
         item_lo = {ref: o[0] for ref, o in zip(step.refs, outs)}
@@ -358,6 +364,11 @@ class Rates:
             return None
         need = msg.interval_ns + busy - sender.bcet_ns + runs.spread
         return max(1, -(-need // fastest))
+
+    def drops(self, name: str) -> bool:
+        """A message some of whose data never goes out: a sporadic one a run of its sender may skip."""
+        msg = self.m.messages.get(name)
+        return msg is not None and any(self.skips_sends(msg, self.m.task(t)) for t in sending_tasks(self.m, msg))
 
     def queued_ahead(self, first: str, then: str) -> bool:
         """A message is delivered before another whenever both carry the same data: the same tasks queue both on
