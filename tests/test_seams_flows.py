@@ -164,17 +164,18 @@ def test_a_drive_answers_every_command_with_the_run_the_command_starts(tmp_path:
     135 + 135 = 270 us from its release, 111 at best. state's release jitter is cmd's response spread from its
     nominal release, 50 + (270 - 111) = 209 us, and apply's variation, 80 - 30 = 50 us: 259 us; its WCRT is
     259 + 135 (one cmd frame) + 135 = 529 us, and apply's from its nominal release 209 + 80 = 289 us. The flow
-    counts each delay once, the reply's jitter being its path: 100 + 270 + 10 (rx_delay) + 80 + 20 (tx_delay) +
-    270 + 1,000.1 (control's next run, at 100 ppm) = 1,750.1 us. The reply is back 750 us after control starts
-    at the latest, so control's next run, one period later on the same clock, reads it: measured, every sample
-    is one period (1,000 us within the simulator's 50 ppm); running free, state made the loop up to 2 ms."""
+    counts each delay once, the reply's jitter being its path: the reply is back by 100 + 270 + 10 (rx_delay) +
+    80 + 20 (tx_delay) + 270 = 750 us after control starts, and control's next run, one period later on the same
+    clock (999.9..1,000.1 us at 100 ppm), reads it: 1,000.1 us at the latest (1,750.1 when control's next start
+    was taken as anywhere within a period). Measured, every sample is one period (1,000 us within the simulator's
+    50 ppm); running free, state made the loop up to 2 ms."""
     (tmp_path / "servo.yaml").write_text(SERVO.replace("STATE", "1 ms"), encoding="utf-8")
     report = check(tmp_path / "servo.yaml")
     messages = {m["name"]: m for b in report["buses"] for m in b["messages"]}
     assert messages["state"]["wcrt_us"] == 529
     apply = next(t for n in report["nodes"] for t in n["tasks"] if t["name"] == "apply")
     assert apply["wcrt_us"] == 289
-    assert flow(report, "loop")["latency_max_us"] == 1_750.1
+    assert (flow(report, "loop")["latency_min_us"], flow(report, "loop")["latency_max_us"]) == (999.9, 1_000.1)
     cfg = runtime_config(tmp_path / "servo.yaml")
     assert cfg.message("state").sent_by == ("drive.apply",)
     for seed in range(3):
@@ -275,6 +276,8 @@ def test_a_join_whose_item_skipped_a_send_waits_for_its_next(tmp_path: Path) -> 
     report = check(tmp_path / "lossy.yaml")
     assert flow(report, "both")["unsynchronised"]["delivery_max_us"] == 1_195
     assert flow(report, "both")["latency_max_us"] == pytest.approx(5_344.415)
+    # the earliest reply is back 234 us after control starts, read by control's next run: one period, less 100 ppm
+    assert flow(report, "both")["latency_min_us"] == 1_999.8
     cfg = runtime_config(tmp_path / "lossy.yaml")
     for seed in range(3):
         assert summary(run_once(cfg, SimOptions(duration_ns=2 * S, seed=seed))[1])["violations"] == []

@@ -189,6 +189,15 @@ def unsynchronised(
                     # this stamp's: that one's next may be a whole renewal later
                     wait = None if wait is None or not refresh else max(wait, clocks.longest_real(refresh, ppm))
                     start_hi = _add(_add(hi, wait), after)
+                first = releases[flow.steps[0].refs[0]] if len(flow.steps[0].refs) == 1 else None
+                if i and not heads and first is not None and period == task.period_ns and _clocked(task):
+                    # on the first task's clock it starts a fixed distance after each of that task's starts (but a
+                    # stamp one item dropped reaches it only with that item's next: no earlier latest then)
+                    on_grid = _clock_distances(first, task, start_lo, hi, ppm)
+                    if on_grid is not None:
+                        start_lo = max(start_lo, on_grid[0])
+                        if not lossy:
+                            start_hi = on_grid[1] if start_hi is None else min(start_hi, on_grid[1])
                 end_hi = _add(start_hi, task_response(task, task_ns))
                 outs.append((start_lo, start_hi) if last else (start_lo + task.bcet_ns, end_hi))
                 periods.append(period if starter is not None else period or 0)
@@ -206,6 +215,43 @@ def unsynchronised(
             streams = carried
         prev = step
     return (lo, hi), delivery
+
+
+def _clocked(task: model.Task) -> bool:
+    """A task that runs on its node's own clock, at its period."""
+    return task.period_ns is not None and task.trigger is None and task.on_message is None and task.sync_bus is None
+
+
+def _clock_distances(
+    first: _Release, task: model.Task, lo: int, hi: int | None, ppm: int
+) -> tuple[int, int] | None:
+    """The earliest and latest start of a task that reads data in between lo and hi after the flow's first task
+    started, when both run on one node's clock: its starts lie a fixed distance after each of the first task's
+    (their offsets and periods), within +-ppm in real time; the data is read at its first start after it is in.
+    None when they are not on one clock, hi is unbounded, or their common period holds too many of the first
+    task's starts to examine."""
+    period = task.period_ns
+    if first.grid != ("clock", task.node) or not first.period or period is None or hi is None:
+        return None
+    common = lcm(first.period, period) // first.period
+    if common > _MAX_PHASES:
+        return None
+
+    def at_or_after(phase: int, x: int) -> int:
+        return phase + max(0, -(-(x - phase) // period)) * period
+
+    earliest, latest = [], []
+    for k in range(common):
+        phase = (task.offset_ns - first.offset - k * first.period) % period
+        d = at_or_after(phase, clocks.shortest_real(lo, ppm))
+        while clocks.longest_real(d, ppm) < lo:  # the first start that may find the data in
+            d += period
+        earliest.append(clocks.shortest_real(d, ppm))
+        d = at_or_after(phase, hi)
+        while clocks.shortest_real(d, ppm) <= hi:  # the first start that surely finds it in
+            d += period
+        latest.append(clocks.longest_real(d, ppm))
+    return min(earliest), max(latest)
 
 
 def _may_start_first(
