@@ -1,6 +1,7 @@
 """End-to-end flows where features meet: a sporadic message whose send a run skips, a join whose items take
-different paths. The specs in tests/data/seams keep their headers (what netcfg printed, what the simulator
-measured, the derivation); every figure asserted here is derived there or in the test's docstring.
+different paths, a drive that answers every command (request and response). The specs in tests/data/seams keep
+their headers (what netcfg printed, what the simulator measured, the derivation); every figure asserted here is
+derived there or in the test's docstring.
 
 Frame times (ISO 11898-1, 11-bit identifier, s data bytes): 47 + 8s bits nominal, 47 + 8s + (34 + 8s - 1) // 4
 with worst-case stuffing; an 8-byte frame at 500 kbit/s is 222 us nominal, 270 us at worst. Flows count clocks
