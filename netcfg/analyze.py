@@ -187,7 +187,10 @@ def activation(m: model.Model, task: model.Task, acc: _Analysis) -> tuple[int | 
         d = acc.chained.get(task.on_message)
         if d is None or d.worst_ns is None:
             return m.messages[task.on_message].interval_ns, None
-        return m.messages[task.on_message].interval_ns, d.worst_ns - d.best_ns
+        # the message's response jitter from its nominal release: its delivery's spread, and the release jitter its
+        # sending task's response adds (Tindell and Clark 1994: an activated task inherits its message's jitter)
+        inherited = d.worst_ns - d.best_ns + acc.extra_jitter.get(task.on_message, 0)
+        return m.messages[task.on_message].interval_ns, inherited
     if task.trigger is not None:
         return m.triggers[task.trigger].interval_ns, 0
     if task.sync_bus is not None and task.sync_bus in acc.canopen:

@@ -292,6 +292,8 @@ class Model:
     triggers: dict[str, Trigger]
     flows: dict[str, Flow]
     description: str | None = None
+    # message -> the tasks (node.task) that send it as they finish (netcfg.resolve.flows); others run free
+    sent_by: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     def task(self, ref: str) -> Task:
         node, name = ref.split(".", 1)

@@ -6,6 +6,7 @@ from netcfg import model
 from netcfg.resolve.core import Resolver, quoted_names
 from netcfg.resolve.suggest import did_you_mean
 from netcfg.spec.source import Path
+from netcfg.timing.flows import same_rate
 
 
 def resolve_flows(r: Resolver) -> None:
@@ -73,6 +74,27 @@ def resolve_flows(r: Resolver) -> None:
             deadline_ns=r.ns(f.deadline, (*path, "deadline"), None),
             path=path,
         )
+    if not r.d.errors:  # (a flow with errors may name tasks and messages that do not exist)
+        r.model.sent_by = message_senders(r.model)
+
+
+def message_senders(m: model.Model) -> dict[str, tuple[str, ...]]:
+    """Message -> the tasks (node.task) that send it as they finish: in some flow, a task on its producer in the
+    step before it, at its rate (a task a message starts runs at that message's: a reply goes out with every
+    run); for a sporadic message any such task, whose run raises the event (at most once per minimum
+    inter-arrival time, the load the analysis assumes). Other messages run at their own rate."""
+    out: dict[str, set[str]] = {}
+    for flow in m.flows.values():
+        for prev, step in zip(flow.steps, flow.steps[1:]):
+            if step.kind != "message" or prev.kind != "task":
+                continue
+            for name in step.refs:
+                msg = m.messages[name]
+                for ref in prev.refs:
+                    task = m.task(ref)
+                    if task.node == msg.producer and (msg.kind == "sporadic" or same_rate(m, task, msg)):
+                        out.setdefault(name, set()).add(ref)
+    return {name: tuple(sorted(refs)) for name, refs in sorted(out.items())}
 
 
 def check_flow_links(r: Resolver, flow: str, steps: list[model.FlowStep], path: Path) -> bool:

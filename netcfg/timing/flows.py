@@ -6,12 +6,14 @@ Two models, reported side by side where both apply (seed 002, Table 3 and Figure
   for its next activation (0 for a task started by the message itself); a message sent by the task that
   produced the data goes out as it ends (on CAN its node's tx_delay later) and takes between its nominal frame
   time and its worst-case response time; a message with its own period, different from its producer's, first
-  waits up to one period.
+  waits up to one period. A sporadic message goes at most once per minimum inter-arrival time, so its sender
+  takes other data on only with the runs that send it (Rates.send_spacing).
 * synchronised (FTT-CAN): the master's schedule fixes when every synchronous message is sent and every
   triggered task starts, so each step takes the first instance at or after the moment its data is ready,
   and the latency range comes out of the schedule itself, over every instance of the macro-cycle.
 
-A step may hold several items in parallel; the data of all of them is needed, so the step ends with the last.
+A step may hold several items in parallel; the data of all of them is needed, so the step ends with the last
+(at the earliest, each item along its own path: its data's age counts from a stamp no newer than its inputs').
 A reader that joins data of different first-step items takes the oldest, and may first take it only once the
 other items have data at least as new: the wait for their next release (their offsets' distance on one clock or
 EC grid, else up to a period), but never longer than the oldest data's own renewal.
@@ -27,6 +29,7 @@ from typing import TYPE_CHECKING
 from netcfg import model
 from netcfg.timing import clocks
 from netcfg.timing.flow_inputs import step_inputs
+from netcfg.timing.frames import arbitration_key
 
 if TYPE_CHECKING:  # only in annotations: a spec without FTT-CAN or CANopen loads neither analysis
     from netcfg.timing.canopen_sync import MasterLoop
@@ -110,10 +113,12 @@ def unsynchronised(
     refresh: int | None = None  # how often the data reaching this step is renewed
     unknown = False  # ... at no known rate
     item_lo: dict[str, int] = {}  # the step before's items: each one's earliest
+    item_hi: dict[str, int | None] = {}  # ... and latest
     delivery: tuple[int, int | None] | None = None
     prev: model.FlowStep | None = None
     ppm = clock_tolerance(m)
-    releases = {ref: _release(m, flow.steps[0].kind, ref, chained, task_ns, ftt, ppm) for ref in flow.steps[0].refs}
+    rates = Rates(m, chained, task_ns, scheduled)
+    releases = {ref: _release(rates, flow.steps[0].kind, ref, ftt, ppm) for ref in flow.steps[0].refs}
     streams: dict[str, tuple[str, ...]] = {ref: (ref,) for ref in flow.steps[0].refs}  # item -> the stream it carries
 
     def consumers(name: str) -> tuple[str, ...]:
@@ -130,9 +135,13 @@ def unsynchronised(
         for ref in step.refs:
             # of a join, per stream it reads: (wait for the rest, renewal); None where no rate bounds it
             heads: list[tuple[int | None, int | None]] = []
+            base = 0  # its inputs' earliest: the age of its data, counted from a stamp no newer than theirs
+            inputs: tuple[str, ...] = ()
             if i:
                 assert prev is not None
-                read = sorted({streams[r] for r in step_inputs(prev, step.kind, ref, consumers, producer)})
+                inputs = step_inputs(prev, step.kind, ref, consumers, producer)
+                base = max(item_lo[r] for r in inputs)
+                read = sorted({streams[r] for r in inputs})
                 carried[ref] = read[0] if len(read) == 1 else tuple(sorted({o for s in read for o in s}))
                 if len(read) > 1:
                     heads = [
@@ -148,8 +157,12 @@ def unsynchronised(
                 own_rate = msg.kind == "periodic" and i and (ref in scheduled or not _sent_by_producer(m, msg, prev))
                 wait = _read_wait(not own_rate, message_period(msg), refresh, heads, ppm) if i else 0
                 tx = 0 if own_rate else queue_delay(m, msg, prev)
-                outs.append((lo + tx + d.best_ns, _add(_add(_add(hi, wait), tx), d.worst_ns)))
-                periods.append(renewal_period(m, msg))
+                if prev is not None and rates.shared(msg) and any(r in sending_tasks(m, msg) for r in prev.refs):
+                    # its data leaves with the next send, by whichever sender
+                    gap = rates.renewal(msg)
+                    wait = _add(wait, None if gap is None else clocks.longest_real(gap, ppm))
+                outs.append((base + tx + d.best_ns, _add(_add(_add(hi, wait), tx), d.worst_ns)))
+                periods.append(rates.renewal(msg))
             else:
                 task = m.task(ref)
                 period = task_period(m, task)
@@ -158,16 +171,38 @@ def unsynchronised(
                 after = start_delay(m, task) if task.on_message is not None and i else 0
                 starter = _outside_starter(m, task, prev)
                 if starter is not None:  # it samples (and renews) the flow's data as often as that message comes
-                    period = _start_spacing(m, starter, chained)
+                    period = rates.start_spacing(starter)
                 event = task.on_message is not None and starter is None  # started by the data itself
+                if i and not event and not last:
+                    period = rates.sending_runs(task, flow.steps[i + 1], period)
                 wait = _read_wait(event, period, refresh, heads, ppm) if i else 0
+                if event and not heads and _may_start_first(rates, task, inputs, item_lo, item_hi, after):
+                    # it takes the other items' freshest data as its message starts it: this stamp's may come
+                    # later, and then it takes the one before, each stamp reaching them within their latest
+                    wait = None if wait is None or not refresh else max(wait, clocks.longest_real(refresh, ppm))
                 start_hi = _add(_add(hi, wait), after)
+                # at the earliest, its message's frame and rx_delay; the other items it reads need only be in by then
+                start_lo = max(base, item_lo[task.on_message] + after) if event else base  # type: ignore[index]
+                lossy = bool(i) and not heads and len(inputs) > 1 and any(rates.drops(x) for x in inputs)
+                if lossy:
+                    # it takes the oldest of its items' freshest data, and one of them may have sent nothing of
+                    # this stamp's: that one's next may be a whole renewal later
+                    wait = None if wait is None or not refresh else max(wait, clocks.longest_real(refresh, ppm))
+                    start_hi = _add(_add(hi, wait), after)
+                first = releases[flow.steps[0].refs[0]] if len(flow.steps[0].refs) == 1 else None
+                if i and not heads and first is not None and period == task.period_ns and _clocked(task):
+                    # on the first task's clock it starts a fixed distance after each of that task's starts (but a
+                    # stamp one item dropped reaches it only with that item's next: no earlier latest then)
+                    on_grid = _clock_distances(first, task, start_lo, hi, ppm)
+                    if on_grid is not None:
+                        start_lo = max(start_lo, on_grid[0])
+                        if not lossy:
+                            start_hi = on_grid[1] if start_hi is None else min(start_hi, on_grid[1])
                 end_hi = _add(start_hi, task_response(task, task_ns))
-                # at the earliest, its message's frame and rx_delay; the step's other items need only be in by then
-                start_lo = max(lo, item_lo[task.on_message] + after) if event else lo  # type: ignore[index]
                 outs.append((start_lo, start_hi) if last else (start_lo + task.bcet_ns, end_hi))
                 periods.append(period if starter is not None else period or 0)
         item_lo = {ref: o[0] for ref, o in zip(step.refs, outs)}
+        item_hi = {ref: o[1] for ref, o in zip(step.refs, outs)}
         lo = max(o[0] for o in outs)
         hi = None if any(o[1] is None for o in outs) else max(o[1] for o in outs)  # type: ignore[type-var]
         if step.kind == "message":
@@ -182,6 +217,64 @@ def unsynchronised(
     return (lo, hi), delivery
 
 
+def _clocked(task: model.Task) -> bool:
+    """A task that runs on its node's own clock, at its period."""
+    return task.period_ns is not None and task.trigger is None and task.on_message is None and task.sync_bus is None
+
+
+def _clock_distances(
+    first: _Release, task: model.Task, lo: int, hi: int | None, ppm: int
+) -> tuple[int, int] | None:
+    """The earliest and latest start of a task that reads data in between lo and hi after the flow's first task
+    started, when both run on one node's clock: its starts lie a fixed distance after each of the first task's
+    (their offsets and periods), within +-ppm in real time; the data is read at its first start after it is in.
+    None when they are not on one clock, hi is unbounded, or their common period holds too many of the first
+    task's starts to examine."""
+    period = task.period_ns
+    if first.grid != ("clock", task.node) or not first.period or period is None or hi is None:
+        return None
+    common = lcm(first.period, period) // first.period
+    if common > _MAX_PHASES:
+        return None
+
+    def at_or_after(phase: int, x: int) -> int:
+        return phase + max(0, -(-(x - phase) // period)) * period
+
+    earliest, latest = [], []
+    for k in range(common):
+        phase = (task.offset_ns - first.offset - k * first.period) % period
+        d = at_or_after(phase, clocks.shortest_real(lo, ppm))
+        while clocks.longest_real(d, ppm) < lo:  # the first start that may find the data in
+            d += period
+        earliest.append(clocks.shortest_real(d, ppm))
+        d = at_or_after(phase, hi)
+        while clocks.shortest_real(d, ppm) <= hi:  # the first start that surely finds it in
+            d += period
+        latest.append(clocks.longest_real(d, ppm))
+    return min(earliest), max(latest)
+
+
+def _may_start_first(
+    rates: Rates,
+    task: model.Task,
+    inputs: tuple[str, ...],
+    item_lo: dict[str, int],
+    item_hi: dict[str, int | None],
+    after: int,
+) -> bool:
+    """A task its message starts, which also reads other items of the step before, may start before one of
+    those has this stamp's data: that one's latest comes after the message's earliest (and rx_delay), unless it
+    is surely queued ahead of the message."""
+    on = task.on_message
+    assert on is not None
+    start = item_lo[on] + after
+    for x in inputs:
+        latest = item_hi[x]
+        if x != on and (latest is None or latest > start) and not rates.queued_ahead(x, on):
+            return True
+    return False
+
+
 def _outside_starter(m: model.Model, task: model.Task, prev: model.FlowStep | None) -> model.Message | None:
     """The message that starts a task when it is not an item of the step before (the flow's first task, or one
     that reads the flow's data whenever another message comes); None otherwise."""
@@ -190,13 +283,165 @@ def _outside_starter(m: model.Model, task: model.Task, prev: model.FlowStep | No
     return m.messages[task.on_message]
 
 
-def _start_spacing(m: model.Model, msg: model.Message, chained: dict[str, Delivery]) -> int | None:
-    """How far apart the starts of a task this message starts may be: its renewal and its delivery's variation;
-    None when no rate bounds them."""
-    every, d = renewal_period(m, msg), chained.get(msg.name)
-    if every is None or d is None or d.worst_ns is None:
-        return None
-    return every + d.worst_ns - d.best_ns
+@dataclass(frozen=True)
+class Runs:
+    """How a task's starts (or a message's deliveries) follow one another: n of them apart, between
+    n * fastest - spread and n * slowest + spread (nominal spacings, the spread in real time)."""
+
+    fastest: int
+    slowest: int
+    spread: int
+
+
+@dataclass(frozen=True)
+class Rates:
+    """How often a model's tasks start and its messages are renewed, from each message's delivery and each task's
+    response; `scheduled`: the messages an FTT-CAN schedule sends in their windows (their senders' ends do not
+    move them, and `chained` holds their windows' delivery)."""
+
+    m: model.Model
+    chained: dict[str, Delivery]
+    task_ns: TaskTimes | None = None
+    scheduled: frozenset[str] = frozenset()
+
+    def activations(self, task: model.Task, seen: frozenset[str] = frozenset()) -> Runs | None:
+        """A task's starts: on its own clock or trigger at its period, or at its message's deliveries; None when
+        no rate bounds them."""
+        if task.on_message is not None:
+            return self.arrivals(self.m.messages[task.on_message], seen)
+        slowest = task_period(self.m, task)
+        if not slowest:
+            return None
+        fastest = self.m.triggers[task.trigger].interval_ns if task.trigger is not None else slowest
+        return Runs(fastest, slowest, 0)
+
+    def arrivals(self, msg: model.Message, seen: frozenset[str] = frozenset()) -> Runs | None:
+        """A message's deliveries: its releases, moved by its release jitter (the spec's and its senders'
+        response variation, unless a schedule sends it) and by its delivery's variation."""
+        every, d = self.renewal(msg, seen), self.chained.get(msg.name)
+        variation = 0 if msg.name in self.scheduled else self.send_variation(msg)
+        if every is None or not msg.interval_ns or d is None or d.worst_ns is None or variation is None:
+            return None
+        jitter = 0 if msg.name in self.scheduled else msg.jitter_ns
+        return Runs(msg.interval_ns, every, jitter + variation + d.worst_ns - d.best_ns)
+
+    def start_spacing(self, msg: model.Message) -> int | None:
+        """How far apart the starts of a task this message starts may be; None when no rate bounds them."""
+        runs = self.arrivals(msg)
+        return None if runs is None else runs.slowest + runs.spread
+
+    def send_variation(self, msg: model.Message) -> int | None:
+        """How much later than its fastest a task that sends the message as it ends may end: its response less
+        its BCET (the slowest sender's); None when one's response is unbounded."""
+        out = 0
+        for ref in sending_tasks(self.m, msg):
+            task = self.m.task(ref)
+            busy = task_response(task, self.task_ns)
+            if busy is None:
+                return None
+            out = max(out, busy - task.bcet_ns)
+        return out
+
+    def renewal(self, msg: model.Message, seen: frozenset[str] = frozenset()) -> int | None:
+        """The longest nominal time between two of a message's releases; None when no rate bounds it. A sporadic
+        message that tasks send as they end goes at most once per minimum inter-arrival time, so a run may send
+        nothing and the next release comes with the next run that does (send_spacing; the senders' response
+        variation and the spec's jitter come on top, as for any task-sent message); one sent on its own is taken
+        at its minimum inter-arrival time (all that is known, as netcfg.sim releases it)."""
+        if msg.kind != "sporadic":
+            return message_period(msg)
+        senders = sending_tasks(self.m, msg)
+        if not senders:
+            return msg.interval_ns
+        if len(senders) == 1:
+            return self.send_spacing(msg, self.m.task(senders[0]), seen)
+        # several: after any send, each sender's first run to end the minimum inter-arrival time later sends
+        # (unless another did in between); it starts up to one of its spacings (and spread) after that time less
+        # its BCET, and ends up to its response later (the senders' starts are not one sequence: counted whole)
+        if msg.name in seen or msg.interval_ns is None:
+            return None
+        gaps = []
+        for ref in senders:
+            task = self.m.task(ref)
+            runs, busy = self.activations(task, seen | {msg.name}), task_response(task, self.task_ns)
+            if runs is not None and busy is not None:
+                gaps.append(msg.interval_ns + runs.slowest + runs.spread + busy - task.bcet_ns)
+        return min(gaps, default=None)
+
+    def send_spacing(self, msg: model.Message, sender: model.Task, seen: frozenset[str] = frozenset()) -> int | None:
+        """The longest nominal time between the starts of two runs of `sender` in a row that send `msg` as they
+        end. A sporadic message goes at most once per minimum inter-arrival time I: a run that ends sooner than I
+        after the last send sends nothing (netcfg.sim skips it), and the data it read waits for the next run that
+        does. After a send by run a, run a + n starts no sooner than n * fastest - spread after a's start and ends
+        no sooner than its BCET after that, while run a ended up to its response R after its start: run a + n
+        surely sends once n * fastest - spread + BCET >= R + I. A task started by a message has no period of its
+        own: its runs follow that message's deliveries. With several senders another's sends may hold this one's
+        off for ever: None, as when no rate bounds the runs."""
+        if msg.name in seen:  # a loop of messages starting the tasks that send each other: no rate is known
+            return None
+        runs = self.activations(sender, seen | {msg.name})
+        if runs is None:
+            return None
+        if msg.kind == "sporadic" and msg.interval_ns and len(sending_tasks(self.m, msg)) > 1:
+            return None
+        n = self._runs_to_send(msg, sender, runs)
+        return None if n is None else n * runs.slowest + runs.spread
+
+    def shared(self, msg: model.Message) -> bool:
+        """Several tasks send a sporadic message: a run's data may leave with another's send (the message carries
+        the freshest output of the step before), or wait for one when another sent too recently."""
+        return msg.kind == "sporadic" and bool(msg.interval_ns) and len(sending_tasks(self.m, msg)) > 1
+
+    def skips_sends(self, msg: model.Message, sender: model.Task) -> bool:
+        """Some run of `sender` may send nothing of the sporadic message it sends as it ends (send_spacing)."""
+        if msg.kind != "sporadic" or not msg.interval_ns:
+            return False
+        runs = self.activations(sender)
+        return runs is None or len(sending_tasks(self.m, msg)) > 1 or self._runs_to_send(msg, sender, runs) != 1
+
+    def _runs_to_send(self, msg: model.Message, sender: model.Task, runs: Runs) -> int | None:
+        """How many runs after one that sends a sporadic message the sender surely sends it again (1: every
+        run); None when that is not bounded (its response unbounded, or its runs not spaced at all)."""
+        if msg.kind != "sporadic" or not msg.interval_ns:
+            return 1
+        busy = task_response(sender, self.task_ns)
+        fastest = clocks.shortest_real(runs.fastest, clock_tolerance(self.m))
+        if busy is None or fastest <= 0:
+            return None
+        need = msg.interval_ns + busy - sender.bcet_ns + runs.spread
+        return max(1, -(-need // fastest))
+
+    def drops(self, name: str) -> bool:
+        """A message some of whose data never goes out: a sporadic one a run of its sender may skip."""
+        msg = self.m.messages.get(name)
+        return msg is not None and any(self.skips_sends(msg, self.m.task(t)) for t in sending_tasks(self.m, msg))
+
+    def queued_ahead(self, first: str, then: str) -> bool:
+        """A message is delivered before another whenever both carry the same data: the same tasks queue both on
+        one CAN bus as they end, every run (no send skipped), in a transmit queue by priority, and it wins
+        arbitration (resent after an error, it still goes first)."""
+        a, b = self.m.messages[first], self.m.messages[then]
+        senders = sending_tasks(self.m, a)
+        if not senders or senders != sending_tasks(self.m, b) or a.bus != b.bus or not self.m.buses[a.bus].is_can:
+            return False
+        if {first, then} & self.scheduled or self.m.nodes[a.producer].tx_queue.fifo:
+            return False
+        if any(self.skips_sends(msg, self.m.task(t)) for msg in (a, b) for t in senders):
+            return False
+        return arbitration_key(a.id, a.extended) < arbitration_key(b.id, b.extended)
+
+    def sending_runs(self, task: model.Task, nxt: model.FlowStep, period: int | None) -> int | None:
+        """How often a task that reads data it did not start with takes it on to the next step: every `period`,
+        but a sporadic message it sends leaves only with the runs that send it (send_spacing), and the data a
+        run that sent nothing read waits for the next that does (None: no rate bounds them)."""
+        if nxt.kind != "message":
+            return period
+        for name in nxt.refs:
+            msg = self.m.messages[name]
+            if msg.kind == "sporadic" and task.ref in sending_tasks(self.m, msg) and not self.shared(msg):
+                gap = self.send_spacing(msg, task)
+                period = None if gap is None or period is None else max(period, gap)
+        return period
 
 
 def _read_wait(
@@ -207,6 +452,8 @@ def _read_wait(
     renewed, None: no faster than `refresh`) takes the oldest of its streams' data, so it also waits for the rest;
     but it never takes a stream's data older than one renewal, whatever it waits for."""
     if not heads:
+        if not event and own is None and not refresh:  # neither it nor its input at a known rate
+            return None
         return 0 if event else _sampling(own, refresh, ppm)
     waits = []
     for rest, renewal in heads:
@@ -235,15 +482,8 @@ class _Release:
     renewal: int | None  # None: no rate bounds it
 
 
-def _release(
-    m: model.Model,
-    kind: str,
-    ref: str,
-    chained: dict[str, Delivery],
-    task_ns: TaskTimes | None,
-    ftt: FttTimes | None,
-    ppm: int,
-) -> _Release:
+def _release(rates: Rates, kind: str, ref: str, ftt: FttTimes | None, ppm: int) -> _Release:
+    m, task_ns = rates.m, rates.task_ns
     if ftt is not None:  # the master's ECs: a synchronous message is queued at its window, a task at its TM
         s = ftt.schedule
         entry = ref if kind == "message" else m.task(ref).trigger
@@ -259,7 +499,7 @@ def _release(
             return _Release(("ftt", ""), period * s.ec_ns, init * s.ec_ns, early, late, period * s.ec_ns + late - early)
     if kind == "message":
         msg = m.messages[ref]
-        every = renewal_period(m, msg)
+        every = rates.renewal(msg)
         senders = sending_tasks(m, msg)
         variation = max(((task_response(m.task(t), task_ns) or 0) - m.task(t).bcet_ns for t in senders), default=0)
         renewal = None if every is None else clocks.longest_real(every, ppm) + msg.jitter_ns + variation
@@ -271,7 +511,7 @@ def _release(
         return _Release(grid, msg.interval_ns or 0, msg.offset_ns or 0, 0, msg.jitter_ns, renewal)
     task = m.task(ref)
     starter = _outside_starter(m, task, None)
-    every = task_period(m, task) if starter is None else _start_spacing(m, starter, chained)
+    every = task_period(m, task) if starter is None else rates.start_spacing(starter)
     clocked = task.period_ns is not None and task.trigger is None and task.on_message is None and task.sync_bus is None
     grid = ("clock", task.node) if clocked else None
     renewal = None if every is None else clocks.longest_real(every, ppm)
@@ -323,24 +563,7 @@ def _sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep |
     """True when the task before the message in the flow sends it as it finishes (same rate)."""
     if prev is None or prev.kind != "task":
         return False
-    for ref in prev.refs:
-        task = m.task(ref)
-        if task.node == msg.producer and _same_rate(m, task, msg):
-            return True
-    return False
-
-
-def renewal_period(m: model.Model, msg: model.Message) -> int | None:
-    """The longest nominal time between two of a message's releases; None when no rate bounds it. A sporadic
-    message that tasks send as they end goes at most every minimum inter-arrival time, so a send may be skipped
-    and the next comes up to one sender period later; one sent on its own is taken at its minimum inter-arrival
-    time (all that is known, as netcfg.sim releases it)."""
-    if msg.kind != "sporadic":
-        return message_period(msg)
-    senders = [task_period(m, m.task(t)) for t in sending_tasks(m, msg)]
-    if not senders:
-        return msg.interval_ns
-    return None if not all(senders) or msg.interval_ns is None else msg.interval_ns + max(p or 0 for p in senders)
+    return any(m.task(ref).node == msg.producer and same_rate(m, m.task(ref), msg) for ref in prev.refs)
 
 
 def queue_delay(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> int:
@@ -352,27 +575,21 @@ def queue_delay(m: model.Model, msg: model.Message, prev: model.FlowStep | None)
     return m.nodes[msg.producer].tx_delay_ns if any(ref in senders for ref in prev.refs) else 0
 
 
-def _same_rate(m: model.Model, task: model.Task, msg: model.Message) -> bool:
-    """A task runs at a message's rate: its period is the message's nominal, fastest or slowest one."""
-    return task_period(m, task) in {msg.period_ns, msg.interval_ns, message_period(msg)}
+def same_rate(m: model.Model, task: model.Task, msg: model.Message) -> bool:
+    """A task runs at a message's rate: its period is the message's nominal, fastest or slowest one. A task that
+    a message starts runs at that message's rate (as often as it comes)."""
+    if task.on_message is not None:
+        starter = m.messages[task.on_message]
+        rates = {starter.period_ns, starter.interval_ns, message_period(starter)} - {None}
+    else:
+        rates = {task_period(m, task)}
+    return bool(rates & {msg.period_ns, msg.interval_ns, message_period(msg)})
 
 
 def sending_tasks(m: model.Model, msg: model.Message) -> tuple[str, ...]:
     """The tasks (node.task) that send a message as they finish, for the simulator and masters (runtime.json's
-    sent_by): in some flow, a task on the producer in the step before the message, at the message's rate (the
-    rule of _sent_by_producer); for a sporadic message any such task, whose run raises the event (at most once
-    per minimum inter-arrival time, the load the analysis assumes)."""
-    out = set()
-    for flow in m.flows.values():
-        for i, step in enumerate(flow.steps):
-            prev = flow.steps[i - 1] if i else None
-            if step.kind != "message" or msg.name not in step.refs or prev is None or prev.kind != "task":
-                continue
-            for ref in prev.refs:
-                task = m.task(ref)
-                if task.node == msg.producer and (_same_rate(m, task, msg) or msg.kind == "sporadic"):
-                    out.add(ref)
-    return tuple(sorted(out))
+    sent_by), as netcfg.resolve.flows decides them."""
+    return m.sent_by.get(msg.name, ())
 
 
 def synchronised(
@@ -434,6 +651,7 @@ def synchronised(
         return k * ec + after
 
     ppm = clock_tolerance(m)
+    rates = Rates(m, chained, task_ns, frozenset(ftt.entries))
 
     def free_wait(i: int, ref: str) -> int:
         """An asynchronous message its producer's task in the step before does not send as it ends goes out at
@@ -537,14 +755,11 @@ def synchronised(
 
     def may_skip(prev: model.FlowStep, msg: model.Message) -> bool:
         """A sporadic message the task before sends as it ends, whose sends may come closer than its minimum
-        inter-arrival time: netcfg.sim then skips one, and the data waits for the next."""
-        if msg.kind != "sporadic" or not msg.interval_ns or prev.kind != "task":
+        inter-arrival time: netcfg.sim then skips one, and the data waits for the next (send_spacing)."""
+        if prev.kind != "task":
             return False
         senders = [m.task(r) for r in prev.refs if r in sending_tasks(m, msg)]
-        return any(
-            (task_period(m, t) or 0) - ((task_response(t, task_ns) or 0) - t.bcet_ns) < msg.interval_ns
-            for t in senders
-        )
+        return any(rates.skips_sends(msg, t) for t in senders)
 
     def superseded(head: str, start: int, starts: list[int], ready: int) -> bool:
         """Of a first step with several items: the head's next instance (at its slowest) comes before the step's
