@@ -60,7 +60,7 @@ from dataclasses import dataclass, field, replace
 from math import lcm
 
 from netcfg.timing.can_errors import ErrorModel
-from netcfg.timing.can_offsets import MAX_JOBS
+from netcfg.timing.can_offsets import MAX_JOBS, unrolled_jobs
 from netcfg.timing.can_rta import MAX_ITERATIONS, ONE_SHOT, CanFrame, Limit, Response
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
 from netcfg.timing.load import compare_to_capacity
@@ -212,15 +212,13 @@ def analyse(
 def _jobs(members: list[CanFrame], offsets: Mapping[str, int]) -> tuple[int, list[tuple[CanFrame, int]]] | None:
     """The releases of the members with an offset over one hyperperiod of the node's clock (member, offset in
     it); None when fewer than two members keep an offset or the unrolling is too long (Davis's bound then)."""
-    kept = [f for f in members if f.name in offsets and f.t_ns]
+    kept = [(f, f.t_ns) for f in members if f.name in offsets and f.t_ns]
     if len(kept) < 2:
         return None
-    period = lcm(*(f.t_ns for f in kept if f.t_ns))
-    if sum(period // f.t_ns for f in kept if f.t_ns) > MAX_JOBS:
+    if unrolled_jobs([t for _, t in kept]) > MAX_JOBS:  # the priority-queue analysis' limit, one rule
         return None
-    return period, [
-        (f, (offsets[f.name] + k * f.t_ns) % period) for f in kept if f.t_ns for k in range(period // f.t_ns)
-    ]
+    period = lcm(*(t for _, t in kept))
+    return period, [(f, (offsets[f.name] + k * t) % period) for f, t in kept for k in range(period // t)]
 
 
 def _queue(
