@@ -21,7 +21,7 @@ scheduling policy, flows with deadlines. A field is one line in its strategy: `f
 Specs that `check` refuses are skipped (they promise nothing). Every accepted spec is simulated twice: once with
 random clock phases and drift, once at the critical instant (every clock at 0, no drift), and every message and
 flow must stay inside its analysed range, no frame may be lost (a FIFO that drops, an overflowing Ethernet queue)
-and no CANopen SYNC cycle may miss its read window; an analysis or run that does not end in a minute is a hang.
+and no CANopen SYNC cycle may miss its read window; an analysis or run that does not end in 30 s is a hang.
 The tightness of a bound is the worst simulated figure over the bound.
 
 CAN, FTT-CAN and CANopen buses get a bit-error model one time in three (a burst of 0-2 errors, then one per 1-50
@@ -807,6 +807,12 @@ def _fifo_offsets(spec: dict[str, Any]) -> list[str]:
     return [m["name"] for m in spec["messages"] if m["producer"] in fifo and "offset" in m]
 
 
+def _dropping(spec: dict[str, Any]) -> list[str]:
+    """The nodes whose FIFO transmit queue drops frames when full."""
+    return [n["name"] for n in spec["nodes"] if isinstance(n.get("tx_queue"), dict)
+            and n["tx_queue"].get("on_full") == "drop"]
+
+
 def _async_below_tm(spec: dict[str, Any]) -> bool:
     """Whether an asynchronous frame wins arbitration against the TM (a 29-bit id by its top 11 bits)."""
     ftt = spec["buses"][0].get("ftt") or {}
@@ -819,11 +825,24 @@ def _delay(spec: dict[str, Any], key: str, drives: bool | None = None) -> bool:
                for n in spec["nodes"])
 
 
+def subject(violation: str) -> str:
+    """What a violation line is about, whatever the run and figures: 'flow f1', 'frames lost', 'bus can0', ..."""
+    text = violation.split(": ", 1)[1] if violation.startswith(("random phases: ", "critical instant: ",
+                                                                  "unsynchronised: ")) else violation
+    if "frames lost" in text:
+        return "frames lost"
+    if "did not finish" in text:
+        return "a hang"
+    return text.split(":", 1)[0] if ":" in text else text
+
+
 Transform = Callable[[dict[str, Any]], dict[str, Any]]
-# The kinds of defect a violation may show: (name, whether the spec and its violations look like it, the spec
-# without the feature). A kind is confirmed when that spec is accepted and its runs are clean; the seam
-# reproductions (numbers) show each kind at its smallest.
-SEAM_KINDS: list[tuple[str, Callable[[dict[str, Any], str], bool], Transform | None]] = [
+Fits = Callable[[dict[str, Any], str], bool]
+# The kinds of defect a violation may show: (name, whether the spec and a violation's line look like it, the spec
+# without the feature or None). A kind with a transform explains the violations that spec, accepted, no longer
+# has; one without explains the lines it fits (they name the feature). The seam reproductions (their numbers) show
+# each kind at its smallest.
+SEAM_KINDS: list[tuple[str, Fits, Transform | None]] = [
     ("CANopen drive tx_delay after SYNC (seams 01, 03)",
      lambda s, v: s["buses"][0]["protocol"] == "canopen" and _delay(s, "tx_delay", drives=True),
      lambda s: strip(s, "nodes[].tx_delay")),
@@ -839,7 +858,8 @@ SEAM_KINDS: list[tuple[str, Callable[[dict[str, Any], str], bool], Transform | N
      lambda s, v: s["buses"][0]["protocol"] == "ftt-can" and _async_below_tm(s), _raise_async_ids),
     ("Ethernet queue overflow (seam 05)", lambda s, v: s["buses"][0]["protocol"] == "ethernet-udp" and "lost" in v,
      None),
-    ("FIFO that drops, accepted (seam 11)", lambda s, v: "dropped" in v, None),
+    ("FIFO that drops, accepted (seam 11)",  # a master that drops its SYNC or RxPDOs leaves SYNC cycles short
+     lambda s, v: "dropped" in v or ("SYNC cycles incomplete" in v and "master" in _dropping(s)), None),
     ("FIFO sender with offsets (seam 07)", lambda s, v: any(f"message {m}:" in v for m in _fifo_offsets(s)),
      lambda s: {**s, "messages": [{k: x for k, x in m.items() if k != "offset" or m["name"] not in
                                    _fifo_offsets(s)} for m in s["messages"]]}),
@@ -850,24 +870,26 @@ SEAM_KINDS: list[tuple[str, Callable[[dict[str, Any], str], bool], Transform | N
 
 
 def classify(spec: dict[str, Any], violations: list[str], seed: int, duration_ns: int) -> list[str]:
-    """The kinds the violations show: those confirmed by taking their feature away, else those that fit."""
-    text = "; ".join(violations)
-    fits = [(name, without) for name, applies, without in SEAM_KINDS if applies(spec, text)]
-    confirmed = []
-    for name, without in fits:
-        if without is None or "did not finish" in text:
+    """The kinds the violations show, each with the subjects it explains ('unclassified' for the rest)."""
+    subjects = {subject(v) for v in violations}
+    explained: dict[str, set[str]] = {}
+    for name, fits, without in SEAM_KINDS:
+        lines = [v for v in violations if fits(spec, v)]
+        if not lines:
             continue
-        out = timed_check(without(spec), seed, duration_ns, 30)
-        if out.accepted and not out.violations:
-            confirmed.append(name)
-    decisive = [name for name, without in fits if without is None]  # the violation itself names the feature
-    if confirmed or decisive:
-        return confirmed + decisive
-    return [f"{name} (fits, not confirmed)" for name, _ in fits] or ["unclassified"]
+        if without is None:
+            explained[name] = {subject(v) for v in lines}
+        elif "a hang" not in subjects:
+            out = timed_check(without(spec), seed, duration_ns, 30)
+            if out.accepted:
+                explained[name] = subjects - {subject(v) for v in out.violations}
+    kinds = [f"{name} ({', '.join(sorted(s))})" for name, s in explained.items() if s]
+    rest = subjects - set().union(*explained.values())
+    return kinds + ([f"unclassified ({', '.join(sorted(rest))})"] if rest else [])
 
 
 def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int, held: Iterable[str] = (),
-          dump: Path | None = None, limit_s: float = 60) -> tuple[int, str]:
+          dump: Path | None = None, limit_s: float = 30) -> tuple[int, str]:
     """Check `specs` random specs of one protocol. -> (specs with a violation, the tally and tightness line).
     Each spec with a violation goes to `dump` (when given), its violations and their kinds in its header."""
     tally = {"specs": 0, "accepted": 0, "failures": 0}
@@ -897,7 +919,8 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int, held: It
             tally["failures"] += 1
             found = classify(spec, out.violations, tally["specs"] - 1, duration_ms * 1_000_000)
             for kind in found:
-                kinds[kind] = kinds.get(kind, 0) + 1
+                name = kind.split(" (", 1)[0] if kind.startswith("unclassified") else kind.rsplit(" (", 1)[0]
+                kinds[name] = kinds.get(name, 0) + 1
             header = [f"{protocol} spec {tally['specs']} (--seed {seed_value}), kinds: {', '.join(found)}",
                       *out.violations]
             text = "".join(f"# {h}\n" for h in header) + _dump(spec)

@@ -151,3 +151,26 @@ def test_held_entries_name_schema_fields_or_features() -> None:
             assert reason, key
             if "[]" in key or "." in key:  # a field path, not a feature's name
                 assert key in fields, f"HELD names {key}, which the schema does not have"
+
+
+def test_strip_takes_a_field_away_wherever_it_is() -> None:
+    """The classifier's ablation: every node loses its tx_delay, nothing else moves, the spec itself is intact."""
+    spec = {"nodes": [{"name": "a", "tx_delay": "3 ms", "rx_delay": "1 us"}, {"name": "b"},
+                      {"name": "c", "tx_delay": "10 us"}]}
+    assert soundness.strip(spec, "nodes[].tx_delay") == {
+        "nodes": [{"name": "a", "rx_delay": "1 us"}, {"name": "b"}, {"name": "c"}]}
+    assert spec["nodes"][0]["tx_delay"] == "3 ms"
+
+
+def test_lost_frames_and_incomplete_sync_cycles_are_violations() -> None:
+    """A run of an accepted spec may not lose frames or miss a read window. The figures are seam 11's (a FIFO of
+    depth 2 with on_full: drop, three 10 ms frames: m2 dropped every period, 20 in 200 ms) and seam 01's (a TPDO
+    queued 3 ms after SYNC, read window 2 ms: every one of the 20 cycles of 200 ms incomplete)."""
+    result = {"lost": 20, "tx_queues": [{"node": "host", "overflows": 20}],
+              "protocols": {"can0": [{"cycles": 20, "incomplete_cycles": 20, "collection_us": {"max": 2000.001}}]}}
+    broken = soundness._promises_broken(result)
+    assert broken == ["20 frames lost (host dropped 20)",
+                      "bus can0: 20 of 20 SYNC cycles incomplete (collection up to 2000.001 us)"]
+    assert [soundness.subject(f"random phases: {v}") for v in broken] == ["frames lost", "bus can0"]
+    assert soundness._promises_broken({"lost": 0, "protocols": {"can0": [{"cycles": 20, "incomplete_cycles": 0}]}}) \
+        == []
