@@ -552,7 +552,10 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
     spec: dict[str, Any] = {"system": "random_canopen", "buses": [bus], "nodes": nodes, "messages": messages}
     if f.feature("a SYNC task reading the TPDOs", 0.3):  # the master's work each cycle, and flows into it
         wcet = f(st.integers(10, 500))
-        task = {"name": "control", "sync": True, "offset": f"{f(st.integers(0, period_ms * 1000 - 1))} us",
+        # it computes on what the read window collected: it starts after that window (check refuses it before)
+        canopen.setdefault("read_window", f(us(period_ms * 300, period_ms * 900)))
+        read = int(canopen["read_window"].split()[0])
+        task = {"name": "control", "sync": True, "offset": f"{f(st.integers(read, period_ms * 1000 - 1))} us",
                 "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 2)} us"}
         master["tasks"] = [task]
         spec["flows"] = [{"name": f"fb{i}", "chain": [t, "master.control"]}
