@@ -87,7 +87,6 @@ def ns(lo: int, hi: int) -> st.SearchStrategy[str]:
 
 
 # fields several strategies draw alike
-TX_DELAY = st.one_of(us(0, 50), us(0, 3_000))  # from a sending task's end or a drive's SYNC to the frame's release
 RX_DELAY = st.one_of(ns(0, 2_000), us(0, 500))  # from a frame's reception to the tasks it starts
 CLOCK_TOLERANCE = st.one_of(st.sampled_from([0, 50, 100, 1_000]), st.integers(0, 10_000))  # ppm
 CABLE = st.one_of(st.sampled_from([0.0, 1.5, 30.0]), st.integers(0, 100_000).map(float))  # metres
@@ -136,7 +135,8 @@ def _tx_queue(f: Fields) -> str | dict[str, Any]:
 
 
 def _node_delays(f: Fields, node: dict[str, Any]) -> None:
-    f.opt(node, "nodes[].tx_delay", TX_DELAY, 0.3)
+    long = f.feature("tx_delay beyond a period", 0.5)  # longer than some of the node's periods
+    f.opt(node, "nodes[].tx_delay", us(0, 3_000) if long else us(0, 50), 0.3)
     f.opt(node, "nodes[].rx_delay", RX_DELAY, 0.3)
 
 
@@ -554,7 +554,7 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
         wcet = f(st.integers(10, 500))
         # it computes on what the read window collected: it starts after that window (check refuses it before)
         canopen.setdefault("read_window", f(us(period_ms * 300, period_ms * 900)))
-        read = int(canopen["read_window"].split()[0])
+        read = min(int(canopen["read_window"].split()[0]), period_ms * 1000 - 1)
         task = {"name": "control", "sync": True, "offset": f"{f(st.integers(read, period_ms * 1000 - 1))} us",
                 "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 2)} us"}
         master["tasks"] = [task]
@@ -642,6 +642,8 @@ def _add_flows(f: Fields, spec: dict[str, Any], periods: dict[str, int], ftt_ids
 HELD: dict[str, dict[str, str]] = {
     "can": {
         "sporadic sender with a second input": "seams 09, 09b: the side input's flow outlives its bound",
+        "tx_delay beyond a period": "a frame sent a tx_delay longer than its task's period carries a later run's "
+        "data in the simulator: flows measured below the analysed best case",
         "nodes[].tx_queue.on_full": "seam 11: a FIFO that drops is accepted",
     },
     "ftt-can": {"asynchronous id below the trigger message's": "seam 08: the frame delays the TM, flows move"},
@@ -810,6 +812,24 @@ def _fifo_offsets(spec: dict[str, Any]) -> list[str]:
     return [m["name"] for m in spec["messages"] if m["producer"] in fifo and "offset" in m]
 
 
+def _late_senders(spec: dict[str, Any]) -> list[str]:
+    """Nodes (not CANopen drives) whose tx_delay is longer than the period of a task they run."""
+    def us_of(text: str) -> float:
+        value, unit = text.split()
+        return float(value) * {"ns": 1e-3, "us": 1, "ms": 1e3, "s": 1e6}.get(unit, 0)
+
+    return [n["name"] for n in spec["nodes"] if n.get("tx_delay") and "device" not in n
+            and any(us_of(n["tx_delay"]) > us_of(t["period"]) for t in n.get("tasks", []) if "period" in t)]
+
+
+def _short_tx_delays(spec: dict[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = copy.deepcopy(spec)
+    for node in out["nodes"]:
+        if node["name"] in _late_senders(spec):
+            node["tx_delay"] = "50 us"
+    return out
+
+
 def _dropping(spec: dict[str, Any]) -> list[str]:
     """The nodes whose FIFO transmit queue drops frames when full."""
     return [n["name"] for n in spec["nodes"] if isinstance(n.get("tx_queue"), dict)
@@ -866,6 +886,8 @@ SEAM_KINDS: list[tuple[str, Fits, Transform | None]] = [
     ("FIFO sender with offsets (seam 07)", lambda s, v: any(f"message {m}:" in v for m in _fifo_offsets(s)),
      lambda s: {**s, "messages": [{k: x for k, x in m.items() if k != "offset" or m["name"] not in
                                    _fifo_offsets(s)} for m in s["messages"]]}),
+    ("tx_delay longer than the sender's period (a frame carries a later run's data in the simulator)",
+     lambda s, v: bool(_late_senders(s)), _short_tx_delays),
     ("tx_delay or rx_delay", lambda s, v: _delay(s, "tx_delay") or _delay(s, "rx_delay"),
      lambda s: strip(strip(s, "nodes[].tx_delay"), "nodes[].rx_delay")),
     ("a hang", lambda s, v: "did not finish" in v, None),
