@@ -169,7 +169,7 @@ def signals(draw: st.DrawFn, max_bytes: int) -> list[dict[str, Any]]:
         else:
             room = max(1, min(32, 8 * max_bytes - bit))
             width = draw(st.one_of(st.integers(1, room), st.just(room)))  # a whole 32-bit value when it fits
-            if i == 0 and f.chance(0.3):  # a multiplexer for the signals after it
+            if i == 0 and f.chance(0.5):  # a multiplexer for the signals after it
                 width = min(room, 4)
             sig["bits"] = width
             f.opt(sig, "messages[].signals[].byte_order", st.just("little_endian"), 0.2)
@@ -179,7 +179,7 @@ def signals(draw: st.DrawFn, max_bytes: int) -> list[dict[str, Any]]:
             break
         bit, big_before = bit + width, sig.get("byte_order") == "big_endian"
         if width in (32, 64) and sig.get("byte_order") != "big_endian":
-            f.opt(sig, "messages[].signals[].float", st.booleans(), 0.3)
+            f.opt(sig, "messages[].signals[].float", st.booleans(), 0.5)
         if not sig.get("float"):
             f.opt(sig, "messages[].signals[].signed", st.booleans(), 0.3)
         f.opt(sig, "messages[].signals[].scale", st.sampled_from([0.1, 2.0, -1.0]), 0.2)
@@ -189,7 +189,7 @@ def signals(draw: st.DrawFn, max_bytes: int) -> list[dict[str, Any]]:
         f.opt(sig, "messages[].signals[].unit", st.sampled_from(["rad", "A", "%"]), 0.2)
         f.opt(sig, "messages[].signals[].enum", st.just({0: "off", 1: "on"}), 0.1)
         if i and out[0]["bits"] <= 8 and "float" not in out[0]:
-            f.opt(sig, "messages[].signals[].mux", st.just({"signal": "s0", "values": [0, 1]}), 0.2)
+            f.opt(sig, "messages[].signals[].mux", st.just({"signal": "s0", "values": [0, 1]}), 0.5)
         out.append(sig)
     return out or [{"name": "s0", "bits": 1}]
 
@@ -255,7 +255,7 @@ def can_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
             classical = msg.get("fd") is False
             if not classical:
                 f.opt(msg, "messages[].brs", st.booleans(), 0.3)
-        if size is None and f.feature("messages[].signals", 0.15):
+        if size is None and f.feature("messages[].signals", 0.25):
             msg["signals"] = f(signals(8 if classical else 64))
         else:
             msg["size"] = size if size is not None else f(st.sampled_from(FD_SIZES[:9] if classical else FD_SIZES))
@@ -269,7 +269,7 @@ def can_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
         consumers = [f(st.sampled_from(others))]
         if len(others) > 1 and f.chance(0.15):
             consumers = others
-        kind = f(st.sampled_from(["periodic"] * 4 + ["sporadic"] + ["on-demand"] * (f.chance(0.1))))
+        kind = f(st.sampled_from(["periodic"] * 4 + ["sporadic"] + ["on-demand"] * f.chance(0.3)))
         msg, period = message(producer, consumers, kind)
         if period is not None:
             periods[msg["name"]] = period
