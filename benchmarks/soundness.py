@@ -1,19 +1,40 @@
 """Soundness: random specs of every protocol, analysed, then simulated; no simulated figure may leave its bound.
 
-Each spec is drawn by a hypothesis strategy (random periods, period ranges, offsets, sizes, jitters, priorities,
-identifiers, tasks and flows) over plain CAN, FTT-CAN, switched Ethernet and CANopen (SYNC, synchronous TPDOs
-every n-th SYNC, RxPDOs; flows through the CANopen master are not drawn). Specs that `check` refuses are
-skipped (they promise nothing). Every accepted spec is simulated twice: once with random clock phases and drift,
-once at the critical instant (every clock at 0, no drift), and every message and flow must stay inside its
-analysed range. The tightness of a bound is the worst simulated figure over the bound.
+Each spec is drawn by a hypothesis strategy, one per protocol, that sets every field of the spec language where it
+means something for the protocol (tests/test_soundness_fields.py fails naming any field none of them sets):
+- plain CAN and CAN FD (data bit rate, FD and bit-rate switch per frame, sizes up to 64 bytes or signals):
+  periodic messages (period or rate, offsets, jitter), sporadic and on-demand ones, deadlines, 11/29-bit ids,
+  transmit queues by priority or FIFO (any depth, blocking or dropping), a FIFO sender's row of offset frames,
+  a gateway that sends a sporadic message from two inputs (a flow through each, and their join), tx/rx delays,
+  identifier ranges;
+- FTT-CAN: synchronous messages (periods, ranges and offsets in ECs), asynchronous ones at any identifier, above
+  or below the trigger message's (LSW, TM id, id base, master, window order), triggers with offsets and ranges;
+- switched Ethernet: chains and trees of switches (latency, cable lengths), multicast datagrams with offsets and
+  jitter, host tx/rx delays, and bursts of tens of datagrams from one host;
+- CANopen: the built-in EPOS4 or an EDS with the TPDO event timer (drive_et.eds beside this file), drive tx/rx
+  delays and heartbeats, SYNC window, read window, id, counter and the master's jitter, TPDOs of every transmission
+  type (every n-th SYNC up to 240, acyclic, event-driven with event timer and inhibit time), RxPDOs, a SYNC task
+  reading the TPDOs, a master task sending plain CAN frames to a drive's task (flows through both);
+and, on the CAN buses, clock tolerances and bit-error models; tasks with priorities, offsets, BCETs, either
+scheduling policy, flows with deadlines. A field is one line in its strategy: `f.opt(obj, "path", strategy, p)`.
+
+Specs that `check` refuses are skipped (they promise nothing). Every accepted spec is simulated twice: once with
+random clock phases and drift, once at the critical instant (every clock at 0, no drift), and every message and
+flow must stay inside its analysed range, no frame may be lost (a FIFO that drops, an overflowing Ethernet queue)
+and no CANopen SYNC cycle may miss its read window; an analysis or run that does not end in 30 s is a hang.
+The tightness of a bound is the worst simulated figure over the bound.
 
 CAN, FTT-CAN and CANopen buses get a bit-error model one time in three (a burst of 0-2 errors, then one per 1-50
 ms); their runs are then hit about as hard as the model allows: the burst, a few tens of microseconds apart, at a
 random instant, then one error per interval (plus a microsecond, so that the errors meet the frames at every phase).
 A run whose errors left the model would be a fault of this pattern, and counts as a violation.
 
+A spec with a violation is printed (and with --dump, written to a folder, one YAML each) with its violations and
+their kind: the known defect whose feature, taken away, leaves the spec accepted and clean (SEAM_KINDS). HELD
+names the fields and features of known, not yet mended defects: CI's sample and `--hold` leave them out.
+
     .venv/bin/python benchmarks/soundness.py --specs 2500           # 10,000 specs; the tightness and run time
-    .venv/bin/python benchmarks/soundness.py --specs 200 --protocol ftt-can
+    .venv/bin/python benchmarks/soundness.py --specs 200 --protocol ftt-can --jobs 1 --dump /tmp/found
 
 tests/test_soundness.py runs the same check on a bounded number of specs in CI.
 """
@@ -21,14 +42,17 @@ tests/test_soundness.py runs the same check on a bounded number of specs in CI.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
+import shutil
+import signal
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -47,61 +71,267 @@ from netcfg.timing.can_errors import first_breach
 
 PROTOCOLS = ("can", "ftt-can", "ethernet-udp", "canopen")
 US = 1_000
-# transmit queues of CAN nodes: mostly by priority; FIFO ones at SocketCAN's default depth, or shallow ones whose
-# writer blocks (check refuses those that can fill up, so only the ones that cannot are simulated)
-TX_QUEUES = st.sampled_from(["priority", "priority", "fifo", {"policy": "fifo", "depth": 2}])
+EDS = Path(__file__).with_name("drive_et.eds")  # an EPOS4 EDS with the TPDO event timer (0x18xx sub-index 5)
+
+
+def us(lo: int, hi: int) -> st.SearchStrategy[str]:
+    return st.integers(lo, hi).map(lambda v: f"{v} us")
+
+
+def ms(lo: int, hi: int) -> st.SearchStrategy[str]:
+    return st.integers(lo, hi).map(lambda v: f"{v} ms")
+
+
+def ns(lo: int, hi: int) -> st.SearchStrategy[str]:
+    return st.integers(lo, hi).map(lambda v: f"{v} ns")
+
+
+# fields several strategies draw alike
+RX_DELAY = st.one_of(ns(0, 2_000), us(0, 500))  # from a frame's reception to the tasks it starts
+CLOCK_TOLERANCE = st.one_of(st.sampled_from([0, 50, 100, 1_000]), st.integers(0, 10_000))  # ppm
+CABLE = st.one_of(st.sampled_from([0.0, 1.5, 30.0]), st.integers(0, 100_000).map(float))  # metres
+
+
+class Fields:
+    """The draws of one spec. Optional fields and named features go through `opt` and `feature`, which leave out
+    what the caller holds back, so that adding a field to the generator is one line in one strategy:
+    `f.opt(msg, "messages[].deadline", us(100, 10_000))`. Paths name schema fields as tests/test_soundness_fields.py
+    walks them (`buses[].canopen.sync_period`); features name shapes made of several fields (a gateway, a burst)."""
+
+    def __init__(self, draw: st.DrawFn, held: frozenset[str]) -> None:
+        self.draw, self.held = draw, held
+
+    def __call__(self, strategy: st.SearchStrategy[Any]) -> Any:
+        return self.draw(strategy)
+
+    def chance(self, p: float) -> bool:
+        return bool(self.draw(st.integers(0, 99)) < round(100 * p))
+
+    def feature(self, name: str, p: float = 0.5) -> bool:
+        """Whether the spec gets the field or feature `name`: with chance p, never when it is held back."""
+        return name not in self.held and self.chance(p)
+
+    def opt(self, obj: dict[str, Any], path: str, strategy: st.SearchStrategy[Any], p: float = 0.4) -> None:
+        """obj[the path's last key] = a value of strategy, with chance p (unless the path is held back)."""
+        if self.feature(path, p):
+            obj[path.rsplit(".", 1)[-1]] = self.draw(strategy)
 
 
 def _names(prefix: str, n: int) -> list[str]:
     return [f"{prefix}{i}" for i in range(n)]
 
 
+def _tx_queue(f: Fields) -> str | dict[str, Any]:
+    """A CAN node's transmit queue: mostly by priority; FIFO ones in either form, at any depth, blocking or
+    dropping (check refuses those that can fill up and block; drops it only warns of)."""
+    form = f(st.sampled_from(["priority", "priority", "fifo", "fifo-map", "priority-map"]))
+    if not form.endswith("-map"):
+        return str(form)
+    queue: dict[str, Any] = {"policy": form.removesuffix("-map")}
+    if queue["policy"] == "fifo":
+        f.opt(queue, "nodes[].tx_queue.depth", st.one_of(st.integers(1, 12), st.sampled_from([10, 1_000_000])), 0.8)
+        f.opt(queue, "nodes[].tx_queue.on_full", st.sampled_from(["block", "drop"]), 0.5)
+    return queue
+
+
+def _node_delays(f: Fields, node: dict[str, Any]) -> None:
+    long = f.feature("tx_delay beyond a period", 0.5)  # longer than some of the node's periods
+    f.opt(node, "nodes[].tx_delay", us(0, 3_000) if long else us(0, 50), 0.3)
+    f.opt(node, "nodes[].rx_delay", RX_DELAY, 0.3)
+
+
+def _bus_common(f: Fields, bus: dict[str, Any], errors: bool = True) -> None:
+    """Fields every CAN-based bus has: its clocks' tolerance and, one time in three, a bit-error model."""
+    f.opt(bus, "buses[].clock_tolerance", CLOCK_TOLERANCE, 0.3)
+    if errors and f.feature("buses[].errors", 1 / 3):
+        model: dict[str, Any] = {"interval": f"{f(st.integers(1, 50))} ms"}
+        f.opt(model, "buses[].errors.burst", st.integers(0, 2), 0.8)
+        f.opt(model, "buses[].errors.ber", st.sampled_from([1e-9, 1e-6, 1e-3, 0.5]), 0.2)
+        bus["errors"] = model
+
+
+FD_SIZES = [0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64]
+
+
 @st.composite
-def can_spec(draw: st.DrawFn) -> dict[str, Any]:
-    """Plain CAN: 2-4 nodes, up to 10 messages (periodic with offsets and jitter, sporadic), a task chain per
-    flow."""
-    bitrate = draw(st.sampled_from(["125 kbit/s", "250 kbit/s", "500 kbit/s", "1 Mbit/s"]))
-    nodes = _names("n", draw(st.integers(2, 4)))
-    count = draw(st.integers(1, 10))
-    ids = draw(st.lists(st.integers(1, 0x7FF), min_size=count, max_size=count, unique=True))
-    messages = []
-    for i, ident in enumerate(ids):
-        producer = draw(st.sampled_from(nodes))
-        consumer = draw(st.sampled_from([n for n in nodes if n != producer]))
-        msg: dict[str, Any] = {
-            "name": f"m{i}",
-            "id": ident,
-            "extended": draw(st.booleans()),
-            "producer": producer,
-            "consumers": [consumer],
-            "size": draw(st.integers(0, 8)),
-        }
-        if draw(st.integers(0, 4)) == 0:
-            msg["min_interarrival"] = f"{draw(st.integers(1_000, 100_000))} us"
+def signals(draw: st.DrawFn, max_bytes: int) -> list[dict[str, Any]]:
+    """A message's payload as signals laid end to end: little-endian ones after each other (start_bit given or
+    not), big-endian ones byte-aligned (their start bit is the most significant, DBC numbering), the first one a
+    multiplexer of a later one sometimes; codec fields (scale, offset, range, unit, names of values) at random."""
+    f = Fields(draw, frozenset())
+    out: list[dict[str, Any]] = []
+    bit, big_before = 0, False
+    for i in range(draw(st.integers(1, 4))):
+        sig: dict[str, Any] = {"name": f"s{i}"}
+        if draw(st.booleans()) and bit % 8 == 0 and bit + 8 <= 8 * max_bytes:  # big-endian whole bytes
+            width = 8 * draw(st.integers(1, min(4, max_bytes - bit // 8)))
+            sig |= {"bits": width, "byte_order": "big_endian", "start_bit": bit + 7}
         else:
-            period = draw(st.integers(500, 100_000))
+            room = max(1, min(32, 8 * max_bytes - bit))
+            width = draw(st.one_of(st.integers(1, room), st.just(room)))  # a whole 32-bit value when it fits
+            if i == 0 and f.chance(0.5):  # a multiplexer for the signals after it
+                width = min(room, 4)
+            sig["bits"] = width
+            f.opt(sig, "messages[].signals[].byte_order", st.just("little_endian"), 0.2)
+            # "right after the previous signal" counts from a big-endian one's start bit: give it then
+            f.opt(sig, "messages[].signals[].start_bit", st.just(bit), 1.0 if big_before else 0.5)
+        if bit + width > 8 * max_bytes:
+            break
+        bit, big_before = bit + width, sig.get("byte_order") == "big_endian"
+        if width in (32, 64) and sig.get("byte_order") != "big_endian":
+            f.opt(sig, "messages[].signals[].float", st.booleans(), 0.5)
+        if not sig.get("float"):
+            f.opt(sig, "messages[].signals[].signed", st.booleans(), 0.3)
+        f.opt(sig, "messages[].signals[].scale", st.sampled_from([0.1, 2.0, -1.0]), 0.2)
+        f.opt(sig, "messages[].signals[].offset", st.sampled_from([-10.0, 0.0, 5.5]), 0.2)
+        f.opt(sig, "messages[].signals[].min", st.just(-100.0), 0.2)
+        f.opt(sig, "messages[].signals[].max", st.just(100.0), 0.2)
+        f.opt(sig, "messages[].signals[].unit", st.sampled_from(["rad", "A", "%"]), 0.2)
+        f.opt(sig, "messages[].signals[].enum", st.just({0: "off", 1: "on"}), 0.1)
+        if i and out[0]["bits"] <= 8 and "float" not in out[0]:
+            f.opt(sig, "messages[].signals[].mux", st.just({"signal": "s0", "values": [0, 1]}), 0.5)
+        out.append(sig)
+    return out or [{"name": "s0", "bits": 1}]
+
+
+def _timing(f: Fields, msg: dict[str, Any], kind: str, lo_us: int, hi_us: int) -> int | None:
+    """A CAN message's release: periodic (period or rate, an offset, jitter), sporadic or on demand, with or without
+    its type and a deadline of its own. -> its period in us (None for a sporadic or on-demand one)."""
+    period: int | None = None
+    if kind == "periodic":
+        period = f(st.integers(lo_us, hi_us))
+        if f.feature("messages[].rate", 0.1):
+            hz = max(1, 1_000_000 // period)
+            msg["rate"], period = f"{hz} Hz", 1_000_000 // hz
+        else:
             msg["period"] = f"{period} us"
-            if draw(st.booleans()):  # released at an offset of its node's clock: analysed as a transaction
-                msg["offset"] = f"{draw(st.integers(0, period - 1))} us"
-            jitter = draw(st.integers(0, period // 4))
-            if jitter:
-                msg["jitter"] = f"{jitter} us"
+        f.opt(msg, "messages[].offset", us(0, period - 1), 0.5)  # with an offset: analysed as a transaction
+        f.opt(msg, "messages[].jitter", us(0, period // 4), 0.5)
+        f.opt(msg, "messages[].deadline", us(max(1, period // 2), 2 * period), 0.15)
+    elif kind == "sporadic":
+        gap = f(st.integers(max(lo_us, 1_000), max(hi_us, 1_000)))
+        msg["min_interarrival"] = f"{gap} us"
+        f.opt(msg, "messages[].jitter", us(0, gap // 4), 0.2)
+        f.opt(msg, "messages[].deadline", us(max(1, gap // 2), 2 * gap), 0.15)
+    if kind in ("periodic", "sporadic", "on-demand"):
+        f.opt(msg, "messages[].type", st.just(kind), 1.0 if kind == "on-demand" else 0.2)
+    return period
+
+
+@st.composite
+def can_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, Any]:
+    """Plain CAN and CAN FD: 2-4 nodes (transmit queues, tx and rx delays, identifier ranges), up to 10 messages
+    (periodic with offsets and jitter, sporadic, on demand; sizes or signals), sometimes a FIFO sender's row of
+    offset messages and a gateway that sends a sporadic message from two inputs (flows through each, and their
+    join); a task chain per flow."""
+    f = Fields(draw, held)
+    fd = f(st.sampled_from(["can", "can", "can", "can-fd"])) == "can-fd"
+    bus: dict[str, Any] = {"name": "can0", "protocol": "can-fd" if fd else "can",
+                           "bitrate": f(st.sampled_from(["125 kbit/s", "250 kbit/s", "500 kbit/s", "1 Mbit/s"]))}
+    if fd:
+        f.opt(bus, "buses[].data_bitrate", st.sampled_from(["2 Mbit/s", "4 Mbit/s", "5 Mbit/s", "8 Mbit/s"]), 1.0)
+    f.opt(bus, "buses[].id_bits", st.sampled_from([11, 29]), 0.2)
+    names = _names("n", f(st.integers(2, 4)))
+    nodes: dict[str, dict[str, Any]] = {n: {"name": n, "buses": ["can0"], "tx_queue": _tx_queue(f)} for n in names}
+    for i, node in enumerate(nodes.values()):
+        _node_delays(f, node)
+        f.opt(node, "nodes[].node_id", st.just(i + 1), 0.2)
+        f.opt(node, "nodes[].role", st.sampled_from(["master", "slave"]), 0.1)
+    spec: dict[str, Any] = {"system": "random_can", "buses": [bus], "nodes": list(nodes.values()), "messages": []}
+    ids = iter(f(st.lists(st.integers(1, 0x7FF), min_size=40, max_size=40, unique=True)))
+    messages: list[dict[str, Any]] = spec["messages"]
+
+    def message(producer: str, consumers: list[str], kind: str, lo_us: int = 500, hi_us: int = 100_000,
+                size: int | None = None) -> tuple[dict[str, Any], int | None]:
+        msg: dict[str, Any] = {"name": f"m{len(messages)}", "id": next(ids), "producer": producer,
+                               "consumers": consumers}
+        f.opt(msg, "messages[].extended", st.booleans(), 0.5)
+        f.opt(msg, "messages[].bus", st.just("can0"), 0.1)
+        f.opt(msg, "messages[].tune", st.fixed_dictionaries({"id": st.sampled_from(["fixed", "free"]),
+                                                             "offset": st.sampled_from(["fixed", "free"])}), 0.05)
+        classical = not fd
+        if fd:
+            f.opt(msg, "messages[].fd", st.booleans(), 0.3)
+            classical = msg.get("fd") is False
+            if not classical:
+                f.opt(msg, "messages[].brs", st.booleans(), 0.3)
+        if size is None and f.feature("messages[].signals", 0.25):
+            msg["signals"] = f(signals(8 if classical else 64))
+        else:
+            msg["size"] = size if size is not None else f(st.sampled_from(FD_SIZES[:9] if classical else FD_SIZES))
         messages.append(msg)
-    spec = {
-        "system": "random_can",
-        "buses": [{"name": "can0", "protocol": "can", "bitrate": bitrate}],
-        "nodes": [{"name": n, "buses": ["can0"], "tx_queue": draw(TX_QUEUES)} for n in nodes],
-        "messages": messages,
-    }
-    _add_flows(draw, spec)
-    _add_errors(draw, spec)
+        return msg, _timing(f, msg, kind, lo_us, hi_us)
+
+    periods: dict[str, int] = {}
+    for _ in range(f(st.integers(1, 10))):
+        producer = f(st.sampled_from(names))
+        others = [n for n in names if n != producer]
+        consumers = [f(st.sampled_from(others))]
+        if len(others) > 1 and f.chance(0.15):
+            consumers = others
+        kind = f(st.sampled_from(["periodic"] * 4 + ["sporadic"] + ["on-demand"] * f.chance(0.3)))
+        msg, period = message(producer, consumers, kind)
+        if period is not None:
+            periods[msg["name"]] = period
+    if f.feature("fifo sender with offsets", 0.2):  # one node releases a row of frames, each a little later
+        host = nodes[f(st.sampled_from(names))]
+        queue: dict[str, Any] = {"policy": "fifo", "depth": f(st.integers(1, 10))}
+        f.opt(queue, "nodes[].tx_queue.on_full", st.sampled_from(["block", "drop"]), 0.5)
+        host["tx_queue"] = queue
+        period, step = f(st.integers(2_000, 20_000)), f(st.integers(0, 1_000))
+        rx = next(n for n in names if n != host["name"])
+        for k in range(f(st.integers(2, 8))):
+            msg, _ = message(host["name"], [rx], "none", size=f(st.integers(0, 8)))
+            msg |= {"period": f"{period} us", "offset": f"{min(k * step, period - 1)} us"}
+            msg.pop("rate", None)
+    _add_flows(f, spec, periods)
+    if len(names) >= 3 and f.feature("sporadic sender with a second input", 0.3):
+        _add_gateway(f, spec, nodes, message)
+    _add_id_ranges(f, spec)
+    _bus_common(f, bus)
     return spec
 
 
-def _add_errors(draw: st.DrawFn, spec: dict[str, Any]) -> None:
-    """One time in three, the bus gets a bit-error model."""
-    if draw(st.integers(0, 2)) == 0:
-        spec["buses"][0]["errors"] = {"burst": draw(st.integers(0, 2)), "interval": f"{draw(st.integers(1, 50))} ms"}
+def _add_gateway(f: Fields, spec: dict[str, Any], nodes: dict[str, dict[str, Any]], message: Any) -> None:
+    """A gateway task that sends a sporadic message from two inputs: a frequent one that starts it (or a period of
+    its own) and a slow side input; a flow through each input and, sometimes, their join."""
+    src, src2, gw = f(st.permutations(list(nodes)))[:3]
+    dst = f(st.sampled_from([n for n in nodes if n != gw]))
+    period = f(st.integers(2_000, 20_000))
+    fast, _ = message(src, [gw], "none", size=f(st.integers(0, 8)))
+    side, _ = message(src2, [gw], "none", size=f(st.integers(0, 8)))
+    fast |= {"period": f"{period} us"}
+    side |= {"period": f"{period * f(st.integers(1, 5))} us"}
+    out, _ = message(gw, [dst], "none", size=f(st.integers(0, 8)))
+    out["min_interarrival"] = f"{period} us"
+    for m in (fast, side, out):
+        m.pop("rate", None)
+    wcet = f(st.integers(10, period // 2))
+    t1 = {"name": "gsrc", "period": fast["period"], "wcet": f"{f(st.integers(10, 500))} us", "bcet": "10 us"}
+    t4 = {"name": "gside", "period": side["period"], "wcet": f"{f(st.integers(10, 500))} us", "bcet": "10 us"}
+    t2: dict[str, Any] = {"name": "gw", "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 10)} us"}
+    if f.chance(0.5):
+        t2["on_message"] = fast["name"]
+    else:
+        t2["period"] = fast["period"]
+    t3 = {"name": "gdst", "on_message": out["name"], "wcet": f"{f(st.integers(1, 100))} us"}
+    for node, task in ((src, t1), (src2, t4), (gw, t2), (dst, t3)):
+        nodes[node].setdefault("tasks", []).append(task)
+    flows = spec.setdefault("flows", [])
+    tail = [out["name"], f"{dst}.gdst"]
+    flows.append({"name": "gtrig", "chain": [f"{src}.gsrc", fast["name"], f"{gw}.gw", *tail]})
+    flows.append({"name": "gside", "chain": [f"{src2}.gside", side["name"], f"{gw}.gw", *tail]})
+    if f.feature("flows[].chain join", 0.5):  # both inputs' data is needed: a join of the two streams
+        flows.append({"name": "gjoin", "chain": [[f"{src}.gsrc", f"{src2}.gside"], [fast["name"], side["name"]],
+                                                 f"{gw}.gw", *tail]})
+
+
+def _add_id_ranges(f: Fields, spec: dict[str, Any]) -> None:
+    """Some nodes get the identifier range their messages use (or a little wider)."""
+    for node in spec["nodes"]:
+        ids = [m["id"] for m in spec["messages"] if m["producer"] == node["name"] and "id" in m]
+        if ids:
+            f.opt(node, "nodes[].id_range", st.just([max(0, min(ids) - f(st.integers(0, 5))), max(ids)]), 0.2)
 
 
 def error_pattern(spec: dict[str, Any], duration_ns: int, seed_value: int) -> tuple[Fault, ...]:
@@ -111,222 +341,319 @@ def error_pattern(spec: dict[str, Any], duration_ns: int, seed_value: int) -> tu
     if model is None:
         return ()
     interval = int(model["interval"].split()[0]) * 1_000_000
+    burst = model.get("burst", 0)
     start = (seed_value * 7_919_113) % interval
-    times = [start + i * 37_000 for i in range(model["burst"] + 1)]
+    times = [start + i * 37_000 for i in range(burst + 1)]
     while times[-1] + interval + 1_000 < duration_ns:
         times.append(times[-1] + interval + 1_000)
-    assert first_breach(times, model["burst"], interval) is None
+    assert first_breach(times, burst, interval) is None
     return tuple(Fault("bit-error", None, t) for t in times)
 
 
 @st.composite
-def ftt_spec(draw: st.DrawFn) -> dict[str, Any]:
-    """FTT-CAN: synchronous messages with periods, ranges and offsets in ECs, asynchronous ones, triggers."""
-    ec_ms = draw(st.integers(2, 10))
-    nodes = ["master", *_names("n", draw(st.integers(2, 4)))]
-    count = draw(st.integers(1, 8))
+def ftt_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, Any]:
+    """FTT-CAN: synchronous messages with periods, ranges and offsets in ECs, asynchronous ones with identifiers
+    anywhere (above or below the trigger message's), triggers, the master's parameters (LSW, TM id, id base)."""
+    f = Fields(draw, held)
+    ec_ms = f(st.integers(2, 10))
+    ftt: dict[str, Any] = {"ec": f"{ec_ms} ms", "tm_size": f(st.integers(1, 8)),
+                           "windows": f(st.sampled_from(["async-first", "sync-first"]))}
+    f.opt(ftt, "buses[].ftt.lsw", us(ec_ms * 200, ec_ms * 1000), 0.3)
+    f.opt(ftt, "buses[].ftt.tm_id", st.integers(0, 0x7F), 0.5)
+    f.opt(ftt, "buses[].ftt.sync_id_base", st.sampled_from([0x100, 0x400, 0x680]), 0.3)
+    f.opt(ftt, "buses[].ftt.master", st.just("master"), 0.2)
+    tm_id = ftt.get("tm_id", 0)
+    sync_base = ftt.get("sync_id_base", 0x100)
+    nodes = ["master", *_names("n", f(st.integers(2, 4)))]
+    count = f(st.integers(1, 8))
     messages = []
+    periods: dict[str, int] = {}
     ftt_id = 1
+    below_tm = tm_id > 0 and f.feature("asynchronous id below the trigger message's", 0.7)
+    taken = {tm_id} | {sync_base + k for k in range(1, 64)}
     for i in range(count):
-        producer = draw(st.sampled_from(nodes[1:]))
-        consumer = draw(st.sampled_from([n for n in nodes[1:] if n != producer]))
-        msg: dict[str, Any] = {
-            "name": f"m{i}",
-            "producer": producer,
-            "consumers": [consumer],
-            "size": draw(st.integers(0, 8)),
-        }
-        if draw(st.booleans()):
-            period = draw(st.integers(1, 6))
-            msg |= {"ftt_id": ftt_id, "period": f"{period} EC", "offset": f"{draw(st.integers(0, period - 1))} EC"}
+        producer = f(st.sampled_from(nodes[1:]))
+        consumer = f(st.sampled_from([n for n in nodes[1:] if n != producer]))
+        msg: dict[str, Any] = {"name": f"m{i}", "producer": producer, "consumers": [consumer],
+                               "size": f(st.integers(0, 8))}
+        if f.chance(0.5):
+            period = f(st.integers(1, 6))
+            msg |= {"ftt_id": ftt_id, "period": f"{period} EC", "offset": f"{f(st.integers(0, period - 1))} EC"}
+            f.opt(msg, "messages[].window", st.just("sync"), 0.2)
+            periods[msg["name"]] = period * ec_ms * 1000
             ftt_id += 1
-            if draw(st.integers(0, 3)) == 0:
-                msg["period_range"] = [f"{draw(st.integers(1, period))} EC", f"{period + draw(st.integers(0, 2))} EC"]
+            if f.feature("messages[].period_range", 0.25):
+                msg["period_range"] = [f"{f(st.integers(1, period))} EC", f"{period + f(st.integers(0, 2))} EC"]
+            f.opt(msg, "messages[].deadline", us(period * ec_ms * 1000, 2 * period * ec_ms * 1000), 0.15)
         else:
-            msg |= {"id": 0x200 + i, "window": "async"}
-            if draw(st.booleans()):
-                msg["min_interarrival"] = f"{draw(st.integers(2, 200))} ms"
+            ident = f(st.integers(0, tm_id - 1) if below_tm and f.chance(0.5) else st.integers(tm_id + 1, 0x7FF))
+            if ident in taken:
+                ident = 0x200 + i
+            taken.add(ident)
+            msg |= {"id": ident, "window": "async"}
+            if below_tm or tm_id == 0:  # a 29-bit id arbitrates by its top 11 bits: 0x200 << 18 is below 0x7F
+                f.opt(msg, "messages[].extended", st.booleans(), 0.1)
+            gap = f(st.one_of(st.integers(ec_ms * 500, 4 * ec_ms * 1000), st.integers(2_000, 200_000)))
+            if f.chance(0.5):
+                msg["min_interarrival"] = f"{gap} us"
             else:
-                msg["period"] = f"{draw(st.integers(2, 200))} ms"
+                msg["period"] = f"{gap} us"
+                periods[msg["name"]] = gap
+            f.opt(msg, "messages[].deadline", ms(100, 400), 0.15)
         messages.append(msg)
+    bus: dict[str, Any] = {"name": "bus", "protocol": "ftt-can",
+                           "bitrate": f(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])), "ftt": ftt}
     spec: dict[str, Any] = {
         "system": "random_ftt",
-        "buses": [
-            {
-                "name": "bus",
-                "protocol": "ftt-can",
-                "bitrate": draw(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
-                "ftt": {
-                    "ec": f"{ec_ms} ms",
-                    "tm_size": draw(st.integers(1, 8)),
-                    "windows": draw(st.sampled_from(["async-first", "sync-first"])),
-                },
-            }
-        ],
+        "buses": [bus],
         "nodes": [{"name": "master", "role": "master", "buses": ["bus"]}]
         + [{"name": n, "buses": ["bus"]} for n in nodes[1:]],
         "messages": messages,
     }
-    _add_flows(draw, spec, ftt_ids=ftt_id, ec_us=ec_ms * 1000)
-    _add_errors(draw, spec)
+    for node in spec["nodes"][1:]:
+        _node_delays(f, node)
+    _add_flows(f, spec, periods, ftt_ids=ftt_id)
+    _bus_common(f, bus)
     return spec
 
 
 @st.composite
-def ethernet_spec(draw: st.DrawFn) -> dict[str, Any]:
-    """Switched Ethernet: a chain of 1-3 switches, 3-6 hosts, periodic datagrams with jitter."""
-    hosts = _names("h", draw(st.integers(3, 6)))
-    switches = _names("sw", draw(st.integers(1, 3)))
+def ethernet_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, Any]:
+    """Switched Ethernet: a chain or tree of 1-3 switches (latencies, cables), 3-6 hosts (tx and rx delays),
+    periodic datagrams with offsets, jitter and multicast, and sometimes a burst: one host sending more datagrams
+    in one period than a queue holds."""
+    f = Fields(draw, held)
+    hosts = _names("h", f(st.integers(3, 6)))
+    switches = _names("sw", f(st.integers(1, 3)))
     ports: dict[str, list[dict[str, Any]]] = {s: [] for s in switches}
-    for a, b in pairwise(switches):
-        ports[a].append({"port": len(ports[a]) + 1, "to": b})
+
+    def cable(a: str, b: str) -> None:
+        port: dict[str, Any] = {"port": len(ports[a]) + 1, "to": b}
+        f.opt(port, "buses[].ethernet.switches[].ports[].cable", CABLE, 0.2)
+        ports[a].append(port)
+
+    for i, s in enumerate(switches[1:], 1):  # a chain, or a tree: each switch hangs off an earlier one
+        cable(switches[f(st.integers(0, i - 1))] if f.chance(0.5) else switches[i - 1], s)
     for i, h in enumerate(hosts):  # every switch gets a host first, the rest at random
-        s = switches[i] if i < len(switches) else draw(st.sampled_from(switches))
-        ports[s].append({"port": len(ports[s]) + 1, "to": h})
-    messages = []
-    for i in range(draw(st.integers(1, 8))):
-        producer = draw(st.sampled_from(hosts))
-        consumer = draw(st.sampled_from([h for h in hosts if h != producer]))
-        period = draw(st.integers(100, 20_000))
-        msg = {
-            "name": f"m{i}",
-            "id": i + 1,
-            "producer": producer,
-            "consumers": [consumer],
-            "size": draw(st.integers(1, 1400)),
-            "period": f"{period} us",
-            "udp": {"src_port": 5000 + i, "dst_port": 6000 + i},
-        }
-        jitter = draw(st.integers(0, period // 4))
-        if jitter:
-            msg["jitter"] = f"{jitter} us"
+        cable(switches[i] if i < len(switches) else f(st.sampled_from(switches)), h)
+    messages: list[dict[str, Any]] = []
+    periods: dict[str, int] = {}
+
+    def datagram(producer: str, period: int, size: int) -> dict[str, Any]:
+        i = len(messages)
+        consumers = [f(st.sampled_from([h for h in hosts if h != producer]))]
+        if f.chance(0.15):
+            consumers = [h for h in hosts if h != producer][:2]
+        msg: dict[str, Any] = {"name": f"m{i}", "id": i + 1, "producer": producer, "consumers": consumers,
+                               "size": size, "period": f"{period} us",
+                               "udp": {"src_port": 5000 + i, "dst_port": 6000 + i}}
         messages.append(msg)
-    spec = {
+        periods[msg["name"]] = period
+        return msg
+
+    for _ in range(f(st.integers(1, 8))):
+        period = f(st.integers(100, 20_000))
+        msg = datagram(f(st.sampled_from(hosts)), period, f(st.integers(1, 1400)))
+        f.opt(msg, "messages[].jitter", us(1, max(1, period // 4)), 0.5)
+        f.opt(msg, "messages[].offset", us(0, period - 1), 0.2)
+        f.opt(msg, "messages[].deadline", us(max(1, period // 2), 2 * period), 0.15)
+    if f.feature("Ethernet burst", 0.2):  # tens of datagrams from one host at once: more than a queue may hold
+        host, period = f(st.sampled_from(hosts)), f(st.integers(2_000, 20_000))
+        for _ in range(f(st.integers(20, 80))):
+            del periods[datagram(host, period, f(st.integers(1, 64)))["name"]]  # no tasks around these
+    switch_list = []
+    for s in switches:
+        sw: dict[str, Any] = {"name": s, "ports": ports[s]}
+        f.opt(sw, "buses[].ethernet.switches[].latency", us(0, 20), 0.4)
+        switch_list.append(sw)
+    spec: dict[str, Any] = {
         "system": "random_eth",
-        "buses": [
-            {
-                "name": "lan",
-                "protocol": "ethernet-udp",
-                "bitrate": "100 Mbit/s",
-                "ethernet": {"switches": [{"name": s, "ports": ports[s]} for s in switches]},
-            }
-        ],
+        "buses": [{"name": "lan", "protocol": "ethernet-udp", "bitrate": "100 Mbit/s",
+                   "ethernet": {"switches": switch_list}}],
         "nodes": [{"name": h, "ip": f"10.0.0.{i + 1}", "buses": ["lan"]} for i, h in enumerate(hosts)],
         "messages": messages,
     }
-    _add_flows(draw, spec)
+    for node in spec["nodes"]:
+        _node_delays(f, node)
+    _add_flows(f, spec, periods)
     return spec
+
+
+TPDO_TYPES = st.one_of(st.integers(1, 3), st.sampled_from([0, 254, 255]))
+TPDO_EVERY_NTH = st.one_of(st.sampled_from([4, 240]), st.integers(4, 240))  # every n-th SYNC, up to CiA 301's 240
 
 
 @st.composite
-def canopen_spec(draw: st.DrawFn) -> dict[str, Any]:
-    """CANopen: a master and 1-6 EPOS4 drives; SYNC period, synchronous TPDOs (every n-th SYNC), periodic RxPDOs
-    with jitter, an optional sporadic message from the master."""
-    period_ms = draw(st.integers(2, 40))
-    drives = _names("d", draw(st.integers(1, 6)))
+def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, Any]:
+    """CANopen: a master and 1-6 drives (the built-in EPOS4 or an EDS with the TPDO event timer; tx and rx delays,
+    heartbeats); SYNC (window, read window, id, counter, the master's jitter); TPDOs of every transmission type
+    (SYNC every n-th, acyclic, event-driven with event timer and inhibit time), RxPDOs; sometimes a master task
+    that sends plain CAN messages to a drive's task, a SYNC task that reads the TPDOs (flows through both), and a
+    sporadic message from the master."""
+    f = Fields(draw, held)
+    period_ms = f(st.integers(2, 40))
+    canopen: dict[str, Any] = {"sync_period": f"{period_ms} ms"}
+    f.opt(canopen, "buses[].canopen.sync_window", us(period_ms * 300, period_ms * 1000), 0.3)
+    f.opt(canopen, "buses[].canopen.read_window", us(period_ms * 300, period_ms * 1000), 0.3)
+    f.opt(canopen, "buses[].canopen.sync_producer", st.just("master"), 0.2)
+    # the EPOS4's COB-ID SYNC is fixed at 0x80: another id is refused unless no drive is one
+    f.opt(canopen, "buses[].canopen.sync_id", st.sampled_from([0x80, 0x80, 0x80, 0x81]), 0.2)
+    f.opt(canopen, "buses[].canopen.sync_counter", st.one_of(st.booleans(), st.integers(2, 240)), 0.2)
+    f.opt(canopen, "buses[].canopen.master_jitter", us(0, 500), 0.3)
+    bus: dict[str, Any] = {"name": "can0", "protocol": "canopen",
+                           "bitrate": f(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
+                           "canopen": canopen}
+    master: dict[str, Any] = {"name": "master", "role": "master", "node_id": 127, "buses": ["can0"],
+                              "tx_queue": _tx_queue(f)}
+    _node_delays(f, master)
+    drives = _names("d", f(st.integers(1, 6)))
+    nodes = [master]
     messages: list[dict[str, Any]] = []
-    for d in drives:
-        messages.append(
-            {
-                "name": f"{d}_cmd",
-                "producer": "master",
-                "consumers": [d],
-                "period": f"{period_ms * draw(st.integers(1, 3))} ms",
-                "pdo": {"rpdo": 1, "transmission": 255, "map": [0x60FF]},
-            }
-        )
-        for k in range(1, draw(st.integers(1, 2)) + 1):
-            messages.append(
-                {
-                    "name": f"{d}_tx{k}",
-                    "producer": d,
-                    "consumers": ["master"],
-                    "pdo": {"tpdo": k, "transmission": draw(st.integers(1, 3)), "map": [[0x6064, 0x606C][k - 1]]},
-                }
-            )
-    spec: dict[str, Any] = {
-        "system": "random_canopen",
-        "buses": [
-            {
-                "name": "can0",
-                "protocol": "canopen",
-                "bitrate": draw(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
-                "canopen": {"sync_period": f"{period_ms} ms"},
-            }
-        ],
-        "nodes": [{"name": "master", "role": "master", "node_id": 127, "buses": ["can0"], "tx_queue": draw(TX_QUEUES)}]
-        + [{"name": d, "node_id": i + 1, "device": "epos4", "buses": ["can0"]} for i, d in enumerate(drives)],
-        "messages": messages,
-    }
-    _add_errors(draw, spec)
+    tpdos: list[str] = []
+    for i, d in enumerate(drives):
+        node: dict[str, Any] = {"name": d, "node_id": i + 1, "buses": ["can0"], "device": "epos4"}
+        eds = f.feature("nodes[].device.eds", 0.3)
+        if eds:
+            node["device"] = {"eds": EDS.name}
+        # a drive's tx_delay runs from SYNC to its TPDOs' release: up to a whole cycle
+        f.opt(node, "nodes[].tx_delay", st.one_of(us(0, 50), us(0, period_ms * 1000)), 0.4)
+        f.opt(node, "nodes[].rx_delay", RX_DELAY, 0.3)
+        f.opt(node, "nodes[].heartbeat", ms(10, 1_000), 0.2)
+        if "heartbeat" in node:
+            f.opt(node, "nodes[].heartbeat_timeout", ms(1_000, 3_000), 0.5)
+        f.opt(node, "nodes[].on_loss", st.sampled_from(["stop_all", "stop_node", "continue"]), 0.1)
+        f.opt(node, "nodes[].on_emcy", st.sampled_from(["stop_all", "stop_node", "continue"]), 0.1)
+        f.opt(node, "nodes[].safe_stop", st.sampled_from(["quick_stop", "disable_operation"]), 0.1)
+        nodes.append(node)
+        rpdo: dict[str, Any] = {"rpdo": 1, "map": [0x60FF]}
+        f.opt(rpdo, "messages[].pdo.transmission", st.sampled_from([255, 254, 0, 1]), 0.3)
+        messages.append({"name": f"{d}_cmd", "producer": "master", "consumers": [d],
+                         "period": f"{period_ms * f(st.integers(1, 3))} ms", "pdo": rpdo})
+        for k in range(1, f(st.integers(1, 2)) + 1):
+            entry: Any = [0x6064, 0x606C][k - 1]
+            if f.chance(0.2):  # a map entry with a name, or as index:sub-index text
+                entry = f(st.sampled_from([{"object": entry, "name": f"v{k}"}, {"object": "0x30D1:2"}, "0x30D1:2"]))
+            every_nth = f.feature("TPDO transmission types 4-240", 0.2)
+            tpdo: dict[str, Any] = {"tpdo": k, "transmission": f(TPDO_EVERY_NTH if every_nth else TPDO_TYPES),
+                                    "map": [entry]}
+            msg: dict[str, Any] = {"name": f"{d}_tx{k}", "producer": d, "consumers": ["master"], "pdo": tpdo}
+            if tpdo["transmission"] >= 254:  # event-driven: how often it goes says its event timer or the message
+                if eds:
+                    f.opt(tpdo, "messages[].pdo.event_timer", ms(1, 200), 0.6)
+                f.opt(tpdo, "messages[].pdo.inhibit", st.integers(1, 100).map(lambda v: f"{100 * v} us"), 0.6)
+                if "event_timer" not in tpdo or f.chance(0.3):
+                    key = f(st.sampled_from(["min_interarrival", "min_interarrival", "period"]))
+                    msg[key] = f"{f(st.integers(max(2, period_ms // 2), 100))} ms"
+            elif tpdo["transmission"] > 0:
+                f.opt(tpdo, "messages[].pdo.sync_start", st.integers(0, 240), 0.1)
+            f.opt(msg, "messages[].deadline", ms(1, 2 * period_ms), 0.1)
+            messages.append(msg)
+            tpdos.append(msg["name"])
+    spec: dict[str, Any] = {"system": "random_canopen", "buses": [bus], "nodes": nodes, "messages": messages}
+    if f.feature("a SYNC task reading the TPDOs", 0.3):  # the master's work each cycle, and flows into it
+        wcet = f(st.integers(10, 500))
+        # it computes on what the read window collected: it starts after that window (check refuses it before)
+        canopen.setdefault("read_window", f(us(period_ms * 300, period_ms * 900)))
+        read = min(int(canopen["read_window"].split()[0]), period_ms * 1000 - 1)
+        task = {"name": "control", "sync": True, "offset": f"{f(st.integers(read, period_ms * 1000 - 1))} us",
+                "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 2)} us"}
+        master["tasks"] = [task]
+        spec["flows"] = [{"name": f"fb{i}", "chain": [t, "master.control"]}
+                         for i, t in enumerate(tpdos) if f.chance(0.5)]
+    if f.feature("a master task sending plain CAN messages", 0.3):
+        period = f(st.integers(500, 5_000))
+        wcet = f(st.integers(10, period))
+        master.setdefault("tasks", []).append({"name": "fast", "period": f"{period} us", "wcet": f"{wcet} us",
+                                               "bcet": f"{max(1, wcet // 20)} us"})
+        target = nodes[1]
+        target["tasks"] = [{"name": "use", "on_message": "fm0", "wcet": f"{f(st.integers(1, 100))} us"}]
+        for k in range(f(st.integers(1, 3))):
+            msg = {"name": f"fm{k}", "id": 0x0F0 + k, "producer": "master", "consumers": [target["name"]],
+                   "size": f(st.integers(0, 8)), "period": f"{period} us"}
+            f.opt(msg, "messages[].deadline", us(period, 10 * period), 0.5)
+            messages.append(msg)
+            chain = ["master.fast", f"fm{k}", f"{target['name']}.use"]
+            spec.setdefault("flows", []).append({"name": f"f{k}", "chain": chain})
+    if f.feature("a sporadic message from the master", 0.2):
+        messages.append({"name": "cmd", "id": 0x0E0, "producer": "master", "consumers": [drives[0]],
+                         "size": f(st.integers(0, 8)), "min_interarrival": f"{f(st.integers(1, 50))} ms"})
+    if not spec.get("flows"):
+        spec.pop("flows", None)
+    _bus_common(f, bus)
     return spec
 
 
-def _us(text: str, ec_us: int) -> int:
-    value, unit = text.split()
-    return int(value) * {"us": 1, "ms": 1000, "EC": ec_us}[unit]
-
-
-def _add_flows(draw: st.DrawFn, spec: dict[str, Any], ftt_ids: int | None = None, ec_us: int = 0) -> None:
-    """Tasks around some messages, and a flow producer task -> message -> consumer task for each.
-    FTT-CAN synchronous messages get triggered tasks (a trigger per task pair), others periodic or
-    message-driven ones; every task has a random WCET and priority."""
+def _add_flows(f: Fields, spec: dict[str, Any], periods: dict[str, int], ftt_ids: int | None = None) -> None:
+    """Tasks around some periodic messages (`periods`: their periods in us), and a flow producer task -> message
+    -> consumer task for each. FTT-CAN synchronous messages get triggered tasks (a trigger per task pair), others
+    periodic or message-driven ones; every task has a random WCET and priority, periodic ones sometimes an
+    offset."""
     nodes = {n["name"]: n for n in spec["nodes"]}
     triggers: list[dict[str, Any]] = []
-    flows: list[dict[str, Any]] = []
+    flows: list[dict[str, Any]] = spec.setdefault("flows", [])
     for msg in spec["messages"]:
-        if "period" not in msg or draw(st.booleans()):
+        if msg["name"] not in periods or f.chance(0.5):
             continue
         i = len(flows)
         producer, consumer = nodes[msg["producer"]], nodes[msg["consumers"][0]]
-        most = max(2, _us(msg["period"], ec_us) // 4)  # WCETs up to a quarter of the message's period
-        wcet = draw(st.integers(1, most))
-        send: dict[str, Any] = {"name": f"send{i}", "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 2)} us"}
-        use: dict[str, Any] = {"name": f"use{i}", "wcet": f"{draw(st.integers(1, most))} us"}
-        if draw(st.booleans()):
-            send["priority"] = draw(st.integers(0, 5))
+        most = max(2, periods[msg["name"]] // 4)  # WCETs up to a quarter of the message's period
+        wcet = f(st.integers(1, most))
+        send: dict[str, Any] = {"name": f"send{i}", "wcet": f"{wcet} us"}
+        f.opt(send, "nodes[].tasks[].bcet", st.just(f"{max(1, wcet // 2)} us"), 0.9)
+        use: dict[str, Any] = {"name": f"use{i}", "wcet": f"{f(st.integers(1, most))} us"}
+        f.opt(send, "nodes[].tasks[].priority", st.integers(0, 5), 0.5)
         if ftt_ids is not None and "ftt_id" in msg:
             # the producer's task is triggered every period of the message, in the EC of its offset
-            triggers.append(
-                {
-                    "name": f"t_send{i}",
-                    "ftt_id": ftt_ids + 2 * i,
-                    "bus": "bus",
-                    "period": msg["period"],
-                    "offset": msg["offset"],
-                    "tasks": [f"{producer['name']}.send{i}"],
-                }
-            )
-            triggers.append(
-                {
-                    "name": f"t_use{i}",
-                    "ftt_id": ftt_ids + 2 * i + 1,
-                    "bus": "bus",
-                    "period": f"{draw(st.integers(1, 8))} EC",
-                    "tasks": [f"{consumer['name']}.use{i}"],
-                }
-            )
+            triggers.append({"name": f"t_send{i}", "ftt_id": ftt_ids + 2 * i, "bus": "bus", "period": msg["period"],
+                             "offset": msg["offset"], "tasks": [f"{producer['name']}.send{i}"]})
+            period = f(st.integers(1, 8))
+            trigger = {"name": f"t_use{i}", "ftt_id": ftt_ids + 2 * i + 1, "bus": "bus", "period": f"{period} EC",
+                       "tasks": [f"{consumer['name']}.use{i}"]}
+            f.opt(trigger, "triggers[].offset", st.integers(0, period - 1).map(lambda v: f"{v} EC"), 0.3)
+            f.opt(trigger, "triggers[].period_range", st.just([f"{period} EC", f"{period + 1} EC"]), 0.25)
+            triggers.append(trigger)
         else:
-            send["period"] = msg["period"]
-            if draw(st.booleans()):
+            send["period"] = msg.get("period") or f"{periods[msg['name']]} us"
+            if "offset" in msg and "EC" not in msg["offset"]:  # the task runs at its message's offset
+                f.opt(send, "nodes[].tasks[].offset", st.just(msg["offset"]), 0.5)
+            if f.chance(0.5):
                 use["on_message"] = msg["name"]
             else:
-                use["period"] = f"{draw(st.integers(1, 50))} ms"
+                use["period"] = f"{f(st.integers(1, 50))} ms"
         producer.setdefault("tasks", []).append(send)
         consumer.setdefault("tasks", []).append(use)
-        flows.append(
-            {"name": f"f{i}", "chain": [f"{producer['name']}.send{i}", msg["name"], f"{consumer['name']}.use{i}"]}
-        )
+        flow = {"name": f"f{i}", "chain": [f"{producer['name']}.send{i}", msg["name"], f"{consumer['name']}.use{i}"]}
+        f.opt(flow, "flows[].deadline", ms(50, 500), 0.15)
+        flows.append(flow)
     if triggers:
         spec["triggers"] = triggers
-    if flows:
-        spec["flows"] = flows
-    if draw(st.booleans()):
+    if not flows:
+        del spec["flows"]
+    if f.chance(0.5):
         for node in spec["nodes"]:
             node["scheduling"] = "non-preemptive"
+    elif f.chance(0.2):
+        for node in spec["nodes"]:
+            node["scheduling"] = "preemptive"
 
 
-STRATEGIES = {"can": can_spec(), "ftt-can": ftt_spec(), "ethernet-udp": ethernet_spec(), "canopen": canopen_spec()}
+# Fields and features the sweep draws but CI's sample holds back while the analysis is being mended: each entry
+# names the defect it shows (the seam's reproduction). Remove an entry when its fix is merged.
+HELD: dict[str, dict[str, str]] = {
+    "can": {
+        "sporadic sender with a second input": "seams 09, 09b: the side input's flow outlives its bound",
+        "tx_delay beyond a period": "a frame sent a tx_delay longer than its task's period carries a later run's "
+        "data in the simulator: flows measured below the analysed best case",
+        "nodes[].tx_queue.on_full": "seam 11: a FIFO that drops is accepted",
+    },
+    "ftt-can": {"asynchronous id below the trigger message's": "seam 08: the frame delays the TM, flows move"},
+    "ethernet-udp": {"Ethernet burst": "seam 05: the burst overflows the host's queue, frames are lost"},
+    "canopen": {
+        "nodes[].tx_delay": "seams 01, 03: a drive's tx_delay after SYNC, SYNC cycle and flows",
+        "nodes[].tx_queue.on_full": "seam 11: a FIFO that drops is accepted",
+        "TPDO transmission types 4-240": "the SYNC flow analysis walks 2 x the types' least common multiple cycles",
+    },
+}
 
 
 @dataclass
@@ -352,6 +679,7 @@ def _spec_path() -> Path:
     folder per spec cost more than checking small specs on a loaded disk)."""
     if not _SCRATCH:
         _SCRATCH.append(tempfile.TemporaryDirectory(prefix="soundness-"))
+        shutil.copy(EDS, Path(_SCRATCH[0].name) / EDS.name)  # the drives' `device: {eds: ...}` beside the spec
     return Path(_SCRATCH[0].name) / "spec.yaml"
 
 
@@ -363,6 +691,23 @@ def runtime_config(spec: dict[str, Any]) -> runtime.RuntimeConfig | None:
     if model is None or report["errors"]:
         return None
     return runtime.parse(json.loads(json.dumps(runtime_document(model, report))), "random")
+
+
+def _promises_broken(result: dict[str, Any]) -> list[str]:
+    """What an accepted spec's run may not show besides a figure outside its range: lost frames (a full FIFO that
+    drops, an overflowing Ethernet queue) and CANopen SYNC cycles whose TPDOs missed the read window."""
+    out = []
+    if result["lost"]:
+        queues = [f"{q['node']} dropped {q['overflows']}" for q in result.get("tx_queues", []) if q.get("overflows")]
+        links = [f"{link['from']}->{link['to']} lost {link['lost']}" for reps in result.get("protocols", {}).values()
+                 for rep in reps for link in rep.get("links", []) if link.get("lost")]
+        out.append(f"{result['lost']} frames lost ({', '.join(queues + links) or 'no queue named'})")
+    for bus, reps in result.get("protocols", {}).items():
+        for rep in reps:
+            if rep.get("incomplete_cycles"):
+                out.append(f"bus {bus}: {rep['incomplete_cycles']} of {rep['cycles']} SYNC cycles incomplete "
+                           f"(collection up to {rep.get('collection_us', {}).get('max')} us)")
+    return out
 
 
 def check_spec(spec: dict[str, Any], seed: int, duration_ns: int) -> Outcome:
@@ -388,6 +733,7 @@ def check_spec(spec: dict[str, Any], seed: int, duration_ns: int) -> Outcome:
             out.violations.append(f"{label}: the injected errors left the bus's error model: {result['note']}")
         if result["deadline_misses"]:
             out.violations.append(f"{result['deadline_misses']} deadline misses in a schedulable spec")
+        out.violations += [f"{label}: {v}" for v in _promises_broken(result)]
         for m in result["messages"]:
             if m["wcrt_us"] and m["response_us"]:
                 ratio = m["response_us"]["max"] / m["wcrt_us"]
@@ -399,12 +745,183 @@ def check_spec(spec: dict[str, Any], seed: int, duration_ns: int) -> Outcome:
     return out
 
 
-def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple[int, str]:
-    """Check `specs` random specs of one protocol. -> (specs with a violation, the tally and tightness line)."""
+class _Timeout(Exception):
+    pass
+
+
+def timed_check(spec: dict[str, Any], seed: int, duration_ns: int, limit_s: float) -> Outcome:
+    """check_spec, but an analysis or run that does not finish in limit_s is a violation (a hang found)."""
+    def stop(*_: object) -> None:
+        raise _Timeout
+
+    previous = signal.signal(signal.SIGALRM, stop)
+    signal.setitimer(signal.ITIMER_REAL, limit_s)
+    try:
+        return check_spec(spec, seed, duration_ns)
+    except _Timeout:
+        return Outcome(True, [f"check or simulation did not finish within {limit_s:g} s"])
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def strip(spec: dict[str, Any], path: str) -> dict[str, Any]:
+    """A copy of the spec without any value at the field path (`nodes[].tx_delay`)."""
+    out: dict[str, Any] = copy.deepcopy(spec)
+
+    def walk(obj: Any, keys: list[str]) -> None:
+        key, rest = keys[0], keys[1:]
+        many = key.endswith("[]")
+        value = obj.get(key.removesuffix("[]")) if isinstance(obj, dict) else None
+        if not rest:
+            if isinstance(obj, dict):
+                obj.pop(key, None)
+            return
+        for item in (value or []) if many else [value]:
+            if isinstance(item, dict):
+                walk(item, rest)
+
+    walk(out, path.split("."))
+    return out
+
+
+def _raise_async_ids(spec: dict[str, Any]) -> dict[str, Any]:
+    """The FTT-CAN spec with its asynchronous identifiers moved above the trigger message's."""
+    out: dict[str, Any] = copy.deepcopy(spec)
+    tm_id = out["buses"][0]["ftt"].get("tm_id", 0)
+    for i, m in enumerate(out["messages"]):
+        if m.get("window") == "async" and (m["id"] >> 18 if m.get("extended") else m["id"]) < tm_id:
+            m["id"], m["extended"] = 0x7C0 + i, False
+    return out
+
+
+def _without_master_task(spec: dict[str, Any]) -> dict[str, Any]:
+    """The CANopen spec with the master's periodic task gone (its messages stay, released without it)."""
+    out: dict[str, Any] = copy.deepcopy(spec)
+    for node in out["nodes"]:
+        node["tasks"] = [t for t in node.get("tasks", []) if t["name"] != "fast"]
+    out["flows"] = [fl for fl in out.get("flows", []) if "master.fast" not in fl["chain"]]
+    if not out["flows"]:
+        del out["flows"]
+    return out
+
+
+def _fifo_offsets(spec: dict[str, Any]) -> list[str]:
+    fifo = {n["name"] for n in spec["nodes"] if n.get("tx_queue") == "fifo"
+            or (isinstance(n.get("tx_queue"), dict) and n["tx_queue"]["policy"] == "fifo")}
+    return [m["name"] for m in spec["messages"] if m["producer"] in fifo and "offset" in m]
+
+
+def _late_senders(spec: dict[str, Any]) -> list[str]:
+    """Nodes (not CANopen drives) whose tx_delay is longer than the period of a task they run."""
+    def us_of(text: str) -> float:
+        value, unit = text.split()
+        return float(value) * {"ns": 1e-3, "us": 1, "ms": 1e3, "s": 1e6}.get(unit, 0)
+
+    return [n["name"] for n in spec["nodes"] if n.get("tx_delay") and "device" not in n
+            and any(us_of(n["tx_delay"]) > us_of(t["period"]) for t in n.get("tasks", []) if "period" in t)]
+
+
+def _short_tx_delays(spec: dict[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = copy.deepcopy(spec)
+    for node in out["nodes"]:
+        if node["name"] in _late_senders(spec):
+            node["tx_delay"] = "50 us"
+    return out
+
+
+def _dropping(spec: dict[str, Any]) -> list[str]:
+    """The nodes whose FIFO transmit queue drops frames when full."""
+    return [n["name"] for n in spec["nodes"] if isinstance(n.get("tx_queue"), dict)
+            and n["tx_queue"].get("on_full") == "drop"]
+
+
+def _async_below_tm(spec: dict[str, Any]) -> bool:
+    """Whether an asynchronous frame wins arbitration against the TM (a 29-bit id by its top 11 bits)."""
+    ftt = spec["buses"][0].get("ftt") or {}
+    return any(m.get("window") == "async" and (m["id"] >> 18 if m.get("extended") else m["id"]) < ftt.get("tm_id", 0)
+               for m in spec["messages"])
+
+
+def _delay(spec: dict[str, Any], key: str, drives: bool | None = None) -> bool:
+    return any(n.get(key) and int(n[key].split()[0]) > 0 and (drives is None or ("device" in n) == drives)
+               for n in spec["nodes"])
+
+
+def subject(violation: str) -> str:
+    """What a violation line is about, whatever the run and figures: 'flow f1', 'frames lost', 'bus can0', ..."""
+    text = violation.split(": ", 1)[1] if violation.startswith(("random phases: ", "critical instant: ",
+                                                                  "unsynchronised: ")) else violation
+    if "frames lost" in text:
+        return "frames lost"
+    if "did not finish" in text:
+        return "a hang"
+    return text.split(":", 1)[0] if ":" in text else text
+
+
+Transform = Callable[[dict[str, Any]], dict[str, Any]]
+Fits = Callable[[dict[str, Any], str], bool]
+# The kinds of defect a violation may show: (name, whether the spec and a violation's line look like it, the spec
+# without the feature or None). A kind with a transform explains the violations that spec, accepted, no longer
+# has; one without explains the lines it fits (they name the feature). The seam reproductions (their numbers) show
+# each kind at its smallest.
+SEAM_KINDS: list[tuple[str, Fits, Transform | None]] = [
+    ("CANopen drive tx_delay after SYNC (seams 01, 03)",
+     lambda s, v: s["buses"][0]["protocol"] == "canopen" and _delay(s, "tx_delay", drives=True),
+     lambda s: strip(s, "nodes[].tx_delay")),
+    ("CANopen SYNC cycle with a sending task's jitter (seam 04)",
+     lambda s, v: "master.fast" in json.dumps(s.get("flows", [])) and "SYNC cycles incomplete" in v,
+     _without_master_task),
+    ("CANopen event timer (seam 02)", lambda s, v: "event_timer" in json.dumps(s),
+     lambda s: strip(s, "messages[].pdo.event_timer")),
+    ("sporadic sender with a second input (seams 09, 09b)", lambda s, v: "flow gside" in v or "flow gtrig" in v,
+     None),
+    ("flow join (seam 10)", lambda s, v: "flow gjoin" in v or "flow fj" in v, None),
+    ("FTT-CAN trigger message outranked by an asynchronous id (seam 08)",
+     lambda s, v: s["buses"][0]["protocol"] == "ftt-can" and _async_below_tm(s), _raise_async_ids),
+    ("Ethernet queue overflow (seam 05)", lambda s, v: s["buses"][0]["protocol"] == "ethernet-udp" and "lost" in v,
+     None),
+    ("FIFO that drops, accepted (seam 11)",  # a master that drops its SYNC or RxPDOs leaves SYNC cycles short
+     lambda s, v: "dropped" in v or ("SYNC cycles incomplete" in v and "master" in _dropping(s)), None),
+    ("FIFO sender with offsets (seam 07)", lambda s, v: any(f"message {m}:" in v for m in _fifo_offsets(s)),
+     lambda s: {**s, "messages": [{k: x for k, x in m.items() if k != "offset" or m["name"] not in
+                                   _fifo_offsets(s)} for m in s["messages"]]}),
+    ("tx_delay longer than the sender's period (a frame carries a later run's data in the simulator)",
+     lambda s, v: bool(_late_senders(s)), _short_tx_delays),
+    ("tx_delay or rx_delay", lambda s, v: _delay(s, "tx_delay") or _delay(s, "rx_delay"),
+     lambda s: strip(strip(s, "nodes[].tx_delay"), "nodes[].rx_delay")),
+    ("a hang", lambda s, v: "did not finish" in v, None),
+]
+
+
+def classify(spec: dict[str, Any], violations: list[str], seed: int, duration_ns: int) -> list[str]:
+    """The kinds the violations show, each with the subjects it explains ('unclassified' for the rest)."""
+    subjects = {subject(v) for v in violations}
+    explained: dict[str, set[str]] = {}
+    for name, fits, without in SEAM_KINDS:
+        lines = [v for v in violations if fits(spec, v)]
+        if not lines:
+            continue
+        if without is None:
+            explained[name] = {subject(v) for v in lines}
+        elif "a hang" not in subjects:
+            out = timed_check(without(spec), seed, duration_ns, 30)
+            if out.accepted:
+                explained[name] = subjects - {subject(v) for v in out.violations}
+    kinds = [f"{name} ({', '.join(sorted(s))})" for name, s in explained.items() if s]
+    rest = subjects - set().union(*explained.values())
+    return kinds + ([f"unclassified ({', '.join(sorted(rest))})"] if rest else [])
+
+
+def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int, held: Iterable[str] = (),
+          dump: Path | None = None, limit_s: float = 30) -> tuple[int, str]:
+    """Check `specs` random specs of one protocol. -> (specs with a violation, the tally and tightness line).
+    Each spec with a violation goes to `dump` (when given), its violations and their kinds in its header."""
     tally = {"specs": 0, "accepted": 0, "failures": 0}
     ratios: list[float] = []
     with_errors: list[float] = []  # the same, for the specs with a bit-error model
     error_specs = [0]
+    kinds: dict[str, int] = {}
 
     @seed(seed_value)
     @settings(
@@ -414,9 +931,9 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple
         phases=[Phase.generate],
         suppress_health_check=list(HealthCheck),
     )
-    @given(strategy(protocol))
+    @given(strategy(protocol, held))
     def run(spec: dict[str, Any]) -> None:
-        out = check_spec(spec, tally["specs"], duration_ms * 1_000_000)
+        out = timed_check(spec, tally["specs"], duration_ms * 1_000_000, limit_s)
         tally["specs"] += 1
         tally["accepted"] += out.accepted
         ratios.extend(out.tightness.values())
@@ -425,8 +942,17 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple
             with_errors.extend(out.tightness.values())
         if out.violations:
             tally["failures"] += 1
-            print(f"{protocol} spec {tally['specs']}: " + "; ".join(out.violations), file=sys.stderr)
-            print(_dump(spec), file=sys.stderr)
+            found = classify(spec, out.violations, tally["specs"] - 1, duration_ms * 1_000_000)
+            for kind in found:
+                name = kind.split(" (", 1)[0] if kind.startswith("unclassified") else kind.rsplit(" (", 1)[0]
+                kinds[name] = kinds.get(name, 0) + 1
+            header = [f"{protocol} spec {tally['specs']} (--seed {seed_value}), kinds: {', '.join(found)}",
+                      *out.violations]
+            text = "".join(f"# {h}\n" for h in header) + _dump(spec)
+            if dump is not None:
+                dump.mkdir(parents=True, exist_ok=True)
+                (dump / f"{protocol}-{tally['specs']:04d}.yaml").write_text(text, encoding="utf-8")
+            print(text, file=sys.stderr)
 
     started = time.perf_counter()
     run()
@@ -444,6 +970,8 @@ def sweep(protocol: str, specs: int, duration_ms: int, seed_value: int) -> tuple
             f"\n  of them {error_specs[0]} accepted specs with an error model, hit as hard as it allows: tightness "
             f"over {len(with_errors)} messages and flows: median {mid_errors:.3f}, max {max(with_errors):.3f}"
         )
+    for kind, count in sorted(kinds.items(), key=lambda kv: -kv[1]):
+        line += f"\n  {count} specs with a violation of the kind: {kind}"
     return tally["failures"], line
 
 
@@ -557,13 +1085,18 @@ def ftt_wide_spec(draw: st.DrawFn) -> dict[str, Any]:
 
 
 OPT_IN = {"ftt-can-wide": ftt_wide_spec}  # not in the default sweep; built only when asked for
+STRATEGIES: dict[str, Callable[[frozenset[str]], st.SearchStrategy[dict[str, Any]]]] = {
+    "can": can_spec, "ftt-can": ftt_spec, "ethernet-udp": ethernet_spec, "canopen": canopen_spec}
+_BUILT: dict[tuple[str, frozenset[str]], st.SearchStrategy[dict[str, Any]]] = {}
 
 
-def strategy(protocol: str) -> st.SearchStrategy[dict[str, Any]]:
-    """A protocol's random specs: the default sweep's, or an opt-in one (built on first use)."""
-    if protocol not in STRATEGIES:
-        STRATEGIES[protocol] = OPT_IN[protocol]()
-    return STRATEGIES[protocol]
+def strategy(protocol: str, held: Iterable[str] = ()) -> st.SearchStrategy[dict[str, Any]]:
+    """A protocol's random specs without the fields and features `held` (see HELD): the default sweep's, or an
+    opt-in one."""
+    key = (protocol, frozenset(held))
+    if key not in _BUILT:
+        _BUILT[key] = STRATEGIES[protocol](key[1]) if protocol in STRATEGIES else OPT_IN[protocol]()
+    return _BUILT[key]
 
 
 GOAL_SPECS = 10_000
@@ -579,11 +1112,15 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="protocols swept at once, one process each (default: every core)")
+    parser.add_argument("--hold", action="store_true",
+                        help="leave out the fields and features HELD names (what CI's sample leaves out)")
+    parser.add_argument("--dump", type=Path, help="folder for the specs with a violation (one YAML each)")
     args = parser.parse_args()
     protocols = args.protocol or list(PROTOCOLS)
     started = time.perf_counter()
     jobs = max(1, min(args.jobs, len(protocols)))
-    sweeps = [(p, args.specs, args.duration_ms, args.seed) for p in protocols]
+    sweeps = [(p, args.specs, args.duration_ms, args.seed, HELD.get(p, {}) if args.hold else (), args.dump)
+              for p in protocols]
     bad = 0
     if jobs == 1:
         for a in sweeps:
