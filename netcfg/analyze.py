@@ -551,7 +551,8 @@ def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], 
                 "warning",
             )
         elif row["on_full"] == "drop":
-            lost = [name for name in row["dropped"] if not m.messages[name].may_be_lost]
+            on_bus = {msg.name: msg for msg in bus.messages}  # the protocol's own frames (a SYNC) too
+            lost = [name for name in row["dropped"] if not on_bus[name].may_be_lost]
             if lost:
                 names = ", ".join(f"'{name}'" for name in lost)
                 diags.add(

@@ -195,6 +195,8 @@ class MasterCycle:
         self._due_at: dict[int, tuple[str, ...]] = {}  # sync_number % _due_every -> due TxPDOs (_due)
         self._by_id = {(m.id, m.extended): m for m in tpdos}
         self._event_ids = {(m.id, m.extended) for m in tpdos if m.pdo is not None and m.pdo.transmission >= 254}
+        # TxPDOs the cycle does not wait for (type 0, events): one still queued at the next SYNC is not late
+        self._unwaited = {(m.id, m.extended) for m in tpdos if m.name not in self._every}
         self._last: dict[str, dict[str, Number]] = {m.name: _rest_values(m) for m in self.rpdos}
         self._rpdo_names = {m.name for m in self.rpdos}
         self._frames: dict[str, can.Message] = {}  # RxPDO -> its frame for the values in _last (_frame)
@@ -264,9 +266,9 @@ class MasterCycle:
             late = other = 0
             while (stale := bus.recv(timeout=0)) is not None:
                 key = (stale.arbitration_id, bool(stale.is_extended_id))
-                if key in self._by_id and key not in self._event_ids:
+                if key in self._by_id and key not in self._unwaited:
                     late += 1
-                else:  # an event-driven TxPDO answers no SYNC: it is not late
+                else:  # an event-driven or acyclic TxPDO answers no SYNC of its own: it is not late
                     other += 1
                     if self.on_frame is not None:
                         self.on_frame(stale, clock.now())
