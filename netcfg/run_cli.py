@@ -61,6 +61,13 @@ def add_parser(sub: Any) -> None:
         metavar="NODE@T[=CODE]",
         help=f"simulated drives: NODE sends an EMCY (default code 0x{DEFAULT_EMCY:04X}) and faults at T",
     )
+    p.add_argument(
+        "--reset",
+        action="append",
+        default=[],
+        metavar="NODE@T+OUTAGE",
+        help="simulated drives: NODE reboots at T, silent for OUTAGE, then boots with its default object dictionary",
+    )
     p.add_argument("--allow-missing", action="store_true", help="run the nodes that were set up even if others failed")
     p.add_argument("--log", type=Path, metavar="FILE", help="every frame: .log (candump -L), .asc, .blf, .csv, .trc")
     p.add_argument("--samples", type=Path, metavar="FILE.csv", help="the samples of every cycle, one row per cycle")
@@ -74,6 +81,15 @@ def _duration_s(text: str, what: str) -> float:
     if d.ns is None:
         raise ValueError(f"{what} {text!r}: give a time such as 1s or 500 ms")
     return d.ns / 1e9
+
+
+def _reset_drill(text: str) -> tuple[str, float, float]:
+    """'NODE@T+OUTAGE' -> (node, seconds, outage seconds)."""
+    node, at, rest = text.partition("@")
+    when, plus, outage = rest.partition("+")
+    if not at or not node or not plus:
+        raise ValueError(f"--reset {text!r}: write NODE@TIME+OUTAGE, e.g. knee_r@1s+50ms")
+    return node, _duration_s(when.strip(), "--reset"), _duration_s(outage.strip(), "--reset outage")
 
 
 def _drill(text: str, kind: str) -> tuple[str, float, int]:
@@ -131,6 +147,7 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         kills = [_drill(k, "kill") for k in args.kill]
         emcys = [_drill(e, "emcy") for e in args.emcy]
+        resets = [_reset_drill(r) for r in args.reset]
         duration_s = _duration_s(args.duration, "--duration") if args.duration is not None else None
     except ValueError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
@@ -138,8 +155,8 @@ def run_command(args: argparse.Namespace) -> int:
     if args.cycles is not None and args.cycles < 1:
         print("netcfg: --cycles must be 1 or more", file=sys.stderr)
         return 2
-    if (kills or emcys) and not args.simulated_drives:
-        print("netcfg: --kill and --emcy act on simulated drives; add --simulated-drives", file=sys.stderr)
+    if (kills or emcys or resets) and not args.simulated_drives:
+        print("netcfg: --kill, --emcy and --reset act on simulated drives; add --simulated-drives", file=sys.stderr)
         return 2
     if args.simulated_drives and args.interface not in (None, "virtual"):
         print(
@@ -164,7 +181,7 @@ def run_command(args: argparse.Namespace) -> int:
         with _config(args.source) as cfg:
             if cfg is None:
                 return 1
-            return _run(args, cfg, kills, emcys, duration_s)
+            return _run(args, cfg, kills, emcys, resets, duration_s)
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
@@ -182,6 +199,7 @@ def _run(
     cfg: Any,
     kills: list[tuple[str, float, int]],
     emcys: list[tuple[str, float, int]],
+    resets: list[tuple[str, float, float]],
     duration_s: float | None,
 ) -> int:
     import can
@@ -197,7 +215,7 @@ def _run(
         return 2
     assert co_bus.canopen is not None
     slaves = {n.name for n in canopen_slaves(cfg, co_bus)}
-    for node, _, _ in kills + emcys:
+    for node, _, _ in [*kills, *emcys, *resets]:
         if node not in slaves:
             print(
                 f"netcfg: '{node}' is not a CANopen slave of bus '{co_bus.name}' ({', '.join(sorted(slaves))})",
@@ -232,6 +250,9 @@ def _run(
                 drills.append((at, f"{node} killed", bench[node].kill))
             for node, at, code in emcys:
                 drills.append((at, f"{node} sends EMCY 0x{code:04X}", partial(bench[node].emergency, code)))
+            for node, at, outage in resets:
+                what = f"{node} reboots, silent for {1e3 * outage:g} ms"
+                drills.append((at, what, partial(bench[node].reboot, outage)))
         live = (
             _LiveView(sys.stdout, cycles, {m.name: m.producer for m in cfg.messages})
             if args.format == "text" and sys.stdout.isatty()
@@ -356,6 +377,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             "enable_path": node.enable_path,
             "stopped_at_s": None if node.stopped_at_s is None else round(node.stopped_at_s, 6),
             "safe_state": node.safe_state,
+            "reboots": node.reboots,
             "errors": node.errors,
         }
     read: dict[str, Any] = {"analysed_bound_us": None, "window_us": None, "max_us": None, "overruns": 0}
@@ -407,7 +429,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
         and run is not None
         and all(n["missing"] == 0 and not n["lost"] and not n["emcy"] and not n["errors"] for n in started)
         and not read["overruns"]
-        and not any(e.kind == "tpdo-silent" for _, e in outcome.events)
+        and not any(e.kind in ("tpdo-silent", "boot-up") for _, e in outcome.events)
     )
     return {
         "system": system,
@@ -460,6 +482,10 @@ def result_text(outcome: Any, doc: dict[str, Any]) -> str:
                 f"(heartbeat timeout {n['heartbeat_timeout_ms']:.0f} ms)"
             )
         notes += [e["text"] for e in n["emcy"]]
+        for r in n["reboots"]:
+            back = r.get("recovered_at_s") is not None
+            result = f"recovered in {r['recovery_ms']:.1f} ms" if back else r.get("result", "")
+            notes.append(f"rebooted at {r['at_s']:.3f} s ({r['action']}): {result}")
         notes += n["errors"]
         if n["safe_state"]:
             notes.append(f"safe stop -> {n['safe_state']}")

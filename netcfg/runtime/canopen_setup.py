@@ -17,7 +17,7 @@ from netcfg.runtime.canopen_identity import Identity, identity_from_runtime
 from netcfg.runtime.canopen_network import canopen_bus, canopen_slaves
 from netcfg.runtime.codec import int_range
 
-__all__ = ["NodeSetup", "PdoReadback", "SetupReport", "configure_network"]
+__all__ = ["NodeSetup", "PdoReadback", "SetupReport", "configure_network", "configure_node"]
 
 PREDEFINED_PDOS = len(cia301.TPDO_BASE)  # the pre-defined connection set has 4 RPDOs and 4 TPDOs per node
 IDENTITY = 0x1018
@@ -427,7 +427,7 @@ def configure_network(
     bus_name: str | None = None,
     nodes: Iterable[str] | None = None,
     identities: Mapping[str, Identity] | None = None,
-    sdo_timeout_s: float = 0.5,
+    sdo_timeout_s: float | None = None,
     interpolation: bool = True,
     disable_unused: bool = True,
     start: bool = True,
@@ -436,6 +436,7 @@ def configure_network(
     says, read it back, and start the nodes that passed. Each node's identity is checked first: the one `identities`
     gives for it, else runtime.json's node.identity; a node with neither is not checked (for a runtime.json written
     before node.identity, pass identities_from_dir). `interpolation` writes the start-up SDO values (node.sdo_init).
+    Each SDO request waits `sdo_timeout_s`, else the node's sdo_timeout_ns, and is repeated sdo_retries times.
     Returns one NodeSetup per node; never raises for a node's fault.
 
     `bus` stays open and usable by a MasterCycle afterwards: the Notifier this uses is stopped before returning."""
@@ -449,30 +450,58 @@ def configure_network(
     results = []
     try:
         for node in slaves:
-            assert node.node_id is not None
-            remote = canopen.RemoteNode(node.node_id, canopen.ObjectDictionary())
-            remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
-            network.add_node(remote)
-            try:
-                results.append(
-                    _configure_node(
-                        cfg,
-                        co_bus,
-                        node,
-                        remote,
-                        (identities or {}).get(node.name) or identity_from_runtime(cfg, node),
-                        interpolation,
-                        disable_unused,
-                        start,
-                        network.notifier,
-                    )
+            results.append(
+                configure_node(
+                    cfg,
+                    network,
+                    node,
+                    bus=co_bus,
+                    identity=(identities or {}).get(node.name),
+                    sdo_timeout_s=sdo_timeout_s,
+                    interpolation=interpolation,
+                    disable_unused=disable_unused,
+                    start=start,
                 )
-            finally:
-                del network[node.node_id]
+            )
     finally:
         network.notifier.stop(timeout=2.0)
         network.notifier = None
     return SetupReport(co_bus.name, tuple(results))
+
+
+def configure_node(
+    cfg: RuntimeConfig,
+    network: canopen.Network,
+    node: Node,
+    *,
+    bus: Bus,
+    identity: Identity | None = None,
+    sdo_timeout_s: float | None = None,
+    interpolation: bool = True,
+    disable_unused: bool = True,
+    start: bool = True,
+) -> NodeSetup:
+    """One node's set-up (configure_network's steps) over `network`, whose frames reach it through a Notifier or
+    through whoever calls network.notify (the live master re-configuring a drive that rebooted while it cycles)."""
+    assert node.node_id is not None
+    remote = canopen.RemoteNode(node.node_id, canopen.ObjectDictionary())
+    remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s if sdo_timeout_s is not None else node.sdo_timeout_ns / 1e9
+    remote.sdo.MAX_RETRIES = node.sdo_retries + 1  # canopen counts the first request among its "retries"
+    network.add_node(remote)
+    try:
+        return _configure_node(
+            cfg,
+            bus,
+            node,
+            remote,
+            identity or identity_from_runtime(cfg, node),
+            interpolation,
+            disable_unused,
+            start,
+            network.notifier,
+        )
+    finally:
+        del network[node.node_id]
 
 
 def _configure_node(

@@ -256,6 +256,7 @@ class SimulatedDrive:
         # the PDO slots the object dictionary has (0-based), looked up once
         self._rx_slots = tuple(n for n in range(PDO_SLOTS) if self.has(RPDO_COMM + n, 1))
         self._tx_slots = tuple(n for n in range(PDO_SLOTS) if self.has(TPDO_COMM + n, 1))
+        self._identity, self._clear_on_boot = identity, clear_pdos
         self._fill_values(identity)
         if clear_pdos:
             self._clear_pdos()
@@ -266,6 +267,8 @@ class SimulatedDrive:
             self.power = PowerStateMachine()
             self._show_state()
         self.killed = False
+        self.reboots = 0
+        self.notes: list[str] = []  # what the drive did on its own that a test or the bench reports
         self.emcy_sent: list[tuple[int, int, bytes]] = []
         self._ending: list[threading.Thread] = []  # heartbeat threads told to stop, not yet joined
 
@@ -373,6 +376,33 @@ class SimulatedDrive:
         """The drive drops off the bus (power lost, cable cut): no heartbeat, no answers, nothing sent."""
         self.killed = self.silent = True
         self._stop_heartbeat()
+
+    def reboot(self, outage_s: float) -> None:
+        """The drive resets (a brown-out, a watchdog): silent for `outage_s`, then it boots as after power-on, with
+        its default object dictionary (the master's PDO configuration and start-up values gone): the boot-up message
+        (heartbeat COB-ID, one byte 0x00, CiA 301 7.2.8.3.2.1), PRE-OPERATIONAL, CiA 402 SWITCH ON DISABLED."""
+        self.kill()
+        self.reboots += 1
+        if self._scheduler is not None:
+            self._scheduler.call_later(outage_s, self._boot)
+        else:
+            threading.Timer(outage_s, self._boot).start()
+
+    def _boot(self) -> None:
+        if self.network is None:
+            return  # detached meanwhile
+        self.node.data_store = {}
+        self._fill_values(self._identity)
+        if self._clear_on_boot:
+            self._clear_pdos()
+        self._dirty = True
+        self.killed = self.silent = False
+        self.node.nmt.send_command(0x81)  # reset node: the boot-up message
+        self.node.nmt.send_command(0x80)  # PRE-OPERATIONAL, heartbeat at the default 0x1017
+        if self.power is not None:
+            self.power = PowerStateMachine()
+            self.power.tick()  # NOT READY TO SWITCH ON -> SWITCH ON DISABLED
+            self._show_state()
 
     def _stop_heartbeat(self) -> None:
         """Stop the heartbeat canopen sends from a python-can cyclic-send thread; the thread ends within one

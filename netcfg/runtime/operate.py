@@ -47,8 +47,15 @@ from netcfg.runtime.canopen_master import (
     canopen_slaves,
     configure_network,
 )
-from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START
-from netcfg.runtime.cia402 import CONTROLWORD, STATUSWORD, Cia402Error, PdoEnabler, enable_operation, safe_stop
+from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START, configure_node
+from netcfg.runtime.cia402 import (
+    CONTROLWORD,
+    STATUSWORD,
+    Cia402Error,
+    PdoEnabler,
+    enable_operation,
+    safe_stop,
+)
 from netcfg.runtime.clock import Clock, SystemClock
 from netcfg.runtime.codec import Number
 from netcfg.runtime.supervision import Event, Supervisor
@@ -129,7 +136,7 @@ class Plan:
     bus_name: str | None = None
     allow_missing: bool = False
     transition_timeout_s: float = 0.5
-    sdo_timeout_s: float = 0.5
+    sdo_timeout_s: float | None = None  # None: each node's sdo_timeout_ns (runtime.json)
     drills: list[tuple[float, str, Callable[[], None]]] = field(default_factory=list)  # (at s, text, action)
     on_cycle: Callable[[CycleRecord, Outcome], None] | None = None  # e.g. a live view
 
@@ -152,6 +159,22 @@ class NodeOutcome:
     heartbeat_timeout_ms: float | None = None
     emcy: list[dict[str, Any]] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
+    # each boot-up while running: {"at_s", "action", "recovered_at_s", "recovery_ms", "result"}
+    reboots: list[dict[str, Any]] = field(default_factory=list)
+
+
+@dataclass
+class _Recovery:
+    """A drive that rebooted being set up again beside the cycle, on a worker thread; the cycle hands its SDO answers
+    to `network` (see _Operation._on_frame). `done` is the clock time it ended, `error` why it failed."""
+
+    node: str
+    booted: float  # clock time of the boot-up message
+    network: canopen.Network
+    thread: threading.Thread | None = None
+    done: float | None = None
+    error: str | None = None
+    path: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -194,6 +217,10 @@ class _Operation:
         self.enablers: dict[str, PdoEnabler] = {}
         self.first: float | None = None
         self.drills = sorted(plan.drills, key=lambda d: d[0])
+        self.master: MasterCycle | None = None
+        self.recovering: dict[str, _Recovery] = {}
+        self.sdo_routes: dict[int, _Recovery] = {}  # SDO response COB-ID -> the recovery awaiting it
+        self.timeout_cycles = 1
 
     # --- SDO access for the CiA 402 phases (a canopen Network with its own Notifier, outside the cycle) -------
 
@@ -208,7 +235,10 @@ class _Operation:
 
     def _remote(self, network: canopen.Network, node_id: int) -> canopen.RemoteNode:
         remote = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
-        remote.sdo.RESPONSE_TIMEOUT = self.plan.sdo_timeout_s
+        node = self.cfg.node(self._name(node_id))
+        timeout = self.plan.sdo_timeout_s
+        remote.sdo.RESPONSE_TIMEOUT = timeout if timeout is not None else node.sdo_timeout_ns / 1e9
+        remote.sdo.MAX_RETRIES = node.sdo_retries + 1
         network.add_node(remote)
         return remote
 
@@ -311,21 +341,26 @@ class _Operation:
         supervisor = self.supervisor = Supervisor(self.cfg, self.co_bus, running)
         cycles = self.plan.cycles if self.plan.cycles is not None else 2**62
         period_ns = self.co_bus.canopen.sync_period_ns if self.co_bus.canopen else 1
-        timeout_cycles = -(-round(self.plan.transition_timeout_s * 1e9) // period_ns)
+        timeout_cycles = self.timeout_cycles = -(-round(self.plan.transition_timeout_s * 1e9) // period_ns)
         self.enablers = {n: PdoEnabler(n, timeout_cycles) for n in running if self.out.nodes[n].cia402_over == "PDO"}
-        master = MasterCycle(
+        pdo_enabled = bool(self.enablers)
+        master = self.master = MasterCycle(
             self.cfg,
             self.bus,
             self.clock,
             bus_name=self.co_bus.name,
             nodes=running,
-            commands=self._commands if self.enablers else None,
-            on_frame=supervisor.feed,
+            commands=self._commands if pdo_enabled else None,
+            on_frame=self._on_frame,
             after_cycle=self._after_cycle,
+            serve=lambda: bool(self.recovering),
         )
         self.first = self.out.t0 = self.clock.now()
         supervisor.start(self.first)
-        self.out.run = master.run(cycles)
+        try:
+            self.out.run = master.run(cycles)
+        finally:
+            self._finish_recoveries()
         self.out.bad_emcy = supervisor.bad_emcy
         for name, w in supervisor.watched.items():
             node = self.out.nodes[name]
@@ -335,6 +370,103 @@ class _Operation:
                 node.lost_at_s = w.lost_at - self.first
                 node.lost_silent_ms = 1e3 * w.silent_for_s
                 node.state = "LOST"
+
+    def _on_frame(self, frame: can.Message, t: float) -> None:
+        """Frames the cycle does not take: SDO answers to a drive being set up again go to its recovery, the rest
+        to supervision."""
+        route = self.sdo_routes.get(frame.arbitration_id) if not frame.is_extended_id else None
+        if route is not None:
+            route.network.notify(frame.arbitration_id, bytearray(frame.data), t)
+            return
+        assert self.supervisor is not None
+        self.supervisor.feed(frame, t)
+
+    # --- a drive that rebooted (on_reboot) ------------------------------------------------------------------------
+
+    def _recover(self, name: str, booted: float) -> None:
+        """Set the node up again (the set-up's own code path: identity, PDOs, start-up values, read-back, NMT start)
+        and, over SDO, enable its CiA 402 power state machine, on a worker thread while the others cycle."""
+        node_cfg = self.cfg.node(name)
+        assert node_cfg.node_id is not None
+        rec = _Recovery(name, booted, canopen.Network(self.bus))
+        self.sdo_routes[0x580 + node_cfg.node_id] = rec  # CiA 301 default SDO server -> client COB-ID
+        self.recovering[name] = rec
+        outcome = self.out.nodes[name]
+
+        def work() -> None:
+            try:
+                setup = configure_node(
+                    self.cfg, rec.network, node_cfg, bus=self.co_bus, sdo_timeout_s=self.plan.sdo_timeout_s
+                )
+                if not setup.ok:
+                    rec.error = f"set-up again failed at {setup.step}: {setup.error}"
+                elif outcome.cia402_over == "SDO":
+                    remote = self._remote(rec.network, node_cfg.node_id or 0)
+                    try:
+                        rec.path = enable_operation(name, *_sdo_io(remote), timeout_s=self.plan.transition_timeout_s)
+                    finally:
+                        del rec.network[node_cfg.node_id or 0]
+            except (Cia402Error, SdoAbortedError, SdoCommunicationError, can.CanError) as exc:
+                rec.error = f"enabling again failed: {exc}"
+            finally:
+                rec.done = self.clock.now()
+
+        rec.thread = threading.Thread(target=work, name=f"netcfg-recover-{name}", daemon=True)
+        rec.thread.start()
+
+    def _poll_recoveries(self) -> None:
+        """Recoveries that ended: a "recovered" event, or "recovery-failed" with the node's on_loss."""
+        assert self.supervisor is not None and self.master is not None
+        for name, rec in list(self.recovering.items()):
+            if rec.done is None:
+                continue
+            enabler = self.enablers.get(name)
+            if rec.error is None and self.out.nodes[name].cia402_over == "PDO":
+                if enabler is None or enabler.error is not None:  # configured and started: now its PDO walk
+                    self.enablers[name] = PdoEnabler(name, self.timeout_cycles)
+                    self.master.muted.discard(name)
+                    continue
+                if not enabler.enabled:
+                    continue
+                rec.path = list(enabler.path)
+            del self.recovering[name]
+            self.sdo_routes = {k: v for k, v in self.sdo_routes.items() if v is not rec}
+            node = self.out.nodes[name]
+            took_ms = 1e3 * (rec.done - rec.booted)
+            if rec.error is None:
+                self.master.muted.discard(name)
+                self.supervisor.quiet.discard(name)
+                text = (
+                    f"{name} recovered {took_ms:.1f} ms after its boot-up: identity checked, configuration written "
+                    f"and read back, started, {' -> '.join(rec.path) or 'OPERATIONAL'}"
+                )
+                self.supervisor.events.append(Event(rec.done, name, "recovered", "continue", text))
+                node.state = rec.path[-1] if rec.path else "OPERATIONAL"
+            else:
+                action = self.cfg.node(name).on_loss
+                text = f"{name} not recovered ({took_ms:.1f} ms after its boot-up): {rec.error}"
+                self.supervisor.events.append(Event(rec.done, name, "recovery-failed", action, text))
+                node.errors.append(rec.error)
+            node.reboots[-1].update(
+                recovered_at_s=round(rec.done - (self.first or 0.0), 6) if rec.error is None else None,
+                recovery_ms=round(took_ms, 3),
+                result="recovered" if rec.error is None else rec.error,
+            )
+
+    def _finish_recoveries(self) -> None:
+        """The cycle ended with a recovery under way: keep handing it its SDO answers until it ends."""
+        for rec in list(self.recovering.values()):
+            while rec.thread is not None and rec.thread.is_alive():
+                frame = self.bus.recv(timeout=0.01)
+                if frame is not None:
+                    self._on_frame(frame, self.clock.now())
+            if rec.done is not None and rec.error is None and self.out.nodes[rec.node].cia402_over == "PDO":
+                rec.error = "the run ended before its CiA 402 walk over PDOs"
+        if self.supervisor is not None and self.master is not None:
+            self._poll_recoveries()
+            while len(self.out.events) < len(self.supervisor.events):
+                event = self.supervisor.events[len(self.out.events)]
+                self.out.events.append((event.time - (self.first or 0.0), event))
 
     def _commands(self, cycle: int, samples: Samples) -> dict[str, dict[str, Number]]:
         """The controlwords of the PDO-mapped drives, from the statuswords of the last cycle."""
@@ -356,6 +488,7 @@ class _Operation:
         # every frame queued before the read ended has been fed (the queue is FIFO): check at that instant, so a
         # heartbeat still queued after a late wake-up is not mistaken for silence
         self.supervisor.check(record.read_done)
+        self._poll_recoveries()
         while len(self.out.events) < len(self.supervisor.events):
             event = self.supervisor.events[len(self.out.events)]
             self.out.events.append((event.time - self.first, event))
@@ -382,6 +515,9 @@ class _Operation:
             node.state = "STOPPED (heartbeat back)" if node.stopped_at_s is not None else "BACK (heartbeat again)"
         elif event.kind == "emcy" and event.action != "continue":
             node.state = "FAULT"
+        elif event.kind == "boot-up":
+            self._rebooted(event, at_s)
+            return
         if event.action == "stop_all" and self.stop_requested is None:
             self.stop_requested = f"stop_all: {event.text}"
         elif event.action == "stop_node" and node.stopped_at_s is None:
@@ -389,6 +525,28 @@ class _Operation:
             if self.supervisor is not None:
                 self.supervisor.quiet.add(event.node)  # its TPDOs stop with it
             self._nmt(NMT_PRE_OPERATIONAL, node.node_id)  # its PDOs stop; SDO still answers for the safe stop
+
+    def _rebooted(self, event: Event, at_s: float) -> None:
+        """A boot-up message: the node is PRE-OPERATIONAL with its default object dictionary. Its RxPDOs stop (they
+        would land in an unconfigured dictionary), its TPDOs are not expected; then the node's on_reboot."""
+        assert self.supervisor is not None and self.master is not None
+        node = self.out.nodes[event.node]
+        node.reboots.append({"at_s": round(at_s, 6), "action": event.action})
+        node.state = "REBOOTED (PRE-OPERATIONAL)"
+        node.lost_at_s = node.lost_silent_ms = None
+        self.master.muted.add(event.node)
+        self.supervisor.quiet.add(event.node)
+        self.enablers.pop(event.node, None)
+        if event.action == "recover" and event.node not in self.recovering:
+            node.stopped_at_s = None
+            node.state = "RECOVERING"
+            self._recover(event.node, event.time)
+            return
+        if node.stopped_at_s is None:
+            node.stopped_at_s = at_s  # it stays PRE-OPERATIONAL: nothing is sent to it
+        node.reboots[-1]["result"] = "left stopped"
+        if event.action == "stop_all" and self.stop_requested is None:
+            self.stop_requested = f"stop_all: {event.text}"
 
     def stop(self, reason: str = "stop()") -> None:
         if self.stop_requested is None:

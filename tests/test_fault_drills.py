@@ -1,0 +1,185 @@
+"""Faults the live master (`netcfg run`) survives, drilled on netcfg's simulated drives: a drive that reboots.
+
+Sources of the numbers:
+- specs/allex2.yaml (generated/allex2/runtime.json): six EPOS4 drives, node ids 1-6, SYNC period T = 20 ms, read
+  window 10 ms, heartbeat 100 ms, the master's consumer heartbeat time 300 ms, on_loss: stop_node; on_reboot is not
+  given, so it is the default stop_node.
+- CiA 301 7.2.8.3.2.1: a node that boots sends the boot-up message, the heartbeat COB-ID 0x700 + node id with the one
+  data byte 0x00, and enters PRE-OPERATIONAL; its object dictionary holds its defaults again (the simulated drive's
+  factory state has every PDO disabled). CiA 402: after initialisation the drive is in SWITCH ON DISABLED.
+- When a drill happens: drills run after the first cycle that ends at or after their time, so at most one period
+  T late; the master reads the bus once per cycle (its read window) and checks after it, so a frame is seen at most
+  one period after it was sent. A boot-up at T_drill + outage is therefore reported within [T_drill + outage,
+  T_drill + outage + 2 T], plus SLACK_S for the host's threads (the drives answer from threads of this process).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import can
+import pytest
+from conftest import ROOT
+
+import netcfg.runtime as rt
+from netcfg.runtime.cia402 import OPERATION_ENABLED, SWITCH_ON_DISABLED
+from netcfg.runtime.drives import DriveBench
+from netcfg.runtime.operate import BusLog, Outcome, Plan, operate
+
+GENERATED = ROOT / "generated" / "allex2"
+PERIOD_S = 0.020  # allex2's SYNC period
+SLACK_S = 0.030  # thread scheduling on a loaded host: the drives and the master share one interpreter
+
+
+@pytest.fixture(scope="module")
+def cfg() -> rt.RuntimeConfig:
+    return rt.load(GENERATED / "runtime.json")
+
+
+@pytest.fixture(autouse=True)
+def no_leaked_threads() -> Iterator[None]:
+    before = set(threading.enumerate())
+    yield
+    deadline = time.monotonic() + 2.0
+    while (
+        left := [t for t in threading.enumerate() if t not in before and t.is_alive()]
+    ) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert left == [], left
+
+
+def with_on_reboot(cfg: rt.RuntimeConfig, action: str) -> rt.RuntimeConfig:
+    return replace(cfg, nodes=tuple(replace(n, on_reboot=action) if n.role == "slave" else n for n in cfg.nodes))
+
+
+def drill_run(cfg: rt.RuntimeConfig, cycles: int, at_s: float, outage_s: float) -> tuple[Outcome, DriveBench]:
+    channel = f"faults-{uuid.uuid4().hex[:8]}"
+    bench = DriveBench(cfg, GENERATED / "canopen", channel=channel).start()
+    try:
+        with BusLog(can.Bus(interface="virtual", channel=channel), None) as bus:
+            plan = Plan(cycles=cycles, drills=[(at_s, "knee_r reboots", lambda: bench["knee_r"].reboot(outage_s))])
+            out = operate(cfg, bus, plan)
+        return out, bench
+    finally:
+        bench.stop()
+
+
+def kinds(out: Outcome) -> list[tuple[str, str, str]]:
+    return [(e.node, e.kind, e.action) for _, e in out.events]
+
+
+def assert_boot_up_in_time(out: Outcome, at_s: float, outage_s: float) -> float:
+    ((drill_s, _),) = out.drills
+    assert at_s <= drill_s <= at_s + PERIOD_S + SLACK_S
+    boot_s = next(t for t, e in out.events if e.kind == "boot-up")
+    assert drill_s + outage_s <= boot_s + 1e-3 <= drill_s + outage_s + 2 * PERIOD_S + SLACK_S
+    return boot_s
+
+
+def test_a_rebooted_drive_is_set_up_again_and_enabled_with_recover(cfg: rt.RuntimeConfig) -> None:
+    """on_reboot: recover. The drive comes back with its default dictionary; the master checks its identity, writes
+    and reads back its PDOs and start-up values (the set-up's code path), starts it and walks it to OPERATION ENABLED
+    over SDO while the others keep cycling."""
+    out, bench = drill_run(with_on_reboot(cfg, "recover"), 40, 0.2, 0.05)
+    assert kinds(out) == [("knee_r", "boot-up", "recover"), ("knee_r", "recovered", "continue")]
+    boot_s = assert_boot_up_in_time(out, 0.2, 0.05)
+    knee = out.nodes["knee_r"]
+    (reboot,) = knee.reboots
+    assert reboot["at_s"] == round(boot_s, 6) and reboot["result"] == "recovered"
+    # the recovery's time is the time from the boot-up to the end of the CiA 402 walk, measured on the master's clock
+    recovered_s = next(t for t, e in out.events if e.kind == "recovered")
+    assert abs(reboot["recovery_ms"] - 1e3 * (recovered_s - boot_s)) < 0.01
+    assert knee.state == OPERATION_ENABLED
+    drive = bench["knee_r"]
+    assert drive.reboots == 1
+    # it went through the power state machine again from SWITCH ON DISABLED (CiA 402 transitions 2, 3, 4)
+    assert drive.power is not None and [s for _, s in drive.power.history][:4] == [
+        SWITCH_ON_DISABLED,
+        "READY TO SWITCH ON",
+        "SWITCHED ON",
+        OPERATION_ENABLED,
+    ]
+    # its four PDOs of runtime.json (knee_r_cmd, knee_r_interp, knee_r_state, knee_r_effort) written again: the
+    # factory state it booted with has every PDO disabled
+    wanted = {m.id for m in cfg.messages if m.pdo is not None and m.pdo.node == "knee_r"}
+    assert {can_id for _, _, can_id, valid, _, _ in drive.pdo_slots() if valid} == wanted
+    assert out.run is not None and out.run.complete_samples("knee_r") >= 40 - 10
+    for name in ("hip_l", "knee_l", "ankle_l", "hip_r", "ankle_r"):
+        assert out.run.complete_samples(name) == 40, name
+
+
+def test_a_rebooted_drive_is_left_stopped_by_default(cfg: rt.RuntimeConfig) -> None:
+    """allex2 gives no on_reboot: stop_node. No RxPDO goes to the unconfigured drive, nothing is set up again: it
+    stays PRE-OPERATIONAL in SWITCH ON DISABLED, and the others cycle on."""
+    out, bench = drill_run(cfg, 30, 0.2, 0.05)
+    assert kinds(out) == [("knee_r", "boot-up", "stop_node")]
+    boot_s = assert_boot_up_in_time(out, 0.2, 0.05)
+    knee = out.nodes["knee_r"]
+    assert knee.stopped_at_s == boot_s and knee.reboots[0]["result"] == "left stopped"
+    drive = bench["knee_r"]
+    assert drive.power is not None and drive.power.state == SWITCH_ON_DISABLED
+    assert all(not valid for _, _, _, valid, _, _ in drive.pdo_slots())  # its factory state: nothing written since
+    assert out.run is not None and out.run.cycles == 30 and out.ended_by == "cycles"
+
+
+def test_a_rebooted_drive_stops_everyone_with_stop_all(cfg: rt.RuntimeConfig) -> None:
+    out, _ = drill_run(with_on_reboot(cfg, "stop_all"), 40, 0.2, 0.05)
+    assert kinds(out) == [("knee_r", "boot-up", "stop_all")]
+    assert out.ended_by.startswith("stop_all: knee_r (node 5) rebooted")
+    assert out.run is not None and out.run.cycles < 40
+    assert {out.nodes[n].safe_state for n in out.nodes if n != "knee_r"} == {"QUICK STOP ACTIVE"}
+
+
+def test_a_reboot_longer_than_the_heartbeat_timeout_is_a_loss_then_a_boot_up(cfg: rt.RuntimeConfig) -> None:
+    """Silent 500 ms: lost after the consumer time 300 ms (reported within 300 ms + one heartbeat period 100 ms + T
+    of the outage's start), then the boot-up, and with recover it is set up again."""
+    out, _ = drill_run(with_on_reboot(cfg, "recover"), 60, 0.2, 0.5)
+    assert kinds(out) == [
+        ("knee_r", "lost", "stop_node"),
+        ("knee_r", "boot-up", "recover"),
+        ("knee_r", "recovered", "continue"),
+    ]
+    ((drill_s, _),) = out.drills
+    lost_s = next(t for t, e in out.events if e.kind == "lost")
+    assert drill_s + 0.3 - 0.1 <= lost_s <= drill_s + 0.3 + 0.1 + PERIOD_S + SLACK_S
+    assert out.nodes["knee_r"].state == OPERATION_ENABLED
+
+
+def test_run_reports_the_reboot_in_text_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from netcfg.cli import main
+
+    spec = tmp_path / "recover.yaml"
+    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
+    spec.write_text(text.replace("    on_loss: stop_node\n", "    on_loss: stop_node\n    on_reboot: recover\n"))
+    code = main(["run", str(spec), "--simulated-drives", "--cycles", "30", "--reset", "knee_r@0.2s+50ms"])
+    printed = capsys.readouterr().out
+    assert code == 1  # a drive rebooted: the run is not clean, even though it recovered
+    assert "drill: knee_r reboots, silent for 50 ms" in printed
+    assert "knee_r (node 5) rebooted: boot-up message, its configuration is gone -> recover" in printed
+    assert "rebooted at " in printed and "(recover): recovered in " in printed
+    code = main(
+        ["run", str(spec), "--simulated-drives", "--cycles", "30", "--reset", "knee_r@0.2s+50ms", "--format", "json"]
+    )
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 1 and [e["kind"] for e in doc["events"]] == ["boot-up", "recovered"]
+    (reboot,) = {n["name"]: n for n in doc["nodes"]}["knee_r"]["reboots"]
+    assert reboot["action"] == "recover" and reboot["result"] == "recovered" and reboot["recovery_ms"] > 0
+
+
+def test_check_reports_what_the_master_does_per_node() -> None:
+    from netcfg.check import analyse_spec
+    from netcfg.emit.report_md import emit
+
+    model, report = analyse_spec(ROOT / "specs" / "allex2.yaml")
+    assert model is not None
+    md = emit(model, report)["report.md"].decode()
+    assert "supervision (netcfg run)" in md
+    assert "| knee_r | slave | 5 |" in md
+    assert "lost after 300 ms without heartbeat: stop_node; EMCY: stop_all; reboot: stop_node" in md
