@@ -33,6 +33,7 @@ __all__ = ["add_parser", "run_command"]
 
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")
 DEFAULT_EMCY = 0x2310  # CiA 402: "continuous over-current", a drive's typical fault
+DEFAULT_ABORT = 0x08000020  # CiA 301: "data cannot be transferred or stored to the application"
 
 
 def add_parser(sub: Any) -> None:
@@ -68,6 +69,13 @@ def add_parser(sub: Any) -> None:
         metavar="NODE@T+OUTAGE",
         help="simulated drives: NODE reboots at T, silent for OUTAGE, then boots with its default object dictionary",
     )
+    p.add_argument(
+        "--sdo-abort",
+        action="append",
+        default=[],
+        metavar="NODE:INDEX[:SUB][=CODE]",
+        help=f"simulated drives: NODE aborts every SDO write to that object (default code 0x{DEFAULT_ABORT:08X})",
+    )
     p.add_argument("--allow-missing", action="store_true", help="run the nodes that were set up even if others failed")
     p.add_argument("--log", type=Path, metavar="FILE", help="every frame: .log (candump -L), .asc, .blf, .csv, .trc")
     p.add_argument("--samples", type=Path, metavar="FILE.csv", help="the samples of every cycle, one row per cycle")
@@ -90,6 +98,24 @@ def _reset_drill(text: str) -> tuple[str, float, float]:
     if not at or not node or not plus:
         raise ValueError(f"--reset {text!r}: write NODE@TIME+OUTAGE, e.g. knee_r@1s+50ms")
     return node, _duration_s(when.strip(), "--reset"), _duration_s(outage.strip(), "--reset outage")
+
+
+def _abort_drill(text: str) -> tuple[str, int | tuple[int, int], int]:
+    """'NODE:INDEX[:SUB][=CODE]' -> (node, index or (index, sub), abort code)."""
+    where, eq, code = text.partition("=")
+    node, *obj = where.split(":")
+    try:
+        if not node or len(obj) not in (1, 2):
+            raise ValueError
+        numbers = [int(o, 0) for o in obj]
+        value = int(code, 0) if eq else DEFAULT_ABORT
+    except ValueError:
+        raise ValueError(
+            f"--sdo-abort {text!r}: write NODE:INDEX[:SUB][=CODE], e.g. knee_r:0x1A00:0=0x06010002"
+        ) from None
+    if not 0 <= numbers[0] <= 0xFFFF or (len(numbers) == 2 and not 0 <= numbers[1] <= 0xFF) or not 0 <= value < 2**32:
+        raise ValueError(f"--sdo-abort {text!r}: an index has 16 bits, a sub-index 8, an abort code 32")
+    return node, numbers[0] if len(numbers) == 1 else (numbers[0], numbers[1]), value
 
 
 def _drill(text: str, kind: str) -> tuple[str, float, int]:
@@ -148,6 +174,7 @@ def run_command(args: argparse.Namespace) -> int:
         kills = [_drill(k, "kill") for k in args.kill]
         emcys = [_drill(e, "emcy") for e in args.emcy]
         resets = [_reset_drill(r) for r in args.reset]
+        aborts = [_abort_drill(a) for a in args.sdo_abort]
         duration_s = _duration_s(args.duration, "--duration") if args.duration is not None else None
     except ValueError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
@@ -155,8 +182,11 @@ def run_command(args: argparse.Namespace) -> int:
     if args.cycles is not None and args.cycles < 1:
         print("netcfg: --cycles must be 1 or more", file=sys.stderr)
         return 2
-    if (kills or emcys or resets) and not args.simulated_drives:
-        print("netcfg: --kill, --emcy and --reset act on simulated drives; add --simulated-drives", file=sys.stderr)
+    if (kills or emcys or resets or aborts) and not args.simulated_drives:
+        print(
+            "netcfg: --kill, --emcy, --reset and --sdo-abort act on simulated drives; add --simulated-drives",
+            file=sys.stderr,
+        )
         return 2
     if args.simulated_drives and args.interface not in (None, "virtual"):
         print(
@@ -181,7 +211,7 @@ def run_command(args: argparse.Namespace) -> int:
         with _config(args.source) as cfg:
             if cfg is None:
                 return 1
-            return _run(args, cfg, kills, emcys, resets, duration_s)
+            return _run(args, cfg, kills, emcys, resets, aborts, duration_s)
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
@@ -200,6 +230,7 @@ def _run(
     kills: list[tuple[str, float, int]],
     emcys: list[tuple[str, float, int]],
     resets: list[tuple[str, float, float]],
+    aborts: list[tuple[str, int | tuple[int, int], int]],
     duration_s: float | None,
 ) -> int:
     import can
@@ -215,7 +246,7 @@ def _run(
         return 2
     assert co_bus.canopen is not None
     slaves = {n.name for n in canopen_slaves(cfg, co_bus)}
-    for node, _, _ in [*kills, *emcys, *resets]:
+    for node, _, _ in [*kills, *emcys, *resets, *aborts]:
         if node not in slaves:
             print(
                 f"netcfg: '{node}' is not a CANopen slave of bus '{co_bus.name}' ({', '.join(sorted(slaves))})",
@@ -231,7 +262,10 @@ def _run(
     if args.simulated_drives:
         from netcfg.runtime.drives import DriveBench
 
-        bench = DriveBench(cfg, channel=str(channel), bus_name=co_bus.name).start()
+        refused: dict[str, dict[str, Any]] = {}
+        for node, obj, code in aborts:
+            refused.setdefault(node, {"abort_writes": {}})["abort_writes"][obj] = code
+        bench = DriveBench(cfg, channel=str(channel), bus_name=co_bus.name, options=refused).start()
     try:
         try:
             raw = can.Bus(interface=interface, channel=channel, bitrate=co_bus.bitrate)

@@ -183,3 +183,99 @@ def test_check_reports_what_the_master_does_per_node() -> None:
     assert "supervision (netcfg run)" in md
     assert "| knee_r | slave | 5 |" in md
     assert "lost after 300 ms without heartbeat: stop_node; EMCY: stop_all; reboot: stop_node" in md
+
+
+# --- refused set-up: SDO aborts with their CiA 301 meaning, bounded SDO timeouts ----------------------------------
+
+
+def test_sdo_abort_codes_carry_the_standards_meaning() -> None:
+    """CiA 301 v4.2, 7.2.4.3.17, table 22 (the standard's wording)."""
+    from netcfg import cia301
+
+    assert cia301.sdo_abort_text(0x06020000) == "object does not exist in the object dictionary"
+    assert cia301.sdo_abort_text(0x06090011) == "sub-index does not exist"
+    assert cia301.sdo_abort_text(0x06010002) == "attempt to write a read only object"
+    assert cia301.sdo_abort_text(0x05040000) == "SDO protocol timed out"
+    assert cia301.sdo_abort_text(0x08000022).endswith("because of the present device state")
+    assert cia301.sdo_abort_text(0x12345678).startswith("not a CiA 301 abort code")
+
+
+@pytest.mark.parametrize(
+    ("drill", "expected"),
+    [
+        (
+            "knee_r:0x1017=0x06010002",
+            "SDO abort 0x06010002 (attempt to write a read only object) on writing 0x1017:00 (Producer heartbeat time)"
+            " = 0x64",  # allex2's heartbeat 100 ms
+        ),
+        (
+            "knee_r:0x1A00:0",  # TPDO1's mapping count; the default code
+            "SDO abort 0x08000020 (data cannot be transferred or stored to the application) on clearing the mapping "
+            "0x1A00:00 (TPDO1 mapping parameter, Number of mapped application objects in PDO) = 0x0",
+        ),
+    ],
+)
+def test_a_refused_write_names_the_object_and_its_abort(
+    drill: str, expected: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from netcfg.cli import main
+
+    code = main(["run", str(GENERATED / "runtime.json"), "--simulated-drives", "--cycles", "5", "--sdo-abort", drill])
+    printed = capsys.readouterr().out
+    assert code == 1 and "nothing was started" in printed
+    (line,) = [x for x in printed.splitlines() if "knee_r (node 5): FAILED" in x]
+    assert expected in line
+    # --allow-missing: the others run, the refused node stays out
+    code = main(
+        [
+            "run",
+            str(GENERATED / "runtime.json"),
+            "--simulated-drives",
+            "--cycles",
+            "5",
+            "--sdo-abort",
+            drill,
+            "--allow-missing",
+            "--format",
+            "json",
+        ]
+    )
+    import json
+
+    nodes = {n["name"]: n for n in json.loads(capsys.readouterr().out)["nodes"]}
+    assert not nodes.pop("knee_r")["set_up"]
+    assert {n["samples"] for n in nodes.values()} == {5}
+
+
+def test_sdo_timeout_and_retries_come_from_the_spec(tmp_path: Path) -> None:
+    """A node that never answers, with sdo_timeout 50 ms and sdo_retries 2: the identity read is sent 1 + 2 = 3 times,
+    each waited for 50 ms, so the node fails after 3 x 50 = 150 ms (plus the host's scheduling, SLACK_S), with the
+    CiA 301 abort the master sends on giving up (0x05040000)."""
+    from conftest import runtime_config
+
+    from netcfg.runtime.canopen_setup import configure_network
+
+    spec = tmp_path / "slow.yaml"
+    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
+    spec.write_text(
+        text.replace("    on_loss: stop_node\n", "    on_loss: stop_node\n    sdo_timeout: 50 ms\n    sdo_retries: 2\n")
+    )
+    cfg = runtime_config(spec)
+    assert (cfg.node("knee_r").sdo_timeout_ns, cfg.node("knee_r").sdo_retries) == (50_000_000, 2)
+    assert rt.load(GENERATED / "runtime.json").node("knee_r").sdo_timeout_ns == 500_000_000  # the default
+    channel = f"faults-{uuid.uuid4().hex[:8]}"
+    log = tmp_path / "setup.log"
+    with (
+        DriveBench(cfg, GENERATED / "canopen", channel=channel, nodes=["knee_r"], silent=True),
+        BusLog(can.Bus(interface="virtual", channel=channel), log) as bus,
+    ):
+        began = time.monotonic()
+        report = configure_network(cfg, bus, nodes=["knee_r"])
+        took = time.monotonic() - began
+    (node,) = report.nodes
+    assert not node.ok and node.step == "identity" and node.abort_code == 0x05040000
+    assert "within 50 ms, 3 times" in str(node.error) and "SDO protocol timed out" in str(node.error)
+    assert 0.150 <= took <= 0.150 + SLACK_S
+    requests = [f for f in can.LogReader(str(log)) if not f.is_rx and f.arbitration_id == 0x605]
+    assert [bytes(f.data[:4]) for f in requests[:3]] == [bytes([0x40, 0x18, 0x10, 0x01])] * 3  # upload 0x1018:01
+    assert bytes(requests[3].data[:1]) == b"\x80" and bytes(requests[3].data[4:]) == (0x05040000).to_bytes(4, "little")

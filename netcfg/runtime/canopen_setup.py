@@ -3,6 +3,7 @@ parameters, start-up values, read-back, NMT start. See netcfg.runtime.canopen_ma
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -162,6 +163,7 @@ class _NodeConfigurator:
         )
         self.disabled: list[tuple[str, int]] = []
         self.interp: tuple[int, int] | None = None
+        self._od: canopen.ObjectDictionary | None = None  # the node's EDS, for object names in messages
         self.written: list[SdoWrite] = []  # start-up SDO writes done, read back at the end
         self.start_up: list[tuple[int, int, int]] = []  # ... and what the read-back found
 
@@ -177,24 +179,49 @@ class _NodeConfigurator:
         except SdoAbortedError as exc:
             hint = _ABORT_HINTS.get(exc.code, "see the device manual for this abort code")
             value = f" = 0x{int.from_bytes(data, 'little'):X}" if data is not None else ""
-            text = SdoAbortedError.CODES.get(exc.code, "unknown abort code")
             raise self._fail(
-                f"SDO abort 0x{exc.code:08X} ({text}) on {action} 0x{index:04X}:{sub:02X}{value}; {hint}. "
+                f"SDO abort 0x{exc.code:08X} ({cia301.sdo_abort_text(exc.code)}) on {action} "
+                f"{self.object_name(index, sub)}{value}; {hint}. "
                 f"{self._left()} Fix it and run the set-up again; the other nodes are not affected.",
                 exc.code,
             ) from exc
         except SdoCommunicationError as exc:
             timeout_ms = 1000 * self.remote.sdo.RESPONSE_TIMEOUT
+            tries = self.remote.sdo.MAX_RETRIES
+            waited = f"within {timeout_ms:.0f} ms" + (f", {tries} times" if tries > 1 else "")
+            timed_out = (
+                f"the master aborted it: 0x{cia301.SDO_TIMED_OUT:08X}, "
+                f"{cia301.sdo_abort_text(cia301.SDO_TIMED_OUT)}; sdo_timeout and sdo_retries of the node set the wait"
+            )
             if self.step == "identity":
                 raise self._fail(
-                    f"no answer to the SDO read of 0x{index:04X}:{sub:02X} within {timeout_ms:.0f} ms ({exc}). "
+                    f"no answer to the SDO read of {self.object_name(index, sub)} {waited} ({timed_out}). "
                     f"Check that the drive is powered, wired and terminated, and set to node id "
-                    f"{self.node.node_id} and {self.bus.bitrate // 1000} kbit/s. Nothing was written to it."
+                    f"{self.node.node_id} and {self.bus.bitrate // 1000} kbit/s. Nothing was written to it.",
+                    cia301.SDO_TIMED_OUT,
                 ) from exc
             raise self._fail(
-                f"stopped answering SDO ({action} 0x{index:04X}:{sub:02X}, {timeout_ms:.0f} ms: {exc}). "
-                f"Check its power and wiring. {self._left()}"
+                f"stopped answering SDO ({action} {self.object_name(index, sub)}: no answer {waited}; {timed_out}). "
+                f"Check its power and wiring. {self._left()}",
+                cia301.SDO_TIMED_OUT,
             ) from exc
+
+    def object_name(self, index: int, sub: int) -> str:
+        """0xIIII:SS and the object's name in the node's EDS (loaded only when a message needs it)."""
+        where = f"0x{index:04X}:{sub:02X}"
+        if self._od is None:
+            self._od = canopen.ObjectDictionary()
+            if self.node.eds is not None:
+                with contextlib.suppress(Exception):  # a name is a courtesy: an unreadable EDS leaves the number
+                    self._od = canopen.import_od(str(self.cfg.path(self.node.eds)))
+        try:
+            obj = self._od[index]
+        except KeyError:
+            return where
+        if isinstance(obj, canopen.objectdictionary.ODVariable):
+            return f"{where} ({obj.name})"
+        var = obj.subindices.get(sub)
+        return f"{where} ({obj.name}" + (f", {var.name})" if var is not None else ")")
 
     def _left(self) -> str:
         if self.step in ("identity", "pre-operational"):
@@ -527,7 +554,7 @@ def _configure_node(
     except _NodeFailed as exc:
         error, code = exc.error, exc.abort_code
     except SdoAbortedError as exc:  # from a step that lets some codes through (no such object)
-        text = SdoAbortedError.CODES.get(exc.code, "unknown abort code")
+        text = cia301.sdo_abort_text(exc.code)
         error, code = f"SDO abort 0x{exc.code:08X} ({text}) at {job.step}. {job._left()}", exc.code
     except SdoCommunicationError as exc:
         error = f"stopped answering SDO at {job.step} ({exc}). {job._left()}"

@@ -190,8 +190,8 @@ class SimulatedDrive:
 
     Faults (for tests): `identity=(vendor_id, product_code)` puts other values in 0x1018; `silent=True` answers
     nothing at all (a drive that is off, or has another node id or bit rate); `abort_writes={index: abort_code}`
-    aborts every SDO write to those objects with that code; `no_event_timer=True` ignores the TPDOs' event timers
-    (a firmware without them that accepts the write anyway).
+    aborts every SDO write to those objects with that code ({(index, sub): code}: to one sub-index);
+    `no_event_timer=True` ignores the TPDOs' event timers (a firmware without them that accepts the write anyway).
 
     `response_delay_s`: the TPDOs answering a SYNC are sampled when it arrives and sent that long after it (measured
     on `clock`, which must count real seconds), from a ResponseScheduler thread: the bench's, shared by its drives,
@@ -211,7 +211,7 @@ class SimulatedDrive:
         model: DriveModel | None = follow_velocity,
         identity: tuple[int, int] | None = None,
         silent: bool = False,
-        abort_writes: Mapping[int, int] | None = None,
+        abort_writes: Mapping[int | tuple[int, int], int] | None = None,
         no_event_timer: bool = False,
     ) -> None:
         od = object_dictionary if isinstance(object_dictionary, canopen.ObjectDictionary) else str(object_dictionary)
@@ -459,8 +459,9 @@ class SimulatedDrive:
     # --- SDO writes: faults and CiA 301 checks --------------------------------------------------------------------
 
     def _on_sdo_write(self, index: int, subindex: int, od: ODVariable, data: bytes, **_: Any) -> None:
-        if index in self.abort_writes:
-            raise SdoAbortedError(self.abort_writes[index])
+        code = self.abort_writes.get((index, subindex), self.abort_writes.get(index))
+        if code is not None:
+            raise SdoAbortedError(code)
         if self.strict_pdo_writes:
             self._check_pdo_write(index, subindex, od, data)
         self.sdo_writes.append((index, subindex))
