@@ -76,6 +76,13 @@ def add_parser(sub: Any) -> None:
         metavar="NODE:INDEX[:SUB][=CODE]",
         help=f"simulated drives: NODE aborts every SDO write to that object (default code 0x{DEFAULT_ABORT:08X})",
     )
+    p.add_argument(
+        "--stall",
+        action="append",
+        default=[],
+        metavar="T..T2",
+        help="the master's own loop pauses from T to T2 (no SYNC, no RxPDO), as a host that is held up",
+    )
     p.add_argument("--allow-missing", action="store_true", help="run the nodes that were set up even if others failed")
     p.add_argument("--log", type=Path, metavar="FILE", help="every frame: .log (candump -L), .asc, .blf, .csv, .trc")
     p.add_argument("--samples", type=Path, metavar="FILE.csv", help="the samples of every cycle, one row per cycle")
@@ -89,6 +96,17 @@ def _duration_s(text: str, what: str) -> float:
     if d.ns is None:
         raise ValueError(f"{what} {text!r}: give a time such as 1s or 500 ms")
     return d.ns / 1e9
+
+
+def _span(text: str, kind: str) -> tuple[float, float]:
+    """'T..T2' -> (seconds, seconds), T2 after T."""
+    start, dots, end = text.partition("..")
+    if not dots:
+        raise ValueError(f"--{kind} {text!r}: write FROM..TO, e.g. 1s..1.2s")
+    span = _duration_s(start.strip(), f"--{kind}"), _duration_s(end.strip(), f"--{kind}")
+    if span[1] <= span[0]:
+        raise ValueError(f"--{kind} {text!r}: the span ends before it begins")
+    return span
 
 
 def _reset_drill(text: str) -> tuple[str, float, float]:
@@ -175,6 +193,7 @@ def run_command(args: argparse.Namespace) -> int:
         emcys = [_drill(e, "emcy") for e in args.emcy]
         resets = [_reset_drill(r) for r in args.reset]
         aborts = [_abort_drill(a) for a in args.sdo_abort]
+        [_span(s, "stall") for s in args.stall]  # checked here, used by _run
         duration_s = _duration_s(args.duration, "--duration") if args.duration is not None else None
     except ValueError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
@@ -297,6 +316,7 @@ def _run(
             bus_name=co_bus.name,
             allow_missing=args.allow_missing,
             drills=drills,
+            stalls=[_span(s, "stall") for s in args.stall],  # validated by run_command
             on_cycle=live.update if live is not None else None,
         )
         with bus, _stop_on_signals() as arm:
@@ -306,6 +326,8 @@ def _run(
     finally:
         if bench is not None:
             bench.stop()
+    # what the simulated drives did on their own (a gap in the SYNCs, an RPDO deadline), as they would tell it
+    drive_notes = {name: list(d.notes) for name, d in bench.drives.items() if d.notes} if bench is not None else {}
     if args.samples is not None and outcome.run is not None:
         try:
             outcome.run.write_csv(args.samples)
@@ -313,6 +335,7 @@ def _run(
             print(f"netcfg: cannot write {args.samples}: {exc.strerror or exc}", file=sys.stderr)
             return 2
     doc = result_document(outcome, cfg.system)
+    doc["simulated_drives"] = drive_notes
     if args.format == "json":
         print(jsontext.dumps(doc, indent=2))
     else:
@@ -463,7 +486,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
         and run is not None
         and all(n["missing"] == 0 and not n["lost"] and not n["emcy"] and not n["errors"] for n in started)
         and not read["overruns"]
-        and not any(e.kind in ("tpdo-silent", "boot-up") for _, e in outcome.events)
+        and not any(e.kind in ("tpdo-silent", "boot-up", "missed-sync") for _, e in outcome.events)
     )
     return {
         "system": system,
@@ -479,6 +502,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             for t, e in outcome.events
         ],
         "drills": [{"time_s": round(t, 6), "what": text} for t, text in outcome.drills],
+        "sync_gaps": outcome.sync_gaps,
     }
 
 
@@ -493,6 +517,8 @@ def result_text(outcome: Any, doc: dict[str, Any]) -> str:
         lines.append(f"  {t:8.3f} s  drill: {what}")
     for e in doc["events"]:
         lines.append(f"  {e['time_s']:8.3f} s  {e['text']} -> {e['action']}")
+    for name, notes in doc.get("simulated_drives", {}).items():
+        lines += [f"  simulated {name}: {note}" for note in notes]
     lines.append(f"{doc['cycles']} cycles on {doc['bus']}, ended by {doc['ended_by']}")
     r, c = doc["read"], doc["cycle"]
     if r["max_us"] is not None:

@@ -279,3 +279,68 @@ def test_sdo_timeout_and_retries_come_from_the_spec(tmp_path: Path) -> None:
     requests = [f for f in can.LogReader(str(log)) if not f.is_rx and f.arbitration_id == 0x605]
     assert [bytes(f.data[:4]) for f in requests[:3]] == [bytes([0x40, 0x18, 0x10, 0x01])] * 3  # upload 0x1018:01
     assert bytes(requests[3].data[:1]) == b"\x80" and bytes(requests[3].data[4:]) == (0x05040000).to_bytes(4, "little")
+
+
+# --- a stalled host ----------------------------------------------------------------------------------------------
+
+
+def stall_run(
+    cfg: rt.RuntimeConfig, cycles: int, span: tuple[float, float], canopen_dir: Path
+) -> tuple[Outcome, DriveBench]:
+    channel = f"faults-{uuid.uuid4().hex[:8]}"
+    bench = DriveBench(cfg, canopen_dir, channel=channel).start()
+    try:
+        with BusLog(can.Bus(interface="virtual", channel=channel), None) as bus:
+            out = operate(cfg, bus, Plan(cycles=cycles, stalls=[span]))
+        return out, bench
+    finally:
+        bench.stop()
+
+
+def test_a_stalled_master_reports_the_sync_instants_it_missed_and_resumes(cfg: rt.RuntimeConfig) -> None:
+    """The loop held from 0.3 s to 0.5 s. The stall begins after the first cycle ending at or after 0.3 s, whose SYNC
+    went out one period before (0.28..0.30 s + SLACK_S); the next SYNC goes out when the stall ends, at 0.5 s. The
+    SYNC instants strictly between are missed: with T = 20 ms, (0.5 - last) / T - 1 of them, 9 or 10. The EPOS4
+    profile has no RPDO deadline and no consumer heartbeat time, so each drive keeps its last command and says so;
+    no drive is lost (the heartbeats came during the stall and wait in the receive queue)."""
+    out, bench = stall_run(cfg, 40, (0.3, 0.5), GENERATED / "canopen")
+    assert kinds(out) == [("master", "missed-sync", "continue")]
+    (gap,) = out.sync_gaps
+    assert 0.28 <= gap["from_s"] <= 0.30 + SLACK_S and 0.5 <= gap["to_s"] <= 0.5 + SLACK_S
+    assert gap["missed"] == round((gap["to_s"] - gap["from_s"]) / PERIOD_S) - 1 and 9 <= gap["missed"] <= 10
+    assert gap["instants_s"] == [round(gap["from_s"] + k * PERIOD_S, 6) for k in range(1, gap["missed"] + 1)]
+    assert out.run is not None and out.run.cycles == 40  # it resumed and ran every cycle
+    for name, drive in bench.drives.items():
+        (note,) = drive.notes
+        assert note.startswith("no SYNC for ") and note.endswith("so it kept its last command"), name
+        assert not out.nodes[name].lost_at_s and out.run.complete_samples(name) == 40
+
+
+def test_a_drive_with_an_rpdo_deadline_faults_when_the_master_stalls(cfg: rt.RuntimeConfig, tmp_path: Path) -> None:
+    """knee_r's EDS given an RPDO1 deadline (0x1400 sub 5, the RPDO's event timer, CiA 301 7.5.2.35) of 50 ms: with
+    the master held 200 ms it sends EMCY 0x8250 (CiA 301 table 21, "RPDO timeout") and faults; the master learns it
+    when it resumes, and allex2's on_emcy stop_all ends the run."""
+    import shutil
+
+    folder = tmp_path / "canopen"
+    shutil.copytree(GENERATED / "canopen", folder)
+    eds = folder / "knee_r.eds"
+    text = eds.read_text(encoding="utf-8")
+    sub5 = (
+        "[1400sub5]\nParameterName=Event timer\nObjectType=0x7\nDataType=0x0006\nAccessType=rw\nDefaultValue=50\n"
+        "PDOMapping=0\n\n[1401]\n"
+    )
+    text = text.replace(
+        "ParameterName=RPDO1 communication parameter\nObjectType=0x9\nSubNumber=3\n",
+        "ParameterName=RPDO1 communication parameter\nObjectType=0x9\nSubNumber=4\n",
+        1,
+    )
+    eds.write_text(text.replace("[1401]\n", sub5, 1), encoding="utf-8")
+    out, bench = stall_run(cfg, 60, (0.3, 0.5), folder)
+    assert kinds(out) == [("knee_r", "emcy", "stop_all"), ("master", "missed-sync", "continue")]
+    # once for the stall; maybe once more after it, when the run ends and the RxPDOs stop again before the NMT stop
+    note, *more = bench["knee_r"].notes
+    assert all(m == note for m in more)
+    assert note.startswith("RPDO1 not received within its deadline of 50 ms") and "EMCY 0x8250" in note
+    assert bench["knee_r"].emcy_sent[0][0] == 0x8250
+    assert out.ended_by.startswith("stop_all: knee_r: EMCY 0x8250")

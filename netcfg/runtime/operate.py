@@ -138,6 +138,7 @@ class Plan:
     transition_timeout_s: float = 0.5
     sdo_timeout_s: float | None = None  # None: each node's sdo_timeout_ns (runtime.json)
     drills: list[tuple[float, str, Callable[[], None]]] = field(default_factory=list)  # (at s, text, action)
+    stalls: list[tuple[float, float]] = field(default_factory=list)  # (from s, to s): the master's loop pauses
     on_cycle: Callable[[CycleRecord, Outcome], None] | None = None  # e.g. a live view
 
 
@@ -190,6 +191,8 @@ class Outcome:
     sync_completion_ns: int | None = None
     master_jitter_ns: int = 0  # the analysed bound of how late the master's SYNC may come
     bad_emcy: int = 0
+    # SYNC instants the master let pass (its loop stalled): {"from_s", "to_s", "missed", "instants_s"}
+    sync_gaps: list[dict[str, Any]] = field(default_factory=list)
     t0: float = 0.0  # clock time the cycle phase began: the origin of every *_s time above
 
     def out_of_service(self, node: str, t: float) -> bool:
@@ -217,6 +220,8 @@ class _Operation:
         self.enablers: dict[str, PdoEnabler] = {}
         self.first: float | None = None
         self.drills = sorted(plan.drills, key=lambda d: d[0])
+        self.stalls = sorted(plan.stalls)
+        self.last_sync: float | None = None
         self.master: MasterCycle | None = None
         self.recovering: dict[str, _Recovery] = {}
         self.sdo_routes: dict[int, _Recovery] = {}  # SDO response COB-ID -> the recovery awaiting it
@@ -468,6 +473,29 @@ class _Operation:
                 event = self.supervisor.events[len(self.out.events)]
                 self.out.events.append((event.time - (self.first or 0.0), event))
 
+    def _missed_syncs(self, record: CycleRecord) -> None:
+        """SYNC instants that passed without a SYNC: a SYNC more than half a period after its instant means the
+        master's loop was held (a stalled host, a bus-off); the gap is reported with the instants missed."""
+        assert self.supervisor is not None and self.master is not None and self.first is not None
+        last, self.last_sync = self.last_sync, record.sync_sent
+        if last is None:
+            return
+        period = self.master.period_s
+        gap = record.sync_sent - last
+        missed = round(gap / period) - 1
+        if missed < 1:
+            return
+        instants = [round(last - self.first + k * period, 6) for k in range(1, missed + 1)]
+        from_s, to_s = last - self.first, record.sync_sent - self.first
+        self.out.sync_gaps.append(
+            {"from_s": round(from_s, 6), "to_s": round(to_s, 6), "missed": missed, "instants_s": instants}
+        )
+        text = (
+            f"no SYNC for {1e3 * gap:.1f} ms ({from_s:.3f} s to {to_s:.3f} s): {missed} SYNC instants of the "
+            f"{1e3 * period:g} ms period missed; the cycle resumed"
+        )
+        self.supervisor.events.append(Event(record.sync_sent, self.master.master.name, "missed-sync", "continue", text))
+
     def _commands(self, cycle: int, samples: Samples) -> dict[str, dict[str, Number]]:
         """The controlwords of the PDO-mapped drives, from the statuswords of the last cycle."""
         out: dict[str, dict[str, Number]] = {}
@@ -481,10 +509,15 @@ class _Operation:
         assert self.supervisor is not None and self.first is not None
         now = self.clock.now()
         elapsed = now - self.first
+        self._missed_syncs(record)
         while self.drills and self.drills[0][0] <= elapsed:
             _, text, action = self.drills.pop(0)
             action()
             self.out.drills.append((elapsed, text))
+        while self.stalls and self.stalls[0][0] <= elapsed:
+            _, until = self.stalls.pop(0)
+            self.out.drills.append((elapsed, f"the master's loop stalls until {until:g} s: no SYNC, no RxPDO"))
+            self.clock.sleep_until(self.first + until)
         # every frame queued before the read ended has been fed (the queue is FIFO): check at that instant, so a
         # heartbeat still queued after a late wake-up is not mistaken for silence
         self.supervisor.check(record.read_done)
@@ -508,6 +541,8 @@ class _Operation:
         return self.stop_requested is None
 
     def _react(self, event: Event, at_s: float) -> None:
+        if event.node not in self.out.nodes:
+            return  # the master's own (missed SYNCs, bus-off): reported, nothing to do for a node
         node = self.out.nodes[event.node]
         if event.kind == "lost":
             node.state = "LOST"
