@@ -83,6 +83,13 @@ def add_parser(sub: Any) -> None:
         metavar="T..T2",
         help="the master's own loop pauses from T to T2 (no SYNC, no RxPDO), as a host that is held up",
     )
+    p.add_argument(
+        "--bus-off",
+        action="append",
+        default=[],
+        metavar="T..T2",
+        help="the master's CAN controller is bus-off from T to T2 (played by netcfg's bus wrapper)",
+    )
     p.add_argument("--allow-missing", action="store_true", help="run the nodes that were set up even if others failed")
     p.add_argument("--log", type=Path, metavar="FILE", help="every frame: .log (candump -L), .asc, .blf, .csv, .trc")
     p.add_argument("--samples", type=Path, metavar="FILE.csv", help="the samples of every cycle, one row per cycle")
@@ -193,7 +200,10 @@ def run_command(args: argparse.Namespace) -> int:
         emcys = [_drill(e, "emcy") for e in args.emcy]
         resets = [_reset_drill(r) for r in args.reset]
         aborts = [_abort_drill(a) for a in args.sdo_abort]
-        [_span(s, "stall") for s in args.stall]  # checked here, used by _run
+        for s in args.stall:
+            _span(s, "stall")  # checked here, used by _run
+        for s in args.bus_off:
+            _span(s, "bus-off")
         duration_s = _duration_s(args.duration, "--duration") if args.duration is not None else None
     except ValueError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
@@ -297,7 +307,11 @@ def _run(
             raw.shutdown()
             print(f"netcfg: cannot write the log {args.log}: {exc}", file=sys.stderr)
             return 2
-        drills = []
+        drills: list[tuple[float, str, Callable[[], None]]] = []
+        for start, end in (_span(s, "bus-off") for s in args.bus_off):
+            drills.append(
+                (start, f"the master's CAN controller goes bus-off until {end:g} s", partial(bus.bus_off, end - start))
+            )
         if bench is not None:
             for node, at, _ in kills:
                 drills.append((at, f"{node} killed", bench[node].kill))
@@ -486,7 +500,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
         and run is not None
         and all(n["missing"] == 0 and not n["lost"] and not n["emcy"] and not n["errors"] for n in started)
         and not read["overruns"]
-        and not any(e.kind in ("tpdo-silent", "boot-up", "missed-sync") for _, e in outcome.events)
+        and not any(e.kind in ("tpdo-silent", "boot-up", "missed-sync", "bus-off") for _, e in outcome.events)
     )
     return {
         "system": system,
@@ -503,6 +517,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
         ],
         "drills": [{"time_s": round(t, 6), "what": text} for t, text in outcome.drills],
         "sync_gaps": outcome.sync_gaps,
+        "bus_offs": outcome.bus_offs,
     }
 
 

@@ -344,3 +344,61 @@ def test_a_drive_with_an_rpdo_deadline_faults_when_the_master_stalls(cfg: rt.Run
     assert note.startswith("RPDO1 not received within its deadline of 50 ms") and "EMCY 0x8250" in note
     assert bench["knee_r"].emcy_sent[0][0] == 0x8250
     assert out.ended_by.startswith("stop_all: knee_r: EMCY 0x8250")
+
+
+# --- bus-off of the master's controller ---------------------------------------------------------------------------
+
+
+def test_the_master_rides_out_a_bus_off_and_measures_its_recovery(cfg: rt.RuntimeConfig) -> None:
+    """The controller bus-off for 200 ms (the drill at the first cycle end at or after 0.3 s). The next cycle's
+    sends fail; after it the master sees python-can's BusState.ERROR (netcfg's bus wrapper plays it), so it detects
+    the bus-off within one period T of the drill. It stops sending and looks every BUS_POLL_S (1 ms) for the bus:
+    back 200 ms after the drill, its first SYNC follows at once (within SLACK_S). The SYNC instants between the last
+    SYNC sent and that one are reported missed, and supervision restarts its clocks: no drive is taken for lost,
+    though the master heard no heartbeat for 200 ms (the consumer time is 300 ms, but it would be the same beyond)."""
+    from netcfg.runtime.operate import BUS_POLL_S
+
+    channel = f"faults-{uuid.uuid4().hex[:8]}"
+    with (
+        DriveBench(cfg, GENERATED / "canopen", channel=channel),
+        BusLog(can.Bus(interface="virtual", channel=channel), None) as bus,
+    ):
+        out = operate(cfg, bus, Plan(cycles=40, drills=[(0.3, "bus-off", lambda: bus.bus_off(0.2))]))
+    assert kinds(out) == [
+        ("master", "bus-off", "hold"),
+        ("master", "bus-on", "continue"),
+        ("master", "missed-sync", "continue"),
+    ]
+    ((drill_s, _),) = out.drills
+    assert 0.3 <= drill_s <= 0.3 + PERIOD_S + SLACK_S
+    (off,) = out.bus_offs
+    assert drill_s <= off["detected_s"] <= drill_s + PERIOD_S + SLACK_S
+    assert drill_s + 0.2 <= off["back_s"] + 1e-3 <= drill_s + 0.2 + BUS_POLL_S + SLACK_S
+    assert abs(off["off_ms"] - 1e3 * (off["back_s"] - off["detected_s"])) < 0.01
+    assert 0 <= off["recovery_ms"] <= 1e3 * SLACK_S
+    (gap,) = out.sync_gaps
+    assert gap["to_s"] == off["first_sync_s"] and gap["from_s"] < drill_s  # from the last SYNC that went out
+    assert gap["missed"] == round((gap["to_s"] - gap["from_s"]) / PERIOD_S) - 1
+    assert out.run is not None and out.run.cycles == 40
+    assert out.run.send_errors.get("SYNC 0x80") == 1  # the one cycle before the bus-off was detected
+    assert all(n.lost_at_s is None for n in out.nodes.values())
+
+
+def test_socketcan_error_frames_say_bus_off_and_restarted() -> None:
+    """SocketCAN reports controller states in error frames (linux/can/error.h: CAN_ERR_BUSOFF 0x40, CAN_ERR_RESTARTED
+    0x100 in the identifier), not in python-can's bus.state; the master takes both."""
+    from netcfg.runtime.operate import _Operation
+
+    op = _Operation.__new__(_Operation)  # only its frame routing: no bus, no plan
+    op.error_frame_bus_off, op.sdo_routes = False, {}
+    op.supervisor = None
+
+    class Sink:
+        def feed(self, frame: can.Message, t: float) -> bool:
+            return False
+
+    op.supervisor = Sink()  # type: ignore[assignment]
+    op._on_frame(can.Message(is_error_frame=True, arbitration_id=0x40), 0.0)
+    assert op.error_frame_bus_off
+    op._on_frame(can.Message(is_error_frame=True, arbitration_id=0x100), 0.0)
+    assert not op.error_frame_bus_off

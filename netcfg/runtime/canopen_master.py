@@ -294,9 +294,11 @@ class MasterCycle:
             if self.sync_overflow:
                 counter = self.syncs % self.sync_overflow + 1
                 sync_frame = can.Message(arbitration_id=sync_frame.arbitration_id, is_extended_id=False, data=[counter])
+            sync_ok = True
             try:
                 bus.send(sync_frame)
             except can.CanError:
+                sync_ok = False
                 unsent[f"SYNC 0x{self.sync_frame.arbitration_id:X}"] += 1
             sync_sent = clock.now()
             self.syncs += 1
@@ -364,6 +366,7 @@ class MasterCycle:
                 other=other,
                 processing_s=processing,
                 waiting_s=waiting,
+                sync_ok=sync_ok,
             )
             records.append(record)
             start = end

@@ -65,8 +65,16 @@ __all__ = ["BusLog", "NodeOutcome", "Outcome", "Plan", "operate"]
 ABORT_NO_OBJECT = (0x06020000, 0x06090011)
 
 
+CAN_ERR_BUSOFF, CAN_ERR_RESTARTED = 0x40, 0x100  # SocketCAN error frame classes (linux/can/error.h)
+BUS_POLL_S = 0.001  # how often a master whose controller is bus-off looks whether the bus is back
+
+
 class BusLog(can.BusABC):
-    """A python-can bus that writes every frame sent or received through it to a log file (can.Logger)."""
+    """A python-can bus that writes every frame sent or received through it to a log file (can.Logger).
+
+    It also plays a bus-off of the controller for drills (`bus_off(duration_s)`), which python-can's virtual bus
+    cannot: meanwhile `state` is can.BusState.ERROR, send() raises can.CanOperationError and nothing is received
+    (what came is dropped, as a controller off the bus never sees it). Otherwise `state` is the interface's."""
 
     def __init__(self, bus: can.BusABC, path: str | Path | None) -> None:
         self.inner = bus
@@ -80,6 +88,29 @@ class BusLog(can.BusABC):
         self._filters = None
         self._is_shutdown = False
         self._last = 0.0  # the log's latest timestamp
+        self._off_until: float | None = None  # time.monotonic() the simulated bus-off ends
+
+    def bus_off(self, duration_s: float) -> None:
+        """The controller goes bus-off now and is back on the bus after duration_s (a drill)."""
+        self._off_until = time.monotonic() + duration_s
+
+    def _off(self) -> bool:
+        if self._off_until is not None and time.monotonic() >= self._off_until:
+            self._off_until = None
+        return self._off_until is not None
+
+    @property
+    def state(self) -> can.BusState:
+        if self._off():
+            return can.BusState.ERROR
+        try:
+            return self.inner.state
+        except NotImplementedError:
+            return can.BusState.ACTIVE
+
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        self.inner.state = new_state
 
     def _log(self, msg: can.Message) -> None:
         if self._logger is not None:
@@ -92,6 +123,8 @@ class BusLog(can.BusABC):
                 self._logger.on_message_received(msg)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self._off():
+            raise can.CanOperationError("the CAN controller is bus-off")
         queued = time.time()
         self.inner.send(msg, timeout)
         sent = can.Message(
@@ -107,6 +140,14 @@ class BusLog(can.BusABC):
         self._log(sent)
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
+        if self._off():
+            end = None if timeout is None else time.monotonic() + timeout
+            while self._off():  # frames on the bus meanwhile never reach a controller that is off it
+                left = None if end is None else end - time.monotonic()
+                if left is not None and left <= 0:
+                    return None
+                self.inner.recv(min(left, BUS_POLL_S) if left is not None else BUS_POLL_S)
+            timeout = None if end is None else max(0.0, end - time.monotonic())
         msg = self.inner.recv(timeout)
         if msg is not None:
             self._log(msg)
@@ -191,6 +232,8 @@ class Outcome:
     sync_completion_ns: int | None = None
     master_jitter_ns: int = 0  # the analysed bound of how late the master's SYNC may come
     bad_emcy: int = 0
+    # the CAN controller off the bus: {"detected_s", "back_s", "first_sync_s", "off_ms", "recovery_ms"}
+    bus_offs: list[dict[str, Any]] = field(default_factory=list)
     # SYNC instants the master let pass (its loop stalled): {"from_s", "to_s", "missed", "instants_s"}
     sync_gaps: list[dict[str, Any]] = field(default_factory=list)
     t0: float = 0.0  # clock time the cycle phase began: the origin of every *_s time above
@@ -222,6 +265,8 @@ class _Operation:
         self.drills = sorted(plan.drills, key=lambda d: d[0])
         self.stalls = sorted(plan.stalls)
         self.last_sync: float | None = None
+        self.error_frame_bus_off = False  # SocketCAN said bus-off in an error frame, and no restart since
+        self.bus_back: tuple[float, float] | None = None  # (detected, back) of a bus-off the cycle resumes after
         self.master: MasterCycle | None = None
         self.recovering: dict[str, _Recovery] = {}
         self.sdo_routes: dict[int, _Recovery] = {}  # SDO response COB-ID -> the recovery awaiting it
@@ -379,6 +424,11 @@ class _Operation:
     def _on_frame(self, frame: can.Message, t: float) -> None:
         """Frames the cycle does not take: SDO answers to a drive being set up again go to its recovery, the rest
         to supervision."""
+        if frame.is_error_frame:  # SocketCAN reports controller states in error frames, not in bus.state
+            if frame.arbitration_id & CAN_ERR_BUSOFF:
+                self.error_frame_bus_off = True
+            if frame.arbitration_id & CAN_ERR_RESTARTED:
+                self.error_frame_bus_off = False
         route = self.sdo_routes.get(frame.arbitration_id) if not frame.is_extended_id else None
         if route is not None:
             route.network.notify(frame.arbitration_id, bytearray(frame.data), t)
@@ -473,10 +523,66 @@ class _Operation:
                 event = self.supervisor.events[len(self.out.events)]
                 self.out.events.append((event.time - (self.first or 0.0), event))
 
+    def _bus_is_off(self) -> bool:
+        """The controller is off the bus: python-can's bus state says so (interfaces that report one), or a
+        SocketCAN error frame did."""
+        try:
+            state = self.bus.state
+        except NotImplementedError:
+            state = can.BusState.ACTIVE
+        return state is can.BusState.ERROR or self.error_frame_bus_off
+
+    def _ride_out_bus_off(self) -> None:
+        """Bus-off: nothing can be sent, so the master stops sending (no SYNC, no RxPDO) and looks every BUS_POLL_S
+        whether the bus is back; then the cycle resumes. Supervision restarts its clocks then: no heartbeat could
+        be heard meanwhile."""
+        assert self.supervisor is not None and self.master is not None
+        detected = self.clock.now()
+        master = self.master.master.name
+        self.supervisor.events.append(
+            Event(
+                detected,
+                master,
+                "bus-off",
+                "hold",
+                "the master's CAN controller is bus-off: it stops sending and waits for the bus",
+            )
+        )
+        while self._bus_is_off() and self.stop_requested is None:
+            frame = self.bus.recv(timeout=BUS_POLL_S)
+            if frame is not None:
+                self._on_frame(frame, self.clock.now())
+        back = self.clock.now()
+        self.supervisor.resume(back)
+        self.bus_back = (detected, back)
+
+    def _bus_recovered(self, record: CycleRecord) -> None:
+        """The first cycle after a bus-off: how long the bus was off and how soon the SYNC followed its return."""
+        if self.bus_back is None or self.supervisor is None or self.master is None or self.first is None:
+            return
+        (detected, back), self.bus_back = self.bus_back, None
+        off_ms, recovery_ms = 1e3 * (back - detected), 1e3 * (record.sync_sent - back)
+        self.out.bus_offs.append(
+            {
+                "detected_s": round(detected - self.first, 6),
+                "back_s": round(back - self.first, 6),
+                "first_sync_s": round(record.sync_sent - self.first, 6),
+                "off_ms": round(off_ms, 3),
+                "recovery_ms": round(recovery_ms, 3),
+            }
+        )
+        text = (
+            f"the bus is back after {off_ms:.1f} ms off (detected at {detected - self.first:.3f} s); the first SYNC "
+            f"went out {recovery_ms:.1f} ms after its return"
+        )
+        self.supervisor.events.append(Event(record.sync_sent, self.master.master.name, "bus-on", "continue", text))
+
     def _missed_syncs(self, record: CycleRecord) -> None:
         """SYNC instants that passed without a SYNC: a SYNC more than half a period after its instant means the
         master's loop was held (a stalled host, a bus-off); the gap is reported with the instants missed."""
         assert self.supervisor is not None and self.master is not None and self.first is not None
+        if not record.sync_ok:
+            return  # no SYNC went out: this instant is among those the next SYNC reports missed
         last, self.last_sync = self.last_sync, record.sync_sent
         if last is None:
             return
@@ -509,7 +615,10 @@ class _Operation:
         assert self.supervisor is not None and self.first is not None
         now = self.clock.now()
         elapsed = now - self.first
+        self._bus_recovered(record)
         self._missed_syncs(record)
+        if self._bus_is_off():
+            self._ride_out_bus_off()
         while self.drills and self.drills[0][0] <= elapsed:
             _, text, action = self.drills.pop(0)
             action()

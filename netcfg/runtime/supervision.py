@@ -153,6 +153,16 @@ class Supervisor:
         """Supervision begins: every supervised node must send a heartbeat within its consumer time from now."""
         self.started = t
 
+    def resume(self, t: float) -> None:
+        """The master could hear nothing for a while (its controller was bus-off): every clock restarts at t, as at
+        the start, for nodes not already lost."""
+        for w in self.watched.values():
+            if w.lost_at is None:
+                w.last_heartbeat = None
+        for timed in self.timed.values():
+            timed.last = None
+        self.started = t
+
     def feed(self, frame: can.Message, t: float) -> bool:
         """Hand one frame to the consumers; True when it was a heartbeat or an EMCY of a supervised node or an
         event-timer TxPDO."""
