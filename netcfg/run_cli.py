@@ -9,7 +9,11 @@ the safe stop. This module parses the command line, builds the bus (and the simu
 a terminal, and prints the result as text or as the JSON of the design notes: {"cycles", "nodes": [{"name",
 "state", "samples", "missing", "lost", "emcy"}]} with more keys beside them.
 
-Exit codes: 0 every started node delivered every cycle, none was lost and none sent an EMCY; 1 otherwise, or the spec
+Fault drills (README "Faults the live master survives"): --kill, --emcy, --reset and --sdo-abort act on the
+simulated drives, --stall on the master's loop, --bus-off on the master's controller (netcfg's bus wrapper).
+
+Exit codes: 0 every started node delivered every cycle, none was lost, rebooted or sent an EMCY, no SYNC was missed
+and the bus never went off; 1 otherwise, or the spec
 or runtime.json has errors, or the set-up failed; 2 usage or I/O (bad option, a bus that cannot be opened).
 """
 

@@ -402,3 +402,77 @@ def test_socketcan_error_frames_say_bus_off_and_restarted() -> None:
     assert op.error_frame_bus_off
     op._on_frame(can.Message(is_error_frame=True, arbitration_id=0x100), 0.0)
     assert not op.error_frame_bus_off
+
+
+def test_a_drive_enabled_over_its_pdos_is_walked_up_again_over_them(tmp_path: Path) -> None:
+    """hip_l with its controlword in RxPDO1 and its statusword in TPDO2 (as in test_run's PDO enabling test) and
+    on_reboot: recover: after the set-up again the master walks it to OPERATION ENABLED through those PDOs, one
+    CiA 402 transition per cycle (2, 3, 4), and only then reports it recovered."""
+    from netcfg.cli import main
+
+    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
+    text = text.replace(
+        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x60B1]}",
+        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x6040]}",
+        1,
+    )
+    text = text.replace(
+        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2"]}',
+        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2", 0x6041]}',
+        1,
+    )
+    text = text.replace("    on_loss: stop_node\n", "    on_loss: stop_node\n    on_reboot: recover\n", 1)  # hip_l
+    spec = tmp_path / "pdo402.yaml"
+    spec.write_text(text, encoding="utf-8")
+    assert main(["build", str(spec), "-o", str(tmp_path / "out")]) == 0
+    cfg = rt.load(tmp_path / "out" / "runtime.json")
+    channel = f"faults-{uuid.uuid4().hex[:8]}"
+    with (
+        DriveBench(cfg, channel=channel) as bench,
+        BusLog(can.Bus(interface="virtual", channel=channel), None) as bus,
+    ):
+        plan = Plan(cycles=40, drills=[(0.2, "hip_l reboots", lambda: bench["hip_l"].reboot(0.05))])
+        out = operate(cfg, bus, plan)
+        history = [n for n, _ in bench["hip_l"].power.history] if bench["hip_l"].power else []
+    assert kinds(out) == [("hip_l", "boot-up", "recover"), ("hip_l", "recovered", "continue")]
+    hip_l = out.nodes["hip_l"]
+    assert hip_l.cia402_over == "PDO" and hip_l.state == OPERATION_ENABLED
+    assert history[:4] == [1, 2, 3, 4]  # the rebooted drive's own machine: initialised, then up over the RxPDO
+    recovered = next(e for _, e in out.events if e.kind == "recovered")
+    assert recovered.text.endswith("SWITCH ON DISABLED -> READY TO SWITCH ON -> SWITCHED ON -> OPERATION ENABLED")
+
+
+def test_a_failed_set_up_again_follows_on_loss(cfg: rt.RuntimeConfig) -> None:
+    """The rebooted drive refuses its heartbeat time (0x1017) on the set-up again: the recovery fails, reported with
+    the abort's CiA 301 meaning, and knee_r's on_loss (stop_node) leaves it stopped while the others run on."""
+    cfg = with_on_reboot(cfg, "recover")
+    channel = f"faults-{uuid.uuid4().hex[:8]}"
+
+    with (
+        DriveBench(cfg, GENERATED / "canopen", channel=channel) as bench,
+        BusLog(can.Bus(interface="virtual", channel=channel), None) as bus,
+    ):
+
+        def reboot_and_refuse() -> None:
+            bench["knee_r"].abort_writes[0x1017] = 0x06010002
+            bench["knee_r"].reboot(0.05)
+
+        out = operate(cfg, bus, Plan(cycles=40, drills=[(0.2, "knee_r reboots", reboot_and_refuse)]))
+    assert kinds(out) == [("knee_r", "boot-up", "recover"), ("knee_r", "recovery-failed", "stop_node")]
+    failed = next(e for _, e in out.events if e.kind == "recovery-failed")
+    assert "SDO abort 0x06010002 (attempt to write a read only object)" in failed.text
+    knee = out.nodes["knee_r"]
+    assert knee.stopped_at_s is not None and knee.reboots[0]["recovered_at_s"] is None
+    assert out.run is not None and out.run.cycles == 40 and out.run.complete_samples("hip_l") == 40
+
+
+def test_an_sdo_timeout_out_of_range_is_an_error(tmp_path: Path) -> None:
+    from conftest import check
+
+    spec = tmp_path / "zero.yaml"
+    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
+    spec.write_text(text.replace("    on_loss: stop_node\n", "    on_loss: stop_node\n    sdo_timeout: 0 ms\n", 1))
+    report = check(spec)
+    (error,) = report["errors"]
+    assert (error["code"], error["line"]) == ("sdo-timeout", 49)  # hip_l's on_loss is on line 48 of allex2.yaml
+    assert "more than 0 and at most 60 s" in error["message"]

@@ -15,6 +15,13 @@
    `on_loss`/`on_emcy` says: `stop_all` ends the cycle; `stop_node` sends that node NMT PRE-OPERATIONAL at once (it
    stops its PDOs and keeps answering SDO, so its drive can be stopped safely at the end); `continue` reports it.
    `stop()` (e.g. from a Ctrl-C handler) ends the cycle after the current iteration.
+   A boot-up message (the node rebooted) does what its `on_reboot` says: `recover` sets it up again on a worker
+   thread while the cycle runs (configure_node, the set-up's own steps; the cycle hands it its SDO answers, and
+   reads the bus in its waits meanwhile) and enables it, over SDO or its PDOs; `stop_node` leaves it
+   PRE-OPERATIONAL; `stop_all` ends the cycle. A set-up again that fails follows the node's `on_loss`. A SYNC more
+   than half a period late is reported with the instants missed (a stalled host; `Plan.stalls` plays one), and a
+   controller that is bus-off (python-can's bus state, or SocketCAN's error frames) holds the cycle until the bus
+   is back (`BusLog.bus_off` plays one).
 4. Safe stop, whatever ended the run: every started drive still answering gets its `safe_stop` command (quick stop
    or disable operation, CiA 402) over SDO, then every started node NMT PRE-OPERATIONAL.
 
