@@ -33,7 +33,7 @@ from netcfg.runtime.operate import BusLog, Outcome, Plan, operate
 
 GENERATED = ROOT / "generated" / "allex2"
 PERIOD_S = 0.020  # allex2's SYNC period
-SLACK_S = 0.030  # thread scheduling on a loaded host: the drives and the master share one interpreter
+SLACK_S = 0.050  # thread scheduling on a loaded host: the drives and the master share one interpreter
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +77,8 @@ def assert_boot_up_in_time(out: Outcome, at_s: float, outage_s: float) -> float:
     ((drill_s, _),) = out.drills
     assert at_s <= drill_s <= at_s + PERIOD_S + SLACK_S
     boot_s = next(t for t, e in out.events if e.kind == "boot-up")
-    assert drill_s + outage_s <= boot_s + 1e-3 <= drill_s + outage_s + 2 * PERIOD_S + SLACK_S
+    # the drive's scheduler never fires early, and the drill's time is taken before its action runs
+    assert drill_s + outage_s <= boot_s <= drill_s + outage_s + 2 * PERIOD_S + SLACK_S
     return boot_s
 
 
@@ -90,6 +91,7 @@ def test_a_rebooted_drive_is_set_up_again_and_enabled_with_recover(cfg: rt.Runti
     boot_s = assert_boot_up_in_time(out, 0.2, 0.05)
     knee = out.nodes["knee_r"]
     (reboot,) = knee.reboots
+    ((drill_s, _),) = out.drills
     assert reboot["at_s"] == round(boot_s, 6) and reboot["result"] == "recovered"
     # the recovery's time is the time from the boot-up to the end of the CiA 402 walk, measured on the master's clock
     recovered_s = next(t for t, e in out.events if e.kind == "recovered")
@@ -108,7 +110,13 @@ def test_a_rebooted_drive_is_set_up_again_and_enabled_with_recover(cfg: rt.Runti
     # factory state it booted with has every PDO disabled
     wanted = {m.id for m in cfg.messages if m.pdo is not None and m.pdo.node == "knee_r"}
     assert {can_id for _, _, can_id, valid, _, _ in drive.pdo_slots() if valid} == wanted
-    assert out.run is not None and out.run.complete_samples("knee_r") >= 40 - 10
+    # knee_r misses samples only between the drill and one period after its recovery (its first SYNC as a started
+    # drive may already have gone out); before and after, every cycle has them
+    assert out.run is not None
+    for rec in out.run.records:
+        at = rec.sync_sent - out.t0
+        if at < drill_s or at > recovered_s + PERIOD_S:
+            assert not [m for m in rec.missing if m.startswith("knee_r")], at
     for name in ("hip_l", "knee_l", "ankle_l", "hip_r", "ankle_r"):
         assert out.run.complete_samples(name) == 40, name
 
@@ -373,7 +381,8 @@ def test_the_master_rides_out_a_bus_off_and_measures_its_recovery(cfg: rt.Runtim
     assert 0.3 <= drill_s <= 0.3 + PERIOD_S + SLACK_S
     (off,) = out.bus_offs
     assert drill_s <= off["detected_s"] <= drill_s + PERIOD_S + SLACK_S
-    assert drill_s + 0.2 <= off["back_s"] + 1e-3 <= drill_s + 0.2 + BUS_POLL_S + SLACK_S
+    # the wrapper times the bus-off on time.monotonic, the master on its own clock: 1e-4 s for the two scales
+    assert drill_s + 0.2 <= off["back_s"] + 1e-4 <= drill_s + 0.2 + BUS_POLL_S + SLACK_S
     assert abs(off["off_ms"] - 1e3 * (off["back_s"] - off["detected_s"])) < 0.01
     assert 0 <= off["recovery_ms"] <= 1e3 * SLACK_S
     (gap,) = out.sync_gaps
