@@ -72,6 +72,9 @@ class Node:
     heartbeat_timeout_ns: int | None = None  # the master's consumer time for this node's heartbeat
     on_loss: str = "stop_all"  # stop_all | stop_node | continue
     on_emcy: str = "stop_all"
+    on_reboot: str = "stop_node"  # recover | stop_node | stop_all
+    sdo_timeout_ns: int = 500_000_000  # the master's wait for each SDO answer
+    sdo_retries: int = 0  # SDO requests repeated after a timeout
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
     tx_queue: TxQueue = TxQueue()
     nic_queue: int = QUEUE_FRAMES  # Ethernet: frames its NIC's transmit queue holds

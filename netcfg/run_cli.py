@@ -9,7 +9,11 @@ the safe stop. This module parses the command line, builds the bus (and the simu
 a terminal, and prints the result as text or as the JSON of the design notes: {"cycles", "nodes": [{"name",
 "state", "samples", "missing", "lost", "emcy"}]} with more keys beside them.
 
-Exit codes: 0 every started node delivered every cycle, none was lost and none sent an EMCY; 1 otherwise, or the spec
+Fault drills (README "Faults the live master survives"): --kill, --emcy, --reset and --sdo-abort act on the
+simulated drives, --stall on the master's loop, --bus-off on the master's controller (netcfg's bus wrapper).
+
+Exit codes: 0 every started node delivered every cycle, none was lost, rebooted or sent an EMCY, no SYNC was missed
+and the bus never went off; 1 otherwise, or the spec
 or runtime.json has errors, or the set-up failed; 2 usage or I/O (bad option, a bus that cannot be opened).
 """
 
@@ -33,6 +37,7 @@ __all__ = ["add_parser", "run_command"]
 
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")
 DEFAULT_EMCY = 0x2310  # CiA 402: "continuous over-current", a drive's typical fault
+DEFAULT_ABORT = 0x08000020  # CiA 301: "data cannot be transferred or stored to the application"
 
 
 def add_parser(sub: Any) -> None:
@@ -61,6 +66,34 @@ def add_parser(sub: Any) -> None:
         metavar="NODE@T[=CODE]",
         help=f"simulated drives: NODE sends an EMCY (default code 0x{DEFAULT_EMCY:04X}) and faults at T",
     )
+    p.add_argument(
+        "--reset",
+        action="append",
+        default=[],
+        metavar="NODE@T+OUTAGE",
+        help="simulated drives: NODE reboots at T, silent for OUTAGE, then boots with its default object dictionary",
+    )
+    p.add_argument(
+        "--sdo-abort",
+        action="append",
+        default=[],
+        metavar="NODE:INDEX[:SUB][=CODE]",
+        help=f"simulated drives: NODE aborts every SDO write to that object (default code 0x{DEFAULT_ABORT:08X})",
+    )
+    p.add_argument(
+        "--stall",
+        action="append",
+        default=[],
+        metavar="T..T2",
+        help="the master's own loop pauses from T to T2 (no SYNC, no RxPDO), as a host that is held up",
+    )
+    p.add_argument(
+        "--bus-off",
+        action="append",
+        default=[],
+        metavar="T..T2",
+        help="the master's CAN controller is bus-off from T to T2 (played by netcfg's bus wrapper)",
+    )
     p.add_argument("--allow-missing", action="store_true", help="run the nodes that were set up even if others failed")
     p.add_argument("--log", type=Path, metavar="FILE", help="every frame: .log (candump -L), .asc, .blf, .csv, .trc")
     p.add_argument("--samples", type=Path, metavar="FILE.csv", help="the samples of every cycle, one row per cycle")
@@ -74,6 +107,44 @@ def _duration_s(text: str, what: str) -> float:
     if d.ns is None:
         raise ValueError(f"{what} {text!r}: give a time such as 1s or 500 ms")
     return d.ns / 1e9
+
+
+def _span(text: str, kind: str) -> tuple[float, float]:
+    """'T..T2' -> (seconds, seconds), T2 after T."""
+    start, dots, end = text.partition("..")
+    if not dots:
+        raise ValueError(f"--{kind} {text!r}: write FROM..TO, e.g. 1s..1.2s")
+    span = _duration_s(start.strip(), f"--{kind}"), _duration_s(end.strip(), f"--{kind}")
+    if span[1] <= span[0]:
+        raise ValueError(f"--{kind} {text!r}: the span ends before it begins")
+    return span
+
+
+def _reset_drill(text: str) -> tuple[str, float, float]:
+    """'NODE@T+OUTAGE' -> (node, seconds, outage seconds)."""
+    node, at, rest = text.partition("@")
+    when, plus, outage = rest.partition("+")
+    if not at or not node or not plus:
+        raise ValueError(f"--reset {text!r}: write NODE@TIME+OUTAGE, e.g. knee_r@1s+50ms")
+    return node, _duration_s(when.strip(), "--reset"), _duration_s(outage.strip(), "--reset outage")
+
+
+def _abort_drill(text: str) -> tuple[str, int | tuple[int, int], int]:
+    """'NODE:INDEX[:SUB][=CODE]' -> (node, index or (index, sub), abort code)."""
+    where, eq, code = text.partition("=")
+    node, *obj = where.split(":")
+    try:
+        if not node or len(obj) not in (1, 2):
+            raise ValueError
+        numbers = [int(o, 0) for o in obj]
+        value = int(code, 0) if eq else DEFAULT_ABORT
+    except ValueError:
+        raise ValueError(
+            f"--sdo-abort {text!r}: write NODE:INDEX[:SUB][=CODE], e.g. knee_r:0x1A00:0=0x06010002"
+        ) from None
+    if not 0 <= numbers[0] <= 0xFFFF or (len(numbers) == 2 and not 0 <= numbers[1] <= 0xFF) or not 0 <= value < 2**32:
+        raise ValueError(f"--sdo-abort {text!r}: an index has 16 bits, a sub-index 8, an abort code 32")
+    return node, numbers[0] if len(numbers) == 1 else (numbers[0], numbers[1]), value
 
 
 def _drill(text: str, kind: str) -> tuple[str, float, int]:
@@ -131,6 +202,12 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         kills = [_drill(k, "kill") for k in args.kill]
         emcys = [_drill(e, "emcy") for e in args.emcy]
+        resets = [_reset_drill(r) for r in args.reset]
+        aborts = [_abort_drill(a) for a in args.sdo_abort]
+        for s in args.stall:
+            _span(s, "stall")  # checked here, used by _run
+        for s in args.bus_off:
+            _span(s, "bus-off")
         duration_s = _duration_s(args.duration, "--duration") if args.duration is not None else None
     except ValueError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
@@ -138,8 +215,11 @@ def run_command(args: argparse.Namespace) -> int:
     if args.cycles is not None and args.cycles < 1:
         print("netcfg: --cycles must be 1 or more", file=sys.stderr)
         return 2
-    if (kills or emcys) and not args.simulated_drives:
-        print("netcfg: --kill and --emcy act on simulated drives; add --simulated-drives", file=sys.stderr)
+    if (kills or emcys or resets or aborts) and not args.simulated_drives:
+        print(
+            "netcfg: --kill, --emcy, --reset and --sdo-abort act on simulated drives; add --simulated-drives",
+            file=sys.stderr,
+        )
         return 2
     if args.simulated_drives and args.interface not in (None, "virtual"):
         print(
@@ -164,7 +244,7 @@ def run_command(args: argparse.Namespace) -> int:
         with _config(args.source) as cfg:
             if cfg is None:
                 return 1
-            return _run(args, cfg, kills, emcys, duration_s)
+            return _run(args, cfg, kills, emcys, resets, aborts, duration_s)
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
@@ -182,6 +262,8 @@ def _run(
     cfg: Any,
     kills: list[tuple[str, float, int]],
     emcys: list[tuple[str, float, int]],
+    resets: list[tuple[str, float, float]],
+    aborts: list[tuple[str, int | tuple[int, int], int]],
     duration_s: float | None,
 ) -> int:
     import can
@@ -197,7 +279,7 @@ def _run(
         return 2
     assert co_bus.canopen is not None
     slaves = {n.name for n in canopen_slaves(cfg, co_bus)}
-    for node, _, _ in kills + emcys:
+    for node, _, _ in [*kills, *emcys, *resets, *aborts]:
         if node not in slaves:
             print(
                 f"netcfg: '{node}' is not a CANopen slave of bus '{co_bus.name}' ({', '.join(sorted(slaves))})",
@@ -213,7 +295,10 @@ def _run(
     if args.simulated_drives:
         from netcfg.runtime.drives import DriveBench
 
-        bench = DriveBench(cfg, channel=str(channel), bus_name=co_bus.name).start()
+        refused: dict[str, dict[str, Any]] = {}
+        for node, obj, code in aborts:
+            refused.setdefault(node, {"abort_writes": {}})["abort_writes"][obj] = code
+        bench = DriveBench(cfg, channel=str(channel), bus_name=co_bus.name, options=refused).start()
     try:
         try:
             raw = can.Bus(interface=interface, channel=channel, bitrate=co_bus.bitrate)
@@ -226,12 +311,19 @@ def _run(
             raw.shutdown()
             print(f"netcfg: cannot write the log {args.log}: {exc}", file=sys.stderr)
             return 2
-        drills = []
+        drills: list[tuple[float, str, Callable[[], None]]] = []
+        for start, end in (_span(s, "bus-off") for s in args.bus_off):
+            drills.append(
+                (start, f"the master's CAN controller goes bus-off until {end:g} s", partial(bus.bus_off, end - start))
+            )
         if bench is not None:
             for node, at, _ in kills:
                 drills.append((at, f"{node} killed", bench[node].kill))
             for node, at, code in emcys:
                 drills.append((at, f"{node} sends EMCY 0x{code:04X}", partial(bench[node].emergency, code)))
+            for node, at, outage in resets:
+                what = f"{node} reboots, silent for {1e3 * outage:g} ms"
+                drills.append((at, what, partial(bench[node].reboot, outage)))
         live = (
             _LiveView(sys.stdout, cycles, {m.name: m.producer for m in cfg.messages})
             if args.format == "text" and sys.stdout.isatty()
@@ -242,6 +334,7 @@ def _run(
             bus_name=co_bus.name,
             allow_missing=args.allow_missing,
             drills=drills,
+            stalls=[_span(s, "stall") for s in args.stall],  # validated by run_command
             on_cycle=live.update if live is not None else None,
         )
         with bus, _stop_on_signals() as arm:
@@ -251,6 +344,8 @@ def _run(
     finally:
         if bench is not None:
             bench.stop()
+    # what the simulated drives did on their own (a gap in the SYNCs, an RPDO deadline), as they would tell it
+    drive_notes = {name: list(d.notes) for name, d in bench.drives.items() if d.notes} if bench is not None else {}
     if args.samples is not None and outcome.run is not None:
         try:
             outcome.run.write_csv(args.samples)
@@ -258,6 +353,7 @@ def _run(
             print(f"netcfg: cannot write {args.samples}: {exc.strerror or exc}", file=sys.stderr)
             return 2
     doc = result_document(outcome, cfg.system)
+    doc["simulated_drives"] = drive_notes
     if args.format == "json":
         print(jsontext.dumps(doc, indent=2))
     else:
@@ -356,6 +452,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             "enable_path": node.enable_path,
             "stopped_at_s": None if node.stopped_at_s is None else round(node.stopped_at_s, 6),
             "safe_state": node.safe_state,
+            "reboots": node.reboots,
             "errors": node.errors,
         }
     read: dict[str, Any] = {"analysed_bound_us": None, "window_us": None, "max_us": None, "overruns": 0}
@@ -407,7 +504,7 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
         and run is not None
         and all(n["missing"] == 0 and not n["lost"] and not n["emcy"] and not n["errors"] for n in started)
         and not read["overruns"]
-        and not any(e.kind == "tpdo-silent" for _, e in outcome.events)
+        and not any(e.kind in ("tpdo-silent", "boot-up", "missed-sync", "bus-off") for _, e in outcome.events)
     )
     return {
         "system": system,
@@ -423,6 +520,8 @@ def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
             for t, e in outcome.events
         ],
         "drills": [{"time_s": round(t, 6), "what": text} for t, text in outcome.drills],
+        "sync_gaps": outcome.sync_gaps,
+        "bus_offs": outcome.bus_offs,
     }
 
 
@@ -437,6 +536,8 @@ def result_text(outcome: Any, doc: dict[str, Any]) -> str:
         lines.append(f"  {t:8.3f} s  drill: {what}")
     for e in doc["events"]:
         lines.append(f"  {e['time_s']:8.3f} s  {e['text']} -> {e['action']}")
+    for name, notes in doc.get("simulated_drives", {}).items():
+        lines += [f"  simulated {name}: {note}" for note in notes]
     lines.append(f"{doc['cycles']} cycles on {doc['bus']}, ended by {doc['ended_by']}")
     r, c = doc["read"], doc["cycle"]
     if r["max_us"] is not None:
@@ -460,6 +561,10 @@ def result_text(outcome: Any, doc: dict[str, Any]) -> str:
                 f"(heartbeat timeout {n['heartbeat_timeout_ms']:.0f} ms)"
             )
         notes += [e["text"] for e in n["emcy"]]
+        for r in n["reboots"]:
+            back = r.get("recovered_at_s") is not None
+            result = f"recovered in {r['recovery_ms']:.1f} ms" if back else r.get("result", "")
+            notes.append(f"rebooted at {r['at_s']:.3f} s ({r['action']}): {result}")
         notes += n["errors"]
         if n["safe_state"]:
             notes.append(f"safe stop -> {n['safe_state']}")

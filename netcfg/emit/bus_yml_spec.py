@@ -112,6 +112,12 @@ def _node_keys(node: Node) -> dict[str, Any]:
         out["on_loss"] = node.on_loss
     if node.on_emcy != DEFAULT_REACTION:
         out["on_emcy"] = node.on_emcy
+    if node.on_reboot != "stop_node":
+        out["on_reboot"] = node.on_reboot
+    if node.sdo_timeout_ns != 500_000_000:
+        out["sdo_timeout"] = duration_ns(node.sdo_timeout_ns)
+    if node.sdo_retries:
+        out["sdo_retries"] = node.sdo_retries
     if node.safe_stop != DEFAULT_SAFE_STOP:
         out["safe_stop"] = node.safe_stop
     if node.scheduling != "preemptive":

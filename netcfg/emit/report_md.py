@@ -147,11 +147,32 @@ def _nodes_table(model: Model) -> dict[str, Any]:
                 ", ".join(node.buses),
                 ", ".join(node.tasks) or "-",
                 _tx_queue(model, node),
+                _supervision(model, node),
                 cell(_description(node)) or "-",
             ]
         )
-    headers = ["node", "role", "node id / IP", "buses", "tasks", "CAN transmit queue", "description"]
-    return _table(headers, "lllllll", rows)
+    headers = [
+        "node",
+        "role",
+        "node id / IP",
+        "buses",
+        "tasks",
+        "CAN transmit queue",
+        "supervision (netcfg run)",
+        "description",
+    ]
+    return _table(headers, "llllllll", rows)
+
+
+def _supervision(model: Model, node: Node) -> str:
+    """What the live master does when a CANopen slave is lost, sends an EMCY or reboots (spec: on_loss, ...)."""
+    if node.role == "master" or node.node_id is None or not any(model.buses[b].canopen for b in node.buses):
+        return "-"
+    if node.heartbeat_timeout_ns:
+        heard = f"lost after {node.heartbeat_timeout_ns / 1e6:g} ms without heartbeat: {node.on_loss}"
+    else:
+        heard = "no heartbeat consumed"
+    return f"{heard}; EMCY: {node.on_emcy}; reboot: {node.on_reboot}"
 
 
 def _tx_queue(model: Model, node: Node) -> str:

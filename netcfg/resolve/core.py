@@ -271,6 +271,16 @@ class Resolver:
             if hb and hb_timeout is None:
                 # Lely dcfgen's default heartbeat_multiplier (3.0): two heartbeats may be lost; 0x1016 holds 16 bits
                 hb_timeout = min(3 * hb, 65_535_000_000)
+            sdo_timeout = self.ns(n.sdo_timeout, (*path, "sdo_timeout"), None)
+            if sdo_timeout is not None and not 0 < sdo_timeout <= 60_000_000_000:
+                self.err(
+                    "sdo-timeout",
+                    "sdo_timeout (how long the master waits for each SDO answer) is more than 0 and at most 60 s",
+                    (*path, "sdo_timeout"),
+                )
+                sdo_timeout = None
+            if sdo_timeout is None:
+                sdo_timeout = 500_000_000  # what `netcfg run` waited before the key existed
             if n.ip is not None and any(int(p) > 255 for p in n.ip.split(".")):
                 self.err("ip", f"'{n.ip}' is not an IPv4 address", (*path, "ip"))
             ec = self.ec_of(n.buses)
@@ -288,6 +298,9 @@ class Resolver:
                 heartbeat_timeout_ns=hb_timeout,
                 on_loss=n.on_loss,
                 on_emcy=n.on_emcy,
+                on_reboot=n.on_reboot,
+                sdo_timeout_ns=sdo_timeout,
+                sdo_retries=n.sdo_retries,
                 safe_stop=n.safe_stop,
                 ip=n.ip,
                 tasks=tasks,

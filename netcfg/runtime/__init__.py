@@ -12,10 +12,11 @@ Times are integer nanoseconds ("_ns"), as in the file. A message without signals
 written through one unsigned field `<message>_raw` spanning its payload, the same name the DBC files use.
 
 Version 1 has grown without changing the meaning of any key, so it is still version 1: nodes gained `identity`,
-`eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy` and
-`safe_stop`, CANopen buses `sync_overflow` and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns`
-and `unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`, CAN buses `errors`
-and `clock_tolerance_ppm`, FTT-CAN schedule slots `allowance_ns`, and Ethernet switch ports `queue` and Ethernet
+`eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy`, `on_reboot`
+(stop_node without it), `sdo_timeout_ns` (500 ms), `sdo_retries` (0) and `safe_stop`, CANopen buses
+`sync_overflow` and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns` and
+`unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`, CAN buses `errors` and
+`clock_tolerance_ppm`, FTT-CAN schedule slots `allowance_ns`, and Ethernet switch ports `queue` and Ethernet
 buses `nics` (each node's NIC queue). A file written before them still loads: their fields are then None (no
 `errors`: an error-free bus; no `allowance_ns`: 0; no `clock_tolerance_ppm`: 100; no queue depths: the
 simulator's default; `sdo_init` None means "not stated", () means "nothing to write"; `sent_by` None: no task sends

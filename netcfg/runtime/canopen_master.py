@@ -82,6 +82,7 @@ __all__ = [
 ]
 
 
+SERVE_MARGIN_S = 0.0005  # a serving wait hands its last half millisecond to the clock's precise sleep
 DUE_PATTERNS = 240  # the due TxPDOs of at most this many SYNCs in a row are remembered (transmission types 1-240)
 
 FrameHook = Callable[[can.Message, float], object]  # a frame the cycle does not take, and the clock time it came
@@ -143,8 +144,14 @@ class MasterCycle:
         timing: CycleTiming | None = None,
         on_frame: FrameHook | None = None,
         after_cycle: CycleHook | None = None,
+        serve: Callable[[], bool] | None = None,
     ) -> None:
         self.cfg, self.bus, self.clock = cfg, bus, clock
+        # while serve() is true the waits read the bus and hand on_frame what comes (SDO answers to a set-up
+        # running beside the cycle); a node in `muted` gets none of its RxPDOs (it rebooted: not configured)
+        self.serve = serve
+        self.muted: set[str] = set()
+        self._late_in_wait = 0
         self.on_frame, self.after_cycle = on_frame, after_cycle
         self.pause_gc, self.collect_after = pause_gc, collect_after
         self.timing = timing
@@ -234,6 +241,16 @@ class MasterCycle:
                     gc.collect()
 
     def _sleep_until(self, t: float) -> None:
+        if self.serve is not None and self.on_frame is not None and self.serve():
+            while (left := t - self.clock.now()) > SERVE_MARGIN_S:
+                frame = self.bus.recv(timeout=left - SERVE_MARGIN_S)
+                if frame is None:
+                    continue
+                key = (frame.arbitration_id, bool(frame.is_extended_id))
+                if key in self._by_id and key not in self._event_ids:
+                    self._late_in_wait += 1  # a synchronous TxPDO after its window: late, as at the cycle's start
+                else:
+                    self.on_frame(frame, self.clock.now())
         self.clock.sleep_until(t + (self.timing.late_s() if self.timing is not None else 0.0))
 
     def _run(self, cycles: int, until_s: float | None) -> MasterRun:
@@ -253,6 +270,8 @@ class MasterCycle:
                 clock.sleep_until(clock.now() + timing.work_s(i))
             on_demand = self._take(asked or {})
             for msg in self.rpdos:
+                if msg.pdo is not None and msg.pdo.node in self.muted:
+                    continue
                 if msg.kind == "periodic" or msg.name in on_demand:
                     try:
                         bus.send(self._frame(msg))
@@ -263,7 +282,7 @@ class MasterCycle:
                 anchor = first + i * self.period_s if self.drift_free else start
                 self._sleep_until(anchor + self.sync_lead_s - self.k_s)  # K absorbs the wake-up latency here too
             # anything already queued cannot answer the SYNC about to go out
-            late = other = 0
+            late, other, self._late_in_wait = self._late_in_wait, 0, 0
             while (stale := bus.recv(timeout=0)) is not None:
                 key = (stale.arbitration_id, bool(stale.is_extended_id))
                 if key in self._by_id and key not in self._unwaited:
@@ -277,9 +296,11 @@ class MasterCycle:
             if self.sync_overflow:
                 counter = self.syncs % self.sync_overflow + 1
                 sync_frame = can.Message(arbitration_id=sync_frame.arbitration_id, is_extended_id=False, data=[counter])
+            sync_ok = True
             try:
                 bus.send(sync_frame)
             except can.CanError:
+                sync_ok = False
                 unsent[f"SYNC 0x{self.sync_frame.arbitration_id:X}"] += 1
             sync_sent = clock.now()
             self.syncs += 1
@@ -347,6 +368,7 @@ class MasterCycle:
                 other=other,
                 processing_s=processing,
                 waiting_s=waiting,
+                sync_ok=sync_ok,
             )
             records.append(record)
             start = end

@@ -39,6 +39,7 @@ class CycleRecord:
     other: int  # other frames seen (SDO, EMCY, heartbeat, PDOs of other nodes)
     processing_s: float  # Pt: start -> samples stored
     waiting_s: float  # eq. (1): T - Pt - K (negative: the iteration overran)
+    sync_ok: bool = True  # the interface took the SYNC (False: send raised can.CanError, e.g. bus-off)
 
     @property
     def period_s(self) -> float:

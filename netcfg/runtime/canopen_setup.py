@@ -3,6 +3,7 @@ parameters, start-up values, read-back, NMT start. See netcfg.runtime.canopen_ma
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +18,7 @@ from netcfg.runtime.canopen_identity import Identity, identity_from_runtime
 from netcfg.runtime.canopen_network import canopen_bus, canopen_slaves
 from netcfg.runtime.codec import int_range
 
-__all__ = ["NodeSetup", "PdoReadback", "SetupReport", "configure_network"]
+__all__ = ["NodeSetup", "PdoReadback", "SetupReport", "configure_network", "configure_node"]
 
 PREDEFINED_PDOS = len(cia301.TPDO_BASE)  # the pre-defined connection set has 4 RPDOs and 4 TPDOs per node
 IDENTITY = 0x1018
@@ -162,6 +163,7 @@ class _NodeConfigurator:
         )
         self.disabled: list[tuple[str, int]] = []
         self.interp: tuple[int, int] | None = None
+        self._od: canopen.ObjectDictionary | None = None  # the node's EDS, for object names in messages
         self.written: list[SdoWrite] = []  # start-up SDO writes done, read back at the end
         self.start_up: list[tuple[int, int, int]] = []  # ... and what the read-back found
 
@@ -177,24 +179,49 @@ class _NodeConfigurator:
         except SdoAbortedError as exc:
             hint = _ABORT_HINTS.get(exc.code, "see the device manual for this abort code")
             value = f" = 0x{int.from_bytes(data, 'little'):X}" if data is not None else ""
-            text = SdoAbortedError.CODES.get(exc.code, "unknown abort code")
             raise self._fail(
-                f"SDO abort 0x{exc.code:08X} ({text}) on {action} 0x{index:04X}:{sub:02X}{value}; {hint}. "
+                f"SDO abort 0x{exc.code:08X} ({cia301.sdo_abort_text(exc.code)}) on {action} "
+                f"{self.object_name(index, sub)}{value}; {hint}. "
                 f"{self._left()} Fix it and run the set-up again; the other nodes are not affected.",
                 exc.code,
             ) from exc
         except SdoCommunicationError as exc:
             timeout_ms = 1000 * self.remote.sdo.RESPONSE_TIMEOUT
+            tries = self.remote.sdo.MAX_RETRIES
+            waited = f"within {timeout_ms:.0f} ms" + (f", {tries} times" if tries > 1 else "")
+            timed_out = (
+                f"the master aborted it: 0x{cia301.SDO_TIMED_OUT:08X}, "
+                f"{cia301.sdo_abort_text(cia301.SDO_TIMED_OUT)}; sdo_timeout and sdo_retries of the node set the wait"
+            )
             if self.step == "identity":
                 raise self._fail(
-                    f"no answer to the SDO read of 0x{index:04X}:{sub:02X} within {timeout_ms:.0f} ms ({exc}). "
+                    f"no answer to the SDO read of {self.object_name(index, sub)} {waited} ({timed_out}). "
                     f"Check that the drive is powered, wired and terminated, and set to node id "
-                    f"{self.node.node_id} and {self.bus.bitrate // 1000} kbit/s. Nothing was written to it."
+                    f"{self.node.node_id} and {self.bus.bitrate // 1000} kbit/s. Nothing was written to it.",
+                    cia301.SDO_TIMED_OUT,
                 ) from exc
             raise self._fail(
-                f"stopped answering SDO ({action} 0x{index:04X}:{sub:02X}, {timeout_ms:.0f} ms: {exc}). "
-                f"Check its power and wiring. {self._left()}"
+                f"stopped answering SDO ({action} {self.object_name(index, sub)}: no answer {waited}; {timed_out}). "
+                f"Check its power and wiring. {self._left()}",
+                cia301.SDO_TIMED_OUT,
             ) from exc
+
+    def object_name(self, index: int, sub: int) -> str:
+        """0xIIII:SS and the object's name in the node's EDS (loaded only when a message needs it)."""
+        where = f"0x{index:04X}:{sub:02X}"
+        if self._od is None:
+            self._od = canopen.ObjectDictionary()
+            if self.node.eds is not None:
+                with contextlib.suppress(Exception):  # a name is a courtesy: an unreadable EDS leaves the number
+                    self._od = canopen.import_od(str(self.cfg.path(self.node.eds)))
+        try:
+            obj = self._od[index]
+        except KeyError:
+            return where
+        if isinstance(obj, canopen.objectdictionary.ODVariable):
+            return f"{where} ({obj.name})"
+        var = obj.subindices.get(sub)
+        return f"{where} ({obj.name}" + (f", {var.name})" if var is not None else ")")
 
     def _left(self) -> str:
         if self.step in ("identity", "pre-operational"):
@@ -427,7 +454,7 @@ def configure_network(
     bus_name: str | None = None,
     nodes: Iterable[str] | None = None,
     identities: Mapping[str, Identity] | None = None,
-    sdo_timeout_s: float = 0.5,
+    sdo_timeout_s: float | None = None,
     interpolation: bool = True,
     disable_unused: bool = True,
     start: bool = True,
@@ -436,6 +463,7 @@ def configure_network(
     says, read it back, and start the nodes that passed. Each node's identity is checked first: the one `identities`
     gives for it, else runtime.json's node.identity; a node with neither is not checked (for a runtime.json written
     before node.identity, pass identities_from_dir). `interpolation` writes the start-up SDO values (node.sdo_init).
+    Each SDO request waits `sdo_timeout_s`, else the node's sdo_timeout_ns, and is repeated sdo_retries times.
     Returns one NodeSetup per node; never raises for a node's fault.
 
     `bus` stays open and usable by a MasterCycle afterwards: the Notifier this uses is stopped before returning."""
@@ -449,30 +477,58 @@ def configure_network(
     results = []
     try:
         for node in slaves:
-            assert node.node_id is not None
-            remote = canopen.RemoteNode(node.node_id, canopen.ObjectDictionary())
-            remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
-            network.add_node(remote)
-            try:
-                results.append(
-                    _configure_node(
-                        cfg,
-                        co_bus,
-                        node,
-                        remote,
-                        (identities or {}).get(node.name) or identity_from_runtime(cfg, node),
-                        interpolation,
-                        disable_unused,
-                        start,
-                        network.notifier,
-                    )
+            results.append(
+                configure_node(
+                    cfg,
+                    network,
+                    node,
+                    bus=co_bus,
+                    identity=(identities or {}).get(node.name),
+                    sdo_timeout_s=sdo_timeout_s,
+                    interpolation=interpolation,
+                    disable_unused=disable_unused,
+                    start=start,
                 )
-            finally:
-                del network[node.node_id]
+            )
     finally:
         network.notifier.stop(timeout=2.0)
         network.notifier = None
     return SetupReport(co_bus.name, tuple(results))
+
+
+def configure_node(
+    cfg: RuntimeConfig,
+    network: canopen.Network,
+    node: Node,
+    *,
+    bus: Bus,
+    identity: Identity | None = None,
+    sdo_timeout_s: float | None = None,
+    interpolation: bool = True,
+    disable_unused: bool = True,
+    start: bool = True,
+) -> NodeSetup:
+    """One node's set-up (configure_network's steps) over `network`, whose frames reach it through a Notifier or
+    through whoever calls network.notify (the live master re-configuring a drive that rebooted while it cycles)."""
+    assert node.node_id is not None
+    remote = canopen.RemoteNode(node.node_id, canopen.ObjectDictionary())
+    remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s if sdo_timeout_s is not None else node.sdo_timeout_ns / 1e9
+    remote.sdo.MAX_RETRIES = node.sdo_retries + 1  # canopen counts the first request among its "retries"
+    network.add_node(remote)
+    try:
+        return _configure_node(
+            cfg,
+            bus,
+            node,
+            remote,
+            identity or identity_from_runtime(cfg, node),
+            interpolation,
+            disable_unused,
+            start,
+            network.notifier,
+        )
+    finally:
+        del network[node.node_id]
 
 
 def _configure_node(
@@ -498,7 +554,7 @@ def _configure_node(
     except _NodeFailed as exc:
         error, code = exc.error, exc.abort_code
     except SdoAbortedError as exc:  # from a step that lets some codes through (no such object)
-        text = SdoAbortedError.CODES.get(exc.code, "unknown abort code")
+        text = cia301.sdo_abort_text(exc.code)
         error, code = f"SDO abort 0x{exc.code:08X} ({text}) at {job.step}. {job._left()}", exc.code
     except SdoCommunicationError as exc:
         error = f"stopped answering SDO at {job.step} ({exc}). {job._left()}"

@@ -49,8 +49,8 @@ def interpolation_period(period_ns: int) -> tuple[int, int] | None:
 # --- the configuration ----------------------------------------------------------------------------------------
 
 
-
 DEFAULT_CLOCK_TOLERANCE_PPM = 100  # a bus without clock_tolerance_ppm: its senders' clocks within +-100 ppm
+
 
 @dataclass(frozen=True)
 class Signal(Field):
@@ -248,6 +248,9 @@ class Node:
     heartbeat_timeout_ns: int | None = None  # the master's consumer time for this node's heartbeat
     on_loss: str = "stop_all"  # stop_all | stop_node | continue
     on_emcy: str = "stop_all"
+    on_reboot: str = "stop_node"  # recover | stop_node | stop_all: a boot-up message while running
+    sdo_timeout_ns: int = 500_000_000  # the master's wait for each SDO answer (files written before it: 500 ms)
+    sdo_retries: int = 0  # SDO requests repeated after a timeout
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
     # CAN transmit queue; a file written before this key: priority-queued
     tx_queue: TxQueue = TxQueue()

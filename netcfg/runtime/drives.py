@@ -63,6 +63,8 @@ ABORT_NOT_MAPPABLE = 0x06040041
 ABORT_PDO_LENGTH = 0x06040042
 ABORT_VALUE_RANGE = 0x06090030
 ABORT_DEVICE_STATE = 0x08000022
+EMCY_RPDO_TIMEOUT = 0x8250  # CiA 301 table 21: "RPDO timeout" (the RPDO's deadline, its event timer, passed)
+SYNC_GAP = 1.5  # a SYNC this many interpolation periods after the last one: the drive notes it missed some
 
 DriveModel = Callable[["SimulatedDrive"], None]
 
@@ -158,7 +160,7 @@ class _PdoSlot:
     sync_start: int
     entries: tuple[tuple[int, int, int], ...]  # (index, sub, bits)
     inhibit_100us: int = 0  # TPDOs: sub 3, the least gap between two sends
-    event_timer_ms: int = 0  # TPDOs: sub 5, a send due after this long without one (0: off)
+    event_timer_ms: int = 0  # sub 5: a TPDO's send due after this long without one; an RPDO's deadline (0: off)
 
     @property
     def event_driven(self) -> bool:
@@ -190,8 +192,8 @@ class SimulatedDrive:
 
     Faults (for tests): `identity=(vendor_id, product_code)` puts other values in 0x1018; `silent=True` answers
     nothing at all (a drive that is off, or has another node id or bit rate); `abort_writes={index: abort_code}`
-    aborts every SDO write to those objects with that code; `no_event_timer=True` ignores the TPDOs' event timers
-    (a firmware without them that accepts the write anyway).
+    aborts every SDO write to those objects with that code ({(index, sub): code}: to one sub-index);
+    `no_event_timer=True` ignores the TPDOs' event timers (a firmware without them that accepts the write anyway).
 
     `response_delay_s`: the TPDOs answering a SYNC are sampled when it arrives and sent that long after it (measured
     on `clock`, which must count real seconds), from a ResponseScheduler thread: the bench's, shared by its drives,
@@ -211,7 +213,7 @@ class SimulatedDrive:
         model: DriveModel | None = follow_velocity,
         identity: tuple[int, int] | None = None,
         silent: bool = False,
-        abort_writes: Mapping[int, int] | None = None,
+        abort_writes: Mapping[int | tuple[int, int], int] | None = None,
         no_event_timer: bool = False,
     ) -> None:
         od = object_dictionary if isinstance(object_dictionary, canopen.ObjectDictionary) else str(object_dictionary)
@@ -246,6 +248,8 @@ class SimulatedDrive:
         self._sync_started: set[int] = set()
         self._last_acyclic: dict[int, bytes] = {}
         self._pending: dict[int, tuple[_PdoSlot, bytes]] = {}
+        self._rpdo_seen: dict[int, int] = {}  # RPDO number -> receptions, for its deadline
+        self._last_sync_at: float | None = None
         # event-driven TPDOs, shared by the frame thread (application events at SYNC) and the scheduler (timers)
         self._event_lock = threading.Lock()
         self._event_epoch = 0  # counts entries to OPERATIONAL: timers of an earlier one do nothing
@@ -256,6 +260,7 @@ class SimulatedDrive:
         # the PDO slots the object dictionary has (0-based), looked up once
         self._rx_slots = tuple(n for n in range(PDO_SLOTS) if self.has(RPDO_COMM + n, 1))
         self._tx_slots = tuple(n for n in range(PDO_SLOTS) if self.has(TPDO_COMM + n, 1))
+        self._identity, self._clear_on_boot = identity, clear_pdos
         self._fill_values(identity)
         if clear_pdos:
             self._clear_pdos()
@@ -266,6 +271,8 @@ class SimulatedDrive:
             self.power = PowerStateMachine()
             self._show_state()
         self.killed = False
+        self.reboots = 0
+        self.notes: list[str] = []  # what the drive did on its own that a test or the bench reports
         self.emcy_sent: list[tuple[int, int, bytes]] = []
         self._ending: list[threading.Thread] = []  # heartbeat threads told to stop, not yet joined
 
@@ -374,6 +381,33 @@ class SimulatedDrive:
         self.killed = self.silent = True
         self._stop_heartbeat()
 
+    def reboot(self, outage_s: float) -> None:
+        """The drive resets (a brown-out, a watchdog): silent for `outage_s`, then it boots as after power-on, with
+        its default object dictionary (the master's PDO configuration and start-up values gone): the boot-up message
+        (heartbeat COB-ID, one byte 0x00, CiA 301 7.2.8.3.2.1), PRE-OPERATIONAL, CiA 402 SWITCH ON DISABLED."""
+        self.kill()
+        self.reboots += 1
+        if self._scheduler is not None:
+            self._scheduler.call_later(outage_s, self._boot)
+        else:
+            threading.Timer(outage_s, self._boot).start()
+
+    def _boot(self) -> None:
+        if self.network is None:
+            return  # detached meanwhile
+        self.node.data_store = {}
+        self._fill_values(self._identity)
+        if self._clear_on_boot:
+            self._clear_pdos()
+        self._dirty = True
+        self.killed = self.silent = False
+        self.node.nmt.send_command(0x81)  # reset node: the boot-up message
+        self.node.nmt.send_command(0x80)  # PRE-OPERATIONAL, heartbeat at the default 0x1017
+        if self.power is not None:
+            self.power = PowerStateMachine()
+            self.power.tick()  # NOT READY TO SWITCH ON -> SWITCH ON DISABLED
+            self._show_state()
+
     def _stop_heartbeat(self) -> None:
         """Stop the heartbeat canopen sends from a python-can cyclic-send thread; the thread ends within one
         period, join_threads() waits for it."""
@@ -406,7 +440,7 @@ class SimulatedDrive:
             sync_start=self._int(comm + n, 6),
             entries=tuple(entries),
             inhibit_100us=self._int(comm + n, 3) if comm == TPDO_COMM else 0,
-            event_timer_ms=self._int(comm + n, 5) if comm == TPDO_COMM else 0,
+            event_timer_ms=self._int(comm + n, 5),  # an RPDO's: its deadline (CiA 301 7.5.2.35), 0 none
         )
 
     def _rebuild(self) -> None:
@@ -429,8 +463,9 @@ class SimulatedDrive:
     # --- SDO writes: faults and CiA 301 checks --------------------------------------------------------------------
 
     def _on_sdo_write(self, index: int, subindex: int, od: ODVariable, data: bytes, **_: Any) -> None:
-        if index in self.abort_writes:
-            raise SdoAbortedError(self.abort_writes[index])
+        code = self.abort_writes.get((index, subindex), self.abort_writes.get(index))
+        if code is not None:
+            raise SdoAbortedError(code)
         if self.strict_pdo_writes:
             self._check_pdo_write(index, subindex, od, data)
         self.sdo_writes.append((index, subindex))
@@ -542,6 +577,7 @@ class SimulatedDrive:
             self._sync_counts.clear()  # "every n-th SYNC" counts from the start
             self._sync_started.clear()
             self._last_acyclic.clear()
+            self._last_sync_at = None
             self._pending.clear()
             self._rebuild()
             self._start_event_timers()
@@ -549,6 +585,7 @@ class SimulatedDrive:
     def _on_sync(self, data: bytes) -> None:
         assert self.network is not None
         self.syncs += 1
+        self._sync_gap()
         counter = data[0] if data else None
         for slot, payload in self._pending.values():
             self._apply(slot, payload)
@@ -708,10 +745,46 @@ class SimulatedDrive:
         if 8 * len(data) < slot.bits:
             self.rpdo_length_errors += 1
             return
+        if slot.event_timer_ms and self._scheduler is not None:
+            # deadline monitoring (CiA 301 7.5.2.35, sub 5 of an RPDO): armed by each reception
+            stamp = self._rpdo_seen[slot.number] = self._rpdo_seen.get(slot.number, 0) + 1
+            self._scheduler.call_later(slot.event_timer_ms / 1e3, lambda: self._rpdo_deadline(slot, stamp))
         if cia301.sync_every(slot.transmission) is not None:
             self._pending[slot.number] = (slot, data)  # synchronous RPDO: takes effect at the next SYNC
         else:
             self._apply(slot, data)
+
+    def _rpdo_deadline(self, slot: _PdoSlot, stamp: int) -> None:
+        """No RPDO since the one that armed this: the drive reports an RPDO timeout and takes its fault reaction."""
+        if self._rpdo_seen.get(slot.number) != stamp or self.silent or self.node.nmt.state != "OPERATIONAL":
+            return
+        comm = RPDO_COMM + slot.number - 1
+        self.notes.append(
+            f"RPDO{slot.number} not received within its deadline of {slot.event_timer_ms} ms (0x{comm:04X} sub 5): "
+            f"EMCY 0x{EMCY_RPDO_TIMEOUT:04X} (RPDO timeout) and the fault reaction"
+        )
+        self.emergency(EMCY_RPDO_TIMEOUT)
+
+    def _sync_gap(self) -> None:
+        """At a SYNC: one that came more than SYNC_GAP interpolation periods (0x60C2) after the last is a gap the
+        drive notes; without an RPDO deadline (above) or a consumer heartbeat time for the master (0x1016) it has no
+        way to react, so it keeps its last command, and says so."""
+        now = self.clock.now()
+        last, self._last_sync_at = self._last_sync_at, now
+        if last is None or not (self.has(0x60C2, 1) and self.has(0x60C2, 2)):
+            return
+        period_s = int(self.value(0x60C2, 1)) * 10.0 ** int(self.value(0x60C2, 2))
+        if period_s <= 0 or now - last <= SYNC_GAP * period_s:
+            return
+        watches = any(s.event_timer_ms for s in self._rpdos.values()) or any(
+            self._int(0x1016, sub) for sub in range(1, 128) if self.has(0x1016, sub)
+        )
+        if not watches:
+            self.notes.append(
+                f"no SYNC for {1e3 * (now - last):.1f} ms (interpolation period {1e3 * period_s:g} ms): no RPDO "
+                "deadline (0x14xx sub 5) and no consumer heartbeat time (0x1016) to react with, so it kept its last "
+                "command"
+            )
 
     def _apply(self, slot: _PdoSlot, data: bytes) -> None:
         acc, offset = int.from_bytes(data, "little"), 0

@@ -305,6 +305,9 @@ def _node(d: dict[str, Any]) -> Node:
         heartbeat_timeout_ns=d.get("heartbeat_timeout_ns"),
         on_loss=d.get("on_loss", "stop_all"),
         on_emcy=d.get("on_emcy", "stop_all"),
+        on_reboot=d.get("on_reboot", "stop_node"),
+        sdo_timeout_ns=d.get("sdo_timeout_ns", 500_000_000),
+        sdo_retries=d.get("sdo_retries", 0),
         safe_stop=d.get("safe_stop", "quick_stop"),
         tx_queue=TxQueue(**d["tx_queue"]) if d.get("tx_queue") else TxQueue(),
     )

@@ -15,6 +15,13 @@
    `on_loss`/`on_emcy` says: `stop_all` ends the cycle; `stop_node` sends that node NMT PRE-OPERATIONAL at once (it
    stops its PDOs and keeps answering SDO, so its drive can be stopped safely at the end); `continue` reports it.
    `stop()` (e.g. from a Ctrl-C handler) ends the cycle after the current iteration.
+   A boot-up message (the node rebooted) does what its `on_reboot` says: `recover` sets it up again on a worker
+   thread while the cycle runs (configure_node, the set-up's own steps; the cycle hands it its SDO answers, and
+   reads the bus in its waits meanwhile) and enables it, over SDO or its PDOs; `stop_node` leaves it
+   PRE-OPERATIONAL; `stop_all` ends the cycle. A set-up again that fails follows the node's `on_loss`. A SYNC more
+   than half a period late is reported with the instants missed (a stalled host; `Plan.stalls` plays one), and a
+   controller that is bus-off (python-can's bus state, or SocketCAN's error frames) holds the cycle until the bus
+   is back (`BusLog.bus_off` plays one).
 4. Safe stop, whatever ended the run: every started drive still answering gets its `safe_stop` command (quick stop
    or disable operation, CiA 402) over SDO, then every started node NMT PRE-OPERATIONAL.
 
@@ -47,8 +54,15 @@ from netcfg.runtime.canopen_master import (
     canopen_slaves,
     configure_network,
 )
-from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START
-from netcfg.runtime.cia402 import CONTROLWORD, STATUSWORD, Cia402Error, PdoEnabler, enable_operation, safe_stop
+from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START, configure_node
+from netcfg.runtime.cia402 import (
+    CONTROLWORD,
+    STATUSWORD,
+    Cia402Error,
+    PdoEnabler,
+    enable_operation,
+    safe_stop,
+)
 from netcfg.runtime.clock import Clock, SystemClock
 from netcfg.runtime.codec import Number
 from netcfg.runtime.supervision import Event, Supervisor
@@ -58,8 +72,16 @@ __all__ = ["BusLog", "NodeOutcome", "Outcome", "Plan", "operate"]
 ABORT_NO_OBJECT = (0x06020000, 0x06090011)
 
 
+CAN_ERR_BUSOFF, CAN_ERR_RESTARTED = 0x40, 0x100  # SocketCAN error frame classes (linux/can/error.h)
+BUS_POLL_S = 0.001  # how often a master whose controller is bus-off looks whether the bus is back
+
+
 class BusLog(can.BusABC):
-    """A python-can bus that writes every frame sent or received through it to a log file (can.Logger)."""
+    """A python-can bus that writes every frame sent or received through it to a log file (can.Logger).
+
+    It also plays a bus-off of the controller for drills (`bus_off(duration_s)`), which python-can's virtual bus
+    cannot: meanwhile `state` is can.BusState.ERROR, send() raises can.CanOperationError and nothing is received
+    (what came is dropped, as a controller off the bus never sees it). Otherwise `state` is the interface's."""
 
     def __init__(self, bus: can.BusABC, path: str | Path | None) -> None:
         self.inner = bus
@@ -73,6 +95,29 @@ class BusLog(can.BusABC):
         self._filters = None
         self._is_shutdown = False
         self._last = 0.0  # the log's latest timestamp
+        self._off_until: float | None = None  # time.monotonic() the simulated bus-off ends
+
+    def bus_off(self, duration_s: float) -> None:
+        """The controller goes bus-off now and is back on the bus after duration_s (a drill)."""
+        self._off_until = time.monotonic() + duration_s
+
+    def _off(self) -> bool:
+        if self._off_until is not None and time.monotonic() >= self._off_until:
+            self._off_until = None
+        return self._off_until is not None
+
+    @property
+    def state(self) -> can.BusState:
+        if self._off():
+            return can.BusState.ERROR
+        try:
+            return self.inner.state
+        except NotImplementedError:
+            return can.BusState.ACTIVE
+
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        self.inner.state = new_state
 
     def _log(self, msg: can.Message) -> None:
         if self._logger is not None:
@@ -85,6 +130,8 @@ class BusLog(can.BusABC):
                 self._logger.on_message_received(msg)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self._off():
+            raise can.CanOperationError("the CAN controller is bus-off")
         queued = time.time()
         self.inner.send(msg, timeout)
         sent = can.Message(
@@ -100,6 +147,14 @@ class BusLog(can.BusABC):
         self._log(sent)
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
+        if self._off():
+            end = None if timeout is None else time.monotonic() + timeout
+            while self._off():  # frames on the bus meanwhile never reach a controller that is off it
+                left = None if end is None else end - time.monotonic()
+                if left is not None and left <= 0:
+                    return None
+                self.inner.recv(min(left, BUS_POLL_S) if left is not None else BUS_POLL_S)
+            timeout = None if end is None else max(0.0, end - time.monotonic())
         msg = self.inner.recv(timeout)
         if msg is not None:
             self._log(msg)
@@ -129,8 +184,9 @@ class Plan:
     bus_name: str | None = None
     allow_missing: bool = False
     transition_timeout_s: float = 0.5
-    sdo_timeout_s: float = 0.5
+    sdo_timeout_s: float | None = None  # None: each node's sdo_timeout_ns (runtime.json)
     drills: list[tuple[float, str, Callable[[], None]]] = field(default_factory=list)  # (at s, text, action)
+    stalls: list[tuple[float, float]] = field(default_factory=list)  # (from s, to s): the master's loop pauses
     on_cycle: Callable[[CycleRecord, Outcome], None] | None = None  # e.g. a live view
 
 
@@ -152,6 +208,22 @@ class NodeOutcome:
     heartbeat_timeout_ms: float | None = None
     emcy: list[dict[str, Any]] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
+    # each boot-up while running: {"at_s", "action", "recovered_at_s", "recovery_ms", "result"}
+    reboots: list[dict[str, Any]] = field(default_factory=list)
+
+
+@dataclass
+class _Recovery:
+    """A drive that rebooted being set up again beside the cycle, on a worker thread; the cycle hands its SDO answers
+    to `network` (see _Operation._on_frame). `done` is the clock time it ended, `error` why it failed."""
+
+    node: str
+    booted: float  # clock time of the boot-up message
+    network: canopen.Network
+    thread: threading.Thread | None = None
+    done: float | None = None
+    error: str | None = None
+    path: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -167,6 +239,10 @@ class Outcome:
     sync_completion_ns: int | None = None
     master_jitter_ns: int = 0  # the analysed bound of how late the master's SYNC may come
     bad_emcy: int = 0
+    # the CAN controller off the bus: {"detected_s", "back_s", "first_sync_s", "off_ms", "recovery_ms"}
+    bus_offs: list[dict[str, Any]] = field(default_factory=list)
+    # SYNC instants the master let pass (its loop stalled): {"from_s", "to_s", "missed", "instants_s"}
+    sync_gaps: list[dict[str, Any]] = field(default_factory=list)
     t0: float = 0.0  # clock time the cycle phase began: the origin of every *_s time above
 
     def out_of_service(self, node: str, t: float) -> bool:
@@ -194,6 +270,14 @@ class _Operation:
         self.enablers: dict[str, PdoEnabler] = {}
         self.first: float | None = None
         self.drills = sorted(plan.drills, key=lambda d: d[0])
+        self.stalls = sorted(plan.stalls)
+        self.last_sync: float | None = None
+        self.error_frame_bus_off = False  # SocketCAN said bus-off in an error frame, and no restart since
+        self.bus_back: tuple[float, float] | None = None  # (detected, back) of a bus-off the cycle resumes after
+        self.master: MasterCycle | None = None
+        self.recovering: dict[str, _Recovery] = {}
+        self.sdo_routes: dict[int, _Recovery] = {}  # SDO response COB-ID -> the recovery awaiting it
+        self.timeout_cycles = 1
 
     # --- SDO access for the CiA 402 phases (a canopen Network with its own Notifier, outside the cycle) -------
 
@@ -208,7 +292,10 @@ class _Operation:
 
     def _remote(self, network: canopen.Network, node_id: int) -> canopen.RemoteNode:
         remote = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
-        remote.sdo.RESPONSE_TIMEOUT = self.plan.sdo_timeout_s
+        node = self.cfg.node(self._name(node_id))
+        timeout = self.plan.sdo_timeout_s
+        remote.sdo.RESPONSE_TIMEOUT = timeout if timeout is not None else node.sdo_timeout_ns / 1e9
+        remote.sdo.MAX_RETRIES = node.sdo_retries + 1
         network.add_node(remote)
         return remote
 
@@ -311,21 +398,26 @@ class _Operation:
         supervisor = self.supervisor = Supervisor(self.cfg, self.co_bus, running)
         cycles = self.plan.cycles if self.plan.cycles is not None else 2**62
         period_ns = self.co_bus.canopen.sync_period_ns if self.co_bus.canopen else 1
-        timeout_cycles = -(-round(self.plan.transition_timeout_s * 1e9) // period_ns)
+        timeout_cycles = self.timeout_cycles = -(-round(self.plan.transition_timeout_s * 1e9) // period_ns)
         self.enablers = {n: PdoEnabler(n, timeout_cycles) for n in running if self.out.nodes[n].cia402_over == "PDO"}
-        master = MasterCycle(
+        pdo_enabled = bool(self.enablers)
+        master = self.master = MasterCycle(
             self.cfg,
             self.bus,
             self.clock,
             bus_name=self.co_bus.name,
             nodes=running,
-            commands=self._commands if self.enablers else None,
-            on_frame=supervisor.feed,
+            commands=self._commands if pdo_enabled else None,
+            on_frame=self._on_frame,
             after_cycle=self._after_cycle,
+            serve=lambda: bool(self.recovering),
         )
         self.first = self.out.t0 = self.clock.now()
         supervisor.start(self.first)
-        self.out.run = master.run(cycles)
+        try:
+            self.out.run = master.run(cycles)
+        finally:
+            self._finish_recoveries()
         self.out.bad_emcy = supervisor.bad_emcy
         for name, w in supervisor.watched.items():
             node = self.out.nodes[name]
@@ -335,6 +427,187 @@ class _Operation:
                 node.lost_at_s = w.lost_at - self.first
                 node.lost_silent_ms = 1e3 * w.silent_for_s
                 node.state = "LOST"
+
+    def _on_frame(self, frame: can.Message, t: float) -> None:
+        """Frames the cycle does not take: SDO answers to a drive being set up again go to its recovery, the rest
+        to supervision."""
+        if frame.is_error_frame:  # SocketCAN reports controller states in error frames, not in bus.state
+            if frame.arbitration_id & CAN_ERR_BUSOFF:
+                self.error_frame_bus_off = True
+            if frame.arbitration_id & CAN_ERR_RESTARTED:
+                self.error_frame_bus_off = False
+        route = self.sdo_routes.get(frame.arbitration_id) if not frame.is_extended_id else None
+        if route is not None:
+            route.network.notify(frame.arbitration_id, bytearray(frame.data), t)
+            return
+        assert self.supervisor is not None
+        self.supervisor.feed(frame, t)
+
+    # --- a drive that rebooted (on_reboot) ------------------------------------------------------------------------
+
+    def _recover(self, name: str, booted: float) -> None:
+        """Set the node up again (the set-up's own code path: identity, PDOs, start-up values, read-back, NMT start)
+        and, over SDO, enable its CiA 402 power state machine, on a worker thread while the others cycle."""
+        node_cfg = self.cfg.node(name)
+        assert node_cfg.node_id is not None
+        rec = _Recovery(name, booted, canopen.Network(self.bus))
+        self.sdo_routes[0x580 + node_cfg.node_id] = rec  # CiA 301 default SDO server -> client COB-ID
+        self.recovering[name] = rec
+        outcome = self.out.nodes[name]
+
+        def work() -> None:
+            try:
+                setup = configure_node(
+                    self.cfg, rec.network, node_cfg, bus=self.co_bus, sdo_timeout_s=self.plan.sdo_timeout_s
+                )
+                if not setup.ok:
+                    rec.error = f"set-up again failed at {setup.step}: {setup.error}"
+                elif outcome.cia402_over == "SDO":
+                    remote = self._remote(rec.network, node_cfg.node_id or 0)
+                    try:
+                        rec.path = enable_operation(name, *_sdo_io(remote), timeout_s=self.plan.transition_timeout_s)
+                    finally:
+                        del rec.network[node_cfg.node_id or 0]
+            except (Cia402Error, SdoAbortedError, SdoCommunicationError, can.CanError) as exc:
+                rec.error = f"enabling again failed: {exc}"
+            finally:
+                rec.done = self.clock.now()
+
+        rec.thread = threading.Thread(target=work, name=f"netcfg-recover-{name}", daemon=True)
+        rec.thread.start()
+
+    def _poll_recoveries(self) -> None:
+        """Recoveries that ended: a "recovered" event, or "recovery-failed" with the node's on_loss."""
+        assert self.supervisor is not None and self.master is not None
+        for name, rec in list(self.recovering.items()):
+            if rec.done is None:
+                continue
+            enabler = self.enablers.get(name)
+            if rec.error is None and self.out.nodes[name].cia402_over == "PDO":
+                if enabler is None or enabler.error is not None:  # configured and started: now its PDO walk
+                    self.enablers[name] = PdoEnabler(name, self.timeout_cycles)
+                    self.master.muted.discard(name)
+                    continue
+                if not enabler.enabled:
+                    continue
+                rec.path = list(enabler.path)
+            del self.recovering[name]
+            self.sdo_routes = {k: v for k, v in self.sdo_routes.items() if v is not rec}
+            node = self.out.nodes[name]
+            took_ms = 1e3 * (rec.done - rec.booted)
+            if rec.error is None:
+                self.master.muted.discard(name)
+                self.supervisor.quiet.discard(name)
+                text = (
+                    f"{name} recovered {took_ms:.1f} ms after its boot-up: identity checked, configuration written "
+                    f"and read back, started, {' -> '.join(rec.path) or 'OPERATIONAL'}"
+                )
+                self.supervisor.events.append(Event(rec.done, name, "recovered", "continue", text))
+                node.state = rec.path[-1] if rec.path else "OPERATIONAL"
+            else:
+                action = self.cfg.node(name).on_loss
+                text = f"{name} not recovered ({took_ms:.1f} ms after its boot-up): {rec.error}"
+                self.supervisor.events.append(Event(rec.done, name, "recovery-failed", action, text))
+                node.errors.append(rec.error)
+            node.reboots[-1].update(
+                recovered_at_s=round(rec.done - (self.first or 0.0), 6) if rec.error is None else None,
+                recovery_ms=round(took_ms, 3),
+                result="recovered" if rec.error is None else rec.error,
+            )
+
+    def _finish_recoveries(self) -> None:
+        """The cycle ended with a recovery under way: keep handing it its SDO answers until it ends."""
+        for rec in list(self.recovering.values()):
+            while rec.thread is not None and rec.thread.is_alive():
+                frame = self.bus.recv(timeout=0.01)
+                if frame is not None:
+                    self._on_frame(frame, self.clock.now())
+            if rec.done is not None and rec.error is None and self.out.nodes[rec.node].cia402_over == "PDO":
+                rec.error = "the run ended before its CiA 402 walk over PDOs"
+        if self.supervisor is not None and self.master is not None:
+            self._poll_recoveries()
+            while len(self.out.events) < len(self.supervisor.events):
+                event = self.supervisor.events[len(self.out.events)]
+                self.out.events.append((event.time - (self.first or 0.0), event))
+
+    def _bus_is_off(self) -> bool:
+        """The controller is off the bus: python-can's bus state says so (interfaces that report one), or a
+        SocketCAN error frame did."""
+        try:
+            state = self.bus.state
+        except NotImplementedError:
+            state = can.BusState.ACTIVE
+        return state is can.BusState.ERROR or self.error_frame_bus_off
+
+    def _ride_out_bus_off(self) -> None:
+        """Bus-off: nothing can be sent, so the master stops sending (no SYNC, no RxPDO) and looks every BUS_POLL_S
+        whether the bus is back; then the cycle resumes. Supervision restarts its clocks then: no heartbeat could
+        be heard meanwhile."""
+        assert self.supervisor is not None and self.master is not None
+        detected = self.clock.now()
+        master = self.master.master.name
+        self.supervisor.events.append(
+            Event(
+                detected,
+                master,
+                "bus-off",
+                "hold",
+                "the master's CAN controller is bus-off: it stops sending and waits for the bus",
+            )
+        )
+        while self._bus_is_off() and self.stop_requested is None:
+            frame = self.bus.recv(timeout=BUS_POLL_S)
+            if frame is not None:
+                self._on_frame(frame, self.clock.now())
+        back = self.clock.now()
+        self.supervisor.resume(back)
+        self.bus_back = (detected, back)
+
+    def _bus_recovered(self, record: CycleRecord) -> None:
+        """The first cycle after a bus-off: how long the bus was off and how soon the SYNC followed its return."""
+        if self.bus_back is None or self.supervisor is None or self.master is None or self.first is None:
+            return
+        (detected, back), self.bus_back = self.bus_back, None
+        off_ms, recovery_ms = 1e3 * (back - detected), 1e3 * (record.sync_sent - back)
+        self.out.bus_offs.append(
+            {
+                "detected_s": round(detected - self.first, 6),
+                "back_s": round(back - self.first, 6),
+                "first_sync_s": round(record.sync_sent - self.first, 6),
+                "off_ms": round(off_ms, 3),
+                "recovery_ms": round(recovery_ms, 3),
+            }
+        )
+        text = (
+            f"the bus is back after {off_ms:.1f} ms off (detected at {detected - self.first:.3f} s); the first SYNC "
+            f"went out {recovery_ms:.1f} ms after its return"
+        )
+        self.supervisor.events.append(Event(record.sync_sent, self.master.master.name, "bus-on", "continue", text))
+
+    def _missed_syncs(self, record: CycleRecord) -> None:
+        """SYNC instants that passed without a SYNC: a SYNC more than half a period after its instant means the
+        master's loop was held (a stalled host, a bus-off); the gap is reported with the instants missed."""
+        assert self.supervisor is not None and self.master is not None and self.first is not None
+        if not record.sync_ok:
+            return  # no SYNC went out: this instant is among those the next SYNC reports missed
+        last, self.last_sync = self.last_sync, record.sync_sent
+        if last is None:
+            return
+        period = self.master.period_s
+        gap = record.sync_sent - last
+        missed = round(gap / period) - 1
+        if missed < 1:
+            return
+        instants = [round(last - self.first + k * period, 6) for k in range(1, missed + 1)]
+        from_s, to_s = last - self.first, record.sync_sent - self.first
+        self.out.sync_gaps.append(
+            {"from_s": round(from_s, 6), "to_s": round(to_s, 6), "missed": missed, "instants_s": instants}
+        )
+        text = (
+            f"no SYNC for {1e3 * gap:.1f} ms ({from_s:.3f} s to {to_s:.3f} s): {missed} SYNC instants of the "
+            f"{1e3 * period:g} ms period missed; the cycle resumed"
+        )
+        self.supervisor.events.append(Event(record.sync_sent, self.master.master.name, "missed-sync", "continue", text))
 
     def _commands(self, cycle: int, samples: Samples) -> dict[str, dict[str, Number]]:
         """The controlwords of the PDO-mapped drives, from the statuswords of the last cycle."""
@@ -349,13 +622,22 @@ class _Operation:
         assert self.supervisor is not None and self.first is not None
         now = self.clock.now()
         elapsed = now - self.first
+        self._bus_recovered(record)
+        self._missed_syncs(record)
+        if self._bus_is_off():
+            self._ride_out_bus_off()
         while self.drills and self.drills[0][0] <= elapsed:
             _, text, action = self.drills.pop(0)
             action()
             self.out.drills.append((elapsed, text))
+        while self.stalls and self.stalls[0][0] <= elapsed:
+            _, until = self.stalls.pop(0)
+            self.out.drills.append((elapsed, f"the master's loop stalls until {until:g} s: no SYNC, no RxPDO"))
+            self.clock.sleep_until(self.first + until)
         # every frame queued before the read ended has been fed (the queue is FIFO): check at that instant, so a
         # heartbeat still queued after a late wake-up is not mistaken for silence
         self.supervisor.check(record.read_done)
+        self._poll_recoveries()
         while len(self.out.events) < len(self.supervisor.events):
             event = self.supervisor.events[len(self.out.events)]
             self.out.events.append((event.time - self.first, event))
@@ -375,6 +657,8 @@ class _Operation:
         return self.stop_requested is None
 
     def _react(self, event: Event, at_s: float) -> None:
+        if event.node not in self.out.nodes:
+            return  # the master's own (missed SYNCs, bus-off): reported, nothing to do for a node
         node = self.out.nodes[event.node]
         if event.kind == "lost":
             node.state = "LOST"
@@ -382,6 +666,9 @@ class _Operation:
             node.state = "STOPPED (heartbeat back)" if node.stopped_at_s is not None else "BACK (heartbeat again)"
         elif event.kind == "emcy" and event.action != "continue":
             node.state = "FAULT"
+        elif event.kind == "boot-up":
+            self._rebooted(event, at_s)
+            return
         if event.action == "stop_all" and self.stop_requested is None:
             self.stop_requested = f"stop_all: {event.text}"
         elif event.action == "stop_node" and node.stopped_at_s is None:
@@ -389,6 +676,28 @@ class _Operation:
             if self.supervisor is not None:
                 self.supervisor.quiet.add(event.node)  # its TPDOs stop with it
             self._nmt(NMT_PRE_OPERATIONAL, node.node_id)  # its PDOs stop; SDO still answers for the safe stop
+
+    def _rebooted(self, event: Event, at_s: float) -> None:
+        """A boot-up message: the node is PRE-OPERATIONAL with its default object dictionary. Its RxPDOs stop (they
+        would land in an unconfigured dictionary), its TPDOs are not expected; then the node's on_reboot."""
+        assert self.supervisor is not None and self.master is not None
+        node = self.out.nodes[event.node]
+        node.reboots.append({"at_s": round(at_s, 6), "action": event.action})
+        node.state = "REBOOTED (PRE-OPERATIONAL)"
+        node.lost_at_s = node.lost_silent_ms = None
+        self.master.muted.add(event.node)
+        self.supervisor.quiet.add(event.node)
+        self.enablers.pop(event.node, None)
+        if event.action == "recover" and event.node not in self.recovering:
+            node.stopped_at_s = None
+            node.state = "RECOVERING"
+            self._recover(event.node, event.time)
+            return
+        if node.stopped_at_s is None:
+            node.stopped_at_s = at_s  # it stays PRE-OPERATIONAL: nothing is sent to it
+        node.reboots[-1]["result"] = "left stopped"
+        if event.action == "stop_all" and self.stop_requested is None:
+            self.stop_requested = f"stop_all: {event.text}"
 
     def stop(self, reason: str = "stop()") -> None:
         if self.stop_requested is None:

@@ -121,6 +121,8 @@ NODE = obj(
     heartbeat_timeout_ns=ns(1, null=True, optional=True),
     on_loss=F("enum", choices=("stop_all", "stop_node", "continue"), optional=True),
     on_emcy=F("enum", choices=("stop_all", "stop_node", "continue"), optional=True),
+    on_reboot=F("enum", choices=("recover", "stop_node", "stop_all"), optional=True),
+    sdo_timeout_ns=ns(1, optional=True), sdo_retries=i(0, 10, optional=True),
     safe_stop=F("enum", choices=("quick_stop", "disable_operation"), optional=True),
     tx_queue=obj(optional=True, policy=enum("priority", "fifo"), depth=i(1, 1_000_000), on_full=enum("block", "drop")),
     sdo_init=lst(obj(index=i(0, U16), sub=i(0, U8), data_type=i(1, U16), value=i(-(2**63), 2**64 - 1)),

@@ -9,7 +9,10 @@ from a Notifier thread, so supervision runs in the master's own loop, in real or
 What is supervised comes from runtime.json: a node with `heartbeat_timeout_ns` (its consumer heartbeat time, 0x1016
 in the master's DCF) is lost when no heartbeat arrived for that long, counted from the supervision's start or its
 last heartbeat; `on_loss` and `on_emcy` say what the master does then (`stop_all`, `stop_node`, `continue`). A
-lost node is reported once; a heartbeat after that is reported as its return. Detection happens when check() runs:
+lost node is reported once; a heartbeat after that is reported as its return. A boot-up message (the heartbeat
+COB-ID with one byte 0x00, CiA 301) is no return: the node reset and lost its configuration; it is reported as a
+"boot-up" event with the node's `on_reboot` (`recover`, `stop_node`, `stop_all`), lost or not before.
+Detection happens when check() runs:
 a master that checks once per SYNC period T reports a loss between the consumer time and the consumer time + T
 after the last heartbeat.
 
@@ -34,9 +37,11 @@ from canopen.nmt import NmtMaster
 from netcfg import cia301
 from netcfg.runtime import Bus, RuntimeConfig
 
-__all__ = ["ACTIONS", "EmcyRecord", "Event", "Supervisor"]
+__all__ = ["ACTIONS", "REBOOT_ACTIONS", "EmcyRecord", "Event", "Supervisor"]
 
 ACTIONS = ("stop_all", "stop_node", "continue")
+REBOOT_ACTIONS = ("recover", "stop_node", "stop_all")
+BOOT_UP = 0x00  # CiA 301 7.2.8.3.2.1: the boot-up message is the heartbeat COB-ID with the one byte 0
 
 
 @dataclass(frozen=True)
@@ -70,8 +75,8 @@ class Event:
 
     time: float
     node: str
-    kind: str  # "lost" | "back" | "emcy" | "tpdo-silent"
-    action: str  # stop_all | stop_node | continue
+    kind: str  # "lost" | "back" | "emcy" | "tpdo-silent" | "boot-up", and the master's own (netcfg.runtime.operate)
+    action: str  # stop_all | stop_node | continue | recover
     text: str
 
 
@@ -82,6 +87,7 @@ class _Watched:
     timeout_s: float | None
     on_loss: str
     on_emcy: str
+    on_reboot: str
     nmt: NmtMaster
     emcy: EmcyConsumer
     last_heartbeat: float | None = None
@@ -119,9 +125,19 @@ class Supervisor:
             for action in (node.on_loss, node.on_emcy):
                 if action not in ACTIONS:
                     raise ValueError(f"node '{name}': '{action}' is no action; write one of {', '.join(ACTIONS)}")
+            if node.on_reboot not in REBOOT_ACTIONS:
+                choices = ", ".join(REBOOT_ACTIONS)
+                raise ValueError(f"node '{name}': on_reboot '{node.on_reboot}' is no action; write one of {choices}")
             timeout = None if node.heartbeat_timeout_ns is None else node.heartbeat_timeout_ns / 1e9
             w = _Watched(
-                name, node.node_id, timeout, node.on_loss, node.on_emcy, NmtMaster(node.node_id), EmcyConsumer()
+                name,
+                node.node_id,
+                timeout,
+                node.on_loss,
+                node.on_emcy,
+                node.on_reboot,
+                NmtMaster(node.node_id),
+                EmcyConsumer(),
             )
             self.watched[name] = w
             self._by_id[node.node_id] = w
@@ -135,6 +151,16 @@ class Supervisor:
 
     def start(self, t: float) -> None:
         """Supervision begins: every supervised node must send a heartbeat within its consumer time from now."""
+        self.started = t
+
+    def resume(self, t: float) -> None:
+        """The master could hear nothing for a while (its controller was bus-off): every clock restarts at t, as at
+        the start, for nodes not already lost."""
+        for w in self.watched.values():
+            if w.lost_at is None:
+                w.last_heartbeat = None
+        for timed in self.timed.values():
+            timed.last = None
         self.started = t
 
     def feed(self, frame: can.Message, t: float) -> bool:
@@ -155,6 +181,18 @@ class Supervisor:
                 return False
             w.nmt.on_heartbeat(can_id, data, t)
             w.last_heartbeat = t
+            if data[0] == BOOT_UP:  # it rebooted: whatever the master configured is gone
+                w.lost_at = None
+                self.events.append(
+                    Event(
+                        t,
+                        w.name,
+                        "boot-up",
+                        w.on_reboot,
+                        f"{w.name} (node {w.node_id}) rebooted: boot-up message, its configuration is gone",
+                    )
+                )
+                return True
             if w.lost_at is not None:
                 w.lost_at = None
                 self.events.append(

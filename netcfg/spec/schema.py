@@ -436,6 +436,17 @@ class Node(SpecModel):
     on_emcy: Literal["stop_all", "stop_node", "continue"] = Field(
         "stop_all", description="`netcfg run`: what the master does when this node sends an emergency (EMCY)"
     )
+    on_reboot: Literal["recover", "stop_node", "stop_all"] = Field(
+        "stop_node",
+        description="`netcfg run`: what the master does when this node sends a boot-up message while running (it "
+        "rebooted and lost its configuration): set it up again and enable it, leave it stopped, or stop every drive",
+    )
+    sdo_timeout: DurationField | None = Field(
+        None, description="`netcfg run`: how long the master waits for each SDO answer of this node (default 500 ms)"
+    )
+    sdo_retries: Int = Field(
+        0, ge=0, le=10, description="`netcfg run`: how often the master repeats an SDO request that got no answer"
+    )
     safe_stop: Literal["quick_stop", "disable_operation"] = Field(
         "quick_stop",
         description="CiA 402 drive: the command that brings it to a safe state when a run ends or fails "
