@@ -548,6 +548,9 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
         f.opt(node, "nodes[].on_loss", st.sampled_from(["stop_all", "stop_node", "continue"]), 0.1)
         f.opt(node, "nodes[].on_emcy", st.sampled_from(["stop_all", "stop_node", "continue"]), 0.1)
         f.opt(node, "nodes[].safe_stop", st.sampled_from(["quick_stop", "disable_operation"]), 0.1)
+        f.opt(node, "nodes[].on_reboot", st.sampled_from(["recover", "stop_node", "stop_all"]), 0.2)
+        f.opt(node, "nodes[].sdo_timeout", ms(1, 60_000), 0.1)
+        f.opt(node, "nodes[].sdo_retries", st.integers(0, 10), 0.1)
         nodes.append(node)
         rpdo: dict[str, Any] = {"rpdo": 1, "map": [0x60FF]}
         f.opt(rpdo, "messages[].pdo.transmission", st.sampled_from([255, 254, 0, 1]), 0.3)

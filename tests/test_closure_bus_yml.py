@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
-from conftest import SPECS, cli
+from conftest import ROOT, SPECS, cli
 
 
 def build(spec: Path, out: Path) -> None:
@@ -37,11 +37,12 @@ def test_build_import_build_gives_the_same_canopen_files(tmp_path: Path, name: s
         assert without_left_out(content) == without_left_out(second[file]), file
 
 
-def test_a_one_bus_system_comes_back_whole(tmp_path: Path) -> None:
+@pytest.mark.parametrize("spec", [SPECS / "allex2.yaml", ROOT / "examples" / "allex2_recover.yaml"])
+def test_a_one_bus_system_comes_back_whole(tmp_path: Path, spec: Path) -> None:
     """ALLEX-2 is one CANopen bus: after the round trip its runtime.json (what the live master and the simulator
     run) differs only in the hash of the spec it came from; the spec's 13 us master_jitter, the master's FIFO of
-    depth 16, the SYNC tasks and the seven flows are there again."""
-    build(SPECS / "allex2.yaml", tmp_path / "a")
+    depth 16, the SYNC tasks and the seven flows are there again (and, in the recovering variant, on_reboot)."""
+    build(spec, tmp_path / "a")
     cli("import", "bus-yml", str(tmp_path / "a" / "canopen" / "bus.yml"), "-o", str(tmp_path / "again.yaml"))
     build(tmp_path / "again.yaml", tmp_path / "b")
     docs = [json.loads((tmp_path / side / "runtime.json").read_text(encoding="utf-8")) for side in "ab"]
