@@ -671,9 +671,6 @@ HELD: dict[str, dict[str, str]] = {
         "tx_delay beyond a period": "a frame sent a tx_delay longer than its task's period carries a later run's "
         "data in the simulator: flows measured below the analysed best case",
     },
-    "canopen": {
-        "TPDO transmission types 4-240": "the SYNC flow analysis walks 2 x the types' least common multiple cycles",
-    },
 }
 
 

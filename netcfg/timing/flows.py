@@ -539,6 +539,7 @@ def _gap(a: tuple[str, ...], b: tuple[str, ...], releases: dict[str, _Release], 
     return _latest([releases[r].renewal for r in b])
 
 
+MAX_FLOW_CYCLES = 2_000  # SYNC cycles of a CANopen flow's pattern walked one by one (twice: runs wrap around)
 _MAX_PHASES = 10_000  # releases of one item in two items' common period that are examined one by one
 
 
@@ -909,7 +910,6 @@ def synchronised_canopen(
     s_worst = None if st.sync.worst_ns is None else st.sync.worst_ns + jitter
     if s_worst is None:
         return None
-    cycles = len(st.completion_ns)
 
     def activation(task: model.Task) -> tuple[int, int]:
         """Earliest and latest start of a SYNC task after k * period."""
@@ -929,10 +929,23 @@ def synchronised_canopen(
                     return k, (latest if worst_path else max(r, earliest))
             k += 1
 
+    # the flow's own TPDOs fix its pattern of cycles, and the bus's completions repeat every len(completion) SYNCs;
+    # a pattern too long to walk takes every cycle at the worst completion (only latest ends grow: still a bound)
+    own = [st.every[ref] for step in flow.steps if step.kind == "message" for ref in step.refs if ref in st.every]
+    hyper = lcm(*own) if own else 1
+    if hyper > MAX_FLOW_CYCLES:
+        return None  # not walked: the flow keeps its unsynchronised bound
+    completion = list(st.completion_ns)
+    whole = len(completion) == (lcm(*st.every.values()) if st.every else 1)  # not cut short by the SYNC analysis
+    if whole and lcm(hyper, len(completion)) <= MAX_FLOW_CYCLES:
+        hyper = lcm(hyper, len(completion))
+    else:
+        completion = [None if None in completion else max(c for c in completion if c is not None)]
+
     def cycle_end(k: int) -> int:
         """The latest end of cycle k's synchronous TPDOs: the analysis counts from the SYNC's queueing, which is up
         to the master's jitter late."""
-        done = st.completion_ns[k % cycles]
+        done = completion[k % len(completion)]
         return k * period + jitter + (done if done is not None else period)
 
     def tpdo_end(name: str, r: int, worst_path: bool) -> int:
@@ -955,7 +968,6 @@ def synchronised_canopen(
                 return None
     first = flow.steps[0]
     head = first.refs[0]
-    hyper = lcm(*st.every.values()) if st.every else 1
     starts = []
     # a start instant may come this much later than the one taken (the data's age is measured from it in a run)
     spread = 0
