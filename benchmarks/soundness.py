@@ -666,12 +666,7 @@ def _add_flows(f: Fields, spec: dict[str, Any], periods: dict[str, int], ftt_ids
 
 # Fields and features the sweep draws but CI's sample holds back while the analysis is being mended: each entry
 # names the defect it shows (the seam's reproduction). Remove an entry when its fix is merged.
-HELD: dict[str, dict[str, str]] = {
-    "can": {
-        "tx_delay beyond a period": "a frame sent a tx_delay longer than its task's period carries a later run's "
-        "data in the simulator: flows measured below the analysed best case",
-    },
-}
+HELD: dict[str, dict[str, str]] = {}  # per protocol, features of known defects not yet fixed, each with why
 
 
 @dataclass

@@ -29,7 +29,7 @@ identical results (tests/test_sim_whole_run.py).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -228,7 +228,12 @@ def run(sc: Scenario, p: Plan) -> None:
             rec.data.extend(data if data is not None else [None] * len(end))
     for src, at in unsent:
         can.queued_unsent(src, at)
-    measure_flows(sc.flows, activity, lambda name: deliveries.get(name) or Stream(False, EMPTY, EMPTY))
+    def taken(name: str) -> Stream:  # as the event path hands deliveries to flows: from when the data was taken
+        got = deliveries.get(name) or Stream(False, EMPTY, EMPTY)
+        lag = sc.capture_lag(sc.cfg.message(name))
+        return replace(got, first=got.first - lag) if lag else got
+
+    measure_flows(sc.flows, activity, taken)
     sc.sim.skip_to(d)
 
 

@@ -382,15 +382,22 @@ class Scenario:
             )
         )
 
+    def capture_lag(self, m: Message) -> int:
+        """How long before its release on a CAN bus a frame took its data: a frame a task sends carries the run that
+        ended its producer's tx_delay earlier (the frame is queued then), a free-running one its release's."""
+        chained = any(m.name in names for names in self.sends.values())  # queued by its task's end, tx_delay on
+        return self.cfg.node(m.producer).tx_delay_ns if chained else 0
+
     def _on_delivery(
         self, m: Message, trackers: list[FlowTracker], tasks: list[Task]
     ) -> Callable[[int, int, int, bytes | None], None]:
         name = m.name
         started = [(task, self.cfg.node(task.node).rx_delay_ns) for task in tasks]  # and after how long
+        lag = self.capture_lag(m)
 
         def deliver(end: int, _src: int, release: int, _data: bytes | None) -> None:
             for tr in trackers:
-                tr.message_delivered(name, release, end)
+                tr.message_delivered(name, release - lag, end)
             for task, rx_delay in started:
                 self.run_task(task, end + rx_delay)
 
