@@ -1,4 +1,4 @@
-"""Command line: netcfg check | build | import | simulate | run | verify | schema.
+"""Command line: netcfg check | build | import | simulate | run | verify | schema | lsp.
 
 Exit codes: 0 ok, 1 spec errors or not schedulable (simulate: a miss, a loss or a result beyond the analysis),
 2 usage or I/O problems.
@@ -54,6 +54,9 @@ def main(argv: list[str] | None = None) -> int:
                          help="treat warnings with this code as errors (repeatable), e.g. dbc-no-receiver")
     p_check.add_argument("--explain", metavar="MESSAGE", help="derive one CAN message's bound and what would fix it")
     p_check.add_argument("--data-bitrate", type=_bitrate, help="DBC input with CAN FD frames: the data-phase bit rate")
+    p_check.add_argument("--watch", action="store_true",
+                         help="check again on every save of the spec or a file it names (Ctrl-C ends it)")
+    p_check.add_argument("--watch-checks", type=_int_option("--watch-checks", 1, MAX_RUNS), help=argparse.SUPPRESS)
     p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
     p_build.add_argument("spec", type=Path, metavar="SPEC")
     p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
@@ -67,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     p_import.add_argument("--default-period", type=_duration_ns, metavar="T",
                           help="DBC: messages that give no cycle time are periodic every T, e.g. 100ms")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
+    sub.add_parser("lsp", help="a language server on stdin/stdout for editors: diagnostics, hover, completion")
     _add_init_and_diff(sub)
     p_sim = sub.add_parser("simulate", help="run the runtime configuration in the discrete-event simulator")
     p_sim.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
@@ -140,6 +144,13 @@ def _dispatch(args: argparse.Namespace) -> int:
                 args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
             )
             return explain_command(args.specs, args.explain, args.format, options)
+        if args.command == "check" and args.watch:
+            from netcfg.watch import watch
+
+            options = ImportOptions(
+                args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
+            )
+            return watch(args.specs, options, frozenset(args.werror), max_checks=args.watch_checks)
         if args.command == "check":
             options = ImportOptions(
                 args.bitrate, args.lenient, default_period_ns=args.default_period, data_bitrate=args.data_bitrate
@@ -152,6 +163,10 @@ def _dispatch(args: argparse.Namespace) -> int:
             return cmd_build(args.spec, args.output)
         if args.command == "schema":
             return cmd_schema()
+        if args.command == "lsp":
+            from netcfg.lsp.server import serve  # pygls only here: `import netcfg` and `check` never load it
+
+            return serve()
         if args.command == "simulate":
             return cmd_simulate(args)
         if args.command == "run":
