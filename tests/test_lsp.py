@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import json
 import shutil
+import subprocess
 import sys
 import time
 from collections.abc import Awaitable, Callable
@@ -21,7 +22,7 @@ from lsprotocol import types as lsp
 from pytest_lsp import LanguageClient, client_capabilities, make_test_lsp_client
 
 from netcfg.report_text import num
-from tests.conftest import EPOS4_EDS, SPECS, cli
+from tests.conftest import EPOS4_EDS, ROOT, SPECS, cli
 
 ALLEX2 = SPECS / "allex2.yaml"
 SERVER = ["-m", "netcfg", "lsp"]
@@ -363,3 +364,37 @@ def test_edits_in_a_row_are_checked_newest_first_and_keep_memory_flat() -> None:
         assert time.monotonic() - start < 60
 
     run(body)
+
+
+def test_hover_on_a_bus_and_a_node() -> None:
+    text = ALLEX2.read_text(encoding="utf-8")
+    report = check_json(ALLEX2)
+    (bus,) = report["buses"]
+    sent = [m["name"] for m in bus["messages"] if m["producer"] == "hip_l"]
+    assert len(sent) == 3  # its two TPDOs (hip_l_state, hip_l_effort) and its heartbeat (heartbeat: 100 ms)
+
+    async def body(client: LanguageClient) -> None:
+        await open_and_wait(client, ALLEX2, text)
+        row, col = line_of(text, "buses: [can0]")
+        hover = await client.text_document_hover_async(lsp.HoverParams(doc(ALLEX2), lsp.Position(row, col + 10)))
+        assert hover is not None
+        assert f"utilisation: {bus['utilization']:.1%} worst case" in hover.contents.value  # type: ignore[union-attr]
+        row, col = line_of(text, "producer: hip_l")
+        hover = await client.text_document_hover_async(lsp.HoverParams(doc(ALLEX2), lsp.Position(row, col + 12)))
+        assert hover is not None
+        assert "sends 3 message(s)" in hover.contents.value  # type: ignore[union-attr]
+
+    run(body)
+
+
+def test_check_and_import_netcfg_never_load_the_language_server() -> None:
+    """pygls is for `netcfg lsp` alone: a cold `netcfg check` does not pay for importing it."""
+    code = (
+        "import sys, netcfg, netcfg.cli\n"
+        "sys.argv = ['netcfg', 'check', '-q', 'specs/allex2.yaml']\n"
+        "assert netcfg.cli.main(sys.argv[1:]) == 0\n"
+        "print(sorted(m for m in sys.modules if m.startswith(('pygls', 'lsprotocol', 'netcfg.lsp', 'netcfg.watch'))))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().endswith("[]"), proc.stdout
