@@ -398,3 +398,24 @@ def test_check_and_import_netcfg_never_load_the_language_server() -> None:
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().endswith("[]"), proc.stdout
+
+
+def test_an_unchanged_eds_is_read_once_across_edits(tmp_path: Path, needs_shared: None) -> None:
+    """The server's checks run in one process, so the device profile netcfg.devices.eds caches per file version is
+    built by the first check and reused by every edit after it; a new save of the EDS builds it again."""
+    from netcfg.devices import eds as eds_module
+    from netcfg.lsp.server import analyse_quietly
+
+    shutil.copy(EPOS4_EDS, tmp_path / "drive.eds")
+    text = ALLEX2.read_text(encoding="utf-8").replace("device: epos4", "device: {eds: drive.eds}", 1)
+    path = tmp_path / "allex2.yaml"
+    eds_module._profile.cache_clear()
+    assert analyse_quietly(path, text).report["ok"]
+    for n in range(3):
+        assert analyse_quietly(path, text + f"# edit {n}\n").report["ok"]
+    info = eds_module._profile.cache_info()
+    assert (info.misses, info.hits) == (1, 3)
+    time.sleep(0.01)
+    (tmp_path / "drive.eds").write_bytes(EPOS4_EDS.read_bytes() + b"\n")
+    assert analyse_quietly(path, text).report["ok"]
+    assert eds_module._profile.cache_info().misses == 2
