@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -12,20 +13,41 @@ from netcfg.diagnostics import Collector, sort_diagnostics
 from netcfg.importers import ImportOptions
 from netcfg.model import Model
 from netcfg.resolve import resolve
-from netcfg.spec.load import read_spec, report_validation_errors
+from netcfg.spec.load import parse_spec, read_spec_data, report_validation_errors
 from netcfg.spec.schema import Spec
 from netcfg.spec.source import SourceMap
 
 
-def load_model(path: Path, diags: Collector, options: ImportOptions | None = None) -> Model | None:
+def load_model(
+    path: Path, diags: Collector, options: ImportOptions | None = None, text: str | None = None
+) -> Model | None:
     """Read and resolve a spec (or a DBC file, analysed as the spec netcfg would import from it); None (with
-    errors in diags) when it is not usable. OSError propagates."""
+    errors in diags) when it is not usable. text: the spec's text as an editor holds it, instead of the file's
+    (a DBC is always read from its file). OSError propagates."""
+    return _load(path, diags, options, text).model
+
+
+@dataclass
+class Loaded:
+    """What one check read: the model (None when unusable), where each value was written, and the spec's YAML
+    data as written (None for a DBC input or text that is not a mapping). The editor support and --watch read
+    the spec's names and the files it names from here instead of parsing it a second time."""
+
+    model: Model | None
+    smap: SourceMap | None
+    data: Any
+
+
+def _load(path: Path, diags: Collector, options: ImportOptions | None, text: str | None) -> Loaded:
     if path.suffix.lower() == ".dbc":
-        return load_dbc(path, diags, options or ImportOptions())
-    spec, smap = read_spec(path, diags)
+        return Loaded(load_dbc(path, diags, options or ImportOptions()), None, None)
+    if text is None:
+        spec, smap, data = read_spec_data(path, diags)
+    else:
+        spec, smap, data = parse_spec(text, path, diags)
     if spec is None:
-        return None
-    return resolve(spec, smap, diags, path.parent)
+        return Loaded(None, smap, data)
+    return Loaded(resolve(spec, smap, diags, path.parent), smap, data)
 
 
 def load_dbc(path: Path, diags: Collector, options: ImportOptions) -> Model | None:
@@ -43,10 +65,21 @@ def load_dbc(path: Path, diags: Collector, options: ImportOptions) -> Model | No
     return resolve(spec, smap, diags, path.parent)
 
 
-def analyse_spec(path: Path, options: ImportOptions | None = None) -> tuple[Model | None, dict[str, Any]]:
-    """Load, resolve and analyse; -> (model or None, JSON-ready report). OSError propagates."""
+def analyse_spec(
+    path: Path, options: ImportOptions | None = None, text: str | None = None
+) -> tuple[Model | None, dict[str, Any]]:
+    """Load, resolve and analyse; -> (model or None, JSON-ready report). text: see load_model. OSError propagates."""
+    loaded, report = analyse_loaded(path, options, text)
+    return loaded.model, report
+
+
+def analyse_loaded(
+    path: Path, options: ImportOptions | None = None, text: str | None = None
+) -> tuple[Loaded, dict[str, Any]]:
+    """analyse_spec, keeping what was read (Loaded)."""
     diags = Collector()
-    model = load_model(path, diags, options)
+    loaded = _load(path, diags, options, text)
+    model = loaded.model
     report: dict[str, Any] = {"system": None, "file": str(path), "ok": False, "buses": [], "flows": []}
     if model is not None:
         report.update(analyze(model, diags))
@@ -55,7 +88,25 @@ def analyse_spec(path: Path, options: ImportOptions | None = None) -> tuple[Mode
     report["errors"] = [d.as_json() for d in items if d.severity == "error"]
     report["warnings"] = [d.as_json() for d in items if d.severity == "warning"]
     report["ok"] = model is not None and not report["errors"]
-    return model, report
+    return loaded, report
+
+
+def named_files(path: Path, data: Any) -> list[Path]:
+    """The files a spec names and reads: its devices' EDS files and the DBC files its buses import (as paths
+    against the spec's folder, whether they exist or not)."""
+    out: list[Path] = []
+    if not isinstance(data, dict):
+        return out
+    for key, inner in (("nodes", "device"), ("buses", None)):
+        items = data.get(key)
+        for item in items if isinstance(items, list) else ():
+            if not isinstance(item, dict):
+                continue
+            holder = item.get(inner) if inner else item
+            value = holder.get("eds" if inner else "import") if isinstance(holder, dict) else None
+            if isinstance(value, str) and value and "\0" not in value:
+                out.append(path.parent / value)
+    return list(dict.fromkeys(out))
 
 
 def check(path: Path, options: ImportOptions | None = None) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Command line: netcfg check | build | import | simulate | run | verify | schema.
+"""Command line: netcfg check | build | import | simulate | run | verify | schema | lsp.
 
 Exit codes: 0 ok, 1 spec errors or not schedulable (simulate: a miss, a loss or a result beyond the analysis),
 2 usage or I/O problems.
@@ -51,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     p_check.add_argument("--werror", action="append", default=[], metavar="CODE",
                          help="treat warnings with this code as errors (repeatable), e.g. dbc-no-receiver")
     p_check.add_argument("--explain", metavar="MESSAGE", help="derive one CAN message's bound and what would fix it")
+    p_check.add_argument("--watch", action="store_true",
+                         help="check again on every save of the spec or a file it names (Ctrl-C ends it)")
+    p_check.add_argument("--watch-checks", type=_int_option("--watch-checks", 1, MAX_RUNS), help=argparse.SUPPRESS)
     p_build = sub.add_parser("build", help="check a spec, then write every artifact (default: generated/<system>/)")
     p_build.add_argument("spec", type=Path, metavar="SPEC")
     p_build.add_argument("-o", "--output", type=Path, metavar="DIR", help="output folder")
@@ -61,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     _add_dbc_options(p_import)
     p_import.add_argument("--lenient", action="store_true", help="what cannot be mapped is a warning, not an error")
     sub.add_parser("schema", help="print the JSON Schema of the spec language (for editors)")
+    sub.add_parser("lsp", help="a language server on stdin/stdout for editors: diagnostics, hover, completion")
     _add_init_and_diff(sub)
     p_sim = sub.add_parser("simulate", help="run the runtime configuration in the discrete-event simulator")
     p_sim.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
@@ -128,6 +132,10 @@ def _dispatch(args: argparse.Namespace) -> int:
             from netcfg.explain import command as explain_command
 
             return explain_command(args.specs, args.explain, args.format, _import_options(args))
+        if args.command == "check" and args.watch:
+            from netcfg.watch import watch
+
+            return watch(args.specs, _import_options(args), frozenset(args.werror), max_checks=args.watch_checks)
         if args.command == "check":
             return cmd_check(args.specs, args.format, _import_options(args), frozenset(args.werror), args.quiet)
         if args.command == "import":
@@ -136,6 +144,10 @@ def _dispatch(args: argparse.Namespace) -> int:
             return cmd_build(args.spec, args.output)
         if args.command == "schema":
             return cmd_schema()
+        if args.command == "lsp":
+            from netcfg.lsp.server import serve  # pygls only here: `import netcfg` and `check` never load it
+
+            return serve()
         if args.command == "simulate":
             return cmd_simulate(args)
         if args.command == "run":

@@ -22,6 +22,14 @@ def read_spec(path: Path, diags: Collector, display_name: str | None = None) -> 
 
     Raises OSError when the file cannot be read (the CLI turns that into exit code 2).
     """
+    spec, smap, _ = read_spec_data(path, diags, display_name)
+    return spec, smap
+
+
+def read_spec_data(
+    path: Path, diags: Collector, display_name: str | None = None
+) -> tuple[Spec | None, SourceMap, Any]:
+    """read_spec, with the YAML's data as written (see parse_spec)."""
     name = display_name or str(path)
     raw = read_input_bytes(path, "spec")  # refuses devices, FIFOs and files over MAX_SPEC_BYTES at once
     try:
@@ -29,24 +37,39 @@ def read_spec(path: Path, diags: Collector, display_name: str | None = None) -> 
     except InputError as exc:
         what = "is not UTF-8 text; save it as UTF-8" if "UTF-8" in exc.message else "contains a NUL byte"
         diags.add("encoding", f"the spec {what}", Position(name, exc.line or 1, 1))
-        return None, SourceMap(name)
-    data, smap = load_yaml(text, name, diags)
+        return None, SourceMap(name), None
+    return parse_spec(text, path, diags, name)
+
+
+def parse_spec(
+    text: str, path: Path, diags: Collector, display_name: str | None = None
+) -> tuple[Spec | None, SourceMap, Any]:
+    """read_spec on text already in memory (an editor's unsaved buffer); path names the file and its folder, against
+    which the files the spec names (EDS, DBC) are found. -> (spec or None, map, the YAML's data as written, before
+    any DBC is merged in: None when it is not a mapping)."""
+    name = display_name or str(path)
+    if "\0" in text:
+        line = text[: text.index("\0")].count("\n") + 1
+        diags.add("encoding", "the spec contains a NUL byte", Position(name, line, 1))
+        return None, SourceMap(name), None
+    data, smap = load_yaml(text.removeprefix("\ufeff"), name, diags)
     if diags.errors:
-        return None, smap
+        return None, smap, data if isinstance(data, dict) else None
     if not isinstance(data, dict):
         diags.add("not-a-mapping", "a spec is a mapping with keys system, buses, nodes, messages...", smap.at(()))
-        return None, smap
+        return None, smap, None
+    written = data
     if isinstance(data.get("buses"), list) and any(isinstance(b, dict) and "import" in b for b in data["buses"]):
         from netcfg.importers.dbc import merge_bus_imports
 
         data = merge_bus_imports(data, smap, path.parent, diags)
         if diags.errors:
-            return None, smap
+            return None, smap, written
     try:
-        return Spec.model_validate(data), smap
+        return Spec.model_validate(data), smap, written
     except ValidationError as exc:
         report_validation_errors(exc, smap, diags, data)
-        return None, smap
+        return None, smap, written
 
 
 # The spec's lists of named items, and what one item is called in a message.
