@@ -10,6 +10,7 @@ from netcfg.runtime import RuntimeConfig
 from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker
 from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, PAYLOAD_COLUMNS, Batch, ChannelTable
 from netcfg.verify.logs import read_log
+from netcfg.verify.phases import Phase, cyclic_span, split, sync_ids
 
 __all__ = ["check_frames", "verify_log"]
 
@@ -27,11 +28,23 @@ def verify_log(
 ) -> dict[str, Any]:
     """Read the log in batches and check it; LogError when it cannot be read, VerifyError when the log and the
     configuration cannot be matched."""
+    # a CANopen master's log: the analysis speaks of its cyclic phase, set-up and shut-down are phases of their own
+    span = cyclic_span(cfg, read_log(log, log_format, fast=fast)[1]) if sync_ids(cfg) else None
     channels, batches = read_log(log, log_format, fast=fast, progress=progress)
     checker = Checker(cfg, channels.names, bus, window_us, strict)
-    for batch in batches:
+    setup, shutdown = Phase(), Phase()
+    origin: list[int] = []
+    judged = batches if span is None else split(batches, span, setup, shutdown, origin, checker.note_services)
+    for batch in judged:
         checker.feed(batch)
     report = checker.finish()
+    if span is not None and origin:
+        cyclic_end = min(span[1], checker.last_t) if checker.last_t is not None else span[1]
+        report["phases"] = {
+            "setup": setup.report(origin[0]),
+            "cyclic": {"from_us": span[0] - origin[0], "to_us": cyclic_end - origin[0]},
+            "shutdown": shutdown.report(origin[0]),
+        }
     report["log"] = str(log)
     return report
 

@@ -163,10 +163,12 @@ class Checker:
             for b, bus_ in enumerate(self.buses)
         }
         self.frames = 0
+        self.unjudged = 0  # frames of a master's set-up and shut-down (note_services)
         self.error_frames = 0
         self.error_ns: list[list[int]] = [[] for _ in self.buses]  # per bus: its error frames' instants
         self.unplaced_error_ns: list[int] = []  # error frames without a channel: held against every bus
-        self.first_t: int | None = None
+        self.first_t: int | None = None  # the first judged frame's time (load windows count from it)
+        self.origin_t: int | None = None  # the log's first frame's: report times count from it
         self.last_t: int | None = None
         self.window_ns: list[NDArray[np.int64]] = [np.zeros(0, np.int64) for _ in self.buses]  # busy time per window
         self.unknown: dict[tuple[int, int, bool], list[int]] = {}  # (bus, id, extended) -> [count, first_t]
@@ -259,6 +261,8 @@ class Checker:
         t = batch.t_us
         if self.first_t is None:
             self.first_t = int(t[0])
+        if self.origin_t is None:
+            self.origin_t = int(t[0])
         back = np.flatnonzero(np.diff(t) < 0)
         if (self.last_t is not None and int(t[0]) < self.last_t) or len(back):
             at = int(t[0]) if not len(back) else int(t[back[0] + 1])
@@ -302,6 +306,21 @@ class Checker:
         for b, times in ref_times.items():
             if len(times):
                 self._last_ref[b] = int(times[-1])
+
+    def note_services(self, batch: Batch) -> None:
+        """Frames outside the judged span (a master's set-up and shut-down, netcfg.verify.phases): their CANopen
+        services (NMT, heartbeats, EMCY, SDO) are noted, nothing is held against the analysis."""
+        if not len(batch):
+            return
+        if self.origin_t is None:
+            self.origin_t = int(batch.t_us[0])
+        self.unjudged += len(batch)
+        keep = (batch.flags & (ERROR | EXTENDED)) == 0
+        bus = self._buses_of(batch.channel)
+        for b, services in self.services.items():
+            on_bus = np.flatnonzero((bus == b) & keep)
+            if len(on_bus):
+                services.take(batch.t_us[on_bus], batch.can_id[on_bus], batch.data[on_bus])
 
     def _load(self, t: NDArray[np.int64], bus: NDArray[np.int64], flags: NDArray[np.uint8], length: Any) -> None:
         if not len(t) or self.first_t is None:
@@ -590,14 +609,14 @@ class Checker:
         for item in [*self.violations, *self.warnings]:
             item["time_us"] = self._since(item["time_us"])
         for services in self.services.values():
-            services.shift_times(self.first_t or 0)
+            services.shift_times(self.origin_t or 0)
         self.violations.sort(key=lambda v: (v["time_us"], v["kind"], v["message"] or ""))
         messages = [self._message_report(st) for st in self.states]
         return {
             "system": self.cfg.system,
-            "frames": self.frames,
+            "frames": self.frames + self.unjudged,
             "error_frames": self.error_frames,
-            "start_us": self.first_t,
+            "start_us": self.origin_t,
             "duration_us": 0 if self.first_t is None or end is None else end - self.first_t,
             "window_us": self.window_us,
             "messages": messages,
@@ -636,7 +655,7 @@ class Checker:
             )
 
     def _since(self, t: int) -> int:
-        return t - (self.first_t or 0)
+        return t - (self.origin_t or 0)
 
     def _message_report(self, st: _MessageState) -> dict[str, Any]:
         m = st.msg

@@ -149,6 +149,7 @@ def text(report: dict[str, Any]) -> str:
         f"(times below count from its first frame, at {start / 1e6:.6f} s in the log), {report['error_frames']} "
         "error frames, "
         f"{report['violation_count']} violations, {report['warning_count']} warnings",
+        *_phase_lines(report.get("phases")),
         "",
         f"  {'message':<24}{'id':>9}{'count':>10}{'period min/mean/max ms':>27}{'jitter us':>11}{'bound us':>10}"
         f"{'resp max us':>13}{'wcrt us':>9}{'missing':>9}  ok",
@@ -210,6 +211,25 @@ def text(report: dict[str, Any]) -> str:
         lines.append(f"  ... {report['warning_count'] - 20} more warnings (--format json lists up to 1000)")
     lines += ["", "  inside the analysis" if report["ok"] else "  OUTSIDE THE ANALYSIS: see the violations below"]
     return "\n".join(lines)
+
+
+def _phase_lines(phases: dict[str, Any] | None) -> list[str]:
+    """A master's log: what came before and after the cyclic phase, which alone is judged (verify.phases)."""
+    if phases is None:
+        return []
+    c = phases["cyclic"]
+    out = [f"  cyclic phase, judged below: {c['from_us'] / 1e6:.6f} .. {c['to_us'] / 1e6:.6f} s of the log"]
+    for name in ("setup", "shutdown"):
+        ph = phases[name]
+        if not ph["frames"]:
+            continue
+        starts = sum(1 for n in ph["nmt_commands"] if n["command"] == "start")
+        out.append(
+            f"  {'set-up' if name == 'setup' else 'shut-down'}: {ph['frames']} frames ({ph['sdo_frames']} SDO, "
+            f"{len(ph['nmt_commands'])} NMT commands, {starts} of them start, {len(ph['boot_ups'])} boot-ups), "
+            f"{ph['from_us'] / 1e6:.6f} .. {ph['to_us'] / 1e6:.6f} s, not judged against the analysis"
+        )
+    return out
 
 
 def _f(x: float | None) -> str:
