@@ -22,7 +22,8 @@ import numpy as np
 
 from netcfg.cia301 import NMT_STATE_OPERATIONAL, SDO_RX_BASE, SDO_TX_BASE, sync_every
 from netcfg.runtime import Bus, Task
-from netcfg.runtime.canopen_master import MasterCycle, MasterRun
+from netcfg.runtime.canopen_master import CycleRecord, MasterCycle, MasterRun
+from netcfg.runtime.supervision import Supervisor
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER
 from netcfg.sim.stats import spread
@@ -73,6 +74,7 @@ class CanopenMaster:
         self.sdo_timeouts: dict[str, int] = {}  # drive -> SDO transfers that timed out and were repeated
         self._cpu_free = 0  # the master's one processor, shared by the SDO loops
         self.run: MasterRun | None = None
+        self.supervisor: Supervisor | None = None
         self._lead = 0.0  # how long after a cycle's start its SYNC is due (MasterCycle.sync_lead_s)
         if self.mode in ("pdo", "external"):
             sc.listen(self.sync.name, self._on_sync)
@@ -109,21 +111,36 @@ class CanopenMaster:
         if host is None:
             sc.sim.run_until(self.start_ns)
         pybus = SimCanBus(sc, self.bus.name, node=self.master, host=host)
+        clock = VirtualClock(sc, host)
+        # the live master's supervision too: heartbeats against their consumer times, EMCY (as `netcfg run` has it)
+        supervisor = self.supervisor = Supervisor(sc.cfg, self.bus, [d for d in self.drives if self._watched(d)])
+
+        def after_cycle(record: CycleRecord) -> bool:
+            supervisor.check(record.read_done)
+            return True
+
         try:
             cycle = MasterCycle(
                 sc.cfg,
                 pybus,
-                VirtualClock(sc, host),
+                clock,
                 bus_name=self.bus.name,
                 drift_free=True,  # anchored, as the analysis assumes (SYNC k within master_jitter of its instant)
                 pause_gc=True,  # as on the robot: no collection in the loop (in virtual time, only a speed-up)
                 collect_after=False,  # nor a full one after it: a Monte Carlo batch or a sweep runs many masters
                 timing=self,
+                on_frame=supervisor.feed,
+                after_cycle=after_cycle,
             )
             self._lead = cycle.sync_lead_s
+            supervisor.start(clock.now())
             self.run = cycle.run(1 << 62, until_s=until_ns / 1e9)
         finally:
             pybus.shutdown()
+
+    def _watched(self, drive: str) -> bool:
+        node = self.sc.cfg.node(drive)
+        return node.role != "master" and node.node_id is not None
 
     def work_s(self, cycle: int) -> float:
         """The master's computation this cycle: its SYNC tasks, each for a time between its BCET and WCET."""
@@ -322,6 +339,11 @@ class CanopenMaster:
         ]
         out["overruns"] = len(late)
         out["late_frames"] = run.late
+        if self.supervisor is not None and self.supervisor.events:  # a crashed drive's silence, an EMCY
+            out["supervision"] = [
+                {"time_s": round(e.time, 6), "node": e.node, "kind": e.kind, "action": e.action, "text": e.text}
+                for e in self.supervisor.events
+            ]
         findings = []
         if late:
             longest = max(rec.processing_s for rec in late)

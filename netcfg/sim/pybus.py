@@ -155,20 +155,22 @@ class SimCanBus(can.BusABC):
 
     def _frame_of(self, src: int) -> tuple[int, bool, bytes, Callable[[int, bytes | None], can.Message] | None]:
         """What every frame of the source looks like here: identifier, extended, the payload of a frame without
-        one (zeros), and for CAN FD the frame's maker (a receiver sees an FD frame's padded length)."""
+        one (its resting payload, as the trace writes it: each field at rest, a started node's heartbeat
+        OPERATIONAL), and for CAN FD the frame's maker (a receiver sees an FD frame's padded length)."""
         s = self.sim_bus.sources[src]
+        rest = s.rest if len(s.rest) == s.size else bytes(s.size)
         if not s.fd:
-            return s.can_id, s.extended, bytes(s.size), None
+            return s.can_id, s.extended, rest, None
 
         def fd(end: int, data: bytes | None) -> can.Message:
-            payload = data if data is not None else bytes(s.size)
+            payload = data if data is not None else rest
             payload += bytes([CANFD_PADDING]) * (canfd_padded_size(len(payload)) - len(payload))
             return can.Message(
                 timestamp=end / 1e9, arbitration_id=s.can_id, is_extended_id=s.extended, data=payload,
                 channel=self._channel, is_fd=True, bitrate_switch=s.brs,
             )
 
-        return s.can_id, s.extended, bytes(s.size), fd
+        return s.can_id, s.extended, rest, fd
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         key = (msg.arbitration_id, msg.is_extended_id)

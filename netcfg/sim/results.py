@@ -392,6 +392,8 @@ def _protocol_text(bus: str, rep: dict[str, Any]) -> list[str]:
         if done and done["max"] is not None:
             bound = "no bound" if done["analysed"] is None else f"{done['analysed']:g} us"
             out.append(f"    SYNC -> last TPDO up to {done['max']:g} us, analysed {bound}")
+        for event in rep.get("supervision", ()):  # the live master's supervision, as netcfg run reports it
+            out.append(f"    {event['time_s']:9.3f} s  {event['text']} -> {event['action']}")
         for drive, d in rep["drives"].items():
             p = d["period_us"] or {}
             out.append(
