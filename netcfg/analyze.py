@@ -717,6 +717,15 @@ def analyze_sync(
             for msg in bus.messages
             if msg.producer == co.sync_producer and msg is not sync_msg and m.nodes[msg.producer].tx_queue.fifo
         ),
+        every_nth_write=frozenset(
+            msg.name
+            for msg in bus.messages
+            if msg.pdo is not None
+            and msg.pdo.kind == "rpdo"
+            and msg.producer == co.sync_producer
+            and msg.kind == "periodic"
+            and (msg.period_ns or 0) > co.sync_period_ns
+        ),
     )
     check_master_loop(m, bus, loop, diags)
     check_event_timer_periods(m, bus, acc, diags)

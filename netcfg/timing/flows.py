@@ -887,6 +887,8 @@ class SyncTimes:
     # messages the SYNC producer queues in the FIFO transmit queue SYNC goes through: one written before a SYNC
     # is queued leaves the queue before that SYNC does, so its consumers have it by that SYNC's reception
     ahead_of_sync: frozenset[str] = frozenset()
+    # RxPDOs the SYNC producer's loop writes only every n-th cycle (a period of n SYNC periods)
+    every_nth_write: frozenset[str] = frozenset()
 
 
 def synchronised_canopen(
@@ -964,7 +966,9 @@ def synchronised_canopen(
                 task = m.task(ref)
                 if (task.sync_bus != bus and task.on_message is None) or task_response(task, task_ns) is None:
                     return None
-            elif ref not in st.every and (chained.get(ref) is None or chained[ref].worst_ns is None):
+            elif ref in st.every_nth_write or (  # written every n-th cycle only: the free-running bound covers it
+                ref not in st.every and (chained.get(ref) is None or chained[ref].worst_ns is None)
+            ):
                 return None
     first = flow.steps[0]
     head = first.refs[0]
