@@ -5,6 +5,9 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import threading
+import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -76,3 +79,17 @@ def message(bus_report: dict[str, Any], name: str) -> dict[str, Any]:
 def needs_shared() -> None:
     if not EPOS4_EDS.is_file():
         pytest.skip("the shared vendor device files are not next to this checkout")
+
+
+@pytest.fixture
+def no_leaked_threads() -> Iterator[None]:
+    """The drives' heartbeat and Notifier threads and the master's are all stopped by the end of each test (the live
+    master's tests use it: `pytestmark = pytest.mark.usefixtures("no_leaked_threads")`)."""
+    before = set(threading.enumerate())
+    yield
+    deadline = time.monotonic() + 2.0
+    while (
+        left := [t for t in threading.enumerate() if t not in before and t.is_alive()]
+    ) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert left == [], left

@@ -53,6 +53,8 @@ from netcfg.runtime.canopen_master import (
 from netcfg.runtime.clock import SystemClock
 from netcfg.runtime.drives import DriveBench, ResponseScheduler, SimulatedDrive
 
+pytestmark = pytest.mark.usefixtures("no_leaked_threads")  # conftest.py
+
 GENERATED = ROOT / "generated" / "allex2"
 CANOPEN_DIR = GENERATED / "canopen"
 JOINTS = ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r")  # specs/allex2.yaml, node ids 1..6
@@ -65,13 +67,6 @@ def cfg() -> rt.RuntimeConfig:
     return rt.load(GENERATED / "runtime.json")
 
 
-@pytest.fixture(autouse=True)
-def no_leaked_threads() -> Iterator[None]:
-    """Every Notifier thread the drives, the set-up and canopen start is stopped by the end of the test."""
-    before = set(threading.enumerate())
-    yield
-    left = [t for t in threading.enumerate() if t not in before and t.is_alive()]
-    assert left == [], left
 
 
 @pytest.fixture

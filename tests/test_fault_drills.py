@@ -15,10 +15,8 @@ Sources of the numbers:
 
 from __future__ import annotations
 
-import threading
 import time
 import uuid
-from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -31,6 +29,8 @@ from netcfg.runtime.cia402 import OPERATION_ENABLED, SWITCH_ON_DISABLED
 from netcfg.runtime.drives import DriveBench
 from netcfg.runtime.operate import BusLog, Outcome, Plan, operate
 
+pytestmark = pytest.mark.usefixtures("no_leaked_threads")  # conftest.py
+
 GENERATED = ROOT / "generated" / "allex2"
 PERIOD_S = 0.020  # allex2's SYNC period
 SLACK_S = 0.050  # thread scheduling on a loaded host: the drives and the master share one interpreter
@@ -41,16 +41,6 @@ def cfg() -> rt.RuntimeConfig:
     return rt.load(GENERATED / "runtime.json")
 
 
-@pytest.fixture(autouse=True)
-def no_leaked_threads() -> Iterator[None]:
-    before = set(threading.enumerate())
-    yield
-    deadline = time.monotonic() + 2.0
-    while (
-        left := [t for t in threading.enumerate() if t not in before and t.is_alive()]
-    ) and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert left == [], left
 
 
 def with_on_reboot(cfg: rt.RuntimeConfig, action: str) -> rt.RuntimeConfig:

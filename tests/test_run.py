@@ -27,7 +27,7 @@ import sys
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -62,6 +62,8 @@ from netcfg.runtime.operate import BusLog, Plan, operate
 from netcfg.runtime.supervision import Supervisor
 from netcfg.verify import verify_log
 
+pytestmark = pytest.mark.usefixtures("no_leaked_threads")  # conftest.py
+
 GENERATED = ROOT / "generated" / "allex2"
 JOINTS = ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r")
 
@@ -71,17 +73,6 @@ def cfg() -> rt.RuntimeConfig:
     return rt.load(GENERATED / "runtime.json")
 
 
-@pytest.fixture(autouse=True)
-def no_leaked_threads() -> Iterator[None]:
-    """The drives' heartbeat and Notifier threads and the master's are all stopped by the end of each test."""
-    before = set(threading.enumerate())
-    yield
-    deadline = time.monotonic() + 2.0
-    while (
-        left := [t for t in threading.enumerate() if t not in before and t.is_alive()]
-    ) and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert left == [], left
 
 
 @pytest.fixture
