@@ -54,10 +54,10 @@ def _message(m: model.Model, name: str) -> model.Message | None:
 def explain(m: model.Model, name: str) -> dict[str, Any]:
     msg = _message(m, name)
     if msg is None:
-        known = list(m.messages) + [x.name for bus in m.buses.values() for x in bus.messages if x.implicit]
+        known = [*m.messages, *m.flows, *(x.name for bus in m.buses.values() for x in bus.messages if x.implicit)]
         close = difflib.get_close_matches(name, known, n=1)
         hint = f"; did you mean '{close[0]}'?" if close else ""
-        raise NotExplained(f"no message '{name}' in system '{m.system}'{hint}")
+        raise NotExplained(f"no message or flow '{name}' in system '{m.system}'{hint}")
     bus = m.buses[msg.bus]
     if not bus.is_can:
         raise NotExplained(f"'{name}' is on Ethernet bus '{bus.name}'; --explain derives CAN response times")
@@ -527,6 +527,16 @@ def command(paths: list[Path], name: str, fmt: str, options: ImportOptions) -> i
         for d in sort_diagnostics(diags.items):
             print(d, file=sys.stderr)
         return 1
+    if name in m.flows:  # a flow: its bounds beside its steps' own figures
+        from netcfg.check import analyse_spec
+        from netcfg.explain_flow import explain_flow
+        from netcfg.explain_flow import text as flow_text
+
+        model_, report = analyse_spec(paths[0], options)
+        assert model_ is not None
+        flow_doc = explain_flow(model_, report, name)
+        print(jsontext.dumps(flow_doc, indent=2) if fmt == "json" else flow_text(flow_doc))
+        return 1 if flow_doc["meets"] is False else 0
     try:
         doc = explain(m, name)
     except NotExplained as exc:

@@ -32,3 +32,22 @@ def test_a_heartbeat_row_is_explained() -> None:
 def test_an_unknown_name_suggests_a_protocol_frame() -> None:
     proc = cli("check", str(SPECS / "allex2.yaml"), "--explain", "can0_SYNK")
     assert proc.returncode == 2 and "did you mean 'can0_SYNC'?" in proc.stderr, proc.stderr
+
+
+def test_a_flow_is_explained_step_by_step() -> None:
+    """CAMBADA's motion flow (seed 002): --explain gives check's bounds for it and lists its chain's steps with
+    their own figures; the messages' offsets are Table 2's init times (velocity vectors at EC 0, the set-points at
+    EC 5, 5 ms ECs), as offset: auto places them."""
+    proc = cli("check", str(SPECS / "cambada.yaml"), "--explain", "motion", "--format", "json")
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    checked = json.loads(cli("check", str(SPECS / "cambada.yaml"), "--format", "json").stdout)
+    flow = next(f for f in checked["flows"] if f["name"] == "motion")
+    assert (doc["latency_min_us"], doc["latency_max_us"]) == (flow["latency_min_us"], flow["latency_max_us"])
+    names = [[item["name"] for item in step["items"]] for step in doc["steps"]]
+    assert names == [["velocity_linear", "velocity_angular"], ["holonomic.convert"], ["motor_setpoints"],
+                     ["motor1.apply_setpoint", "motor2.apply_setpoint", "motor3.apply_setpoint"]]
+    offsets = {i["name"]: i["offset_us"] for s in doc["steps"] for i in s["items"] if i["kind"] == "message"}
+    assert offsets == {"velocity_linear": 0, "velocity_angular": 0, "motor_setpoints": 5 * 5_000}
+    text = cli("check", str(SPECS / "cambada.yaml"), "--explain", "motion").stdout
+    assert text.startswith("flow motion (synchronised)")
