@@ -17,15 +17,18 @@ bus (its messages on the bus, its tasks on the bus's nodes); one that crosses bu
 from __future__ import annotations
 
 import json
+from dataclasses import MISSING, fields
 from typing import Any
 
 from netcfg.importers.bus_yml_notes import SPEC_NOTE
 from netcfg.model import Bus, Flow, Model, Node, Task, TxQueue
+from netcfg.spec.units import format_ns  # exact to the nanosecond, in the spec's grammar
 
 __all__ = ["SPEC_NOTE", "spec_notes"]
-DEFAULT_CLOCK_TOLERANCE_PPM = 100
-DEFAULT_REACTION = "stop_all"  # on_loss, on_emcy
-DEFAULT_SAFE_STOP = "quick_stop"
+# what a node and a bus are when the spec says nothing: the model's defaults, which resolve fills in; what differs
+# from them is written
+NODE_DEFAULTS = {f.name: f.default for f in fields(Node) if f.default is not MISSING}
+BUS_DEFAULTS = {f.name: f.default for f in fields(Bus) if f.default is not MISSING}
 
 
 def spec_notes(model: Model, bus: Bus) -> tuple[list[str], list[str]]:
@@ -53,13 +56,13 @@ def spec_notes(model: Model, bus: Bus) -> tuple[list[str], list[str]]:
             continue
         keys = {}
         if m.deadline_ns is not None and m.deadline_ns != m.interval_ns:
-            keys["deadline"] = duration_ns(m.deadline_ns)
+            keys["deadline"] = format_ns(m.deadline_ns)
         if m.jitter_ns:
-            keys["jitter"] = duration_ns(m.jitter_ns)
+            keys["jitter"] = format_ns(m.jitter_ns)
         if m.offset_auto:
             keys["offset"] = "auto"
         elif m.offset_ns:
-            keys["offset"] = duration_ns(m.offset_ns)
+            keys["offset"] = format_ns(m.offset_ns)
         if m.description:
             keys["description"] = m.description
         if keys:
@@ -72,26 +75,18 @@ def spec_notes(model: Model, bus: Bus) -> tuple[list[str], list[str]]:
     return [json.dumps(item, ensure_ascii=False, separators=(", ", ": ")) for item in items], left
 
 
-def duration_ns(ns: int) -> str:
-    """A spec time, exact and as people write it: whole ms as ms, else us with the decimals it needs."""
-    if ns % 1_000_000 == 0:
-        return f"{ns // 1_000_000} ms"
-    whole, frac = divmod(ns, 1000)
-    return f"{whole} us" if not frac else f"{whole}.{frac:03d}".rstrip("0") + " us"
-
-
 def _bus_keys(bus: Bus) -> dict[str, Any]:
     co = bus.canopen
     assert co is not None
     out: dict[str, Any] = {}
     if co.master_jitter_ns:
-        out["canopen"] = {"master_jitter": duration_ns(co.master_jitter_ns)}
-    if bus.clock_tolerance_ppm != DEFAULT_CLOCK_TOLERANCE_PPM:
+        out["canopen"] = {"master_jitter": format_ns(co.master_jitter_ns)}
+    if bus.clock_tolerance_ppm != BUS_DEFAULTS["clock_tolerance_ppm"]:
         out["clock_tolerance"] = bus.clock_tolerance_ppm
     if bus.errors is not None:
         out["errors"] = {
             "burst": bus.errors.burst,
-            "interval": duration_ns(bus.errors.interval_ns),
+            "interval": format_ns(bus.errors.interval_ns),
             "ber": bus.errors.ber,
         }
     if bus.description:
@@ -105,23 +100,14 @@ def _node_keys(node: Node) -> dict[str, Any]:
         q = node.tx_queue
         out["tx_queue"] = {"policy": q.policy, "depth": q.depth, "on_full": q.on_full}
     if node.tx_delay_ns:
-        out["tx_delay"] = duration_ns(node.tx_delay_ns)
+        out["tx_delay"] = format_ns(node.tx_delay_ns)
     if node.rx_delay_ns:
-        out["rx_delay"] = duration_ns(node.rx_delay_ns)
-    if node.on_loss != DEFAULT_REACTION:
-        out["on_loss"] = node.on_loss
-    if node.on_emcy != DEFAULT_REACTION:
-        out["on_emcy"] = node.on_emcy
-    if node.on_reboot != "stop_node":
-        out["on_reboot"] = node.on_reboot
-    if node.sdo_timeout_ns != 500_000_000:
-        out["sdo_timeout"] = duration_ns(node.sdo_timeout_ns)
-    if node.sdo_retries:
-        out["sdo_retries"] = node.sdo_retries
-    if node.safe_stop != DEFAULT_SAFE_STOP:
-        out["safe_stop"] = node.safe_stop
-    if node.scheduling != "preemptive":
-        out["scheduling"] = node.scheduling
+        out["rx_delay"] = format_ns(node.rx_delay_ns)
+    for key in ("on_loss", "on_emcy", "on_reboot", "safe_stop", "scheduling", "sdo_retries"):
+        if getattr(node, key) != NODE_DEFAULTS[key]:
+            out[key] = getattr(node, key)
+    if node.sdo_timeout_ns != NODE_DEFAULTS["sdo_timeout_ns"]:
+        out["sdo_timeout"] = format_ns(node.sdo_timeout_ns)
     if node.description:
         out["description"] = node.description
     return out
@@ -134,12 +120,12 @@ def _task_keys(t: Task) -> dict[str, Any]:
     elif t.on_message is not None:
         out["on_message"] = t.on_message
     elif t.period_ns is not None:
-        out["period"] = duration_ns(t.period_ns)
+        out["period"] = format_ns(t.period_ns)
     if t.offset_ns:
-        out["offset"] = duration_ns(t.offset_ns)
-    out["wcet"] = duration_ns(t.wcet_ns)
+        out["offset"] = format_ns(t.offset_ns)
+    out["wcet"] = format_ns(t.wcet_ns)
     if t.bcet_ns != t.wcet_ns:
-        out["bcet"] = duration_ns(t.bcet_ns)
+        out["bcet"] = format_ns(t.bcet_ns)
     if t.priority is not None:
         out["priority"] = t.priority
     if t.description:
@@ -162,7 +148,7 @@ def _flow_keys(flow: Flow) -> dict[str, Any]:
     chain: list[str | list[str]] = [s.refs[0] if len(s.refs) == 1 else list(s.refs) for s in flow.steps]
     out: dict[str, Any] = {"name": flow.name, "chain": chain}
     if flow.deadline_ns is not None:
-        out["deadline"] = duration_ns(flow.deadline_ns)
+        out["deadline"] = format_ns(flow.deadline_ns)
     if flow.description:
         out["description"] = flow.description
     return out
