@@ -40,10 +40,11 @@ def verify_log(
     report = checker.finish()
     if span is not None and origin:
         cyclic_end = min(span[1], checker.last_t) if checker.last_t is not None else span[1]
+        services = [b["canopen"] for b in report["buses"] if "canopen" in b]
         report["phases"] = {
-            "setup": setup.report(origin[0]),
+            "setup": setup.report(origin[0], services),
             "cyclic": {"from_us": span[0] - origin[0], "to_us": cyclic_end - origin[0]},
-            "shutdown": shutdown.report(origin[0]),
+            "shutdown": shutdown.report(origin[0], services),
         }
     report["log"] = str(log)
     return report

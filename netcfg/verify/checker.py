@@ -315,11 +315,13 @@ class Checker:
             if len(times):
                 self._last_ref[b] = int(times[-1])
 
-    def note_services(self, batch: Batch) -> None:
+    def note_services(self, batch: Batch) -> int:
         """Frames outside the judged span (a master's set-up and shut-down, netcfg.verify.phases): their CANopen
-        services (NMT, heartbeats, EMCY, SDO) are noted, nothing is held against the analysis."""
+        services (NMT, heartbeats, EMCY, SDO) are noted, nothing is held against the analysis. -> how many of
+        them were SDO frames."""
         if not len(batch):
-            return
+            return 0
+        sdo_before = sum(services.sdo for services in self.services.values())
         if self.origin_t is None:
             self.origin_t = int(batch.t_us[0])
         self.unjudged += len(batch)
@@ -329,6 +331,7 @@ class Checker:
             on_bus = np.flatnonzero((bus == b) & keep)
             if len(on_bus):
                 services.take(batch.t_us[on_bus], batch.can_id[on_bus], batch.data[on_bus])
+        return sum(services.sdo for services in self.services.values()) - sdo_before
 
     def _load(self, t: NDArray[np.int64], bus: NDArray[np.int64], flags: NDArray[np.uint8], length: Any) -> None:
         if not len(t) or self.first_t is None:

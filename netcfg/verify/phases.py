@@ -11,58 +11,48 @@ CANopen bus of the system (a plain CAN bus) is all one cyclic phase.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from netcfg import cia301
 from netcfg.runtime import RuntimeConfig
 from netcfg.verify.frames import ERROR, EXTENDED, Batch
-
-NMT_COMMANDS = {0x01: "start", 0x02: "stop", 0x80: "pre-operational", 0x81: "reset node", 0x82: "reset communication"}
 
 
 @dataclass
 class Phase:
-    """Frames of a phase that is not judged: how many, when, and what the CANopen services in them did."""
+    """Frames of a phase that is not judged: how many, when, and how many of them were SDO. What its CANopen
+    services said (NMT commands, boot-ups) is the checker's ServiceLog's, taken for the phase's span."""
 
     frames: int = 0
     first_us: int | None = None
     last_us: int | None = None
     sdo_frames: int = 0
-    nmt: list[dict[str, Any]] = field(default_factory=list)  # {"time_us", "command", "node"}
-    boot_ups: list[dict[str, Any]] = field(default_factory=list)  # {"time_us", "node"}
 
-    def take(self, batch: Batch, origin_us: int) -> None:
+    def take(self, batch: Batch, sdo_frames: int) -> None:
         if not len(batch):
             return
         self.frames += len(batch)
         self.first_us = int(batch.t_us[0]) if self.first_us is None else self.first_us
         self.last_us = int(batch.t_us[-1])
-        plain = (batch.flags & (ERROR | EXTENDED)) == 0
-        ids = batch.can_id
-        self.sdo_frames += int((plain & (ids > cia301.SDO_TX_BASE) & (ids <= cia301.SDO_RX_BASE + 127)).sum())
-        for i in np.flatnonzero(plain & (ids == 0) & (batch.length >= 2)).tolist():
-            command, node = int(batch.data[i, 0]), int(batch.data[i, 1])
-            self.nmt.append({
-                "time_us": int(batch.t_us[i]) - origin_us,
-                "command": NMT_COMMANDS.get(command, f"0x{command:02X}"),
-                "node": node or "all",
-            })
-        boot = plain & (ids > cia301.HEARTBEAT_BASE) & (ids <= cia301.HEARTBEAT_BASE + 127) & (batch.length >= 1)
-        for i in np.flatnonzero(boot & (batch.data[:, 0] == 0)).tolist():
-            node = int(ids[i]) - cia301.HEARTBEAT_BASE
-            self.boot_ups.append({"time_us": int(batch.t_us[i]) - origin_us, "node": node})
+        self.sdo_frames += sdo_frames
 
-    def report(self, origin_us: int) -> dict[str, Any]:
+    def report(self, origin_us: int, services: list[dict[str, Any]]) -> dict[str, Any]:
+        """`services`: the buses' CANopen service reports (times from origin_us)."""
+        lo = None if self.first_us is None else self.first_us - origin_us
+        hi = None if self.last_us is None else self.last_us - origin_us
+
+        def inside(items: list[dict[str, Any]]) -> list[dict[str, Any]]:
+            return [x for x in items if lo is not None and hi is not None and lo <= x["time_us"] <= hi]
+
         return {
             "frames": self.frames,
-            "from_us": None if self.first_us is None else self.first_us - origin_us,
-            "to_us": None if self.last_us is None else self.last_us - origin_us,
+            "from_us": lo,
+            "to_us": hi,
             "sdo_frames": self.sdo_frames,
-            "nmt_commands": self.nmt,
-            "boot_ups": self.boot_ups,
+            "nmt_commands": [x for co in services for x in inside(co["nmt_commands"])],
+            "boot_ups": [x for co in services for x in inside(co["nmt_states"]) if x["state"] == "boot-up"],
         }
 
 
@@ -105,9 +95,10 @@ def split(
     setup: Phase,
     shutdown: Phase,
     origin: list[int],
-    outside: Callable[[Batch], None],
+    outside: Callable[[Batch], int],
 ) -> Iterator[Batch]:
-    """The frames of the cyclic phase, batch by batch; the others go to set-up and shut-down, and to `outside`.
+    """The frames of the cyclic phase, batch by batch; the others go to `outside` (which says how many were SDO) and
+    are counted in set-up and shut-down.
     origin[0] gets the log's first frame time (the report counts times from it)."""
     start, end = span
     for batch in batches:
@@ -118,12 +109,10 @@ def split(
         t = batch.t_us
         lo, hi = int(np.searchsorted(t, start, side="left")), int(np.searchsorted(t, end, side="right"))
         before, after = _rows(batch, 0, lo), _rows(batch, hi, len(batch))
-        setup.take(before, origin[0])
-        outside(before)
+        setup.take(before, outside(before))
         if hi > lo:
             yield _rows(batch, lo, hi)
-        shutdown.take(after, origin[0])
-        outside(after)
+        shutdown.take(after, outside(after))
 
 
 def _rows(batch: Batch, lo: int, hi: int) -> Batch:
