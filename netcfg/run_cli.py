@@ -56,44 +56,21 @@ def add_parser(sub: Any) -> None:
     length = p.add_mutually_exclusive_group()
     length.add_argument("--cycles", type=int, help="SYNC cycles to run (default: until Ctrl-C)")
     length.add_argument("--duration", help="how long to cycle, e.g. 8s or 500 ms (whole SYNC periods)")
-    p.add_argument(
-        "--kill", action="append", default=[], metavar="NODE@T", help="simulated drives: NODE drops off the bus at T"
+    # the fault drills, each given as often as wanted
+    drills = (
+        ("--kill", "NODE@T", "simulated drives: NODE drops off the bus at T"),
+        ("--emcy", "NODE@T[=CODE]", f"simulated drives: NODE sends an EMCY (default code 0x{DEFAULT_EMCY:04X}) and "
+         "faults at T"),
+        ("--reset", "NODE@T+OUTAGE", "simulated drives: NODE reboots at T, silent for OUTAGE, then boots with its "
+         "default object dictionary"),
+        ("--sdo-abort", "NODE:INDEX[:SUB][=CODE]", "simulated drives: NODE aborts every SDO write to that object "
+         f"(default code 0x{DEFAULT_ABORT:08X})"),
+        ("--stall", "T..T2", "the master's own loop pauses from T to T2 (no SYNC, no RxPDO), as a host that is "
+         "held up"),
+        ("--bus-off", "T..T2", "the master's CAN controller is bus-off from T to T2 (played by netcfg's bus wrapper)"),
     )
-    p.add_argument(
-        "--emcy",
-        action="append",
-        default=[],
-        metavar="NODE@T[=CODE]",
-        help=f"simulated drives: NODE sends an EMCY (default code 0x{DEFAULT_EMCY:04X}) and faults at T",
-    )
-    p.add_argument(
-        "--reset",
-        action="append",
-        default=[],
-        metavar="NODE@T+OUTAGE",
-        help="simulated drives: NODE reboots at T, silent for OUTAGE, then boots with its default object dictionary",
-    )
-    p.add_argument(
-        "--sdo-abort",
-        action="append",
-        default=[],
-        metavar="NODE:INDEX[:SUB][=CODE]",
-        help=f"simulated drives: NODE aborts every SDO write to that object (default code 0x{DEFAULT_ABORT:08X})",
-    )
-    p.add_argument(
-        "--stall",
-        action="append",
-        default=[],
-        metavar="T..T2",
-        help="the master's own loop pauses from T to T2 (no SYNC, no RxPDO), as a host that is held up",
-    )
-    p.add_argument(
-        "--bus-off",
-        action="append",
-        default=[],
-        metavar="T..T2",
-        help="the master's CAN controller is bus-off from T to T2 (played by netcfg's bus wrapper)",
-    )
+    for flag, metavar, text in drills:
+        p.add_argument(flag, action="append", default=[], metavar=metavar, help=text)
     p.add_argument("--allow-missing", action="store_true", help="run the nodes that were set up even if others failed")
     p.add_argument("--log", type=Path, metavar="FILE", help="every frame: .log (candump -L), .asc, .blf, .csv, .trc")
     p.add_argument("--samples", type=Path, metavar="FILE.csv", help="the samples of every cycle, one row per cycle")
