@@ -93,3 +93,18 @@ def no_leaked_threads() -> Iterator[None]:
     ) and time.monotonic() < deadline:
         time.sleep(0.02)
     assert left == [], left
+
+
+def allex2_cia402_over_pdos() -> str:
+    """ALLEX-2's spec with hip_l's controlword in its RxPDO1 (beside 0x60FF) and its statusword in its TPDO2 (16 + 32
+    + 16 = 64 bits): the master walks it through CiA 402 over those PDOs."""
+    text = (SPECS / "allex2.yaml").read_text(encoding="utf-8")
+    for old, new in (
+        ("pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x60B1]}",
+         "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x6040]}"),
+        ('pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2"]}',
+         'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2", 0x6041]}'),
+    ):
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    return text

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import can
 import pytest
-from conftest import ROOT
+from conftest import ROOT, allex2_cia402_over_pdos
 
 import netcfg.runtime as rt
 from netcfg.runtime.cia402 import OPERATION_ENABLED, SWITCH_ON_DISABLED
@@ -409,17 +409,7 @@ def test_a_drive_enabled_over_its_pdos_is_walked_up_again_over_them(tmp_path: Pa
     CiA 402 transition per cycle (2, 3, 4), and only then reports it recovered."""
     from netcfg.cli import main
 
-    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
-    text = text.replace(
-        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x60B1]}",
-        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x6040]}",
-        1,
-    )
-    text = text.replace(
-        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2"]}',
-        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2", 0x6041]}',
-        1,
-    )
+    text = allex2_cia402_over_pdos()
     text = text.replace("    on_loss: stop_node\n", "    on_loss: stop_node\n    on_reboot: recover\n", 1)  # hip_l
     spec = tmp_path / "pdo402.yaml"
     spec.write_text(text, encoding="utf-8")

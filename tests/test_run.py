@@ -35,7 +35,7 @@ from typing import Any
 import can
 import canopen
 import pytest
-from conftest import ROOT
+from conftest import ROOT, allex2_cia402_over_pdos
 
 import netcfg.runtime as rt
 from netcfg.cli import main
@@ -556,17 +556,7 @@ def test_a_drive_with_mapped_controlword_and_statusword_is_enabled_through_its_p
     """hip_l's RxPDO1 carries 0x60FF and the controlword, its TPDO2 0x6077, 0x30D1:2 and the statusword (16 + 32 +
     16 = 64 bits): the master enables it in the first cycles over those PDOs, the others over SDO; every cycle
     still delivers its samples, and the statusword shows OPERATION ENABLED in the last one."""
-    text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
-    text = text.replace(
-        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x60B1]}",
-        "pdo: {rpdo: 1, transmission: 255, map: [0x60FF, 0x6040]}",
-        1,
-    )
-    text = text.replace(
-        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2"]}',
-        'pdo: {tpdo: 2, transmission: 1, map: [0x6077, "0x30D1:2", 0x6041]}',
-        1,
-    )
+    text = allex2_cia402_over_pdos()
     spec = tmp_path / "pdo402.yaml"
     spec.write_text(text, encoding="utf-8")
     assert main(["build", str(spec), "-o", str(tmp_path / "out")]) == 0
