@@ -527,14 +527,12 @@ def command(paths: list[Path], name: str, fmt: str, options: ImportOptions) -> i
         for d in sort_diagnostics(diags.items):
             print(d, file=sys.stderr)
         return 1
-    if name in m.flows:  # a flow: its bounds beside its steps' own figures
-        from netcfg.check import analyse_spec
+    if name in m.flows:  # a flow: its bounds beside its steps' own figures, from the model already loaded
+        from netcfg.analyze import analyze
         from netcfg.explain_flow import explain_flow
         from netcfg.explain_flow import text as flow_text
 
-        model_, report = analyse_spec(paths[0], options)
-        assert model_ is not None
-        flow_doc = explain_flow(model_, report, name)
+        flow_doc = explain_flow(m, analyze(m, Collector()), name)
         print(jsontext.dumps(flow_doc, indent=2) if fmt == "json" else flow_text(flow_doc))
         return 1 if flow_doc["meets"] is False else 0
     try:
