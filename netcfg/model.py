@@ -235,6 +235,7 @@ class Bus:
     errors: BitErrors | None = None  # the error model the CAN analysis allows for; None: an error-free bus
     # FTT-CAN: the SRT and the EC-schedules of one macro-cycle, built once by the analysis; the emitters read it
     ftt_schedule: Schedule | None = None
+    link: str = "can"  # the physical bus the protocol runs on (netcfg.links.LINKS): can, can-fd, ethernet
 
     @property
     def is_can(self) -> bool:

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from netcfg.resolve.suggest import closest
+from netcfg.spec.suggest import closest
 from tests.conftest import check_data
 
 BASE: dict[str, Any] = {

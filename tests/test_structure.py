@@ -21,7 +21,7 @@ from conftest import SPECS
 from netcfg import cia301
 from netcfg.check import analyse_spec
 from netcfg.emit.runtime_json import runtime_document
-from netcfg.resolve import PROTOCOLS
+from netcfg.resolve import RULES as PROTOCOLS
 from netcfg.spec import schema
 
 SYNC_NS = 20_000_000  # seed 000

@@ -3,43 +3,33 @@ needs more than one item to decide: references, identifiers, PDO maps against de
 multiples, offsets. Like a linter, it reports every problem it finds, not just the first.
 
 The core (`core`) resolves what every spec has: names, nodes, tasks, a message's common fields, identifiers;
-`flows` the end-to-end chains. Each protocol is one module with one `BusProtocol` subclass, registered below.
+`flows` the end-to-end chains. Each protocol's own rules are its layer's (netcfg.protocols: `Protocol.rules`), over
+its link's (netcfg.links).
 """
 
 from __future__ import annotations
 
 from pathlib import Path as FsPath
 
-from netcfg import model
+from netcfg import model, protocols
 from netcfg.diagnostics import Collector
-from netcfg.resolve.can import CanProtocol
-from netcfg.resolve.canfd import CanFdProtocol
-from netcfg.resolve.canopen import CanopenProtocol
+from netcfg.protocols.canopen.pdo import snake
 from netcfg.resolve.core import Resolver
-from netcfg.resolve.ethernet import EthernetProtocol
 from netcfg.resolve.flows import resolve_flows
-from netcfg.resolve.ftt import FttProtocol
-from netcfg.resolve.pdo import snake
-from netcfg.resolve.protocol import BusProtocol
+from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import SourceMap
 from netcfg.timing.offsets import derive_offsets
 
-__all__ = ["PROTOCOLS", "resolve", "snake"]
+__all__ = ["RULES", "resolve", "snake"]
 
-# One resolver per protocol of the spec language (schema.Bus.protocol).
-PROTOCOLS: dict[str, type[BusProtocol]] = {
-    "can": CanProtocol,
-    "can-fd": CanFdProtocol,
-    "canopen": CanopenProtocol,
-    "ftt-can": FttProtocol,
-    "ethernet-udp": EthernetProtocol,
-}
+# The resolver's hooks for each protocol of the spec language (schema.Bus.protocol), as its layer gives them.
+RULES: dict[str, type[BusRules]] = {name: p.rules() for name, p in protocols.PROTOCOLS.items()}
 
 
 def resolve(spec: schema.Spec, smap: SourceMap, diags: Collector, spec_dir: FsPath) -> model.Model | None:
     """Build the Model; returns None (with errors in diags) when the spec is inconsistent."""
-    r = Resolver(spec, smap, diags, spec_dir, PROTOCOLS)
+    r = Resolver(spec, smap, diags, spec_dir, RULES)
     r.check_unique_names()
     r.resolve_buses()
     r.resolve_nodes()

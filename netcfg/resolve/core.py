@@ -1,6 +1,6 @@
 """The core of resolution: the state one run shares (spec, source positions, diagnostics, the model built so
 far), the checks every protocol needs (names, nodes, tasks, a message's common fields, identifiers) and the hooks a
-protocol fills in (`BusProtocol`). Each protocol's rules live in their own module beside this one.
+protocol fills in (`BusRules`). Each protocol's rules live in their own module beside this one.
 """
 
 from __future__ import annotations
@@ -13,16 +13,17 @@ from typing import Any
 
 from netcfg import cia301, model
 from netcfg.diagnostics import Collector
-from netcfg.resolve import canopen
-from netcfg.resolve.protocol import BusProtocol
-from netcfg.resolve.suggest import did_you_mean
+from netcfg.protocols import PROTOCOLS
+from netcfg.protocols.canopen import resolve as canopen
+from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
+from netcfg.spec.suggest import did_you_mean, some_names
 from netcfg.spec.units import Duration, format_ns
 
 
 class Resolver:
-    """What one resolution shares; the protocol modules read and extend it through their `BusProtocol`."""
+    """What one resolution shares; the protocol modules read and extend it through their `BusRules`."""
 
     def __init__(
         self,
@@ -30,7 +31,7 @@ class Resolver:
         smap: SourceMap,
         diags: Collector,
         spec_dir: FsPath,
-        protocols: Mapping[str, type[BusProtocol]],
+        protocols: Mapping[str, type[BusRules]],
     ):
         self.spec = spec
         self.smap = smap
@@ -53,7 +54,7 @@ class Resolver:
         self.spec_buses = {b.name: b for b in spec.buses}
         self.protocols = {name: rules(self) for name, rules in protocols.items()}
 
-    def protocol(self, name: str) -> BusProtocol:
+    def protocol(self, name: str) -> BusRules:
         return self.protocols[name]
 
     # -- helpers -------------------------------------------------------------------------------------------
@@ -161,6 +162,7 @@ class Resolver:
                 description=b.description,
                 name=b.name,
                 protocol=b.protocol,
+                link=PROTOCOLS[b.protocol].link.name,
                 bitrate=b.bitrate,
                 id_bits=b.id_bits,
                 clock_tolerance_ppm=b.clock_tolerance,
@@ -202,6 +204,10 @@ class Resolver:
                 )
             self.protocol(b.protocol).resolve_bus(b, bus, path)
             self.model.buses[b.name] = bus
+
+    def task_refs(self) -> list[str]:
+        """Every task as a flow step names it: node.task."""
+        return [f"{n.name}.{t}" for n in self.model.nodes.values() for t in n.tasks]
 
     def masters(self, bus: str) -> list[str]:
         return [n.name for n in self.spec.nodes if bus in n.buses and n.role == "master"]
@@ -754,12 +760,6 @@ class Resolver:
 
 def quoted_names(items: Iterable[str]) -> str:
     return ", ".join(f"'{x}'" for x in sorted(items))
-
-
-def some_names(names: Iterable[str], limit: int = 8) -> str:
-    items = sorted(names)
-    more = f" (+{len(items) - limit} more)" if len(items) > limit else ""
-    return (", ".join(items[:limit]) or "none") + more
 
 
 def _last_byte(s: model.Signal) -> int:

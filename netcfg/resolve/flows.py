@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from netcfg import model
 from netcfg.resolve.core import Resolver, quoted_names
-from netcfg.resolve.suggest import did_you_mean
 from netcfg.spec.source import Path
+from netcfg.spec.suggest import did_you_mean
 from netcfg.timing.flows import same_rate
 
 
@@ -28,7 +28,7 @@ def resolve_flows(r: Resolver) -> None:
                     node_name, _, task_name = ref.partition(".")
                     node = r.model.nodes.get(node_name)
                     if node is None or task_name not in node.tasks:
-                        hint = did_you_mean(ref, all_tasks(r))
+                        hint = did_you_mean(ref, r.task_refs())
                         if node is None:
                             why = f"there is no node '{node_name}'"
                         elif node.tasks:
@@ -50,7 +50,7 @@ def resolve_flows(r: Resolver) -> None:
                     r.err(
                         "unknown-message",
                         f"flow '{f.name}': '{ref}' is neither a message nor a task (tasks are written node.task)"
-                        f"{did_you_mean(ref, [*(m.name for m in r.spec.messages), *all_tasks(r)])}",
+                        f"{did_you_mean(ref, [*(m.name for m in r.spec.messages), *r.task_refs()])}",
                         rpath,
                     )
                     ok = False
@@ -140,8 +140,3 @@ def check_flow_links(r: Resolver, flow: str, steps: list[model.FlowStep], path: 
                     )
                     ok = False
     return ok
-
-
-def all_tasks(r: Resolver) -> list[str]:
-    """Every task as a flow step names it: node.task."""
-    return [f"{n.name}.{t}" for n in r.model.nodes.values() for t in n.tasks]

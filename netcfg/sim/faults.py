@@ -151,6 +151,6 @@ def _node(sc: SimRun, name: str | None) -> str:
 def _hint(name: str | None, known: list[str]) -> str:
     """The shared 'did you mean' of every name lookup; imported only on this error path, which is the only place
     the simulator needs the compiler's package."""
-    from netcfg.resolve.suggest import did_you_mean
+    from netcfg.spec.suggest import did_you_mean
 
     return did_you_mean(name, known) if name is not None else ""

@@ -159,7 +159,7 @@ def _unwrap(tp: Any) -> Any:
 def report_validation_errors(
     exc: ValidationError, smap: SourceMap, diags: Collector, data: Any = None
 ) -> None:
-    from netcfg.resolve.suggest import closest, did_you_mean, suggestion
+    from netcfg.spec.suggest import closest, did_you_mean, suggestion
 
     errors = exc.errors(include_url=False)
     missing = {_data_path(tuple(e["loc"])) for e in errors if e["type"] == "missing"}

@@ -39,3 +39,9 @@ def suggestion(match: str | None) -> str:
 def nodes_on_bus(r: Resolver, bus: str) -> list[str]:
     """The nodes of the spec that sit on `bus` (the names a per-bus role may refer to)."""
     return [n.name for n in r.spec.nodes if bus in n.buses]
+
+
+def some_names(names: Iterable[str], limit: int = 8) -> str:
+    items = sorted(names)
+    more = f" (+{len(items) - limit} more)" if len(items) > limit else ""
+    return (", ".join(items[:limit]) or "none") + more

@@ -4,13 +4,15 @@ next valid length, classical frames (`fd: false`) on the same bus. Identifiers f
 from __future__ import annotations
 
 from netcfg import model
-from netcfg.resolve.can import MAX_CAN_BITRATE, CanProtocol
+from netcfg.links.can import MAX_CAN_BITRATE, CanRules, ClassicalCan
+from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_LENGTHS, CANFD_MAX_PAYLOAD, canfd_padded_size
+from netcfg.timing.load import FrameTiming
 
 
-class CanFdProtocol(CanProtocol):
+class CanFdRules(CanRules):
     name = "can-fd"
 
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
@@ -70,3 +72,23 @@ class CanFdProtocol(CanProtocol):
         if not fd and m.brs:
             self.r.err("brs", "bit-rate switch exists only in CAN FD frames; drop 'brs' or 'fd: false'", (*path, "brs"))
         return fd, fd and m.brs is not False
+
+
+class CanFd(ClassicalCan):
+    name = "can-fd"
+    title = "CAN FD"
+    data_phase = True
+
+    def rules(self) -> type[BusRules]:
+        return CanFdRules
+
+    def bits_per_second(self, bus: model.Bus, timings: dict[str, FrameTiming]) -> float | None:
+        # the data phase sends more bits per second than the nominal rate: counted frame by frame
+        return sum(
+            timings[msg.name].bits_worst * 1e9 / msg.interval_ns
+            for msg in bus.messages
+            if msg.interval_ns and msg.kind != "on-demand"
+        )
+
+
+CAN_FD = CanFd()

@@ -8,18 +8,16 @@ import dataclasses
 from typing import Literal
 
 from netcfg import model
+from netcfg.links.can import CanRules
 from netcfg.model import MessageKind
-from netcfg.resolve.can import CanProtocol
-from netcfg.resolve.core import some_names
-from netcfg.resolve.flows import all_tasks
-from netcfg.resolve.suggest import did_you_mean, nodes_on_bus
 from netcfg.spec import schema
 from netcfg.spec.source import Path
+from netcfg.spec.suggest import did_you_mean, nodes_on_bus, some_names
 from netcfg.spec.units import Duration, format_ns
 from netcfg.timing.frames import arbitration_key
 
 
-class FttProtocol(CanProtocol):
+class FttRules(CanRules):
     name = "ftt-can"
     section = "ftt"
     explicit_ids = False  # synchronous messages take sync_id_base + their FTT id
@@ -218,7 +216,7 @@ class FttProtocol(CanProtocol):
                     self.r.err(
                         "unknown-task",
                         f"trigger '{t.name}' activates '{ref}', which is not a task (write node.task)"
-                        f"{did_you_mean(ref, all_tasks(self.r))}",
+                        f"{did_you_mean(ref, self.r.task_refs())}",
                         (*path, "tasks", j),
                     )
                     continue

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from netcfg.resolve.core import Resolver
 
 
-class BusProtocol:
+class BusRules:
     name = ""
     section: str | None = None  # the bus's own section in the spec ('ftt:', 'canopen:', 'ethernet:')
     explicit_ids = True  # a message needs an 'id' unless the protocol derives one

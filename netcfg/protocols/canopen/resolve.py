@@ -1,6 +1,6 @@
 """CANopen (CiA 301): the SYNC settings of a bus, device profiles, SYNC-driven tasks, PDO timing by transmission
 type, default COB-IDs, the implicit SYNC and heartbeat messages and the identifiers the services reserve. The PDO
-maps themselves are checked in `netcfg.resolve.pdo`."""
+maps themselves are checked in `netcfg.protocols.canopen.pdo`."""
 
 from __future__ import annotations
 
@@ -13,19 +13,19 @@ from netcfg.devices import DATA_TYPE_CODES, DeviceProfile, ObjectEntry, builtin_
 from netcfg.devices.eds import EdsError, cached_profile
 from netcfg.diagnostics import Position
 from netcfg.inputs import check_input_path
+from netcfg.links.can import CanRules
 from netcfg.model import MessageKind
-from netcfg.resolve import pdo as pdo_map
-from netcfg.resolve.can import CanProtocol
-from netcfg.resolve.suggest import did_you_mean, nodes_on_bus
+from netcfg.protocols.canopen import pdo as pdo_map
 from netcfg.spec import schema
 from netcfg.spec.source import Path
+from netcfg.spec.suggest import did_you_mean, nodes_on_bus
 from netcfg.spec.units import format_ns
 
 if TYPE_CHECKING:
     from netcfg.resolve.core import Resolver
 
 
-class CanopenProtocol(CanProtocol):
+class CanopenRules(CanRules):
     name = "canopen"
     section = "canopen"
 

@@ -1,18 +1,20 @@
-"""Classical CAN (ISO 11898-1): the bit rate, the 8-byte payload and unique identifiers on the bus. CANopen and
-FTT-CAN build on these rules."""
+"""Classical CAN (ISO 11898-1): the link and its rules (the bit rate, the 8-byte payload and unique identifiers on the
+bus). The protocols over CAN (CANopen, FTT-CAN) build on these rules."""
 
 from __future__ import annotations
 
 from netcfg import model
-from netcfg.resolve.protocol import BusProtocol
+from netcfg.links.base import Link
+from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.timing.frames import CAN_MAX_PAYLOAD
+from netcfg.timing.load import FrameTiming, frame_timing
 
 MAX_CAN_BITRATE = 1_000_000  # classical CAN, ISO 11898-1
 
 
-class CanProtocol(BusProtocol):
+class CanRules(BusRules):
     name = "can"
 
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
@@ -28,7 +30,7 @@ class CanProtocol(BusProtocol):
             self.r.err(
                 "payload",
                 f"message '{m.name}': {size} bytes do not fit a classical CAN frame (at most 8); split the message"
-                + (", or make the bus 'protocol: can-fd' (up to 64 bytes)" if type(self) is CanProtocol else ""),
+                + (", or make the bus 'protocol: can-fd' (up to 64 bytes)" if type(self) is CanRules else ""),
                 (*path, "size") if m.size is not None else path,
             )
 
@@ -81,3 +83,17 @@ class CanProtocol(BusProtocol):
                 f"0x{lo:03X}..0x{hi:03X}; pick one inside it (netcfg tune does) or widen the range",
                 self.r.key_or_item(m.path, "id"),
             )
+
+
+class ClassicalCan(Link):
+    name = "can"
+    title = "classical CAN"
+
+    def rules(self) -> type[BusRules]:
+        return CanRules
+
+    def frame_timing(self, msg: model.Message, bus: model.Bus) -> FrameTiming:
+        return frame_timing(msg, bus.bitrate, bus.data_bitrate)
+
+
+CLASSICAL_CAN = ClassicalCan()

@@ -4,10 +4,10 @@ ids unique per sender, and payloads that fit one unfragmented datagram."""
 from __future__ import annotations
 
 from netcfg import model
-from netcfg.resolve.protocol import BusProtocol
-from netcfg.resolve.suggest import did_you_mean
+from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path
+from netcfg.spec.suggest import did_you_mean
 from netcfg.timing.ethernet import QUEUE_FRAMES
 from netcfg.timing.frames import APP_ID_BYTES, MAX_UDP_PAYLOAD
 
@@ -20,7 +20,7 @@ def _queue_path(bus: Path, j: int, k: int, port: schema.SwitchPort, switch: sche
     return (*sw, "ports", k, "queue")
 
 
-class EthernetProtocol(BusProtocol):
+class UdpRules(BusRules):
     name = "ethernet-udp"
     section = "ethernet"
     id_meaning = "the application message id (Table 6.1 style, 0..255)"

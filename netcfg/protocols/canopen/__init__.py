@@ -1,0 +1,40 @@
+"""CANopen (CiA 301) over a CAN link: node ids and the predefined connection set, PDO maps against device
+dictionaries, the SYNC cycle and heartbeats. The SYNC cycle's analysis is added to the link's arbitration analysis."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from netcfg.links.can import CLASSICAL_CAN
+from netcfg.protocols.base import Protocol
+
+if TYPE_CHECKING:
+    from netcfg import model
+    from netcfg.bus_analysis import Analysis
+    from netcfg.diagnostics import Collector
+    from netcfg.rules import BusRules
+    from netcfg.timing.load import FrameTiming
+
+
+class Canopen(Protocol):
+    def rules(self) -> type[BusRules]:
+        from netcfg.protocols.canopen.resolve import CanopenRules
+
+        return CanopenRules
+
+    def offsets_unused(self, bus: model.Bus) -> str | None:
+        return "a CANopen bus is analysed without offsets: SYNC, the master's loop and PDO events release frames"
+
+    def identifiers_fixed(self, bus: model.Bus) -> str | None:
+        return "CiA 301 COB-IDs, the predefined connection set its devices expect"
+
+    def extend(
+        self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], diags: Collector, acc: Analysis
+    ) -> dict[str, Any]:
+        from netcfg.bus_analysis import frame_times
+        from netcfg.protocols.canopen.analysis import analyze_sync
+
+        return {"sync": analyze_sync(m, bus, frame_times(timings), diags, acc)}
+
+
+CANOPEN = Canopen("canopen", CLASSICAL_CAN)

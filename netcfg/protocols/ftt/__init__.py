@@ -1,0 +1,80 @@
+"""FTT-CAN over a CAN link (seed 002): a master's trigger message opens every elementary cycle, whose synchronous
+window it schedules and whose asynchronous window arbitrates as CAN. The windows' analysis replaces the messages'
+bounds of the link's arbitration analysis, which stays in the report as their plain-CAN figure."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from netcfg.links.can import CLASSICAL_CAN
+from netcfg.protocols.base import Protocol
+
+if TYPE_CHECKING:
+    from netcfg import model
+    from netcfg.bus_analysis import Analysis
+    from netcfg.diagnostics import Collector
+    from netcfg.rules import BusRules
+    from netcfg.timing.load import FrameTiming
+
+
+class Ftt(Protocol):
+    def rules(self) -> type[BusRules]:
+        from netcfg.protocols.ftt.resolve import FttRules
+
+        return FttRules
+
+    def identifiers_fixed(self, bus: model.Bus) -> str | None:
+        return (
+            "the master schedules the synchronous window, where offset: auto places the messages, and tune's "
+            "search is not the asynchronous window's analysis"
+        )
+
+    def offset_ignored(self, m: model.Model, bus: model.Bus, msg: model.Message) -> tuple[str, str] | None:
+        if msg.window == "sync":  # the schedule takes a synchronous message's offset as its first EC
+            return None
+        ignored = super().offset_ignored(m, bus, msg)
+        if ignored is None and msg.window == "async" and msg.offset_ns is not None and not msg.offset_auto:
+            return (
+                "FTT-CAN's asynchronous window is analysed with every release at any phase",
+                "drop the offset, or make it synchronous (window: sync), where the offset is its first EC",
+            )
+        return ignored
+
+    def assumptions(self, bus: model.Bus, fifo_nodes: tuple[str, ...]) -> list[str]:
+        from netcfg.protocols.ftt.analysis import ASSUMES
+
+        return [*super().assumptions(bus, fifo_nodes), *ASSUMES]
+
+    def overhead(self, bus: model.Bus) -> tuple[int, int] | None:
+        from netcfg.protocols.ftt.analysis import bus_tm_and_ec
+
+        return bus_tm_and_ec(bus)  # the trigger message, once per EC
+
+    def bound_messages(
+        self,
+        m: model.Model,
+        bus: model.Bus,
+        rows: list[dict[str, Any]],
+        timings: dict[str, FrameTiming],
+        worst: float,
+        diags: Collector,
+        acc: Analysis,
+    ) -> dict[str, Any] | None:
+        from netcfg.protocols.ftt.analysis import bound_messages
+
+        return bound_messages(m, bus, rows, timings, worst, diags, acc)
+
+    def check_tx_queues(self, m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:
+        from netcfg.protocols.ftt.analysis import check_tx_queues
+
+        check_tx_queues(m, bus, rows, diags)
+
+    def check_overload(
+        self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], worst: float, diags: Collector
+    ) -> None:
+        from netcfg.protocols.ftt.analysis import check_overload
+
+        check_overload(m, bus, timings, worst, diags)
+
+
+FTT = Ftt("ftt-can", CLASSICAL_CAN)
