@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
-from netcfg import model
+from netcfg import links, model
 from netcfg.emit import environment, render
 from netcfg.runtime import codec, raw_signal_name
 from netcfg.timing.frames import canfd_dlc
@@ -447,7 +447,7 @@ def node_view(
                     view = dataclasses.replace(first, sends=key[2], receives=key[3])
                 views[key] = view
             messages.append(view)
-            if bus.protocol == "ethernet-udp":
+            if links.of(bus).switched:
                 for other in (msg.producer, *msg.consumers):
                     ip = m.nodes[other].ip
                     if other != node.name and ip is not None and other not in peers:

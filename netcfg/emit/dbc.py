@@ -45,7 +45,7 @@ from cantools.database.can.internal_database import InternalDatabase
 from cantools.database.conversion import BaseConversion
 from cantools.database.namedsignalvalue import NamedSignalValue
 
-from netcfg import model
+from netcfg import links, model
 from netcfg.emit import field_of
 from netcfg.runtime import raw_signal_name
 from netcfg.runtime.codec import Field
@@ -96,7 +96,7 @@ TX_QUEUE_ON_FULL = DbcAttributeDefinition(
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     files = {}
     for bus in m.buses.values():
-        if bus.is_can:
+        if links.of(bus).arbitrates:
             files[f"dbc/{bus.name}.dbc"] = dbc_text(m, bus, release_jitter(report)).encode(ENCODING, errors="replace")
     return files
 
@@ -115,7 +115,7 @@ def unsaid(m: model.Model) -> dict[str, list[Unsaid]]:
     attributes FIFO transmit queues, clock tolerance and the error model). `netcfg build` prints these."""
     out: dict[str, list[Unsaid]] = {}
     for bus in m.buses.values():
-        if not bus.is_can:
+        if not links.of(bus).arbitrates:
             continue
         lost = []
         if bus.ftt is not None:
@@ -211,7 +211,7 @@ def database(
         specifics.attribute_definitions.update(
             NetcfgTxQueue=TX_QUEUE, NetcfgTxQueueDepth=TX_QUEUE_DEPTH, NetcfgTxQueueOnFull=TX_QUEUE_ON_FULL
         )
-    if bus.protocol == "can-fd":
+    if links.of(bus).data_phase:
         # Vector's CAN FD attributes: BusType "CAN FD" makes cantools write each frame's VFrameFormat (and read it
         # back as is_fd); Baudrate_CANFD is the data rate; CANFD_BRS (default 1) marks frames without bit-rate switch
         assert bus.data_bitrate is not None

@@ -18,7 +18,7 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
-from netcfg import cia301, jsontext, model
+from netcfg import cia301, jsontext, links, model
 from netcfg.emit import canopen_dcf
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
@@ -84,7 +84,7 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
     if canopen is not None:
         canopen["sync_completion_ns"] = sync_completion_ns  # the bound a master's read time is held against
     # CAN FD keys only on CAN FD buses and frames: files of the other protocols stay as they were
-    fd = {"data_bitrate": b.data_bitrate} if b.protocol == "can-fd" else {}
+    fd = {"data_bitrate": b.data_bitrate} if links.of(b).data_phase else {}
     # the error model only where the spec states one: files of error-free buses stay as they were
     errors = {"errors": {"burst": b.errors.burst, "interval_ns": b.errors.interval_ns}} if b.errors else {}
     # the senders' clock tolerance only where the spec changes the default, for the same reason
@@ -100,7 +100,7 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
         "nodes": list(b.nodes),
         "canopen": canopen,
         "ftt": _ftt(m, b),
-        "ethernet": _ethernet(m, b) if b.protocol == "ethernet-udp" else None,
+        "ethernet": _ethernet(m, b) if links.of(b).switched else None,
     }
 
 

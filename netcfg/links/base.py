@@ -17,6 +17,7 @@ class Link:
     title: ClassVar[str] = ""  # as the user says it
     arbitrates: ClassVar[bool] = True  # frames arbitrate bit by bit on their identifier (ISO 11898-1)
     data_phase: ClassVar[bool] = False  # a second, faster bit rate for the data field (CAN FD)
+    switched: ClassVar[bool] = False  # frames go through switches to nodes' addresses (IP), not to every node
 
     def rules(self) -> type[BusRules]:
         """What the link requires of a bus and its frames at resolution (bit rate, payload, identifiers)."""

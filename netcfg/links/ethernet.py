@@ -16,6 +16,7 @@ class Ethernet(Link):
     name = "ethernet"
     title = "Ethernet"
     arbitrates = False
+    switched = True
 
     def frame_timing(self, msg: model.Message, bus: model.Bus) -> FrameTiming:
         return udp_timing(msg, bus.bitrate)

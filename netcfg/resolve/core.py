@@ -158,11 +158,12 @@ class Resolver:
                         f"bus '{b.name}' is {b.protocol}; '{key}:' belongs to {proto} buses",
                         (*path, key),
                     )
+            link = PROTOCOLS[b.protocol].link
             bus = model.Bus(
                 description=b.description,
                 name=b.name,
                 protocol=b.protocol,
-                link=PROTOCOLS[b.protocol].link.name,
+                link=link.name,
                 bitrate=b.bitrate,
                 id_bits=b.id_bits,
                 clock_tolerance_ppm=b.clock_tolerance,
@@ -171,7 +172,7 @@ class Resolver:
                 path=path,
             )
             if b.errors is not None:
-                if b.protocol == "ethernet-udp":
+                if not link.arbitrates:
                     self.err(
                         "wrong-section",
                         f"'errors' is the CAN bit-error model; bus '{b.name}' is Ethernet, whose frames a bit error "
@@ -189,14 +190,14 @@ class Resolver:
                         )
                     else:
                         bus.errors = model.BitErrors(b.errors.burst, interval, b.errors.ber)
-            if "clock_tolerance" in b.model_fields_set and b.protocol == "ethernet-udp":
+            if "clock_tolerance" in b.model_fields_set and not link.arbitrates:
                 self.warn(
                     "wrong-section",
                     f"'clock_tolerance' is counted by the CAN analysis; bus '{b.name}' is Ethernet, where it has no "
                     "effect (flows take the largest of the CAN buses'): remove it",
                     (*path, "clock_tolerance"),
                 )
-            if b.data_bitrate is not None and b.protocol != "can-fd":
+            if b.data_bitrate is not None and not link.data_phase:
                 self.err(
                     "wrong-section",
                     f"'data_bitrate' is the CAN FD data phase; bus '{b.name}' is {b.protocol}",
@@ -316,7 +317,7 @@ class Resolver:
                 scheduling=n.scheduling,
                 tx_queue=_tx_queue(n.tx_queue),
             )
-            on_can = any(sb.name in n.buses and sb.protocol != "ethernet-udp" for sb in self.spec.buses)
+            on_can = any(sb.name in n.buses and PROTOCOLS[sb.protocol].link.arbitrates for sb in self.spec.buses)
             if n.tx_queue.policy == "fifo" and not on_can:
                 self.warn(
                     "wrong-section",
