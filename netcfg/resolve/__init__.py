@@ -16,6 +16,7 @@ from netcfg.diagnostics import Collector
 from netcfg.protocols.canopen.pdo import snake
 from netcfg.resolve.core import Resolver
 from netcfg.resolve.flows import resolve_flows
+from netcfg.resolve.nodes import resolve_nodes
 from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import SourceMap
@@ -32,7 +33,7 @@ def resolve(spec: schema.Spec, smap: SourceMap, diags: Collector, spec_dir: FsPa
     r = Resolver(spec, smap, diags, spec_dir, RULES)
     r.check_unique_names()
     r.resolve_buses()
-    r.resolve_nodes()
+    resolve_nodes(r)
     r.resolve_messages()
     for rules in r.protocols.values():
         rules.resolve_items()  # implicit messages, triggers, topologies

@@ -11,10 +11,10 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path as FsPath
 from typing import Any
 
-from netcfg import cia301, model
+from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.protocols import PROTOCOLS
-from netcfg.protocols.canopen import resolve as canopen
+from netcfg.resolve.signals import last_byte, layout_signals
 from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
@@ -213,162 +213,6 @@ class Resolver:
     def masters(self, bus: str) -> list[str]:
         return [n.name for n in self.spec.nodes if bus in n.buses and n.role == "master"]
 
-    def resolve_nodes(self) -> None:
-        ids: dict[tuple[str, int], str] = {}
-        for i, n in enumerate(self.spec.nodes):
-            path: Path = ("nodes", i)
-            for j, bname in enumerate(n.buses):
-                if bname not in self.spec_buses:
-                    self.err(
-                        "unknown-bus",
-                        f"node '{n.name}' sits on bus '{bname}', which is not defined"
-                        f"{did_you_mean(bname, self.spec_buses)}; known buses: {some_names(self.spec_buses)}",
-                        (*path, "buses", j),
-                    )
-            if len(set(n.buses)) != len(n.buses):
-                self.err("duplicate-name", f"node '{n.name}' lists the same bus twice", (*path, "buses"))
-            protocols = {self.spec_buses[b].protocol for b in n.buses if b in self.spec_buses}
-            on_canopen = "canopen" in protocols
-            if n.node_id is not None:
-                if on_canopen and n.node_id not in cia301.NODE_IDS:
-                    self.err("node-id", f"CANopen node ids are 1..127; '{n.name}' has {n.node_id}", (*path, "node_id"))
-                elif not 0 <= n.node_id <= 255:
-                    self.err("node-id", f"node ids are 0..255; '{n.name}' has {n.node_id}", (*path, "node_id"))
-                for bname in n.buses:
-                    key = (bname, n.node_id)
-                    if key in ids:
-                        self.shared_node_ids.update((n.name, ids[key]))
-                        self.err(
-                            "duplicate-node-id",
-                            f"node id {n.node_id} of '{n.name}' is already used by '{ids[key]}' on bus '{bname}'",
-                            (*path, "node_id"),
-                        )
-                    ids[key] = n.name
-            elif on_canopen:
-                self.err("node-id", f"node '{n.name}' is on a CANopen bus and needs a node_id (1..127)", path)
-            device = canopen.load_device(self, n, path, on_canopen)
-            # a node on a misspelt bus may well be on a CANopen one: the unknown bus is the one error
-            if n.heartbeat is not None and not on_canopen and all(b in self.spec_buses for b in n.buses):
-                self.err(
-                    "wrong-section",
-                    "heartbeat is a CANopen service; this node is on no CANopen bus",
-                    (*path, "heartbeat"),
-                )
-            hb = self.ns(n.heartbeat, (*path, "heartbeat"), None)
-            if hb is not None and (hb % 1_000_000 or hb > 65_535_000_000):
-                self.err(
-                    "heartbeat",
-                    "the heartbeat time (0x1017) is whole milliseconds, at most 65535 ms",
-                    (*path, "heartbeat"),
-                )
-            hb_timeout = self.ns(n.heartbeat_timeout, (*path, "heartbeat_timeout"), None)
-            if hb_timeout is not None and (
-                hb is None or hb_timeout <= hb or hb_timeout % 1_000_000 or hb_timeout > 65_535_000_000
-            ):
-                self.err(
-                    "heartbeat",
-                    "heartbeat_timeout (the master's consumer time, 0x1016) is whole milliseconds, at most 65535 ms, "
-                    "and longer than the node's heartbeat producer time; give the node a 'heartbeat' first",
-                    (*path, "heartbeat_timeout"),
-                )
-                hb_timeout = None
-            whole_ms = hb is not None and not hb % 1_000_000 and hb <= 65_535_000_000
-            if hb and whole_ms and not canopen.device_has_heartbeat(self, device, hb, (*path, "heartbeat")):
-                hb = hb_timeout = None  # reported; no heartbeat the device cannot send
-            if hb and hb_timeout is None:
-                # Lely dcfgen's default heartbeat_multiplier (3.0): two heartbeats may be lost; 0x1016 holds 16 bits
-                hb_timeout = min(3 * hb, 65_535_000_000)
-            sdo_timeout = self.ns(n.sdo_timeout, (*path, "sdo_timeout"), None)
-            if sdo_timeout is not None and not 0 < sdo_timeout <= 60_000_000_000:
-                self.err(
-                    "sdo-timeout",
-                    "sdo_timeout (how long the master waits for each SDO answer) is more than 0 and at most 60 s",
-                    (*path, "sdo_timeout"),
-                )
-                sdo_timeout = None
-            if sdo_timeout is None:
-                sdo_timeout = 500_000_000  # what `netcfg run` waited before the key existed
-            if n.ip is not None and any(int(p) > 255 for p in n.ip.split(".")):
-                self.err("ip", f"'{n.ip}' is not an IPv4 address", (*path, "ip"))
-            ec = self.ec_of(n.buses)
-            tasks = {}
-            for j, t in enumerate(n.tasks):
-                tasks[t.name] = self.resolve_task(n.name, t, (*path, "tasks", j), ec)
-            self.model.nodes[n.name] = model.Node(
-                description=n.description,
-                name=n.name,
-                node_id=n.node_id,
-                buses=tuple(n.buses),
-                role=n.role,
-                device=device,
-                heartbeat_ns=hb or None,
-                heartbeat_timeout_ns=hb_timeout,
-                on_loss=n.on_loss,
-                on_emcy=n.on_emcy,
-                on_reboot=n.on_reboot,
-                sdo_timeout_ns=sdo_timeout,
-                sdo_retries=n.sdo_retries,
-                safe_stop=n.safe_stop,
-                ip=n.ip,
-                tasks=tasks,
-                path=path,
-                tx_delay_ns=self.ns(n.tx_delay, (*path, "tx_delay"), None) or 0,
-                rx_delay_ns=self.ns(n.rx_delay, (*path, "rx_delay"), None) or 0,
-                scheduling=n.scheduling,
-                tx_queue=_tx_queue(n.tx_queue),
-            )
-            on_can = any(sb.name in n.buses and PROTOCOLS[sb.protocol].link.arbitrates for sb in self.spec.buses)
-            if n.tx_queue.policy == "fifo" and not on_can:
-                self.warn(
-                    "wrong-section",
-                    f"node '{n.name}' is on no CAN bus: its tx_queue has no effect (an Ethernet NIC's queue is its "
-                    "nic_queue): remove it",
-                    (*path, "tx_queue"),
-                )
-
-    def resolve_task(self, node: str, t: schema.Task, path: Path, ec: int | None) -> model.Task:
-        period = self.ns(t.period, (*path, "period"), ec)
-        offset = self.ns(t.offset, (*path, "offset"), ec) or 0
-        wcet = self.ns(t.wcet, (*path, "wcet"), ec) or 0
-        bcet = self.ns(t.bcet, (*path, "bcet"), ec)
-        if wcet <= 0:
-            self.err("wcet", f"task '{node}.{t.name}' needs a worst-case execution time above zero", (*path, "wcet"))
-        if bcet is None:
-            bcet = wcet
-        elif bcet > wcet:
-            self.err("bcet", f"best case {format_ns(bcet)} exceeds worst case {format_ns(wcet)}", (*path, "bcet"))
-        if period is not None:
-            if period <= 0:
-                self.err("period", "a task period must be above zero", (*path, "period"))
-            else:
-                self.check_offset(offset, period, path)
-                if wcet > period:
-                    self.err(
-                        "wcet",
-                        f"WCET {format_ns(wcet)} exceeds the period {format_ns(period)}: the task can never keep up",
-                        (*path, "wcet"),
-                    )
-        if t.on_message is not None and t.period is not None:
-            self.err("task-period", "an event-driven task ('on_message') has no period", (*path, "period"))
-        sync_bus = None
-        if t.sync:
-            sync_bus, period = canopen.sync_task(self, node, t, path, period)
-            self.check_offset(offset, period, path, "the SYNC period")
-        return model.Task(
-            description=t.description,
-            node=node,
-            name=t.name,
-            period_ns=period,
-            offset_ns=offset,
-            wcet_ns=wcet,
-            bcet_ns=bcet,
-            trigger=None,
-            on_message=t.on_message,
-            path=path,
-            sync_bus=sync_bus,
-            priority=t.priority,
-        )
-
     # -- messages ------------------------------------------------------------------------------------------
     def message_bus(self, m: schema.Message, path: Path) -> schema.Bus | None:
         ends = [m.producer, *m.consumers]
@@ -455,16 +299,16 @@ class Resolver:
         if m.signals is not None:
             if pdo is not None:
                 self.err("wrong-section", "give either a PDO map or signals, not both", (*path, "signals"))
-            signals = self.layout_signals(m.signals, (*path, "signals"))
-            sig_size = max((_last_byte(s) + 1 for s in signals), default=0)
+            signals = layout_signals(self, m.signals, (*path, "signals"))
+            sig_size = max((last_byte(s) + 1 for s in signals), default=0)
             if size is not None and size < sig_size:
                 # the signal that reaches furthest is the mistake (or the size is): name it, at its own line
-                j, far = max(enumerate(signals), key=lambda item: _last_byte(item[1]))
+                j, far = max(enumerate(signals), key=lambda item: last_byte(item[1]))
                 order = "big-endian" if far.big_endian else "little-endian"
                 self.err(
                     "size",
                     f"signal '{far.name}' of message '{m.name}' (start bit {far.start_bit}, {far.bits} bits, {order}) "
-                    f"reaches byte {_last_byte(far)}, outside the message's {size} bytes; move the signal or make "
+                    f"reaches byte {last_byte(far)}, outside the message's {size} bytes; move the signal or make "
                     f"'size: {sig_size}'",
                     (*path, "signals", j, "start_bit") if self.smap.has((*path, "signals", j, "start_bit"))
                     else (*path, "signals", j),
@@ -611,102 +455,6 @@ class Resolver:
         offset = rules.release_offset(m, kind, period, offset, offset_auto, path, ec)
         return kind, (period if kind == "periodic" else None), interval, offset, offset_auto, rate
 
-    def layout_signals(self, sigs: list[schema.Signal], path: Path) -> tuple[model.Signal, ...]:
-        from netcfg.runtime.codec import int_range  # the runtime package only when a spec has signals
-
-        out: list[model.Signal] = []
-        start, seen = 0, set()
-        names = {s.name for s in sigs}
-        switches = {s.mux.signal for s in sigs if s.mux is not None}
-        for k, s in enumerate(sigs):
-            if s.name in seen:
-                self.err("duplicate-name", f"signal '{s.name}' appears twice", (*path, k, "name"))
-            seen.add(s.name)
-            if s.min is not None and s.max is not None and s.min > s.max:
-                self.err("signal-range", f"signal '{s.name}': min {s.min} is above max {s.max}", (*path, k))
-            if s.float and s.bits not in (32, 64):
-                self.err("signal-float", f"signal '{s.name}': a float has 32 or 64 bits", (*path, k, "bits"))
-            big = s.byte_order == "big_endian"
-            if big and s.start_bit is None:
-                self.err(
-                    "signal-start",
-                    f"signal '{s.name}' is big-endian: give its start_bit (its most significant bit, DBC numbering)",
-                    (*path, k),
-                )
-                continue
-            begin = start if s.start_bit is None else s.start_bit
-            if big and s.bits > begin % 8 + 1 + 8 * (63 - begin // 8):  # runs past the largest payload
-                self.err("signal-start", f"signal '{s.name}' runs past byte 63", (*path, k, "start_bit"))
-                continue
-            if s.mux is not None and (s.mux.signal not in names or s.mux.signal == s.name):
-                self.err(
-                    "signal-mux",
-                    f"signal '{s.name}' is multiplexed by '{s.mux.signal}', which is not another signal of the "
-                    "message",
-                    (*path, k, "mux", "signal"),
-                )
-            lo, hi = int_range(s.bits, s.signed)
-            for raw in s.enum or {}:
-                if not lo <= raw <= hi:
-                    self.err(
-                        "signal-enum",
-                        f"signal '{s.name}': value {raw} of its enum does not fit {s.bits} bits ({lo}..{hi})",
-                        (*path, k, "enum"),
-                    )
-            out.append(
-                model.Signal(
-                    s.name,
-                    begin,
-                    s.bits,
-                    s.signed,
-                    s.float,
-                    s.scale,
-                    s.offset,
-                    s.min,
-                    s.max,
-                    s.unit,
-                    big_endian=big,
-                    mux=s.mux.signal if s.mux is not None else None,
-                    mux_values=tuple(s.mux.values) if s.mux is not None else (),
-                    choices=tuple(sorted((s.enum or {}).items())),
-                    is_multiplexer=s.name in switches,
-                )
-            )
-            if not big:
-                start = begin + s.bits
-        self.check_signal_overlap(out, {s.name: k for k, s in enumerate(sigs)}, path)
-        return tuple(out)
-
-    def check_signal_overlap(self, signals: list[model.Signal], index: dict[str, int], path: Path) -> None:
-        """Two signals may share bits only when no frame carries both (different values of one multiplexer)."""
-        from netcfg.runtime.codec import byte_ops
-
-        by_name = {s.name: s for s in signals}
-
-        def conditions(s: model.Signal) -> dict[str, set[int]]:
-            out: dict[str, set[int]] = {}
-            while s.mux is not None and s.mux not in out and s.mux in by_name:
-                out[s.mux] = set(s.mux_values)
-                s = by_name[s.mux]
-            return out
-
-        masks = [sum(op.mask << (8 * op.index) for op in byte_ops(s.start_bit, s.bits, s.big_endian)) for s in signals]
-        conds = [conditions(s) for s in signals]
-        for b, sb in enumerate(signals):
-            for a in range(b):
-                if not masks[a] & masks[b]:
-                    continue
-                if any(m in conds[b] and not (v & conds[b][m]) for m, v in conds[a].items()):
-                    continue  # never in the same frame
-                sa = signals[a]
-                self.err(
-                    "signal-overlap",
-                    f"signal '{sb.name}' (start bit {sb.start_bit}, {sb.bits} bits) overlaps signal '{sa.name}' "
-                    f"(start bit {sa.start_bit}, {sa.bits} bits); move it to free bits",
-                    (*path, index[sb.name], "start_bit"),
-                )
-                break
-
     def claim_implicit_name(self, name: str, what: str) -> None:
         """Implicit messages appear under their own name in reports: no spec message may use it."""
         for i in self.message_names.get(name.lower(), ()):
@@ -761,15 +509,3 @@ class Resolver:
 
 def quoted_names(items: Iterable[str]) -> str:
     return ", ".join(f"'{x}'" for x in sorted(items))
-
-
-def _last_byte(s: model.Signal) -> int:
-    """The highest payload byte a signal touches (imported here: the runtime package only for signals)."""
-    from netcfg.runtime.codec import last_byte
-
-    return last_byte(s.start_bit, s.bits, s.big_endian)
-
-
-def _tx_queue(q: schema.TxQueue) -> model.TxQueue:
-    """`tx_queue: fifo` arrives as the mapping {policy: fifo} with its defaults."""
-    return model.TxQueue(policy=q.policy, depth=q.depth, on_full=q.on_full)

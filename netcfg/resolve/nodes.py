@@ -1,0 +1,179 @@
+"""The spec's nodes and their tasks: node ids, devices, heartbeats, supervision and transmit queues, and each task's
+activation (period, trigger, message or SYNC) and execution times."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from netcfg import cia301, model
+from netcfg.protocols import PROTOCOLS
+from netcfg.protocols.canopen import resolve as canopen
+from netcfg.spec import schema
+from netcfg.spec.source import Path
+from netcfg.spec.suggest import did_you_mean, some_names
+from netcfg.spec.units import format_ns
+
+if TYPE_CHECKING:
+    from netcfg.resolve.core import Resolver
+
+
+def resolve_nodes(r: Resolver) -> None:
+    ids: dict[tuple[str, int], str] = {}
+    for i, n in enumerate(r.spec.nodes):
+        path: Path = ("nodes", i)
+        for j, bname in enumerate(n.buses):
+            if bname not in r.spec_buses:
+                r.err(
+                    "unknown-bus",
+                    f"node '{n.name}' sits on bus '{bname}', which is not defined"
+                    f"{did_you_mean(bname, r.spec_buses)}; known buses: {some_names(r.spec_buses)}",
+                    (*path, "buses", j),
+                )
+        if len(set(n.buses)) != len(n.buses):
+            r.err("duplicate-name", f"node '{n.name}' lists the same bus twice", (*path, "buses"))
+        protocols = {r.spec_buses[b].protocol for b in n.buses if b in r.spec_buses}
+        on_canopen = "canopen" in protocols
+        if n.node_id is not None:
+            if on_canopen and n.node_id not in cia301.NODE_IDS:
+                r.err("node-id", f"CANopen node ids are 1..127; '{n.name}' has {n.node_id}", (*path, "node_id"))
+            elif not 0 <= n.node_id <= 255:
+                r.err("node-id", f"node ids are 0..255; '{n.name}' has {n.node_id}", (*path, "node_id"))
+            for bname in n.buses:
+                key = (bname, n.node_id)
+                if key in ids:
+                    r.shared_node_ids.update((n.name, ids[key]))
+                    r.err(
+                        "duplicate-node-id",
+                        f"node id {n.node_id} of '{n.name}' is already used by '{ids[key]}' on bus '{bname}'",
+                        (*path, "node_id"),
+                    )
+                ids[key] = n.name
+        elif on_canopen:
+            r.err("node-id", f"node '{n.name}' is on a CANopen bus and needs a node_id (1..127)", path)
+        device = canopen.load_device(r, n, path, on_canopen)
+        # a node on a misspelt bus may well be on a CANopen one: the unknown bus is the one error
+        if n.heartbeat is not None and not on_canopen and all(b in r.spec_buses for b in n.buses):
+            r.err(
+                "wrong-section",
+                "heartbeat is a CANopen service; this node is on no CANopen bus",
+                (*path, "heartbeat"),
+            )
+        hb = r.ns(n.heartbeat, (*path, "heartbeat"), None)
+        if hb is not None and (hb % 1_000_000 or hb > 65_535_000_000):
+            r.err(
+                "heartbeat",
+                "the heartbeat time (0x1017) is whole milliseconds, at most 65535 ms",
+                (*path, "heartbeat"),
+            )
+        hb_timeout = r.ns(n.heartbeat_timeout, (*path, "heartbeat_timeout"), None)
+        if hb_timeout is not None and (
+            hb is None or hb_timeout <= hb or hb_timeout % 1_000_000 or hb_timeout > 65_535_000_000
+        ):
+            r.err(
+                "heartbeat",
+                "heartbeat_timeout (the master's consumer time, 0x1016) is whole milliseconds, at most 65535 ms, "
+                "and longer than the node's heartbeat producer time; give the node a 'heartbeat' first",
+                (*path, "heartbeat_timeout"),
+            )
+            hb_timeout = None
+        whole_ms = hb is not None and not hb % 1_000_000 and hb <= 65_535_000_000
+        if hb and whole_ms and not canopen.device_has_heartbeat(r, device, hb, (*path, "heartbeat")):
+            hb = hb_timeout = None  # reported; no heartbeat the device cannot send
+        if hb and hb_timeout is None:
+            # Lely dcfgen's default heartbeat_multiplier (3.0): two heartbeats may be lost; 0x1016 holds 16 bits
+            hb_timeout = min(3 * hb, 65_535_000_000)
+        sdo_timeout = r.ns(n.sdo_timeout, (*path, "sdo_timeout"), None)
+        if sdo_timeout is not None and not 0 < sdo_timeout <= 60_000_000_000:
+            r.err(
+                "sdo-timeout",
+                "sdo_timeout (how long the master waits for each SDO answer) is more than 0 and at most 60 s",
+                (*path, "sdo_timeout"),
+            )
+            sdo_timeout = None
+        if sdo_timeout is None:
+            sdo_timeout = 500_000_000  # what `netcfg run` waited before the key existed
+        if n.ip is not None and any(int(p) > 255 for p in n.ip.split(".")):
+            r.err("ip", f"'{n.ip}' is not an IPv4 address", (*path, "ip"))
+        ec = r.ec_of(n.buses)
+        tasks = {}
+        for j, t in enumerate(n.tasks):
+            tasks[t.name] = resolve_task(r, n.name, t, (*path, "tasks", j), ec)
+        r.model.nodes[n.name] = model.Node(
+            description=n.description,
+            name=n.name,
+            node_id=n.node_id,
+            buses=tuple(n.buses),
+            role=n.role,
+            device=device,
+            heartbeat_ns=hb or None,
+            heartbeat_timeout_ns=hb_timeout,
+            on_loss=n.on_loss,
+            on_emcy=n.on_emcy,
+            on_reboot=n.on_reboot,
+            sdo_timeout_ns=sdo_timeout,
+            sdo_retries=n.sdo_retries,
+            safe_stop=n.safe_stop,
+            ip=n.ip,
+            tasks=tasks,
+            path=path,
+            tx_delay_ns=r.ns(n.tx_delay, (*path, "tx_delay"), None) or 0,
+            rx_delay_ns=r.ns(n.rx_delay, (*path, "rx_delay"), None) or 0,
+            scheduling=n.scheduling,
+            tx_queue=_tx_queue(n.tx_queue),
+        )
+        on_can = any(sb.name in n.buses and PROTOCOLS[sb.protocol].link.arbitrates for sb in r.spec.buses)
+        if n.tx_queue.policy == "fifo" and not on_can:
+            r.warn(
+                "wrong-section",
+                f"node '{n.name}' is on no CAN bus: its tx_queue has no effect (an Ethernet NIC's queue is its "
+                "nic_queue): remove it",
+                (*path, "tx_queue"),
+            )
+
+def resolve_task(r: Resolver, node: str, t: schema.Task, path: Path, ec: int | None) -> model.Task:
+    period = r.ns(t.period, (*path, "period"), ec)
+    offset = r.ns(t.offset, (*path, "offset"), ec) or 0
+    wcet = r.ns(t.wcet, (*path, "wcet"), ec) or 0
+    bcet = r.ns(t.bcet, (*path, "bcet"), ec)
+    if wcet <= 0:
+        r.err("wcet", f"task '{node}.{t.name}' needs a worst-case execution time above zero", (*path, "wcet"))
+    if bcet is None:
+        bcet = wcet
+    elif bcet > wcet:
+        r.err("bcet", f"best case {format_ns(bcet)} exceeds worst case {format_ns(wcet)}", (*path, "bcet"))
+    if period is not None:
+        if period <= 0:
+            r.err("period", "a task period must be above zero", (*path, "period"))
+        else:
+            r.check_offset(offset, period, path)
+            if wcet > period:
+                r.err(
+                    "wcet",
+                    f"WCET {format_ns(wcet)} exceeds the period {format_ns(period)}: the task can never keep up",
+                    (*path, "wcet"),
+                )
+    if t.on_message is not None and t.period is not None:
+        r.err("task-period", "an event-driven task ('on_message') has no period", (*path, "period"))
+    sync_bus = None
+    if t.sync:
+        sync_bus, period = canopen.sync_task(r, node, t, path, period)
+        r.check_offset(offset, period, path, "the SYNC period")
+    return model.Task(
+        description=t.description,
+        node=node,
+        name=t.name,
+        period_ns=period,
+        offset_ns=offset,
+        wcet_ns=wcet,
+        bcet_ns=bcet,
+        trigger=None,
+        on_message=t.on_message,
+        path=path,
+        sync_bus=sync_bus,
+        priority=t.priority,
+    )
+
+
+def _tx_queue(q: schema.TxQueue) -> model.TxQueue:
+    """`tx_queue: fifo` arrives as the mapping {policy: fifo} with its defaults."""
+    return model.TxQueue(policy=q.policy, depth=q.depth, on_full=q.on_full)
