@@ -29,8 +29,8 @@ from fractions import Fraction
 from typing import Any
 
 from netcfg import links, model
-from netcfg.emit import environment, render
 from netcfg.runtime import codec, raw_signal_name
+from netcfg.templating import environment, render
 from netcfg.timing.frames import canfd_dlc
 
 # integer widths a C99 <stdint.h> always has on our targets

@@ -38,8 +38,8 @@ from typing import Any, Literal
 
 from netcfg import cia301
 from netcfg.devices import DATA_TYPES, WRITABLE, DeviceProfile
-from netcfg.emit import render
 from netcfg.model import Bus, Message, Model, Node
+from netcfg.templating import render
 
 TEMPLATE = "canopen_dcf.j2"
 

@@ -46,9 +46,9 @@ from cantools.database.conversion import BaseConversion
 from cantools.database.namedsignalvalue import NamedSignalValue
 
 from netcfg import links, model
-from netcfg.emit import field_of
 from netcfg.runtime import raw_signal_name
 from netcfg.runtime.codec import Field
+from netcfg.templating import field_of
 
 ENCODING = "cp1252"  # what DBC tools (and cantools.database.load_file) read by default
 

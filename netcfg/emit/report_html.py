@@ -13,9 +13,10 @@ import math
 import re
 from typing import Any
 
-from netcfg.emit import environment, render, report_md
+from netcfg.emit import report_md
 from netcfg.model import Model
 from netcfg.report_text import num
+from netcfg.templating import environment, render
 
 # Timeline geometry, fixed so that generated/ stays byte-identical.
 WIDTH = 1000  # px of the time axis

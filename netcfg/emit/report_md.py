@@ -11,9 +11,9 @@ import io
 from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
-from netcfg.emit import environment, render
 from netcfg.model import Bus, Described, Model, Node
 from netcfg.report_text import errors_text, master_loop_text, num, rate
+from netcfg.templating import environment, render
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

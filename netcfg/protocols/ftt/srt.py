@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from netcfg import model
-from netcfg.emit import render
+from netcfg.templating import render
 from netcfg.timing import ftt
 
 

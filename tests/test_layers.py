@@ -1,0 +1,72 @@
+"""The structure the code keeps: layers and their contracts, no import cycle, no protocol decided by its name outside
+its layer, no module past 600 lines.
+
+The layer contracts themselves are import-linter's (`[tool.importlinter]` in pyproject.toml), run by `make test` and
+here; the rest reads the sources with `ast` and import-linter's own import graph (grimp).
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import grimp
+import networkx as nx
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "netcfg"
+MAX_LINES = 600  # the structure issue's limit
+
+# Where a protocol's name may be compared: its own layer, and the one table the deployable runtime keeps (it reads
+# runtime.json's names and must import without the compiler, so it cannot ask the layers).
+NAMES_ALLOWED = ("netcfg/links/", "netcfg/protocols/", "netcfg/runtime/config.py")
+
+
+def _sources() -> list[Path]:
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def test_the_layer_contracts_hold() -> None:
+    done = subprocess.run(
+        [str(Path(sys.executable).with_name("lint-imports")), "--no-cache"], cwd=ROOT, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+
+
+def test_no_import_cycle() -> None:
+    """Imports that run (annotations under TYPE_CHECKING never do) form no cycle between modules."""
+    graph = grimp.build_graph("netcfg", exclude_type_checking_imports=True)
+    g = nx.DiGraph((m, d) for m in graph.modules for d in graph.find_modules_directly_imported_by(m))
+    cycles = [sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1]
+    assert cycles == []
+
+
+def _compares_a_protocol_name(node: ast.Compare) -> bool:
+    operands = [node.left, *node.comparators]
+    named = any(
+        (isinstance(p, ast.Attribute) and p.attr == "protocol") or (isinstance(p, ast.Name) and p.id == "protocol")
+        for p in operands
+    )
+    return named and not all(isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops)
+
+
+def test_no_command_decides_by_a_protocol_name() -> None:
+    """`bus.protocol == "canopen"` outside the layers is a question the bus's link or protocol should answer."""
+    found = []
+    for path in _sources():
+        rel = path.relative_to(ROOT).as_posix()
+        if rel.startswith(NAMES_ALLOWED):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare) and _compares_a_protocol_name(node):
+                found.append(f"{rel}:{node.lineno}: {ast.unparse(node)}")
+    assert found == []
+
+
+@pytest.mark.parametrize("path", _sources(), ids=lambda p: p.relative_to(PACKAGE).as_posix())
+def test_no_module_past_600_lines(path: Path) -> None:
+    lines = len(path.read_text(encoding="utf-8").splitlines())
+    assert lines <= MAX_LINES, f"{path.relative_to(ROOT)}: {lines} lines; split it where its parts own different rules"
