@@ -236,11 +236,12 @@ class Bus:
     # FTT-CAN: the SRT and the EC-schedules of one macro-cycle, built once by the analysis; the emitters read it
     ftt_schedule: Schedule | None = None
     link: str = "can"  # the physical bus the protocol runs on (netcfg.links.LINKS): can, can-fd, ethernet
+    arbitrates: bool = True  # its link's frames arbitrate by identifier (netcfg.links: Link.arbitrates)
 
     @property
     def is_can(self) -> bool:
         """Its frames arbitrate as CAN's do (ISO 11898-1): classical CAN, CAN FD, CANopen and FTT-CAN."""
-        return self.protocol != "ethernet-udp"
+        return self.arbitrates
 
     @property
     def offsets_unused(self) -> str | None:

@@ -164,6 +164,7 @@ class Resolver:
                 name=b.name,
                 protocol=b.protocol,
                 link=link.name,
+                arbitrates=link.arbitrates,
                 bitrate=b.bitrate,
                 id_bits=b.id_bits,
                 clock_tolerance_ppm=b.clock_tolerance,
