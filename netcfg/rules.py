@@ -1,6 +1,7 @@
-"""What a protocol adds to resolution. The core calls these hooks for each bus (and each message on it) of the
-protocol; the defaults are what a protocol without the feature does, usually refusing the feature's keys.
-A new protocol is one module with one subclass, registered in `netcfg.resolve.PROTOCOLS`.
+"""What a layer adds to resolution. The resolver calls these hooks for each bus (and each message on it); the
+defaults are what a bus without the feature does, usually refusing the feature's keys. A link's rules
+(netcfg.links: bit rate, payload, identifiers) subclass this, and a protocol's rules subclass its link's; the bus's
+protocol names its rules (`netcfg.protocols.Protocol.rules`).
 """
 
 from __future__ import annotations
