@@ -41,7 +41,7 @@ from sim_peers import (  # noqa: E402
 )
 
 from netcfg import runtime  # noqa: E402
-from netcfg.sim.cli import load_document  # noqa: E402
+from netcfg.commands.simulate import load_document  # noqa: E402
 from netcfg.sim.montecarlo import run_batch, run_once  # noqa: E402
 from netcfg.sim.scenario import SimOptions  # noqa: E402
 

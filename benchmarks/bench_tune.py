@@ -22,7 +22,7 @@ from netcfg.diagnostics import Collector
 from netcfg.timing import load
 from netcfg.timing.can_rta import ONE_SHOT
 from netcfg.timing.frames import bits_to_ns
-from netcfg.tune import Item, audsley
+from netcfg.tuning import Item, audsley
 
 UTILISATION = 0.8
 

@@ -27,7 +27,7 @@ import can
 
 from netcfg import runtime
 from netcfg.emit.runtime_json import runtime_document
-from netcfg.sim.cli import trace_frames
+from netcfg.sim.can_trace import trace_frames
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.scenario import SimOptions
 from netcfg.verify import verify_log

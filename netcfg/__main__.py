@@ -1,3 +1,3 @@
-from netcfg.cli import command
+from netcfg.commands import command
 
 raise SystemExit(command())

@@ -1,4 +1,4 @@
-"""`netcfg check SPEC --explain MESSAGE`: the derivation of one CAN message's worst-case response time.
+"""The derivation of one CAN message's worst-case response time, as `netcfg check SPEC --explain MESSAGE` prints it.
 
 It restates the terms of the revised CAN analysis (Davis, Burns, Bril and Lukkien 2007, eqs. 5, 10-14) for that
 message at its worst instance: frame time with stuff bits, blocking frame, every higher-priority message and how
@@ -10,12 +10,10 @@ a free identifier high enough, or else a slower rate of one named interferer.
 from __future__ import annotations
 
 import difflib
-import sys
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
-from netcfg import jsontext, model
+from netcfg import model
 from netcfg.analyze import (
     analysis_jitter,
     bus_responses,
@@ -25,14 +23,11 @@ from netcfg.analyze import (
     release_offsets,
     rta_frames,
 )
-from netcfg.check import load_model
-from netcfg.diagnostics import Collector, sort_diagnostics
-from netcfg.importers import ImportOptions
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_fifo, can_offsets, can_rta, clocks, load
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.frames import bits_to_ns
-from netcfg.tune import round_step
+from netcfg.tuning import round_step
 
 
 class NotExplained(Exception):
@@ -509,36 +504,3 @@ def _num(us: float | None) -> str:
 
 def _t(us: float | None, none: str = "none") -> str:
     return none if us is None else f"{us:g} us"
-
-
-def command(paths: list[Path], name: str, fmt: str, options: ImportOptions) -> int:
-    """netcfg check SPEC --explain MESSAGE: 0 the message meets its deadline, 1 it misses or the spec has errors,
-    2 no such CAN message or an unreadable file."""
-    if len(paths) != 1:
-        print("netcfg: --explain takes one spec", file=sys.stderr)
-        return 2
-    diags = Collector()
-    try:
-        m = load_model(paths[0], diags, options)
-    except OSError as exc:
-        print(f"netcfg: cannot read {paths[0]}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
-    if m is None or diags.errors:
-        for d in sort_diagnostics(diags.items):
-            print(d, file=sys.stderr)
-        return 1
-    if name in m.flows:  # a flow: its bounds beside its steps' own figures, from the model already loaded
-        from netcfg.analyze import analyze
-        from netcfg.explain_flow import explain_flow
-        from netcfg.explain_flow import text as flow_text
-
-        flow_doc = explain_flow(m, analyze(m, Collector()), name)
-        print(jsontext.dumps(flow_doc, indent=2) if fmt == "json" else flow_text(flow_doc))
-        return 1 if flow_doc["meets"] is False else 0
-    try:
-        doc = explain(m, name)
-    except NotExplained as exc:
-        print(f"netcfg: {exc}", file=sys.stderr)
-        return 2
-    print(jsontext.dumps(doc, indent=2) if fmt == "json" else text(doc))
-    return 1 if doc["meets"] is False else 0

@@ -1,4 +1,4 @@
-"""`netcfg init`: a commented starting spec that `netcfg check` accepts.
+"""The starting specs of `netcfg init` (netcfg.commands.init): commented, and accepted by `netcfg check`.
 
 Without --from: a small CAN system with every key explained (templates/init_spec.yaml.j2). With --from SYSTEM:
 one of the example specs written from our customers' papers (shipped in the package as netcfg.examples), whose
@@ -7,13 +7,8 @@ comments say where each number comes from. With --from dbc FILE: the DBC importe
 
 from __future__ import annotations
 
-import os
 import re
-import sys
-from dataclasses import replace
 from pathlib import Path
-
-from netcfg.importers import ImportOptions
 
 # --from names -> example spec; `ntua` is the hopping robot, the richer of the two NTUA systems
 EXAMPLES = {
@@ -61,34 +56,3 @@ def starting_spec(source: str | None, output: Path | None) -> str:
         "system,\n# then `netcfg check` it. `netcfg schema` lists every key.\n"
     )
     return header + example_text(source)
-
-
-def init_command(source: str | None, dbc: Path | None, output: Path | None, options: ImportOptions) -> int:
-    if output is not None and output.exists():  # never overwrite what a user wrote
-        print(f"netcfg: {output} exists; choose another name or remove it first", file=sys.stderr)
-        return 2
-    if source == "dbc" or dbc is not None:
-        if dbc is None:
-            print("netcfg: --from dbc needs the DBC file: netcfg init --from dbc vehicle.dbc -o vehicle.yaml",
-                  file=sys.stderr)
-            return 2
-        if output is None:
-            print("netcfg: a spec from a DBC needs -o SPEC", file=sys.stderr)
-            return 2
-        from netcfg.cli import cmd_import
-
-        return cmd_import("dbc", dbc, output, replace(options, output=output))
-    text = starting_spec(source, output)
-    if output is None:
-        sys.stdout.write(text)
-        return 0
-    try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-        tmp = output.with_name(f".{output.name}.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, output)
-    except OSError as exc:
-        print(f"netcfg: cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
-    print(f"wrote {output}; check it with: netcfg check {output}")
-    return 0

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from netcfg.cli import main
+from netcfg.commands import main
 
 BAD = Path(__file__).parent / "bad_specs"
 ROOT = Path(__file__).parent.parent

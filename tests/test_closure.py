@@ -32,7 +32,7 @@ from netcfg.emit import dbc as emit_dbc
 from netcfg.emit.runtime_json import runtime_document
 from netcfg.importers import ImportOptions
 from netcfg.model import Model
-from netcfg.sim.cli import trace_frames
+from netcfg.sim.can_trace import trace_frames
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.scenario import SimOptions
 from netcfg.sim.trace import TraceFrame, write_trace

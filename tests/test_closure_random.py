@@ -21,7 +21,7 @@ from netcfg import runtime
 from netcfg.check import analyse_spec, check
 from netcfg.emit import dbc as emit_dbc
 from netcfg.emit.runtime_json import runtime_document
-from netcfg.sim.cli import trace_frames
+from netcfg.sim.can_trace import trace_frames
 from netcfg.sim.montecarlo import run_once
 from netcfg.sim.scenario import SimOptions
 from netcfg.sim.trace import write_trace

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from conftest import cli
 
-from netcfg.cli import main
+from netcfg.commands import main
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
 from netcfg.importers.dbc import import_dbc

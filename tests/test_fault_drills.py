@@ -151,7 +151,7 @@ def test_a_reboot_longer_than_the_heartbeat_timeout_is_a_loss_then_a_boot_up(cfg
 def test_run_reports_the_reboot_in_text_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     import json
 
-    from netcfg.cli import main
+    from netcfg.commands import main
 
     spec = tmp_path / "recover.yaml"
     text = (ROOT / "specs" / "allex2.yaml").read_text(encoding="utf-8")
@@ -216,7 +216,7 @@ def test_sdo_abort_codes_carry_the_standards_meaning() -> None:
 def test_a_refused_write_names_the_object_and_its_abort(
     drill: str, expected: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from netcfg.cli import main
+    from netcfg.commands import main
 
     code = main(["run", str(GENERATED / "runtime.json"), "--simulated-drives", "--cycles", "5", "--sdo-abort", drill])
     printed = capsys.readouterr().out
@@ -407,7 +407,7 @@ def test_a_drive_enabled_over_its_pdos_is_walked_up_again_over_them(tmp_path: Pa
     """hip_l with its controlword in RxPDO1 and its statusword in TPDO2 (as in test_run's PDO enabling test) and
     on_reboot: recover: after the set-up again the master walks it to OPERATION ENABLED through those PDOs, one
     CiA 402 transition per cycle (2, 3, 4), and only then reports it recovered."""
-    from netcfg.cli import main
+    from netcfg.commands import main
 
     text = allex2_cia402_over_pdos()
     text = text.replace("    on_loss: stop_node\n", "    on_loss: stop_node\n    on_reboot: recover\n", 1)  # hip_l

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 from conftest import ROOT
 
-from netcfg.cli import main
+from netcfg.commands import main
 from netcfg.outputs import MANIFEST, MARKER, OLD_TAG, TMP_TAG
 
 GENERATED = ROOT / "generated"
@@ -719,7 +719,7 @@ def test_work_estimate_counts_every_source() -> None:
     from fractions import Fraction
 
     from netcfg import runtime
-    from netcfg.sim.cli import events_per_second
+    from netcfg.sim.limits import events_per_second
 
     cfg = runtime.load(GENERATED / "allex2" / "runtime.json")
     rates = events_per_second(cfg)
@@ -760,8 +760,8 @@ def test_17_the_bit_error_limit_is_fault_confinements_one_in_nine() -> None:
     (8 data bytes, 11-bit id, worst-case stuffing: 135 bits, CiA's figure): ber 1e-4 fails 1.3 % (accepted),
     1e-3 fails 12.6 % (refused)."""
     from netcfg import runtime
-    from netcfg.sim.cli import fault_problem
     from netcfg.sim.faults import Fault
+    from netcfg.sim.limits import fault_problem
     from netcfg.timing.frames import can_frame_bits
 
     assert can_frame_bits(8, False, "worst") == 135

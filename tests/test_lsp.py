@@ -390,10 +390,11 @@ def test_hover_on_a_bus_and_a_node() -> None:
 def test_check_and_import_netcfg_never_load_the_language_server() -> None:
     """pygls is for `netcfg lsp` alone: a cold `netcfg check` does not pay for importing it."""
     code = (
-        "import sys, netcfg, netcfg.cli\n"
+        "import sys, netcfg, netcfg.commands\n"
         "sys.argv = ['netcfg', 'check', '-q', 'specs/allex2.yaml']\n"
-        "assert netcfg.cli.main(sys.argv[1:]) == 0\n"
-        "print(sorted(m for m in sys.modules if m.startswith(('pygls', 'lsprotocol', 'netcfg.lsp', 'netcfg.watch'))))\n"
+        "assert netcfg.commands.main(sys.argv[1:]) == 0\n"
+        "print(sorted(m for m in sys.modules if m.startswith(('pygls', 'lsprotocol', 'netcfg.lsp', "
+        "'netcfg.commands.watch'))))\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 0, proc.stderr

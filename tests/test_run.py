@@ -38,7 +38,7 @@ import pytest
 from conftest import ROOT, allex2_cia402_over_pdos
 
 import netcfg.runtime as rt
-from netcfg.cli import main
+from netcfg.commands import main
 from netcfg.runtime import cia402
 from netcfg.runtime.cia402 import (
     FAULT,
@@ -580,7 +580,7 @@ def test_live_view_rewrites_one_status_line() -> None:
     import io
     from types import SimpleNamespace
 
-    from netcfg.run_cli import _LiveView
+    from netcfg.commands.run import _LiveView
 
     out = io.StringIO()
     view = _LiveView(out, 10, {"knee_r_state": "knee_r"})

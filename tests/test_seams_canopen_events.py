@@ -210,7 +210,7 @@ CYCLES = 25  # x ALLEX-2's 20 ms SYNC period: 0.5 s of cycle
 def event_build(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """specs/allex2.yaml with hip_l on drive_et.eds (the EPOS4's objects with the TPDO event timer, sub 5) and its
     hip_l_effort TPDO event-driven: type 255, event timer 40 ms, inhibit 10 ms; built as `netcfg build` does."""
-    from netcfg.cli import main
+    from netcfg.commands import main
 
     folder = tmp_path_factory.mktemp("event_build")
     shutil.copy(EDS, folder / EDS.name)
@@ -251,7 +251,7 @@ def test_simulated_drive_sends_its_event_tpdo_per_event_timer(event_build: Path)
     threads of this process in wall-clock time: on a loaded host a send can come a few milliseconds late, which the
     master then reports; HOST_SLACK_MS (the fault drills' allowance for a loaded host) tells that from a drive that
     ignores its timer, whose silence lasts the whole run (the next test)."""
-    from netcfg.run_cli import result_document
+    from netcfg.run_result import result_document
 
     outcome, sent = _operate(event_build, f"events-ok-{uuid.uuid4().hex[:8]}")
     assert outcome.run is not None and outcome.run.cycles == CYCLES
@@ -268,7 +268,7 @@ def test_master_reports_a_tpdo_silent_beyond_its_event_timer(event_build: Path) 
     stay 0 under the bench's velocity model, so once, at the first SYNC. The master reports it silent beyond its
     40 ms event timer once (0.5 s of cycle leave no doubt), for hip_l, without stopping anything, and the run is not
     ok."""
-    from netcfg.run_cli import result_document
+    from netcfg.run_result import result_document
 
     outcome, sent = _operate(event_build, f"events-mute-{uuid.uuid4().hex[:8]}", no_event_timer=True)
     assert outcome.run is not None and outcome.run.cycles == CYCLES
@@ -286,7 +286,7 @@ def test_bus_yml_import_of_an_event_timer_tpdo_without_inhibit(
     """The seam at 1 Mbit/s built, its bus.yml's d1 TPDO1 given inhibit_time 0, imported back: nothing bounds the
     application's sends, so the importer says to give the TPDO an inhibit time (a min_interarrival would not do, see
     above) and makes it on-demand; check then counts the timer's own sends, periodic at its 100 ms."""
-    from netcfg.cli import main
+    from netcfg.commands import main
 
     data = yaml.safe_load(_seam(tmp_path).read_text(encoding="utf-8"))
     data["buses"][0]["bitrate"] = "1 Mbit/s"

@@ -304,7 +304,7 @@ def test_tune_a_can_fd_dbc_with_checks_bit_rates(tmp_path: Path) -> None:
     """The wrong-order CAN FD bus above as a DBC (the tuned spec's DBC renumbered back to the original identifiers):
     `check F.dbc --bitrate 1M --data-bitrate 5M` refuses it (fast 452.4 us > 300 us, as by hand above), `tune` with
     the same options renumbers it, and check accepts what it wrote (fast 226.2 us)."""
-    from netcfg.tune import edit_dbc_ids
+    from netcfg.tuning import edit_dbc_ids
 
     tuned, _ = _tune(tmp_path, _write(tmp_path, FD_WRONG), "tuned.yaml")
     assert cli("build", str(tuned), "-o", str(tmp_path / "out")).returncode == 0

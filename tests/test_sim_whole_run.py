@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 import netcfg.runtime as rt
 from netcfg.runtime.config import FlowStep
 from netcfg.sim import flows, ftt_whole_run, whole_run
-from netcfg.sim.cli import trace_frames
+from netcfg.sim.can_trace import trace_frames
 from netcfg.sim.ethernet import CHUNK_NS
 from netcfg.sim.faults import Fault
 from netcfg.sim.flows import Stream, Undecided, measure_streams

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from netcfg.timing import can_rta
-from netcfg.tune import Item, NoAssignment, audsley
+from netcfg.tuning import Item, NoAssignment, audsley
 
 WRONG_ORDER = ROOT / "examples" / "wrong_order.yaml"
 MS = 1_000_000
@@ -131,7 +131,7 @@ def test_tune_a_dbc(tmp_path: Path) -> None:
     """tune F.dbc -o OUT.dbc: the wrong-order bus as a DBC (the tuned spec's DBC, renumbered back to the original
     identifiers in its own text) is refused by check and accepted after tune; only BO_ numbers and the statements
     naming them change."""
-    from netcfg.tune import edit_dbc_ids
+    from netcfg.tuning import edit_dbc_ids
 
     tuned = tmp_path / "tuned.yaml"
     assert cli("tune", str(WRONG_ORDER), "-o", str(tuned)).returncode == 0

@@ -377,7 +377,7 @@ def test_report_plots_are_deterministic(recorded: Path, cfg: runtime.RuntimeConf
 
 def simulated_log(name: str, duration_ns: int, path: Path) -> runtime.RuntimeConfig:
     """The simulator's trace of generated/<name>/runtime.json, written as `simulate --log` writes it."""
-    from netcfg.sim.cli import trace_frames
+    from netcfg.sim.can_trace import trace_frames
     from netcfg.sim.montecarlo import run_once
     from netcfg.sim.scenario import SimOptions
     from netcfg.sim.trace import write_trace
@@ -532,7 +532,7 @@ def test_strict_makes_undeclared_jitter_a_violation(
 def test_a_progress_bar_only_on_a_terminal(monkeypatch: pytest.MonkeyPatch, recorded: Path) -> None:
     import io
 
-    from netcfg.verify import cli as verify_cli
+    from netcfg.commands import verify as verify_cli
 
     class Terminal(io.StringIO):
         def isatty(self) -> bool:

@@ -1,6 +1,6 @@
-"""`netcfg check --watch SPEC...`: check again on every save of a spec or of a file it names (an EDS, an imported
-DBC), with a summary that fits one screen. Polls modification times (standard library only: no file-system
-notification package, and a save is seen within POLL_S). Ctrl-C ends it with exit code 0."""
+"""`netcfg check --watch SPEC...`, check's mode that checks again on every save of a spec or of a file it names
+(an EDS, an imported DBC), with a summary that fits one screen. Polls modification times (standard library only: no
+file-system notification package, and a save is seen within POLL_S). Ctrl-C ends it with exit code 0."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ def watch(
     poll_s: float = POLL_S,
 ) -> int:
     """Check, print a summary, wait for a save, again; max_checks stops after that many checks (for tests)."""
-    from netcfg.check import spec_files
+    from netcfg.commands.check import spec_files
 
     out = out or sys.stdout
     try:
@@ -64,7 +64,8 @@ def _check_all(
     specs: list[Path], options: ImportOptions | None, werror: frozenset[str]
 ) -> tuple[list[Path], str]:
     """Every spec checked; -> (the files to watch, the summary)."""
-    from netcfg.check import analyse_loaded, named_files, promote_warnings
+    from netcfg.check import analyse_loaded, named_files
+    from netcfg.commands.check import promote_warnings
 
     files: list[Path] = []
     parts: list[str] = []

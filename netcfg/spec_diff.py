@@ -1,20 +1,19 @@
-"""`netcfg diff A B`: what changed between two specs (or two build folders) in timing terms.
+"""What changed between two specs (or two build folders) in timing terms: the comparison of `netcfg diff A B`.
 
 Each side is an analysis report (a spec is analysed in memory; a build folder brings its report.json) and a set of
 artifacts (a spec's are emitted in memory; a folder's are its files). The comparison is of reports: the load of
 each bus, each message's worst-case response time, deadline and verdict, each flow's latency bounds, and then
-which artifacts are added, removed or changed. Exit codes follow diff(1): 0 the same, 1 different, 2 unreadable.
+which artifacts are added, removed or changed. The command (netcfg.commands.diff) prints it; its exit codes follow
+diff(1): 0 the same, 1 different, 2 unreadable.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from netcfg import jsontext
 from netcfg.report_text import num
 
 Files = dict[str, bytes]
@@ -198,20 +197,3 @@ def _pct(u: float | None) -> str:
 
 def _ok(ok: bool) -> str:
     return "OK" if ok else "FAILED"
-
-
-def diff_command(old: Path, new: Path, fmt: str) -> int:
-    try:
-        a, b = load_side(old), load_side(new)
-    except DiffInputError as exc:
-        print(f"netcfg: {exc}", file=sys.stderr)
-        return 2
-    except (OSError, json.JSONDecodeError) as exc:
-        print(f"netcfg: cannot read {getattr(exc, 'filename', None) or 'the input'}: {exc}", file=sys.stderr)
-        return 2
-    d = compare(a, b)
-    if fmt == "json":
-        print(jsontext.dumps({"a": a.name, "b": b.name, **d.as_json()}, indent=2))
-    else:
-        print(render_text(a, b, d))
-    return 0 if d.empty() else 1

@@ -6,8 +6,7 @@
 A spec is compiled in memory first; a runtime.json is read as a master reads it (netcfg.runtime.load). The work is
 netcfg.runtime.operate's: set-up, CiA 402 to OPERATION ENABLED, the SYNC cycle with heartbeat and EMCY supervision,
 the safe stop. This module parses the command line, builds the bus (and the simulated drives), shows a live view on
-a terminal, and prints the result as text or as the JSON of the design notes: {"cycles", "nodes": [{"name",
-"state", "samples", "missing", "lost", "emcy"}]} with more keys beside them.
+a terminal, and prints the result (netcfg.run_result) as text or as the JSON of the design notes.
 
 Fault drills (README "Faults the live master survives"): --kill, --emcy, --reset and --sdo-abort act on the
 simulated drives, --stall on the master's loop, --bus-off on the master's controller (netcfg's bus wrapper).
@@ -32,17 +31,19 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from netcfg import jsontext
+from netcfg.commands.base import Subcommands
+from netcfg.commands.options import internal_error, io_problem
 
-__all__ = ["add_parser", "run_command"]
-
+NAME = "run"
+BATCH = False
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")
 DEFAULT_EMCY = 0x2310  # CiA 402: "continuous over-current", a drive's typical fault
 DEFAULT_ABORT = 0x08000020  # CiA 301: "data cannot be transferred or stored to the application"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Subcommands) -> None:
     p = sub.add_parser(
-        "run", help="the live CANopen master: set up, CiA 402 enable, SYNC cycle, supervise, stop safely"
+        NAME, help="the live CANopen master: set up, CiA 402 enable, SYNC cycle, supervise, stop safely"
     )
     p.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
     p.add_argument("--interface", default=None, help="python-can interface: socketcan, pcan, kvaser, virtual, ...")
@@ -173,6 +174,19 @@ def _config(source: Path) -> Iterator[Any]:
         yield runtime.load(Path(tmp) / "runtime.json")
 
 
+def run(args: argparse.Namespace) -> int:
+    try:
+        return run_command(args)
+    except KeyboardInterrupt:  # before the cycle's own handler was armed (set-up): what was started is stopped
+        print(f"netcfg: {args.source}: interrupted; started nodes were brought to their safe state", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"netcfg: {io_problem(exc, 'run', args.source)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug in netcfg; the safe stop has run (operate's finally)
+        return internal_error("running", args.source, exc)
+
+
 def run_command(args: argparse.Namespace) -> int:
     from netcfg import runtime
 
@@ -182,7 +196,7 @@ def run_command(args: argparse.Namespace) -> int:
         resets = [_reset_drill(r) for r in args.reset]
         aborts = [_abort_drill(a) for a in args.sdo_abort]
         for s in args.stall:
-            _span(s, "stall")  # checked here, used by _run
+            _span(s, "stall")  # checked here, used by _run_master
         for s in args.bus_off:
             _span(s, "bus-off")
         duration_s = _duration_s(args.duration, "--duration") if args.duration is not None else None
@@ -221,7 +235,7 @@ def run_command(args: argparse.Namespace) -> int:
         with _config(args.source) as cfg:
             if cfg is None:
                 return 1
-            return _run(args, cfg, kills, emcys, resets, aborts, duration_s)
+            return _run_master(args, cfg, kills, emcys, resets, aborts, duration_s)
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
@@ -234,7 +248,7 @@ def run_command(args: argparse.Namespace) -> int:
         return 1
 
 
-def _run(
+def _run_master(
     args: argparse.Namespace,
     cfg: Any,
     kills: list[tuple[str, float, int]],
@@ -245,6 +259,7 @@ def _run(
 ) -> int:
     import can
 
+    from netcfg.run_result import result_document, result_text
     from netcfg.runtime.canopen_master import canopen_bus, canopen_slaves
     from netcfg.runtime.operate import BusLog, Plan, operate
 
@@ -401,150 +416,3 @@ class _LiveView:
 
 def _short(state: str) -> str:
     return {"OPERATION ENABLED": "OE", "LOST": "LOST", "FAULT": "FAULT"}.get(state, state.lower())
-
-
-def result_document(outcome: Any, system: str | None = None) -> dict[str, Any]:
-    """The JSON contract: {"cycles", "nodes": [{"name", "state", "samples", "missing", "lost", "emcy"}]}, plus the
-    read times against the analysed bound, the events and what ended the run."""
-    run = outcome.run
-    cycles = run.cycles if run is not None else 0
-    by_node: dict[str, dict[str, Any]] = {}
-    for name, node in outcome.nodes.items():
-        samples = run.complete_samples(name) if run is not None and name in run.nodes else 0
-        due = sum(1 for rec in run.records if any(run.producers[m] == name for m in rec.due)) if run else 0
-        by_node[name] = {
-            "name": name,
-            "node_id": node.node_id,
-            "state": node.state,
-            "samples": samples,
-            "missing": due - samples if node.started else 0,
-            "lost": node.lost_at_s is not None,
-            "lost_at_s": None if node.lost_at_s is None else round(node.lost_at_s, 6),
-            "silent_ms": None if node.lost_silent_ms is None else round(node.lost_silent_ms, 3),
-            "heartbeat_timeout_ms": node.heartbeat_timeout_ms,
-            "emcy": node.emcy,
-            "set_up": node.setup_ok,
-            "set_up_error": node.setup_error,
-            "cia402": node.cia402_over,  # how the master drove its power state machine: "SDO", "PDO" or null
-            "enable_path": node.enable_path,
-            "stopped_at_s": None if node.stopped_at_s is None else round(node.stopped_at_s, 6),
-            "safe_state": node.safe_state,
-            "reboots": node.reboots,
-            "errors": node.errors,
-        }
-    read: dict[str, Any] = {"analysed_bound_us": None, "window_us": None, "max_us": None, "overruns": 0}
-    periods: dict[str, Any] = {
-        "period_us": None,
-        "min_us": None,
-        "max_us": None,
-        "analysed_jitter_us": 0,
-        "overruns": 0,
-    }
-    if run is not None:
-        complete = [rec.read_s for rec in run.records if rec.due and not rec.missing]
-        read = {
-            "analysed_bound_us": None if outcome.sync_completion_ns is None else outcome.sync_completion_ns / 1e3,
-            "window_us": round(1e6 * run.read_window_s, 3),
-            "max_us": round(1e6 * max(complete), 3) if complete else None,
-            "mean_us": round(1e6 * sum(complete) / len(complete), 3) if complete else None,
-            # a cycle whose due TPDOs were not all in when the read window closed, from nodes still in service
-            "overruns": sum(
-                1
-                for rec in run.records
-                if any(not outcome.out_of_service(run.producers[m], rec.sync_sent) for m in rec.missing)
-            ),
-            "beyond_analysis": sum(
-                1
-                for rec in run.records
-                if rec.due
-                and not rec.missing
-                and outcome.sync_completion_ns is not None
-                and round(rec.read_s * 1e9) > outcome.sync_completion_ns
-            ),
-        }
-        spans = [rec.period_s for rec in run.records]
-        periods = {
-            "period_us": round(1e6 * run.period_s, 3),
-            "min_us": round(1e6 * min(spans), 3) if spans else None,
-            "max_us": round(1e6 * max(spans), 3) if spans else None,
-            "analysed_jitter_us": outcome.master_jitter_ns / 1e3,
-            # a cycle longer than T + the master's analysed wake-up latency: its SYNC came later than analysed
-            "overruns": sum(
-                1
-                for rec in run.records
-                if round(rec.period_s * 1e9) > round(run.period_s * 1e9) + outcome.master_jitter_ns
-            ),
-        }
-    started = [n for n in by_node.values() if outcome.nodes[n["name"]].started]
-    ok = (
-        outcome.started
-        and run is not None
-        and all(n["missing"] == 0 and not n["lost"] and not n["emcy"] and not n["errors"] for n in started)
-        and not read["overruns"]
-        and not any(e.kind in ("tpdo-silent", "boot-up", "missed-sync", "bus-off") for _, e in outcome.events)
-    )
-    return {
-        "system": system,
-        "bus": outcome.bus,
-        "ok": bool(ok),
-        "cycles": cycles,
-        "ended_by": outcome.ended_by,
-        "read": read,
-        "cycle": periods,
-        "nodes": list(by_node.values()),
-        "events": [
-            {"time_s": round(t, 6), "node": e.node, "kind": e.kind, "action": e.action, "text": e.text}
-            for t, e in outcome.events
-        ],
-        "drills": [{"time_s": round(t, 6), "what": text} for t, text in outcome.drills],
-        "sync_gaps": outcome.sync_gaps,
-        "bus_offs": outcome.bus_offs,
-    }
-
-
-def result_text(outcome: Any, doc: dict[str, Any]) -> str:
-    lines = []
-    if outcome.setup is not None:
-        lines.append(str(outcome.setup))
-    if not outcome.started:
-        lines.append("nothing was started: fix the set-up (or run the others with --allow-missing)")
-        return "\n".join(lines)
-    for t, what in outcome.drills:
-        lines.append(f"  {t:8.3f} s  drill: {what}")
-    for e in doc["events"]:
-        lines.append(f"  {e['time_s']:8.3f} s  {e['text']} -> {e['action']}")
-    for name, notes in doc.get("simulated_drives", {}).items():
-        lines += [f"  simulated {name}: {note}" for note in notes]
-    lines.append(f"{doc['cycles']} cycles on {doc['bus']}, ended by {doc['ended_by']}")
-    r, c = doc["read"], doc["cycle"]
-    if r["max_us"] is not None:
-        bound = "not analysed" if r["analysed_bound_us"] is None else f"{r['analysed_bound_us'] / 1e3:.3f} ms"
-        lines.append(
-            f"read (SYNC -> last TPDO): mean {r['mean_us'] / 1e3:.3f} ms, max {r['max_us'] / 1e3:.3f} ms; analysed "
-            f"bound {bound} (cycles beyond it: {r['beyond_analysis']}), read window {r['window_us'] / 1e3:.3f} ms; "
-            f"window overruns {r['overruns']}"
-        )
-    if c["min_us"] is not None:
-        lines.append(
-            f"period {c['period_us'] / 1e3:.3f} ms: min {c['min_us'] / 1e3:.3f} ms, max {c['max_us'] / 1e3:.3f} ms; "
-            f"longer than T + the analysed {c['analysed_jitter_us']:g} us jitter: {c['overruns']}"
-        )
-    lines.append(f"{'node':10} {'state':20} {'samples':>7} {'missing':>7}  supervision")
-    for n in doc["nodes"]:
-        notes = []
-        if n["lost"]:
-            notes.append(
-                f"lost at {n['lost_at_s']:.3f} s after {n['silent_ms']:.1f} ms silent "
-                f"(heartbeat timeout {n['heartbeat_timeout_ms']:.0f} ms)"
-            )
-        notes += [e["text"] for e in n["emcy"]]
-        for r in n["reboots"]:
-            back = r.get("recovered_at_s") is not None
-            result = f"recovered in {r['recovery_ms']:.1f} ms" if back else r.get("result", "")
-            notes.append(f"rebooted at {r['at_s']:.3f} s ({r['action']}): {result}")
-        notes += n["errors"]
-        if n["safe_state"]:
-            notes.append(f"safe stop -> {n['safe_state']}")
-        lines.append(f"{n['name']:10} {n['state']:20} {n['samples']:>7} {n['missing']:>7}  {'; '.join(notes)}")
-    lines.append("ok" if doc["ok"] else "NOT ok: see above")
-    return "\n".join(lines)

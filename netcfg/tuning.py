@@ -1,4 +1,5 @@
-"""`netcfg tune`: identifiers and offsets that make a CAN or CAN FD bus schedulable with the most slack.
+"""Identifiers and offsets that make a CAN or CAN FD bus schedulable with the most slack: the search `netcfg tune`
+(netcfg.commands.tune) runs, and the tuned spec it writes.
 
 Identifiers: Audsley's optimal priority assignment (Audsley 1991; shown to be optimal for CAN's revised
 response-time analysis by Davis and Burns 2009, "Robust priority assignment for messages on Controller Area
@@ -26,9 +27,7 @@ they arbitrate the same way, their frame times come from the bus's frame timing.
 
 from __future__ import annotations
 
-import os
 import re
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from math import gcd, lcm
@@ -37,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from netcfg import jsontext, model
+from netcfg import model
 from netcfg.analyze import analysis_jitter, error_model, release_offsets, rta_frames
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
@@ -402,7 +401,7 @@ def summary_rows(report: dict[str, Any]) -> dict[str, dict[str, Any]]:
     return out
 
 
-# -- the command ------------------------------------------------------------------------------------------------
+# -- the tuned spec and the result -------------------------------------------------------------------------------------
 def _id_text(ident: int, extended: bool) -> str:
     return f"0x{ident:08X}" if extended else f"0x{ident:03X}"
 
@@ -454,44 +453,26 @@ def edit_dbc_ids(text: str, ids: dict[int, int]) -> str:
     return _DBC_ID.sub(lambda mt: mt.group(1) + str(ids.get(int(mt.group(2)), int(mt.group(2)))), text)
 
 
-def command(
-    source: Path, output: Path, robust: bool, force: bool, fmt: str, options: ImportOptions | None = None
-) -> int:
-    """netcfg tune SPEC -o OUT.yaml; exit 0 written, 1 no assignment or the spec has errors, 2 I/O or usage.
-    `options`: a DBC's bit rates and --default-period, as `check F.dbc` takes them."""
-    from netcfg.analyze import analyze
-    from netcfg.check import analyse_spec
-    from netcfg.diagnostics import sort_diagnostics
+def load_source(
+    source: Path, diags: Collector, options: ImportOptions
+) -> tuple[Spec | None, model.Model | None]:
+    """The spec and model tune starts from: a spec as check reads it, a DBC as `netcfg import dbc` would write it
+    (with check's DBC options). Either is None (with errors in diags) when it is not usable. OSError propagates."""
     from netcfg.resolve import resolve
-    from netcfg.spec.edit import set_message_values
     from netcfg.spec.load import read_spec
 
-    if (source.suffix.lower() == ".dbc") != (output.suffix.lower() == ".dbc"):
-        print("netcfg: tune writes what it reads: SPEC.yaml -o OUT.yaml, or F.dbc -o OUT.dbc", file=sys.stderr)
-        return 2
-    if output.exists() and not force:
-        print(f"netcfg: {output} exists; tune never replaces a file (choose another -o, or --force)", file=sys.stderr)
-        return 2
-    diags = Collector()
+    if source.suffix.lower() == ".dbc":
+        return _read_dbc(source, diags, options)
+    spec, smap = read_spec(source, diags)
+    return spec, resolve(spec, smap, diags, source.parent) if spec is not None else None
+
+
+def tuned_source(source: Path, m: model.Model, plans: list[BusPlan]) -> bytes:
+    """The source's own text with the plans' identifiers and offsets written in (the rest as it was). A DBC is
+    renumbered only: its plans' offsets are dropped, with a note saying so."""
+    from netcfg.spec.edit import set_message_values
+
     is_dbc = source.suffix.lower() == ".dbc"
-    dbc_options = options or ImportOptions()
-    if is_dbc:
-        spec, m = _read_dbc(source, diags, dbc_options)
-    else:
-        spec, smap = read_spec(source, diags)
-        m = resolve(spec, smap, diags, source.parent) if spec is not None else None
-    if m is None or spec is None or diags.errors:
-        for d in sort_diagnostics(diags.items):
-            print(d, file=sys.stderr)
-        print(f"netcfg: {source} has errors; fix them before tuning; nothing was written", file=sys.stderr)
-        return 1
-    report = analyze(m, diags)
-    before = {**report, "ok": not diags.errors}
-    try:
-        plans = plan(m, spec, robust, report)
-    except NoAssignment as exc:
-        print(f"netcfg: {source}: {exc}; nothing was written", file=sys.stderr)
-        return 1
     values: dict[str, dict[str, str]] = {}
     for p in plans:
         for name, ident in p.ids.items():
@@ -502,32 +483,8 @@ def command(
             p.offsets = {}
             p.notes.append("offsets not written: in a DBC tune changes identifiers only")
     if is_dbc:
-        data = edit_dbc_ids(source.read_bytes().decode("latin-1"), _dbc_ids(m, plans)).encode("latin-1")
-    else:
-        data = set_message_values(source.read_text(encoding="utf-8"), values).encode("utf-8")
-    tmp = output.with_name(f".tmp.{output.name}")  # keeps the suffix: the check below reads it by its kind
-    try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-        tmp.write_bytes(data)
-        _, after = analyse_spec(tmp, dbc_options if is_dbc else None)
-        if after["errors"]:
-            tmp.unlink()
-            print(
-                f"netcfg: the tuned spec would still be refused, so nothing was written; its errors, at the lines "
-                f"{output} would have (the search assumes priority transmit queues and no bit errors):",
-                file=sys.stderr,
-            )
-            for d in after["errors"]:
-                print(f"{output}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
-            return 1
-        os.replace(tmp, output)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        print(f"netcfg: cannot write {output}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
-    doc = result_document(m, plans, before, after, output)
-    print(jsontext.dumps(doc, indent=2) if fmt == "json" else result_text(doc))
-    return 0
+        return edit_dbc_ids(source.read_bytes().decode("latin-1"), _dbc_ids(m, plans)).encode("latin-1")
+    return set_message_values(source.read_text(encoding="utf-8"), values).encode("utf-8")
 
 
 def _us(ns: int | None) -> float | None:
