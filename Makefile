@@ -23,11 +23,13 @@ demo: $(BIN)/.installed
 test: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks
 	$(BIN)/mypy
+	$(BIN)/lint-imports --no-cache  # the layer contracts in pyproject.toml
 	$(BIN)/python -m pytest
 
 lint: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks
 	$(BIN)/mypy
+	$(BIN)/lint-imports --no-cache
 
 generated: $(BIN)/.installed
 	for spec in specs/*.yaml; do $(BIN)/netcfg build $$spec || exit 1; done

@@ -40,9 +40,10 @@ from typing import Any
 
 from random_can import write_random_can  # benchmarks/ is on sys.path when this script runs
 
-from netcfg.analyze import analyze, rta_frames
+from netcfg.analyze import analyze
 from netcfg.check import load_model
 from netcfg.diagnostics import Collector
+from netcfg.links.arbitration import rta_frames
 from netcfg.model import Model
 from netcfg.timing import can_rta, load
 from netcfg.timing.frames import bits_to_ns

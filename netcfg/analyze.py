@@ -10,25 +10,12 @@ from __future__ import annotations
 from typing import Any
 
 from netcfg import model, protocols
-from netcfg.bus_analysis import Analysis, error_model, us
+from netcfg.bus_analysis import Analysis, us
 from netcfg.diagnostics import Collector
-from netcfg.links import arbitration
-from netcfg.links.arbitration import fifo_senders, rta_frames
-from netcfg.protocols import release_offsets
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_fifo, can_offsets, can_rta, flows
+from netcfg.timing import can_offsets, flows
 
-__all__ = [
-    "analysis_jitter",
-    "analyze",
-    "bus_responses",
-    "error_model",
-    "fifo_inputs",
-    "fifo_senders",
-    "holistic_jitter",
-    "release_offsets",
-    "rta_frames",
-]
+__all__ = ["analysis_jitter", "analyze", "holistic_jitter"]
 
 MAX_HOLISTIC_ROUNDS = 50  # rounds of the sender-jitter iteration between processors and buses
 
@@ -285,14 +272,3 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: Analysis, diags: Collect
             m.source.at(flow.path),
         )
     return out
-
-
-# The arbitration analysis' pieces with the bus's release offsets, for explain and tune.
-def bus_responses(
-    m: model.Model, bus: model.Bus, frames: list[can_rta.CanFrame], tau: int
-) -> can_fifo.FifoAnalysis:
-    return arbitration.bus_responses(m, bus, frames, tau, protocols.release_offsets(m, bus))
-
-
-def fifo_inputs(m: model.Model, bus: model.Bus) -> tuple[dict[str, int], dict[str, int]]:
-    return arbitration.fifo_inputs(m, bus, protocols.release_offsets(m, bus))

@@ -14,6 +14,7 @@ from pydantic import ValidationError
 from netcfg.analyze import analyze
 from netcfg.diagnostics import Collector, sort_diagnostics
 from netcfg.importers import ImportOptions
+from netcfg.inputs import SPEC_SUFFIXES
 from netcfg.model import Model
 from netcfg.resolve import resolve
 from netcfg.spec.load import parse_spec, read_spec_data, report_validation_errors
@@ -114,3 +115,31 @@ def named_files(path: Path, data: Any) -> list[Path]:
 
 def check(path: Path, options: ImportOptions | None = None) -> dict[str, Any]:
     return analyse_spec(path, options)[1]
+
+
+def promote_warnings(report: dict[str, Any], codes: frozenset[str]) -> dict[str, Any]:
+    """`--werror CODE`: warnings with one of these codes count as errors (e.g. dbc-no-receiver in CI)."""
+    promoted = [w for w in report["warnings"] if w["code"] in codes]
+    if not promoted:
+        return report
+    report["warnings"] = [w for w in report["warnings"] if w["code"] not in codes]
+    report["errors"] = report["errors"] + promoted
+    report["ok"] = False
+    return report
+
+
+def spec_files(paths: list[Path]) -> list[Path]:
+    """The specs to check: files as given, folders as every *.yaml/*.yml directly inside them, sorted by name.
+
+    Raises FileNotFoundError for a folder without specs, so that `check empty/` is not silently fine.
+    """
+    out: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.suffix in SPEC_SUFFIXES and p.is_file())
+            if not found:
+                raise FileNotFoundError(f"no specs (*.yaml, *.yml) in folder {path}")
+            out += found
+        else:
+            out.append(path)
+    return out

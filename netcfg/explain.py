@@ -13,16 +13,11 @@ import difflib
 from dataclasses import replace
 from typing import Any
 
-from netcfg import model
-from netcfg.analyze import (
-    analysis_jitter,
-    bus_responses,
-    error_model,
-    fifo_inputs,
-    fifo_senders,
-    release_offsets,
-    rta_frames,
-)
+from netcfg import links, model
+from netcfg.analyze import analysis_jitter
+from netcfg.bus_analysis import error_model
+from netcfg.links.arbitration import bus_responses, fifo_inputs, fifo_senders, rta_frames
+from netcfg.protocols import release_offsets
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_fifo, can_offsets, can_rta, clocks, load
 from netcfg.timing.can_errors import ErrorModel
@@ -54,14 +49,14 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         hint = f"; did you mean '{close[0]}'?" if close else ""
         raise NotExplained(f"no message or flow '{name}' in system '{m.system}'{hint}")
     bus = m.buses[msg.bus]
-    if not bus.is_can:
+    if not links.of(bus).arbitrates:
         raise NotExplained(f"'{name}' is on Ethernet bus '{bus.name}'; --explain derives CAN response times")
     timings, _, _ = load.can_bus_load(bus)
     tau = bits_to_ns(1, bus.bitrate)
     given = rta_frames(bus.messages, timings, analysis_jitter(m))  # the release jitter check uses
     ppm = bus.clock_tolerance_ppm
     errors = error_model(bus)
-    fifo = bus_responses(m, bus, given, tau)
+    fifo = bus_responses(m, bus, given, tau, release_offsets(m, bus))
     # FIFO-queued frames reach arbitration up to their queue's bound late: other frames see that as jitter
     frames = [replace(f, j_ns=fifo.effective_jitter_ns.get(f.name, f.j_ns)) for f in given]
     plain = can_rta.analyse(frames, tau, ppm, errors)
@@ -226,7 +221,7 @@ def _priority_queue(
     offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
     ppm = bus.clock_tolerance_ppm
     errors = error_model(bus)
-    kept = {n: o for n, o in fifo_inputs(m, bus)[0].items() if n in fifo_of}
+    kept = {n: o for n, o in fifo_inputs(m, bus, release_offsets(m, bus))[0].items() if n in fifo_of}
     res = can_fifo.analyse(
         frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors, kept
     )
@@ -281,7 +276,7 @@ def one_change(
     priority), else a longer period for the one interferer that needs the smallest slow-down."""
     fifo_of = fifo_senders(m, bus)
     offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
-    fifo_offsets = fifo_inputs(m, bus)[0]
+    fifo_offsets = fifo_inputs(m, bus, release_offsets(m, bus))[0]
     errors = error_model(bus)
     taken = {(f.extended, f.id) for f in frames}
     others = [f for f in frames if f.name != me.name]

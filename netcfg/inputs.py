@@ -17,6 +17,8 @@ import stat
 from pathlib import Path
 from typing import Any
 
+SPEC_SUFFIXES = (".yaml", ".yml")  # what a folder of specs holds: check's and the language server's
+
 MiB = 1024 * 1024
 # The largest files of each kind netcfg accepts. Real ones are far smaller: the 126-drive bus.yml benchmark is
 # under 100 kB, maxon's EPOS4 EDS about 400 kB, the largest spec in specs/ under 200 kB.

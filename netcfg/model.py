@@ -243,33 +243,6 @@ class Bus:
         """Its frames arbitrate as CAN's do (ISO 11898-1): classical CAN, CAN FD, CANopen and FTT-CAN."""
         return self.arbitrates
 
-    @property
-    def offsets_unused(self) -> str | None:
-        """None when a periodic message's offset places its releases on its sender's clock, as the CAN offset
-        analysis (timing.can_offsets) takes them: any bus whose frames arbitrate as CAN's, classical or FD (their
-        frame times come from the bus's frame timing), unless something else releases them. Else why the
-        analysis of this bus cannot use an offset, in the user's terms."""
-        if not self.is_can:
-            return "the Ethernet analysis takes every sender's releases at any phase"
-        if self.canopen is not None:
-            return "a CANopen bus is analysed without offsets: SYNC, the master's loop and PDO events release frames"
-        return None
-
-    @property
-    def identifiers_fixed(self) -> str | None:
-        """None when the bus's identifiers are free priorities that `netcfg tune` may reorder (classical CAN and
-        CAN FD arbitrate alike); else why they are not, in the user's terms."""
-        if not self.is_can:
-            return "an Ethernet message's id names it and gives it no priority: the switches queue frames in order"
-        if self.canopen is not None:
-            return "CiA 301 COB-IDs, the predefined connection set its devices expect"
-        if self.ftt is not None:
-            return (
-                "the master schedules the synchronous window, where offset: auto places the messages, and tune's "
-                "search is not the asynchronous window's analysis"
-            )
-        return None
-
 
 @dataclass(frozen=True)
 class FlowStep:

@@ -21,7 +21,7 @@ meet their deadlines the identifiers stay (any other order lengthens some bound;
 for the error frames survived), so tuning an accepted spec lengthens no bound. What is kept: every message's
 producer, size, period, deadline and jitter; identifiers pinned with `tune: {id: fixed}`, offsets pinned with
 `tune: {offset: fixed}`; a node's `id_range`; every bus whose identifiers are not free priorities
-(model.Bus.identifiers_fixed says why: CANopen, FTT-CAN, Ethernet). CAN and CAN FD buses are re-identified alike:
+(Protocol.identifiers_fixed says why: CANopen, FTT-CAN, Ethernet). CAN and CAN FD buses are re-identified alike:
 they arbitrate the same way, their frame times come from the bus's frame timing.
 """
 
@@ -36,10 +36,13 @@ from typing import Any
 
 import numpy as np
 
-from netcfg import model
-from netcfg.analyze import analysis_jitter, error_model, release_offsets, rta_frames
+from netcfg import model, protocols
+from netcfg.analyze import analysis_jitter
+from netcfg.bus_analysis import error_model
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
+from netcfg.links.arbitration import rta_frames
+from netcfg.protocols import release_offsets
 from netcfg.spec.schema import Spec
 from netcfg.timing import can_errors, can_offsets, can_rta, clocks, flows, load
 from netcfg.timing.can_errors import ErrorModel
@@ -296,7 +299,7 @@ def plan_bus(
     changes where nothing is judged (no message has a deadline), and a bus whose messages all meet their deadlines
     keeps its identifiers (unless robust): reordering them lengthens some bound, and tune makes none longer there."""
     plan = BusPlan(bus.name)
-    if (why := bus.identifiers_fixed) is not None:
+    if (why := protocols.of(bus).identifiers_fixed(bus)) is not None:
         plan.notes.append(f"bus '{bus.name}' ({bus.protocol}): identifiers and offsets kept: {why}")
         return plan
     verdicts = [row["schedulable"] for row in rows or ()]

@@ -1,8 +1,8 @@
 """`netcfg check SPEC...`: validate specs and analyse their timing, print the reports; writes nothing.
 
-The specs are given as files or folders (spec_files); `--werror CODE` turns warnings into errors
-(promote_warnings). Its two modes have modules of their own: `--explain MESSAGE` (netcfg.commands.explain) and
-`--watch` (netcfg.commands.watch). The check itself is netcfg.check's.
+The specs are given as files or folders; `--werror CODE` turns warnings into errors (both netcfg.check's, which
+the language server and --watch share). Its two modes have modules of their own: `--explain MESSAGE`
+(netcfg.commands.explain) and `--watch` (netcfg.commands.watch). The check itself is netcfg.check's.
 """
 
 from __future__ import annotations
@@ -15,15 +15,13 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import jsontext
+from netcfg.check import promote_warnings, spec_files
 from netcfg.commands.base import Subcommands
 from netcfg.commands.options import MAX_RUNS, add_dbc_options, import_options, int_option, io_problem
 from netcfg.importers import ImportOptions
 
 NAME = "check"
 BATCH = True
-SPEC_SUFFIXES = (".yaml", ".yml")
-
-
 def add_parser(sub: Subcommands) -> None:
     p = sub.add_parser(NAME, help="validate specs and analyse their timing; writes nothing")
     p.add_argument("specs", nargs="+", type=Path, metavar="SPEC", help="a spec, a DBC, or a folder of specs")
@@ -99,31 +97,3 @@ def check_specs(
             for d in report["errors"]:
                 print(f"{d['file']}:{d['line']}:{d['column']}: error: {d['message']} [{d['code']}]", file=sys.stderr)
     return 0 if all(r["ok"] for r in reports) else 1
-
-
-def promote_warnings(report: dict[str, Any], codes: frozenset[str]) -> dict[str, Any]:
-    """`--werror CODE`: warnings with one of these codes count as errors (e.g. dbc-no-receiver in CI)."""
-    promoted = [w for w in report["warnings"] if w["code"] in codes]
-    if not promoted:
-        return report
-    report["warnings"] = [w for w in report["warnings"] if w["code"] not in codes]
-    report["errors"] = report["errors"] + promoted
-    report["ok"] = False
-    return report
-
-
-def spec_files(paths: list[Path]) -> list[Path]:
-    """The specs to check: files as given, folders as every *.yaml/*.yml directly inside them, sorted by name.
-
-    Raises FileNotFoundError for a folder without specs, so that `check empty/` is not silently fine.
-    """
-    out: list[Path] = []
-    for path in paths:
-        if path.is_dir():
-            found = sorted(p for p in path.iterdir() if p.suffix in SPEC_SUFFIXES and p.is_file())
-            if not found:
-                raise FileNotFoundError(f"no specs (*.yaml, *.yml) in folder {path}")
-            out += found
-        else:
-            out.append(path)
-    return out

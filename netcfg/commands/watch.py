@@ -26,7 +26,7 @@ def watch(
     poll_s: float = POLL_S,
 ) -> int:
     """Check, print a summary, wait for a save, again; max_checks stops after that many checks (for tests)."""
-    from netcfg.commands.check import spec_files
+    from netcfg.check import spec_files
 
     out = out or sys.stdout
     try:
@@ -64,8 +64,7 @@ def _check_all(
     specs: list[Path], options: ImportOptions | None, werror: frozenset[str]
 ) -> tuple[list[Path], str]:
     """Every spec checked; -> (the files to watch, the summary)."""
-    from netcfg.check import analyse_loaded, named_files
-    from netcfg.commands.check import promote_warnings
+    from netcfg.check import analyse_loaded, named_files, promote_warnings
 
     files: list[Path] = []
     parts: list[str] = []

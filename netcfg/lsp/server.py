@@ -24,9 +24,9 @@ from pygls.lsp.server import LanguageServer
 from pygls.uris import from_fs_path, to_fs_path
 
 from netcfg import __version__
+from netcfg.inputs import SPEC_SUFFIXES
 from netcfg.lsp import document as doc
 
-SPEC_SUFFIXES = (".yaml", ".yml")
 SEVERITY = {"error": lsp.DiagnosticSeverity.Error, "warning": lsp.DiagnosticSeverity.Warning}
 
 
