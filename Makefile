@@ -23,8 +23,7 @@ demo: $(BIN)/.installed
 test: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks
 	$(BIN)/mypy
-	$(BIN)/lint-imports --no-cache  # the layer contracts in pyproject.toml
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest  # tests/test_layers.py runs the layer contracts (lint-imports) too
 
 lint: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks
