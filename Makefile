@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test lint bench generated clean
+.PHONY: demo test lint bench generated clean docs docs-serve docs-snippets
 
 $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,14 +21,30 @@ demo: $(BIN)/.installed
 	$(BIN)/netcfg run build/allex2/runtime.json --interface virtual --simulated-drives --cycles 100
 
 test: $(BIN)/.installed
-	$(BIN)/ruff check netcfg tests benchmarks
+	$(BIN)/ruff check netcfg tests benchmarks docs/gen
 	$(BIN)/mypy
+	$(BIN)/mkdocs build --strict --quiet  # the site builds without a warning (a few seconds)
 	$(BIN)/python -m pytest  # tests/test_layers.py runs the layer contracts (lint-imports) too
 
 lint: $(BIN)/.installed
-	$(BIN)/ruff check netcfg tests benchmarks
+	$(BIN)/ruff check netcfg tests benchmarks docs/gen
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
+
+# The documentation site (mkdocs.yml): built into build/site, served locally; nothing is hosted.
+# Material's notice about its successor is printed on every build otherwise
+export NO_MKDOCS_2_WARNING := 1
+
+docs: $(BIN)/.installed
+	$(BIN)/mkdocs build --strict
+
+docs-serve: $(BIN)/.installed
+	$(BIN)/mkdocs serve
+
+# Writes the real output of the pages' captured commands and their figures into the pages (tests/test_docs.py
+# fails while a page is not what this writes); review the diff before committing it.
+docs-snippets: $(BIN)/.installed
+	$(BIN)/python docs/gen/refresh.py
 
 generated: $(BIN)/.installed
 	for spec in specs/*.yaml; do $(BIN)/netcfg build $$spec || exit 1; done

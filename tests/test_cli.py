@@ -102,7 +102,7 @@ def test_readme_spec_example_checks(tmp_path: Path) -> None:
     """The spec shown in the README is a valid spec."""
     import re
 
-    block = re.search(r"```yaml\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    block = re.search(r"```yaml[^\n]*\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
     assert block is not None
     spec = tmp_path / "readme.yaml"
     spec.write_text(block.group(1))
