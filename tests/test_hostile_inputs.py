@@ -1,7 +1,7 @@
 """Every hostile input found so far, one test each, held to the input contract: a clear message, exit 1 for a bad
 input (2 for usage and I/O), no traceback, no hang, nothing written, nothing of the user's touched.
 
-The commands run in-process through netcfg.cli.main, so an exception that escapes fails the test as a traceback
+The commands run in-process through netcfg.commands.main, so an exception that escapes fails the test as a traceback
 would. The inputs are written here; the DBC-file cases belong to the DBC importer's tests.
 """
 

@@ -1,6 +1,6 @@
 """`netcfg run` and what it is made of: the CiA 402 power state machine (netcfg.runtime.cia402), heartbeat and EMCY
 supervision (netcfg.runtime.supervision), and the whole run against simulated drives on python-can's virtual bus
-(netcfg.runtime.operate, netcfg.run_cli).
+(netcfg.runtime.operate, netcfg.commands.run).
 
 Sources of the numbers:
 - CiA 402 (IEC 61800-7-201) power drive state machine: states, the transition numbers 1-16 and which controlword
