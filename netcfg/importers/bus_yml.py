@@ -83,7 +83,6 @@ from netcfg.importers.bus_yml_keys import (
     SLAVE_KEPT,
     SLAVE_MAPPED,
     BusPath,
-    check_name_ok,
     duration,
     duration_ns,
     parse_annotation,
@@ -94,6 +93,7 @@ from netcfg.importers.bus_yml_pdo import BusYmlPdos
 from netcfg.importers.bus_yml_read import Val, mark
 from netcfg.inputs import InputError, check_input_path, decode_text, read_input_bytes
 from netcfg.spec.load import report_validation_errors
+from netcfg.spec.names import is_name
 from netcfg.spec.source import SourceMap, load_yaml
 
 
@@ -169,7 +169,7 @@ class BusYmlImporter(BusYmlPdos):
                 pos = Position(self.file, n, 1)
                 if key not in HEADER_KEYS:
                     self.d.add("bus-yml-note", f"unknown '# netcfg:' key '{key}' ignored", pos, "warning")
-                elif key in ("system", "bus", "master", "sync_producer") and not check_name_ok(value):
+                elif key in ("system", "bus", "master", "sync_producer") and not is_name(value):
                     self.d.add("bus-yml-note", f"'# netcfg:' {key}={value} is not a safe name; ignored", pos, "warning")
                 else:
                     out[key] = value

@@ -20,13 +20,13 @@ from netcfg.importers.bus_yml_keys import (
     PDO_KEYS,
     PDO_NOTE_KEYS,
     BusPath,
-    check_name_ok,
     default_timing,
     duration,
     duration_ns,
     safe_name,
 )
 from netcfg.importers.bus_yml_read import BusYmlReader, Val
+from netcfg.spec.names import is_name
 
 
 @dataclass(frozen=True)
@@ -199,7 +199,7 @@ class BusYmlPdos(BusYmlReader):
                 self.warn("bus-yml-note", f"unknown '# netcfg:' key '{key}' ignored", val.path, key=True)
         named = note.get("message", "")
         message: dict[str, Any] = {
-            "name": named if check_name_ok(named) else safe_name(f"{p.node}_{p.kind}{p.number}", "pdo")
+            "name": named if is_name(named) else safe_name(f"{p.node}_{p.kind}{p.number}", "pdo")
         }
         if p.kind == "tpdo":
             message.update(producer=p.node, consumers=[p.master])
@@ -301,7 +301,7 @@ class BusYmlPdos(BusYmlReader):
         for ipath, _, index, sub in self.objects(val, MAPPING_KEYS, f"a mapping entry of {label}", shape, "mapping"):
             ref: Any = index if sub == 0 else f"0x{index:04X}:{sub}"
             name = self.note(ipath, key=False).get("name", "")
-            if check_name_ok(name):
+            if is_name(name):
                 ref = {"object": f"0x{index:04X}:{sub}", "name": name}
             self.link((*mpath, "pdo", "map", len(out)), ipath)
             out.append(ref)

@@ -80,7 +80,7 @@ from netcfg.importers import Path as DataPath
 from netcfg.importers.dbc_signals import layout_drops, signal_entry, signal_note
 from netcfg.importers.dbc_text import CAN_MAX_PAYLOAD, MAX_FRAME_BYTES, DbcFile, dbc_frame_id, is_fd, read_dbc
 from netcfg.importers.dbc_timing import bitrate, bitrate_text, data_bitrate, message_timing, ms_exact
-from netcfg.spec.schema import safe_name
+from netcfg.spec.names import safe_name
 from netcfg.spec.source import SourceMap
 
 PLACEHOLDER_NODE = "unassigned"  # stands for DBC's Vector__XXX (no node)
