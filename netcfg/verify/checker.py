@@ -184,12 +184,12 @@ class Checker:
         if ref == "sync":
             st.ref_delay_us = self.cfg.node(m.producer).tx_delay_ns / 1000
         if period is not None:
-            st.period_edges = np.linspace(0.0, 2.0 * period, HIST_BINS + 1)
+            st.intervals.edges = np.linspace(0.0, 2.0 * period, HIST_BINS + 1)
         elif min_gap is not None:
-            st.period_edges = np.linspace(0.0, 4.0 * min_gap, HIST_BINS + 1)
+            st.intervals.edges = np.linspace(0.0, 4.0 * min_gap, HIST_BINS + 1)
         if st.response_ref is not None and wcrt_us is not None:
             top = 2.0 * wcrt_us  # the analysed worst case in the middle; later responses fall in the overflow bin
-            st.resp_edges = np.linspace(0.0, top, HIST_BINS + 1)
+            st.responses.edges = np.linspace(0.0, top, HIST_BINS + 1)
         return st
 
     def _unanalysed_jitter_ns(self, m: Message, bus: int) -> int:
@@ -527,8 +527,10 @@ class Checker:
         in_window = [
             {
                 "name": st.msg.name,
-                "response_max_us": st.resp_max,
-                "inside_window": None if window is None or st.resp_max is None else st.resp_max * 1000 <= window,
+                "response_max_us": st.responses.largest,
+                "inside_window": (
+                    None if window is None or st.responses.largest is None else st.responses.largest * 1000 <= window
+                ),
             }
             for st in self.states
             if st.bus == b and st.response_ref == "sync"

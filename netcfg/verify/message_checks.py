@@ -23,6 +23,35 @@ Finding = Callable[[str, "MessageState | None", int, str], None]
 
 
 @dataclass
+class Spread:
+    """A quantity's running figures over the log, in us: least, largest, sum and count, and a histogram over fixed
+    bins with an underflow and an overflow bin (kept only where the checker gives it edges)."""
+
+    least: int | None = None
+    largest: int | None = None
+    total: int = 0
+    n: int = 0
+    counts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(HIST_BINS + 2, np.int64))
+    edges: NDArray[np.float64] | None = None
+
+    def add(self, values: NDArray[np.int64]) -> None:
+        """A batch's values (at least one)."""
+        least, largest = int(values.min()), int(values.max())
+        self.least = least if self.least is None else min(self.least, least)
+        self.largest = largest if self.largest is None else max(self.largest, largest)
+        self.total += int(values.sum())
+        self.n += len(values)
+        if self.edges is not None:
+            self.counts += hist(values, self.edges)
+
+    def summary(self) -> dict[str, Any] | None:
+        """min, mean and max for the report; None before any value."""
+        if not self.n:
+            return None
+        return {"min": self.least, "mean": round(self.total / self.n, 3), "max": self.largest}
+
+
+@dataclass
 class MessageState:
     """One configured message as the checker follows it: running figures, histograms and what was found."""
 
@@ -38,22 +67,12 @@ class MessageState:
     count: int = 0
     last_t: int | None = None
     first_t: int | None = None
-    iv_min: int | None = None
-    iv_max: int | None = None
-    iv_sum: int = 0
-    iv_n: int = 0
+    intervals: Spread = field(default_factory=Spread)  # between frames
     dev_max: int = 0  # largest |interval - period| outside gaps
     missing: int = 0
-    resp_min: int | None = None
-    resp_max: int | None = None
-    resp_sum: int = 0
-    resp_n: int = 0
+    responses: Spread = field(default_factory=Spread)  # from the frame a response is measured from
     violations: int = 0
     warnings: int = 0
-    period_hist: NDArray[np.int64] = field(default_factory=lambda: np.zeros(HIST_BINS + 2, np.int64))
-    resp_hist: NDArray[np.int64] = field(default_factory=lambda: np.zeros(HIST_BINS + 2, np.int64))
-    period_edges: NDArray[np.float64] | None = None
-    resp_edges: NDArray[np.float64] | None = None
     range_out: dict[str, list[Any]] = field(default_factory=dict)  # signal -> [count, first_t, worst value]
     bad_size: list[int] = field(default_factory=list)  # [count, first_t, length]
     jitter_out: list[Any] | None = None  # intervals outside period +- slack: [count, first_t, worst, its t, its iv]
@@ -86,12 +105,7 @@ class MessageState:
         st.last_t = int(t[-1])
         iv = np.diff(prev)
         if len(iv):
-            st.iv_min = int(iv.min()) if st.iv_min is None else min(st.iv_min, int(iv.min()))
-            st.iv_max = int(iv.max()) if st.iv_max is None else max(st.iv_max, int(iv.max()))
-            st.iv_sum += int(iv.sum())
-            st.iv_n += len(iv)
-            if st.period_edges is not None:
-                st.period_hist += hist(iv, st.period_edges)
+            st.intervals.add(iv)
             ends = prev[1:]
             if st.period_us is not None:
                 st._periodic(iv, ends, violation)
@@ -112,12 +126,7 @@ class MessageState:
             ok = at >= 0
             resp = t[ok] - refs[at[ok]] + ref_offset
             if len(resp):
-                st.resp_min = int(resp.min()) if st.resp_min is None else min(st.resp_min, int(resp.min()))
-                st.resp_max = int(resp.max()) if st.resp_max is None else max(st.resp_max, int(resp.max()))
-                st.resp_sum += int(resp.sum())
-                st.resp_n += len(resp)
-                if st.resp_edges is not None:
-                    st.resp_hist += hist(resp, st.resp_edges)
+                st.responses.add(resp)
                 if st.wcrt_us is not None:
                     when = t[ok]
                     bound = st.wcrt_us + st.ref_delay_us
@@ -219,7 +228,7 @@ class MessageState:
             count, first, worst, worst_t, worst_iv = st.jitter_out
             assert st.period_us is not None
             detail = (
-                f"{count} of {st.iv_n} intervals outside the analysed {st.period_us / 1000:g} ms +- "
+                f"{count} of {st.intervals.n} intervals outside the analysed {st.period_us / 1000:g} ms +- "
                 f"{st.slack_us:.0f} us (jitter + worst-case response - transmission time), from "
                 f"{since(first) / 1e6:.6f} s; the worst {worst_iv / 1000:.3f} ms at "
                 f"{since(worst_t) / 1e6:.6f} s, "
@@ -264,14 +273,7 @@ class MessageState:
 
     def report(self) -> dict[str, Any]:
         st, m = self, self.msg
-        period = None
-        if st.iv_n:
-            assert st.iv_min is not None and st.iv_max is not None
-            period = {"min": st.iv_min, "mean": round(st.iv_sum / st.iv_n, 3), "max": st.iv_max}
-        response = None
-        if st.resp_n:
-            assert st.resp_min is not None and st.resp_max is not None
-            response = {"min": st.resp_min, "mean": round(st.resp_sum / st.resp_n, 3), "max": st.resp_max}
+        period, response = st.intervals.summary(), st.responses.summary()
         return {
             "name": m.name,
             "bus": m.bus,
@@ -290,8 +292,8 @@ class MessageState:
             "within_analysis": None if st.count == 0 and m.kind == "on-demand" else st.violations == 0,
             "warnings": st.warnings,
             "histograms": {
-                "period": _hist_doc(st.period_hist, st.period_edges),
-                "response": _hist_doc(st.resp_hist, st.resp_edges),
+                "period": _hist_doc(st.intervals.counts, st.intervals.edges),
+                "response": _hist_doc(st.responses.counts, st.responses.edges),
             },
         }
 
