@@ -29,7 +29,7 @@
 log file (`.log` candump -L, `.asc`, `.blf`, `.csv`, `.trc`: can.Logger picks by suffix), closed and flushed when it
 closes, which also happens on Ctrl-C or an error.
 
-This module runs the phases; the state they share is netcfg.runtime.operation's, a rebooted drive's recovery
+This module runs the phases; the state they share is netcfg.runtime.operate_state's, a rebooted drive's recovery
 operate_recovery's, the plan and the outcome operate_outcome's and BusLog bus_log's.
 """
 
@@ -50,7 +50,7 @@ from netcfg.runtime.clock import Clock, SystemClock
 from netcfg.runtime.codec import Number
 from netcfg.runtime.operate_outcome import NodeOutcome, Outcome, Plan
 from netcfg.runtime.operate_recovery import RecoveringOperation
-from netcfg.runtime.operation import sdo_io
+from netcfg.runtime.operate_state import sdo_io
 from netcfg.runtime.supervision import Event, Supervisor
 
 __all__ = ["BusLog", "NodeOutcome", "Outcome", "Plan", "operate"]

@@ -11,7 +11,7 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from netcfg.runtime.canopen_setup import configure_node
 from netcfg.runtime.cia402 import Cia402Error, PdoEnabler, enable_operation
-from netcfg.runtime.operation import Operation, Recovery, sdo_io
+from netcfg.runtime.operate_state import Operation, Recovery, sdo_io
 from netcfg.runtime.supervision import Event
 
 
