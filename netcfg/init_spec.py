@@ -42,7 +42,7 @@ def _safe_system_name(name: str) -> str:
 def starting_spec(source: str | None, output: Path | None) -> str:
     """The text of the starting spec (not for dbc, which goes through the importer)."""
     if source is None:
-        from netcfg.emit import render
+        from netcfg.templating import render
 
         stem = output.stem if output is not None else "my_system"
         system = re.sub(r"[^A-Za-z0-9_]", "_", stem) or "my_system"

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from netcfg.resolve import snake
-from netcfg.spec.schema import C_KEYWORDS, CPP_KEYWORDS, check_name, is_name, safe_name
+from netcfg.spec.names import C_KEYWORDS, CPP_KEYWORDS, check_name, is_name, safe_name
 
 HARD = [
     "",

@@ -30,7 +30,7 @@ from typing import Any
 
 from netcfg import cia301
 from netcfg.emit.bus_yml_spec import SPEC_NOTE, spec_notes
-from netcfg.importers.bus_yml import default_timing, safe_name
+from netcfg.importers.bus_yml_keys import default_timing, safe_name
 from netcfg.model import Bus, Message, Model, Node, PdoEntry
 from netcfg.resolve import snake
 from netcfg.templating import render

@@ -48,18 +48,19 @@ Mapping (spec <- bus.yml):
   names, the read window, message names and timing, signal names.
 Every item carries a comment saying where it came from (`bus.yml line 12: joint1.tpdo.1`). The spec is checked
 against the devices before anything is written: its errors point into the bus.yml.
+
+This module reads the file, its options, master and slaves (BusYmlImporter); the PDOs are
+netcfg.importers.bus_yml_pdo's, the checked readers and diagnostics bus_yml_read's, the DCF slots bus_yml_dcf's,
+the vocabulary bus_yml_keys' and the `# netcfg-spec:` notes bus_yml_notes'.
 """
 
 from __future__ import annotations
 
 import os
 import re
-from collections.abc import Set
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
 from pydantic import ValidationError
 
 from netcfg import cia301
@@ -68,154 +69,42 @@ from netcfg.devices.eds import EdsError, object_dictionary
 from netcfg.diagnostics import Collector, Position
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as SpecPath
-from netcfg.importers.bus_yml_dcf import DeviceFile, Slot
+from netcfg.importers.bus_yml_dcf import DeviceFile
 from netcfg.importers.bus_yml_keys import (
     _PLACEHOLDER_ANY,
-    FIRST_AUTO_COB_ID,
     HEADER_KEYS,
-    LAST_AUTO_COB_ID,
-    MAPPING_KEYS,
     MASTER_KEPT,
     MASTER_MAPPED,
     NODE_ID_LIMITS,
     OPTIONS_KEYS,
-    PDO_KEYS,
-    PDO_NOTE_KEYS,
     PLACEHOLDER,
     ROS_KEYS,
     SDO_KEYS,
     SLAVE_KEPT,
     SLAVE_MAPPED,
     BusPath,
-    check_name_ok,
-    default_timing,
     duration,
     duration_ns,
     parse_annotation,
     safe_name,
 )
 from netcfg.importers.bus_yml_notes import apply_spec_notes, read_spec_notes
+from netcfg.importers.bus_yml_pdo import BusYmlPdos
+from netcfg.importers.bus_yml_read import Val, mark
 from netcfg.inputs import InputError, check_input_path, decode_text, read_input_bytes
 from netcfg.spec.load import report_validation_errors
+from netcfg.spec.names import is_name
 from netcfg.spec.source import SourceMap, load_yaml
 
 
-# -- the importer ----------------------------------------------------------------------------------------------------
-@dataclass
-class Val:
-    """A bus.yml value and where it was written (defaults merged into a node keep the defaults' path)."""
+class BusYmlImporter(BusYmlPdos):
+    """One bus.yml: its options, master and slaves as the spec's bus and nodes (the PDOs: BusYmlPdos)."""
 
-    value: Any
-    path: BusPath
-
-
-@dataclass(frozen=True)
-class PdoItem:
-    """One PDO of a slave as the bus.yml (or, for from_dcf, only its DCF) configures it."""
-
-    slave: str  # as named in the bus.yml
-    node: str  # as named in the spec
-    kind: str
-    number: int
-    val: Val
-    cfg: dict[str, Val]
-    slot: Slot | None
-    node_id: int
-    master: str
-    auto_id: int | None  # dcfgen's COB-ID for 'cob_id: auto' on PDOs 5+
-    from_dcf: bool = False
-
-
-class BusYmlImporter:
     def __init__(self, path: Path, options: ImportOptions, diags: Collector) -> None:
-        self.path = path
-        self.file = str(path)
-        self.name = path.name
-        self.folder = path.parent
-        self.options = options
+        super().__init__(path, options, diags)
         self.heartbeat_multiplier: Val | None = None  # options.heartbeat_multiplier, for every slave
-        self.d = diags
-        self.smap = SourceMap(self.file)
-        self.lines: list[str] = []
-        self.ros = False  # ros2_canopen dialect (defaults/nodes)
-        self.origin: dict[SpecPath, BusPath] = {}  # spec path -> bus.yml path: positions of later errors
-        self.comments: dict[SpecPath, str] = {}
         self.nodes: list[dict[str, Any]] = []
-        self.messages: list[dict[str, Any]] = []
-        self.auto_cob_id = FIRST_AUTO_COB_ID
-        self.auto_ids: dict[tuple[str, str, int], int] = {}
         self.device_files: dict[int, DeviceFile] = {}  # id of a parsed object dictionary -> its one DeviceFile
-        self.sync_us = 0
-
-    # -- diagnostics and small readers ---------------------------------------------------------------------------
-    def link(self, spath: SpecPath, bpath: BusPath) -> None:
-        """The spec item at spath came from bpath: its comment and its errors point there."""
-        self.origin[spath] = bpath
-
-    def link_note(self, spath: SpecPath, line: int) -> None:
-        """The spec item at spath came from the `# netcfg-spec:` comment on this line."""
-        bpath = ("# netcfg-spec", line)
-        self.smap.record(bpath, _mark(self.file, Position(self.file, line, 1)))
-        self.link(spath, bpath)
-
-    def warn_note(self, message: str, line: int) -> None:
-        self.d.add("bus-yml-note", message, Position(self.file, line, 1), "warning")
-
-    def at(self, bpath: BusPath, key: bool = False) -> Position:
-        return self.smap.key_at(bpath) if key else self.smap.at(bpath)
-
-    def err(self, code: str, message: str, bpath: BusPath, key: bool = False) -> None:
-        self.d.add(code, message, self.at(bpath, key))
-
-    def warn(self, code: str, message: str, bpath: BusPath, key: bool = False) -> None:
-        self.d.add(code, message, self.at(bpath, key), "warning")
-
-    def strict(self, code: str, message: str, bpath: BusPath, key: bool = False) -> None:
-        """What netcfg cannot map: an error, with --lenient a warning."""
-        if self.options.lenient:
-            self.warn(code, message + " (--lenient: kept as a comment)", bpath, key)
-        else:
-            self.err(code, message + "; fix it, or pass --lenient to keep it as a comment", bpath, key)
-
-    def where(self, bpath: BusPath) -> str:
-        dotted = ".".join(str(p) for p in bpath)
-        return f"{self.name} line {self.at(bpath, key=True).line}: {dotted}"
-
-    def note(self, bpath: BusPath, key: bool = True) -> dict[str, str]:
-        """The `# netcfg:` comment on the line of bpath's key (or value)."""
-        line = self.at(bpath, key).line
-        return parse_annotation(self.lines[line - 1]) if 0 < line <= len(self.lines) else {}
-
-    def integer(self, val: Val, what: str, lo: int, hi: int) -> int | None:
-        v = val.value
-        if isinstance(v, bool) or not isinstance(v, int):
-            self.err("bus-yml-value", f"{what} must be a whole number, not {v!r}", val.path)
-            return None
-        if not lo <= v <= hi:
-            self.err("bus-yml-value", f"{what} must be {lo}..{hi}, not {v}", val.path)
-            return None
-        return v
-
-    def mapping(self, val: Val, what: str) -> dict[str, Any] | None:
-        if not isinstance(val.value, dict):
-            self.err("bus-yml-value", f"{what} must be a mapping of keys to values", val.path)
-            return None
-        return val.value
-
-    def sub(self, cfg: dict[Any, Any], path: BusPath) -> dict[str, Val]:
-        return {str(k): Val(v, (*path, str(k))) for k, v in cfg.items()}
-
-    def keys(self, cfg: dict[str, Val], used: Set[str], kept: Set[str], owner: str, into: list[str]) -> None:
-        """Unknown keys are errors (--lenient: warnings); known ones netcfg does not use become comment lines."""
-        for key, val in cfg.items():
-            if key in used:
-                continue
-            shown = val.value if not isinstance(val.value, (dict, list)) else f"... (line {self.at(val.path).line})"
-            if key in kept:
-                into.append(f"{key}: {shown}")
-                continue
-            self.strict("unknown-key", f"unknown key '{key}' in {owner}", val.path, key=True)
-            into.append(f"{key}: {shown} (unknown key)")
 
     # -- the whole file ------------------------------------------------------------------------------------------
     def run(self) -> Imported | None:
@@ -280,7 +169,7 @@ class BusYmlImporter:
                 pos = Position(self.file, n, 1)
                 if key not in HEADER_KEYS:
                     self.d.add("bus-yml-note", f"unknown '# netcfg:' key '{key}' ignored", pos, "warning")
-                elif key in ("system", "bus", "master", "sync_producer") and not check_name_ok(value):
+                elif key in ("system", "bus", "master", "sync_producer") and not is_name(value):
                     self.d.add("bus-yml-note", f"'# netcfg:' {key}={value} is not a safe name; ignored", pos, "warning")
                 else:
                     out[key] = value
@@ -549,20 +438,8 @@ class BusYmlImporter:
             self.err("bus-yml-value", f"'sdo' of node '{name}' is a list of {{index, sub_index, value}}", val.path)
             return []
         lines = []
-        for i, item in enumerate(val.value):
-            ipath = (*val.path, i)
-            if not isinstance(item, dict):
-                self.err("bus-yml-value", "an SDO write is {index: 0x..., sub_index: n, value: v}", ipath)
-                continue
-            cfg = self.sub(item, ipath)
-            self.keys(cfg, SDO_KEYS, set(), f"an SDO write of node '{name}'", [])
-            if "index" not in cfg:
-                self.err("bus-yml-value", f"an SDO write of node '{name}' needs 'index'", ipath)
-                continue
-            index = self.integer(cfg["index"], "sdo index", 0, 0xFFFF)
-            sub = self.integer(cfg["sub_index"], "sdo sub_index", 0, 0xFF) if "sub_index" in cfg else 0
-            if index is None or sub is None:
-                continue
+        shape = "an SDO write is {index: 0x..., sub_index: n, value: v}"
+        for ipath, cfg, index, sub in self.objects(val, SDO_KEYS, f"an SDO write of node '{name}'", shape, "sdo"):
             value = cfg["value"].value if "value" in cfg else 0
             lines.append(f"sdo 0x{index:04X}:{sub} = {value} ({self.name} line {self.at(ipath).line})")
             if not device.has(index, sub):  # dcfgen stops here too
@@ -587,278 +464,15 @@ class BusYmlImporter:
             )
         return lines
 
-    # -- PDOs ----------------------------------------------------------------------------------------------------
-    def pdo_entries(self, cfg: dict[str, Val], kind: str, report: bool) -> list[tuple[int, Val, dict[str, Val]]]:
-        """(number, its value, its keys) of one node's rpdo/tpdo section, in file order."""
-        section = cfg.get(kind)
-        if section is None:
-            return []
-        if not isinstance(section.value, dict):
-            if report:
-                self.err(
-                    "bus-yml-value", f"'{kind}' maps PDO numbers to settings, e.g. '1: {{enabled: true}}'", section.path
-                )
-            return []
-        out = []
-        for key, val in self.sub(section.value, section.path).items():
-            if not key.isdigit() or not 1 <= int(key) <= 512:
-                if report:
-                    self.err("bus-yml-value", f"'{kind}' keys are PDO numbers 1..512, not '{key}'", val.path, True)
-                continue
-            pdo = val.value if val.value is not None else {}
-            if not isinstance(pdo, dict):
-                if report:
-                    self.err("bus-yml-value", f"{kind} {key} must be a mapping of PDO settings", val.path)
-                continue
-            out.append((int(key), val, self.sub(pdo, val.path)))
-        return out
-
-    def allocate(self, name: str, cfg: dict[str, Val]) -> None:
-        """Replay dcfgen's numbering of 'cob_id: auto' on PDOs 5+ (rpdo section first, then tpdo; enabled or not)."""
-        for kind in ("rpdo", "tpdo"):
-            entries = self.pdo_entries(cfg, kind, report=False)
-            for number, val, pdo in sorted(entries, key=lambda e: e[0]) if self.ros else entries:
-                if number > 4 and "cob_id" in pdo and pdo["cob_id"].value == "auto":
-                    if self.auto_cob_id > LAST_AUTO_COB_ID:
-                        self.err(
-                            "bus-yml-pdo", "no 11-bit COB-IDs left for 'cob_id: auto' (dcfgen stops too)", val.path
-                        )
-                        return
-                    self.auto_ids[(name, kind, number)] = self.auto_cob_id
-                    self.auto_cob_id += 1
-
-    def pdos(
-        self, name: str, own: BusPath, cfg: dict[str, Val], added: tuple[DeviceFile, int, str], master: str
-    ) -> None:
-        device, nid, node = added
-        for kind in ("rpdo", "tpdo"):
-            listed = set()
-            for number, val, pdo in self.pdo_entries(cfg, kind, report=True):
-                listed.add(number)
-                slot = device.slot(kind, number, nid)
-                auto = self.auto_ids.get((name, kind, number))
-                self.pdo(PdoItem(name, node, kind, number, val, pdo, slot, nid, master, auto))
-            for number in device.slots(kind):  # dcfgen keeps what the DCF enables and the bus.yml does not mention
-                slot = device.slot(kind, number, nid)
-                if number in listed or slot is None or slot.cob_id is None or slot.cob_id & cia301.PDO_INVALID:
-                    continue
-                if not slot.mapping:
-                    continue
-                self.warn(
-                    "bus-yml-pdo",
-                    f"{kind.upper()}{number} of node '{name}' is not in {self.name} but its dcf enables it; dcfgen "
-                    f"leaves it on the bus, so netcfg imports it (add '{kind}: {{{number}: {{enabled: false}}}}' if "
-                    "it should be off)",
-                    own,
-                    key=True,
-                )
-                self.pdo(PdoItem(name, node, kind, number, Val({}, own), {}, slot, nid, master, None, from_dcf=True))
-
-    def pdo(self, p: PdoItem) -> None:
-        label = f"{p.kind} {p.number} of node '{p.slave}'"
-        cfg, val, slot = p.cfg, p.val, p.slot
-        kept: list[str] = []
-        self.keys(cfg, PDO_KEYS, set(), label, kept)
-        enabled = cfg.get("enabled", Val(True, val.path))  # dcfgen: enabled unless it says false
-        if not isinstance(enabled.value, bool):
-            self.err("bus-yml-value", f"'enabled' of {label} must be true or false", enabled.path)
-            return
-        if not enabled.value:
-            return
-        if slot is None:
-            comm = cia301.pdo_comm_index(p.kind, p.number)
-            self.err(
-                "bus-yml-pdo",
-                f"{label}: its dcf has no {p.kind.upper()}{p.number} (no object 0x{comm:04X})",
-                val.path,
-                True,
-            )
-            return
-        cob_id = self.cob_id(p, label)
-        if cob_id is None:
-            return
-        cob_id &= ~cia301.PDO_NO_RTR  # bit 30 only forbids remote requests; netcfg's DCFs set it on every TPDO
-        tt_val = cfg.get("transmission")
-        if tt_val is not None:
-            tt = self.integer(tt_val, f"transmission of {label}", 0, 255)
-            if tt is None:
-                return
-        else:
-            tt = slot.transmission if slot.transmission is not None else 0  # dcfgen's PDO starts at type 0
-        mpath: SpecPath = ("messages", len(self.messages))
-        self.origin[mpath] = val.path
-        pdo: dict[str, Any] = {p.kind: p.number, "transmission": tt}
-        if tt_val is not None:
-            self.link((*mpath, "pdo", "transmission"), tt_val.path)
-        given: dict[str, int | None] = {}
-        for key in ("inhibit_time", "event_timer", "sync_start"):
-            v = cfg.get(key)
-            if v is None:
-                continue
-            given[key] = self.integer(v, f"{key} of {label}", 0, 240 if key == "sync_start" else 0xFFFF)
-            if p.kind == "rpdo" and key != "event_timer" and given[key]:
-                # dcfgen gives these to the master's mirrored TPDO; netcfg times the master's sends itself
-                self.warn("bus-yml-pdo", f"{key} {given[key]} of {label} (the master's side) is not modelled", v.path)
-                kept.append(f"{key}: {given[key]}")
-                given[key] = None
-        inhibit = given.get("inhibit_time", slot.inhibit_100us)
-        event = given.get("event_timer", slot.event_timer_ms)
-        sync_start = given.get("sync_start", slot.sync_start)
-        if inhibit:
-            pdo["inhibit"] = f"{inhibit * 100} us"  # CiA 301: multiples of 100 us
-            self.link((*mpath, "pdo", "inhibit"), cfg["inhibit_time"].path if "inhibit_time" in cfg else val.path)
-        if event:
-            pdo["event_timer"] = f"{event} ms"
-            self.link((*mpath, "pdo", "event_timer"), cfg["event_timer"].path if "event_timer" in cfg else val.path)
-        if sync_start and 1 <= tt <= 240:
-            pdo["sync_start"] = sync_start
-        elif sync_start:
-            kept.append(f"sync_start: {sync_start} (acts only with transmission types 1-240)")
-        if "event_deadline" in cfg:
-            kept.append(f"event_deadline: {cfg['event_deadline'].value} (the slave's RPDO deadline monitoring)")
-        pdo["map"] = self.map_entries(cfg.get("mapping"), slot, label, mpath)
-        if not pdo["map"]:
-            if "mapping" in cfg and isinstance(cfg["mapping"].value, list) and not cfg["mapping"].value:
-                self.warn(
-                    "bus-yml-pdo", f"{label} maps nothing: dcfgen drops it from the master; so does netcfg", val.path
-                )
-            del self.origin[mpath]
-            return
-        note = self.note(val.path) if not p.from_dcf and val.path[:1] != ("defaults",) else {}
-        for key in note:
-            if key not in PDO_NOTE_KEYS:
-                self.warn("bus-yml-note", f"unknown '# netcfg:' key '{key}' ignored", val.path, key=True)
-        named = note.get("message", "")
-        message: dict[str, Any] = {
-            "name": named if check_name_ok(named) else safe_name(f"{p.node}_{p.kind}{p.number}", "pdo")
-        }
-        if p.kind == "tpdo":
-            message.update(producer=p.node, consumers=[p.master])
-        else:
-            message.update(producer=p.master, consumers=[p.node])
-        if cob_id != cia301.default_pdo_cob_id(p.kind, p.number, p.node_id):
-            message["id"] = cob_id & cia301.COB_ID_MASK  # 11-bit ids keep bits 11-28: resolve rejects them
-            self.link((*mpath, "id"), cfg["cob_id"].path if "cob_id" in cfg else val.path)
-        if cob_id & cia301.PDO_EXTENDED:
-            message["extended"] = True
-        if p.from_dcf:
-            lines = [f"{p.kind}.{p.number} of {p.slave}: not in {self.name}, enabled by its dcf (dcfgen keeps it)"]
-        else:
-            lines = [self.where(val.path) + (f" (for {p.slave})" if val.path[:1] == ("defaults",) else "")]
-        lines.extend(self.timing(message, p.kind, tt, event, inhibit, note, val.path))
-        message["pdo"] = pdo
-        if kept:
-            lines.append("kept from the bus.yml: " + "; ".join(kept))
-        self.comments[mpath] = "\n".join(lines)
-        self.messages.append(message)
-
-    def cob_id(self, p: PdoItem, label: str) -> int | None:
-        """The COB-ID dcfgen gives the PDO (flags included), or None when it stays off (warned) or is wrong."""
-        cob = p.cfg.get("cob_id")
-        if cob is None:  # dcfgen keeps the DCF's COB-ID
-            value = p.slot.cob_id if p.slot is not None else None
-            if value is None or value & cia301.PDO_INVALID:
-                self.warn(
-                    "bus-yml-pdo",
-                    f"{label} is enabled without a cob_id, and its dcf's COB-ID is invalid (bit 31): dcfgen leaves it "
-                    "off, so netcfg skips it; add 'cob_id: auto'",
-                    p.val.path,
-                    key=True,
-                )
-                return None
-            return value
-        if cob.value == "auto":
-            return cia301.default_pdo_cob_id(p.kind, p.number, p.node_id) if p.number <= 4 else p.auto_id
-        value = self.integer(cob, f"cob_id of {label} ('auto' or a number)", 1, 0xFFFFFFFF)
-        if value is not None and value & cia301.PDO_INVALID:
-            self.warn("bus-yml-pdo", f"cob_id of {label} has bit 31 (PDO invalid) set: dcfgen leaves it off", cob.path)
-            return None
-        return value
-
-    def timing(
-        self,
-        message: dict[str, Any],
-        kind: str,
-        tt: int,
-        event: int | None,
-        inhibit: int | None,
-        note: dict[str, str],
-        where: BusPath,
-    ) -> list[str]:
-        """Keys saying how often the message goes out (see the module docstring); -> comment lines."""
-        if note.get("type") in ("periodic", "sporadic", "on-demand"):
-            message["type"] = note["type"]
-            if note["type"] == "periodic" and note.get("period_ns", "").isdigit():
-                message["period"] = duration_ns(int(note["period_ns"]))
-            if note["type"] == "sporadic" and note.get("min_interarrival_ns", "").isdigit():
-                message["min_interarrival"] = duration_ns(int(note["min_interarrival_ns"]))
-            return []
-        kind_of, period, interval = default_timing(kind, tt, event, inhibit, self.sync_us * 1000)
-        if kind == "tpdo":
-            if kind_of != "on-demand":
-                return []  # netcfg derives the timing from the transmission type, event timer and inhibit time
-            message["type"] = "on-demand"
-            # with an event timer only an inhibit time can bound it (cia301.tpdo_timing), without one a min_interarrival
-            fix = "the TPDO an inhibit_time" if event else "the spec's message a min_interarrival"
-            self.warn(
-                "bus-yml-timing",
-                f"TPDO '{message['name']}' (transmission type {tt}) has no inhibit time: netcfg cannot bound how "
-                "often it is sent on events and leaves those out of the load (type: on-demand; an event timer's own "
-                f"sends are counted); give {fix} if it is sent on events in operation",
-                where,
-                key=True,
-            )
-            if event:
-                return ["sent on events with no bound on their rate (not in the load) and every event_timer"]
-            return ["sent on events only, with no bound on its rate: on-demand (not in the steady-state load)"]
-        if kind_of == "sporadic":
-            message["min_interarrival"] = duration((interval or 0) // 1000)
-            return ["acyclic synchronous (type 0): the master sends it at most once per SYNC"]
-        message["period"] = duration((period or 0) // 1000)
-        if 1 <= tt <= 240:
-            return [f"the master sends it on every {tt}. SYNC"]
-        if event:
-            return ["the master sends it every event_timer (dcfgen gives the master's mirrored TPDO that timer)"]
-        return ["event-driven, no event timer: assumed written once per SYNC period, as ros2_canopen's drivers do"]
-
-    def map_entries(self, val: Val | None, slot: Slot, label: str, mpath: SpecPath) -> list[Any]:
-        out: list[Any] = []
-        if val is None:  # dcfgen keeps the DCF's mapping
-            return [index if sub == 0 else f"0x{index:04X}:{sub}" for index, sub in slot.mapping]
-        if not isinstance(val.value, list):
-            self.err("bus-yml-value", f"'mapping' of {label} is a list of {{index, sub_index}}", val.path)
-            return out
-        for j, item in enumerate(val.value):
-            ipath = (*val.path, j)
-            if not isinstance(item, dict):
-                self.err("bus-yml-value", f"a mapping entry of {label} is {{index: 0x6041, sub_index: 0}}", ipath)
-                continue
-            cfg = self.sub(item, ipath)
-            self.keys(cfg, MAPPING_KEYS, set(), f"a mapping entry of {label}", [])
-            if "index" not in cfg:
-                self.err("bus-yml-value", f"a mapping entry of {label} needs 'index'", ipath)
-                continue
-            index = self.integer(cfg["index"], "mapping index", 0, 0xFFFF)
-            sub = self.integer(cfg["sub_index"], "mapping sub_index", 0, 0xFF) if "sub_index" in cfg else 0
-            if index is None or sub is None:
-                continue
-            ref: Any = index if sub == 0 else f"0x{index:04X}:{sub}"
-            name = self.note(ipath, key=False).get("name", "")
-            if check_name_ok(name):
-                ref = {"object": f"0x{index:04X}:{sub}", "name": name}
-            self.link((*mpath, "pdo", "map", len(out)), ipath)
-            out.append(ref)
-        return out
-
     # -- check the spec against the devices, with positions in the bus.yml ---------------------------------------
     def validate(self, spec: dict[str, Any]) -> None:
         from netcfg.resolve import resolve
         from netcfg.spec.schema import Spec
 
         smap = SourceMap(self.file)
-        smap.record((), _mark(self.file, self.at(())))
+        smap.record((), mark(self.file, self.at(())))
         for spath, bpath in self.origin.items():
-            smap.record(spath, _mark(self.file, self.at(bpath)), _mark(self.file, self.at(bpath, key=True)))
+            smap.record(spath, mark(self.file, self.at(bpath)), mark(self.file, self.at(bpath, key=True)))
         try:
             checked = Spec.model_validate(spec)
         except ValidationError as exc:
@@ -866,9 +480,6 @@ class BusYmlImporter:
             return
         resolve(checked, smap, self.d, self.folder)
 
-
-def _mark(file: str, pos: Position) -> yaml.Mark:
-    return yaml.Mark(file, 0, pos.line - 1, pos.column - 1, None, 0)  # type: ignore[arg-type]
 
 
 def import_bus_yml(path: Path, options: ImportOptions, diags: Collector) -> Imported | None:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import re
 
 from netcfg import cia301
-from netcfg.spec.schema import check_name
+from netcfg.spec.names import is_name
 
 BusPath = tuple[str | int, ...]
 PLACEHOLDER = "@BUS_CONFIG_PATH@"
@@ -75,17 +75,9 @@ def safe_name(text: str, fallback: str) -> str:
     gets the fallback as prefix."""
     name = re.sub(r"[^A-Za-z0-9_]+", "_", text).strip("_")[:63]
     for candidate in (name, f"{fallback}_{name}"[:63]):
-        if check_name_ok(candidate):
+        if is_name(candidate):
             return candidate
     return fallback
-
-
-def check_name_ok(name: str) -> bool:
-    try:
-        check_name(name)
-    except ValueError:
-        return False
-    return True
 
 
 def duration(us: int) -> str:

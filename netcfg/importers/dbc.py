@@ -60,119 +60,31 @@ needs it any more):
   what the spec has no key for (signal comments, further BO_TX_BU_ senders) goes there too. Positions of the
   messages and signals are kept, so that `netcfg check F.dbc` places a later error (a duplicate identifier)
   at the DBC's line.
+
+This module maps a database to spec data and merges `import: F.dbc` on a bus of a YAML spec (merge_bus_imports);
+the DBC's text and cantools' reading of it are netcfg.importers.dbc_text's, when messages are sent and how fast
+the bus runs netcfg.importers.dbc_timing's, the signals netcfg.importers.dbc_signals'.
 """
 
 from __future__ import annotations
 
-import logging
-import math
-import re
 from dataclasses import dataclass
-from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
-import cantools.database
-from cantools.database.can import Database, Message, Signal
+from cantools.database.can import Database, Message
 
-from netcfg.diagnostics import Collector, Position, Severity
+from netcfg.diagnostics import Collector
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as DataPath
-from netcfg.inputs import read_input_bytes
-from netcfg.runtime.codec import byte_ops, int_range, last_byte
-from netcfg.spec.schema import safe_name
+from netcfg.importers.dbc_signals import layout_drops, signal_entry, signal_note
+from netcfg.importers.dbc_text import CAN_MAX_PAYLOAD, MAX_FRAME_BYTES, DbcFile, dbc_frame_id, is_fd, read_dbc
+from netcfg.importers.dbc_timing import bitrate, bitrate_text, data_bitrate, message_timing, ms_exact
+from netcfg.spec.names import safe_name
 from netcfg.spec.source import SourceMap
-from netcfg.spec.units import format_ns
 
-ENCODING = "cp1252"  # what cantools.database.load_file and DBC tools read by default
 PLACEHOLDER_NODE = "unassigned"  # stands for DBC's Vector__XXX (no node)
 PLACEHOLDER_RECEIVER = "unassigned_receiver"  # receives a message of 'unassigned' when no other node exists
-CAN_MAX_PAYLOAD = 8
-KBIT_LIMIT = 1000  # Baudrate/BusSpeed values up to this are kbit/s: no CAN bus runs at 1000 bit/s or less
-# the largest public DBC files are a few MB; anything far beyond is not a database (or /dev/zero)
-MAX_DIGITS = 40  # a number longer than this in a DBC statement is no identifier, length or time
-MAX_SIGNAL_BITS = 64  # cantools' and every DBC tool's limit for one signal
-MAX_FRAME_BYTES = 64  # CAN FD's largest payload: no signal starts beyond it
-MAX_TIME_MS = 2**31 - 1  # DBC time attributes are INT ms; beyond is out of range
-TIME_ATTRIBUTES = (
-    "GenMsgCycleTime",
-    "GenMsgCycleTimeFast",
-    "GenMsgDelayTime",
-    "GenMsgStartDelayTime",
-    "NetcfgPeriod",
-    "NetcfgMinInterarrival",
-    "NetcfgOffset",
-    "NetcfgJitter",
-    "NetcfgDeadline",
-)
-
-_BO = re.compile(r"^[ \t]*BO_[ \t]+(\d+)[ \t]+([A-Za-z0-9_]+)")
-_SG = re.compile(r"^[ \t]*SG_[ \t]+([A-Za-z0-9_]+)")
-_BU = re.compile(r"^[ \t]*BU_[ \t]*:(.*)$")
-_BA_DB = re.compile(r'^[ \t]*BA_[ \t]+"(\w+)"[ \t]+[^A-Z \t]')  # database attribute: the value follows the name
-_BA_BO = re.compile(r'^[ \t]*BA_[ \t]+"(\w+)"[ \t]+BO_[ \t]+(\d+)')  # message attribute
-_STATEMENT = re.compile(r"^[ \t]*(BO_|SG_|BA_|BA_DEF_|BA_DEF_DEF_|VAL_|BO_TX_BU_|SG_MUL_VAL_|SIG_VALTYPE_)\b")
-_LONG_NUMBER = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
-_EXPONENT = re.compile(rf"(?<![A-Za-z0-9_.])\d+\.?\d*[eE]\+?(\d{{1,{MAX_DIGITS}}})")  # a float literal's exponent
-MAX_EXPONENT = 308  # a double's largest decimal exponent
-_SG_GEOMETRY = re.compile(r"^[ \t]*SG_[ \t]+\w+[^:]*:[ \t]*(\d+)[ \t]*\|[ \t]*(\d+)[ \t]*@")
-_BA_DEF_NUMBER = re.compile(r'^[ \t]*BA_DEF_[ \t]+(?:(?:BU_|BO_|SG_|EV_)[ \t]+)?"(\w+)"[ \t]+(INT|HEX|FLOAT)\b')
-_BA_VALUE = re.compile(
-    r'^[ \t]*BA_[ \t]+"(\w+)"[ \t]+(?:BU_[ \t]+\w+[ \t]+|BO_[ \t]+\d+[ \t]+|SG_[ \t]+\d+[ \t]+\w+[ \t]+|'
-    r"EV_[ \t]+\w+[ \t]+)?(.*?)[ \t]*;"
-)
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
-_BO_LENGTH = re.compile(r"^[ \t]*BO_[ \t]+\d+[ \t]+\w+[ \t]*:[ \t]*(\d+)")
-_WORD = re.compile(r"[A-Za-z0-9_]+")
-_VAL_ENTRY = re.compile(r"VAL_ (\d{1,20}) (\w+)")
-_VAL = re.compile(r"^[ \t]*VAL_[ \t]+(\d{1,20})[ \t]+(\w+)")
-_IN_MESSAGE = re.compile(r"in message '?([A-Za-z0-9_]+)'?")
-
-# GenMsgSendType values seen in DBCs in the wild, lower-cased without punctuation (see send_kind)
-_NONE_KINDS = ("none", "nomsgsendtype", "nosendtype", "notused", "reserved", "")
-_EVENT_WORDS = ("event", "spontan", "trigger", "ifactive", "onchange", "onwrite", "request")
-
-
-class _Lines:
-    """Where things are in the DBC text: a cheap scan for the lines of BO_, SG_, BU_ and BA_ entries."""
-
-    def __init__(self, text: str) -> None:
-        self.messages: dict[int, tuple[int, int]] = {}  # DBC frame id (bit 31 = extended) -> (line, column)
-        self.frames: dict[tuple[int, str], tuple[int, int]] = {}  # (DBC frame id, name): two may share an id
-        self.message_names: dict[str, tuple[int, int]] = {}
-        self.signals: dict[tuple[int, str], tuple[int, int]] = {}
-        self.nodes: dict[str, tuple[int, int]] = {}
-        self.attributes: dict[str, int] = {}
-        self.message_attributes: dict[tuple[str, int], int] = {}  # (attribute, DBC frame id) -> line
-        self.value_tables: dict[tuple[int, str], tuple[int, int]] = {}  # VAL_ (DBC frame id, signal) -> position
-        current: int | None = None
-        for number, line in enumerate(text.splitlines(), start=1):
-            if (m := _BO.match(line)) and len(m.group(1)) <= MAX_DIGITS:
-                current = int(m.group(1))
-                self.messages.setdefault(current, (number, m.start(2) + 1))
-                self.frames.setdefault((current, m.group(2)), (number, m.start(2) + 1))
-                self.message_names.setdefault(m.group(2), (number, m.start(2) + 1))
-            elif (m := _SG.match(line)) and current is not None:
-                self.signals.setdefault((current, m.group(1)), (number, m.start(1) + 1))
-            elif m := _BU.match(line):
-                for w in _WORD.finditer(m.group(1)):
-                    self.nodes.setdefault(w.group(0), (number, m.start(1) + w.start() + 1))
-            elif m := _BA_DB.match(line):
-                self.attributes.setdefault(m.group(1), number)
-            elif m := _VAL.match(line):
-                self.value_tables.setdefault((int(m.group(1)), m.group(2)), (number, m.start(2) + 1))
-                current = None
-            elif m := _BA_BO.match(line):
-                if len(m.group(2)) <= MAX_DIGITS:
-                    self.message_attributes.setdefault((m.group(1), int(m.group(2))), number)
-            elif line.strip() and not line[:1].isspace():
-                current = None  # a new top-level section ends the signal list
-
-
-@dataclass
-class _Timing:
-    data: dict[str, Any]  # period / min_interarrival / type keys of the spec message
-    note: str  # for the provenance comment
 
 
 class _Names:
@@ -202,305 +114,18 @@ class _Names:
         self.taken.add(name.lower())
 
 
-def send_kind(send_type: str | None) -> str:
-    """GenMsgSendType -> 'cyclic', 'event', 'mixed', 'none', 'absent' or 'unknown' (see the module docstring)."""
-    if send_type is None:
-        return "absent"
-    key = re.sub(r"[^a-z]", "", send_type.lower())
-    if key in _NONE_KINDS or key.startswith("notused"):
-        return "none"
-    if key in ("ce", "ca"):  # Vector's short forms: Cyclic+Event, Cyclic+IfActive
-        return "mixed"
-    if key.startswith("cyclic"):
-        rest = key[len("cyclic") :].removeprefix("ifactive")  # cyclicIfActive: cyclic while active, no events
-        return "mixed" if "and" in rest or any(w in rest for w in _EVENT_WORDS) else "cyclic"
-    if any(w in key for w in _EVENT_WORDS):
-        return "event"
-    return "unknown"
 
+class _Importer(DbcFile):
+    """One DBC mapped to spec data, with a comment per item on where it came from."""
 
-def ms_text(ms: float) -> str:
-    """A DBC time attribute (ms) as a spec duration, exact: 10 -> '10 ms', 2.5 -> '2.5 ms'."""
-    value = Decimal(str(ms))
-    text = format(value.normalize(), "f") if value != value.to_integral_value() else str(int(value))
-    return f"{text} ms"
-
-
-def _ms_exact(ms: float) -> str:
-    """netcfg's own FLOAT ms attributes carry whole nanoseconds: back to the exact duration."""
-    return format_ns(round(ms * 1_000_000))
-
-
-# netcfg's exact timing attributes (ms, FLOAT), by spec key
-_EXACT = {
-    "period": "NetcfgPeriod",
-    "min_interarrival": "NetcfgMinInterarrival",
-    "offset": "NetcfgOffset",
-    "jitter": "NetcfgJitter",
-    "deadline": "NetcfgDeadline",
-}
-
-
-def bitrate_text(bps: int) -> str:
-    for unit, scale in (("Mbit/s", 1_000_000), ("kbit/s", 1_000)):
-        if bps % scale == 0:
-            return f"{bps // scale} {unit}"
-    return f"{bps} bit/s"
-
-
-def _number(value: float) -> float | int:
-    """Integral floats as ints: the spec reads the same, and the YAML says '1' rather than '1.0'."""
-    return int(value) if isinstance(value, float) and abs(value) < 2**53 and value.is_integer() else value
-
-
-class _Importer:
     def __init__(self, path: Path, text: str, options: ImportOptions, diags: Collector) -> None:
-        self.path, self.text, self.options, self.diags = path, text, options, diags
-        self.file = str(path)
-        self.lines = _Lines(text)
+        super().__init__(path, text, diags)
+        self.options = options
         self.comments: dict[DataPath, str] = {}
         self.positions: dict[DataPath, tuple[int, int]] = {}  # (line, column) in the DBC of spec items
         self.message_names = _Names("message", "msg", "_msg")
         self.index = 0  # of the next message in the spec's list (messages that fail are not in it)
         self.fd = False  # the bus has CAN FD frames
-
-    # -- diagnostics ------------------------------------------------------------------------------------
-    def pos(self, at: tuple[int, int] | int | None = None) -> Position:
-        if isinstance(at, tuple):
-            return Position(self.file, at[0], at[1])
-        return Position(self.file, at or 1, 1)
-
-    def add(self, code: str, text: str, at: tuple[int, int] | int | None, severity: Severity = "error") -> None:
-        self.diags.add(code, text, self.pos(at), severity)  # the position names the file
-
-    def message_at(self, msg: Message) -> tuple[int, int] | None:
-        dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
-        return (
-            self.lines.frames.get((dbc_id, msg.name))
-            or self.lines.messages.get(dbc_id)
-            or self.lines.message_names.get(msg.name)
-        )
-
-    # -- the database -----------------------------------------------------------------------------------
-    def prescan(self) -> bool:
-        """What cantools would choke on or spend unbounded time over, as errors at their line; False if any."""
-        ok = True
-        lines = self.text.splitlines()
-        numeric = {m.group(1): m.group(2) for line in lines if (m := _BA_DEF_NUMBER.match(line))}
-        for number, line in enumerate(lines, start=1):
-            if not _STATEMENT.match(line):
-                continue
-            if (m := _BA_VALUE.match(line)) and m.group(1) in numeric and not _NUMBER.match(m.group(2)):
-                self.add(
-                    "dbc-attribute",
-                    f"attribute {m.group(1)} is {numeric[m.group(1)]} (BA_DEF_), but its value here is "
-                    f"{m.group(2)[:40]}, not a number; fix the value",
-                    (number, m.start(2) + 1),
-                )
-                ok = False
-                continue
-            huge = next((e for e in _EXPONENT.finditer(line) if int(e.group(1)) > MAX_EXPONENT), None)
-            if huge is not None:
-                self.add(
-                    "dbc-range",
-                    f"the number {huge.group(0)} is out of range (beyond a double's 1e{MAX_EXPONENT}); fix the DBC",
-                    (number, huge.start() + 1),
-                )
-                ok = False
-            elif m := _LONG_NUMBER.search(line):
-                self.add(
-                    "dbc-range",
-                    f"a number of {len(m.group(0))} digits is out of range for a DBC identifier, length or "
-                    "attribute; fix the DBC",
-                    (number, m.start() + 1),
-                )
-                ok = False
-            elif m := _SG_GEOMETRY.match(line):
-                start, length = int(m.group(1)), int(m.group(2))
-                name = line.split()[1]
-                if not 1 <= length <= MAX_SIGNAL_BITS:
-                    self.add(
-                        "dbc-signal-range",
-                        f"signal '{name}' is {length} bits long, outside the frame: a DBC signal has 1 to "
-                        f"{MAX_SIGNAL_BITS} bits; fix its length",
-                        (number, m.start(2) + 1),
-                    )
-                    ok = False
-                elif start >= 8 * MAX_FRAME_BYTES:
-                    self.add(
-                        "dbc-signal-range",
-                        f"signal '{name}' starts at bit {start}, outside every frame (a CAN frame has at most "
-                        f"{MAX_FRAME_BYTES} bytes, bits 0..{8 * MAX_FRAME_BYTES - 1}); fix its start bit",
-                        (number, m.start(1) + 1),
-                    )
-                    ok = False
-            elif (m := _BO_LENGTH.match(line)) and int(m.group(1)) > MAX_FRAME_BYTES:
-                self.add(
-                    "dbc-range",
-                    f"a message of {m.group(1)} bytes: a CAN frame has at most {MAX_FRAME_BYTES}; fix its length",
-                    (number, m.start(1) + 1),
-                )
-                ok = False
-        return ok
-
-    def load(self) -> Database | None:
-        if not self.prescan():
-            return None
-        try:
-            # cantools logs duplicate frames as it overwrites them; netcfg reports them itself (duplicate-id)
-            logging.getLogger("cantools").setLevel(logging.ERROR)
-            # strict=False: read what DBC tools read; netcfg warns about what cantools only tolerates
-            db = cantools.database.load_string(self.text, database_format="dbc", strict=False)
-        except Exception as exc:  # cantools raises assorted errors for bad input; all mean "bad DBC"
-            self.parse_error(exc)
-            return None
-        if not isinstance(db, Database):  # pragma: no cover - database_format='dbc' gives a CAN database
-            self.add("dbc-parse", "cantools did not read it as a CAN database", None)
-            return None
-        return db
-
-    def parse_error(self, exc: Exception) -> None:
-        cause = getattr(exc, "e_dbc", None) or exc.__cause__ or exc  # cantools wraps the DBC parser's error
-        line, column = getattr(cause, "line", None), getattr(cause, "column", None)
-        text = str(cause).strip().strip('"')
-        at: tuple[int, int] | None = None
-        if isinstance(line, int) and isinstance(column, int):
-            at = (line, column)
-            lines = self.text.splitlines()
-            source = lines[line - 1].strip() if 0 < line <= len(lines) else ""
-            what = f"invalid DBC syntax in '{source}'" if source else "invalid DBC syntax"
-            hint = (
-                "; a message needs 'BO_ <id> <name>: <length> <sender>'"
-                if source.startswith("BO_")
-                else "; a signal needs 'SG_ <name> : <start>|<length>@<1|0><+|-> (<scale>,<offset>) [<min>|<max>] "
-                '"<unit>" <receivers>\''
-                if source.startswith("SG_")
-                else "; is this a DBC file?"
-                if line == 1
-                else ""
-            )
-            self.add("dbc-parse", f"{what} at column {column}{hint}", at)
-            return
-        text = " ".join(text.split())  # one line, as every diagnostic
-        if m := _IN_MESSAGE.search(text):
-            at = self.lines.message_names.get(m.group(1))
-        elif m := _VAL_ENTRY.search(text):  # "unused VAL_ entries in DBC: VAL_ 568 UI_mapSpeedLimit"
-            at = self.lines.value_tables.get((int(m.group(1)), m.group(2)))
-        if len(text) > 300:
-            text = text[:300] + " ..."
-        self.add("dbc-parse", f"cantools cannot read this DBC: {text}; fix the DBC", at)
-
-    def db_attribute(self, db: Database, name: str) -> tuple[Any, str] | None:
-        """A database-level attribute: (value, where from) from its BA_, else its BA_DEF_DEF_ default if set."""
-        if db.dbc is None:
-            return None
-        attr = db.dbc.attributes.get(name)
-        if attr is not None:
-            line = self.lines.attributes.get(name)
-            return attr.value, f'BA_ "{name}" {attr.value}' + (f", line {line}" if line else "")
-        definition = db.dbc.attribute_definitions.get(name)
-        if definition is not None and definition.kind is None and definition.default_value not in (None, "", 0, "0"):
-            return definition.default_value, f'BA_DEF_DEF_ "{name}" {definition.default_value}, the default'
-        return None
-
-    def message_attribute(self, db: Database, msg: Message, name: str, zero: bool = False) -> float | None:
-        """A time attribute of a message (ms: GenMsgDelayTime ...): its BA_ value, else the definition's
-        default; None when absent or not positive. zero: netcfg's exact attributes, only the message's own BA_
-        value, 0 included. A value beyond MAX_TIME_MS is an error at its line."""
-        value: Any = None
-        if msg.dbc is not None and name in msg.dbc.attributes:
-            value = msg.dbc.attributes[name].value
-        elif zero:  # netcfg's exact attributes count only where a message gives them
-            return None
-        elif db.dbc is not None and name in db.dbc.attribute_definitions:
-            value = db.dbc.attribute_definitions[name].default_value
-        if value is None or isinstance(value, bool):
-            return None
-        dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
-        line = self.lines.message_attributes.get((name, dbc_id))
-        try:
-            number = float(Decimal(str(value)))  # exact for huge integers (float() of one overflows)
-        except (ArithmeticError, ValueError):
-            if str(value).strip():  # a text where a time belongs: say so rather than act as if it were absent
-                self.add(
-                    "dbc-attribute",
-                    f"{name} '{value}' of message '{msg.name}' is not a number of ms; ignored",
-                    (line, 1) if line else self.message_at(msg),
-                    "warning",
-                )
-            return None
-        if math.isnan(number) or number > MAX_TIME_MS:
-            text = str(value) if len(str(value)) <= 20 else f"{str(value)[:12]}... ({len(str(value))} digits)"
-            self.add(
-                "dbc-range",
-                f"{name} {text} of message '{msg.name}' is out of range (0 to {MAX_TIME_MS} ms); fix the DBC",
-                (line, 1) if line else self.message_at(msg),
-            )
-            return None
-        return number if number > 0 or (zero and number == 0) else None
-
-    @staticmethod
-    def is_fd(msg: Message) -> bool:
-        return bool(msg.is_fd) or msg.length > CAN_MAX_PAYLOAD
-
-    def data_bitrate(self, db: Database) -> tuple[int, str] | None:
-        """The CAN FD data rate: --data-bitrate, else Vector's Baudrate_CANFD attribute."""
-        if self.options.data_bitrate is not None:
-            return self.options.data_bitrate, "from the command line (--data-bitrate), which wins over the DBC"
-        fd_names = [f"message '{m.name}'" for m in db.messages if self.is_fd(m)]
-        more = f" and {len(fd_names) - 3} more" if len(fd_names) > 3 else ""
-        got = self.db_attribute(db, "Baudrate_CANFD")
-        if got is not None:
-            try:
-                number = round(float(str(got[0]).strip()))
-            except ValueError:
-                number = 0
-            if number > 0:
-                return number, f"{got[1]}, in bit/s"
-        self.add(
-            "dbc-data-bitrate",
-            f"the DBC has CAN FD frames ({', '.join(fd_names[:3])}{more}) but no data bit rate (no Baudrate_CANFD "
-            "attribute); give one on the command "
-            'line, e.g. `--data-bitrate 2M`, or add `BA_ "Baudrate_CANFD" 2000000;` to the DBC',
-            self.lines.attributes.get("Baudrate_CANFD"),
-        )
-        return None
-
-    def bitrate(self, db: Database) -> tuple[int, str] | None:
-        if self.options.bitrate is not None:
-            return self.options.bitrate, "from the command line (--bitrate), which wins over the DBC"
-        for name in ("Baudrate", "BusSpeed"):
-            got = self.db_attribute(db, name)
-            if got is None:
-                continue
-            value, where = got
-            at = self.lines.attributes.get(name)
-            try:
-                number = float(str(value).strip())
-            except ValueError:
-                self.add("dbc-bitrate", f"cannot read {where} as a bit rate; give one with --bitrate 500k", at)
-                return None
-            if number <= 0:
-                continue
-            if number <= KBIT_LIMIT:
-                bps = round(number * 1000)
-                self.add(
-                    "dbc-bitrate",
-                    f"{where}: read as {number:g} kbit/s (values up to {KBIT_LIMIT} cannot be bit/s); "
-                    "give --bitrate to override",
-                    at,
-                    "warning",
-                )
-                return bps, f"{where}, read as kbit/s"
-            return round(number), f"{where}, in bit/s"
-        self.add(
-            "dbc-bitrate",
-            "no bit rate: the DBC has no Baudrate or BusSpeed attribute; give one on the command line, e.g. "
-            "`--bitrate 500k` (netcfg check FILE.dbc --bitrate 500k, netcfg import dbc FILE.dbc --bitrate 500k -o "
-            'SPEC), or add `BA_ "Baudrate" 500000;` to the DBC',
-            None,
-        )
-        return None
 
     # -- the spec -------------------------------------------------------------------------------------------
     def run(self) -> Imported | None:
@@ -535,12 +160,12 @@ class _Importer:
                 self.lines.attributes.get("BusType"),
             )
             return None
-        rate = self.bitrate(db)
+        rate = bitrate(self, db, self.options)
         if rate is not None:
             bus["bitrate"] = bitrate_text(rate[0])
             self.comments[("buses", 0, "bitrate")] = rate[1]
-        self.fd = any(self.is_fd(msg) for msg in db.messages)
-        data_rate = self.data_bitrate(db) if self.fd else None
+        self.fd = any(is_fd(msg) for msg in db.messages)
+        data_rate = data_bitrate(self, db, self.options) if self.fd else None
         if self.fd:
             bus["protocol"] = "can-fd"
             if data_rate is not None:
@@ -590,7 +215,7 @@ class _Importer:
             bus["clock_tolerance"] = int(given("NetcfgClockTolerance"))
             self.comments[("buses", 0, "clock_tolerance")] = origin("NetcfgClockTolerance")
         if given("NetcfgErrorInterval") is not None:
-            errors: dict[str, Any] = {"interval": _ms_exact(float(given("NetcfgErrorInterval")))}
+            errors: dict[str, Any] = {"interval": ms_exact(float(given("NetcfgErrorInterval")))}
             if given("NetcfgErrorBurst") is not None:
                 errors["burst"] = int(given("NetcfgErrorBurst"))
             if given("NetcfgErrorBer") is not None:
@@ -645,7 +270,7 @@ class _Importer:
     def message(self, db: Database, msg: Message, nodes: dict[str, _Node]) -> dict[str, Any] | None:
         at = self.message_at(msg)
         line = f", line {at[0]}" if at else ""
-        dbc_id = msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
+        dbc_id = dbc_frame_id(msg)
         name, why = self.message_names.claim(msg.name)
         if why:
             self.add("dbc-name", f"message '{msg.name}': {why}; imported as '{name}'", at, "warning")
@@ -699,12 +324,12 @@ class _Importer:
         if msg.is_extended_frame:
             out["extended"] = True
         out["size"] = msg.length
-        if self.fd and not self.is_fd(msg):
+        if self.fd and not is_fd(msg):
             out["fd"] = False
         elif self.fd and msg.dbc is not None and "CANFD_BRS" in msg.dbc.attributes:
             out.update({} if str(msg.dbc.attributes["CANFD_BRS"].value).strip() == "1" else {"brs": False})
         # --- when it is sent
-        timing = self.timing(db, msg, at)
+        timing = message_timing(self, db, msg, at, self.options)
         out.update(timing.data)
         # --- what it carries
         signals = self.signals(msg, dbc_id)
@@ -724,94 +349,6 @@ class _Importer:
         self.comments[("messages", self.index)] = note + (f"\n{receivers_note}" if receivers_note else "")
         self.index += 1
         return out
-
-    def timing(self, db: Database, msg: Message, at: tuple[int, int] | None) -> _Timing:
-        exact = {key: self.message_attribute(db, msg, name, zero=True) for key, name in _EXACT.items()}
-        if exact["period"] is not None or exact["min_interarrival"] is not None:
-            # netcfg's own attributes: the spec's timing, exactly (written by netcfg.emit.dbc); the rounded
-            # Gen* attributes beside them are for other tools
-            key = "period" if exact["period"] is not None else "min_interarrival"
-            timing = _Timing({key: _ms_exact(exact[key] or 0)}, f"{_EXACT[key]} {_ms_exact(exact[key] or 0)}")
-        elif "period" in (timing := self.send_timing(db, msg, at)).data:
-            start = self.message_attribute(db, msg, "GenMsgStartDelayTime")
-            if start is not None:
-                timing.data["offset"] = ms_text(start)
-                timing.note += f", GenMsgStartDelayTime {ms_text(start)} (offset)"
-        for key in ("offset", "jitter", "deadline"):
-            if exact[key] is not None and "type" not in timing.data:
-                timing.data[key] = _ms_exact(exact[key] or 0)
-                timing.note += f", {_EXACT[key]} {_ms_exact(exact[key] or 0)}"
-        return timing
-
-    def send_timing(self, db: Database, msg: Message, at: tuple[int, int] | None) -> _Timing:
-        send_type = msg.send_type
-        kind = send_kind(send_type)
-        cycle = self.message_attribute(db, msg, "GenMsgCycleTime")
-        fast = self.message_attribute(db, msg, "GenMsgCycleTimeFast")
-        delay = self.message_attribute(db, msg, "GenMsgDelayTime")
-        said = f"GenMsgSendType {send_type}" if send_type is not None else "no GenMsgSendType"
-        cyc = f"GenMsgCycleTime {ms_text(cycle)}" if cycle else "no GenMsgCycleTime"
-
-        def on_demand(why: str) -> _Timing:
-            assumed = self.options.default_period_ns
-            if assumed is not None:
-                self.add(
-                    "dbc-default-period",
-                    f"message '{msg.name}': {why}; analysed as periodic every {format_ns(assumed)} "
-                    "(--default-period)",
-                    at,
-                    "warning",
-                )
-                return _Timing({"period": format_ns(assumed)}, f"{said}, {cyc}: --default-period assumed")
-            self.add(
-                "dbc-not-analysed",
-                f"message '{msg.name}' not analysed: {why}; imported as 'type: on-demand' (give it a period or "
-                "min_interarrival in the spec if it is sent regularly, or assume one with --default-period)",
-                at,
-                "warning",
-            )
-            return _Timing({"type": "on-demand"}, f"{said}, {cyc}: on-demand, not analysed")
-
-        repeats = self.message_attribute(db, msg, "GenMsgNrOfRepetition")
-        fast_name = "GenMsgCycleTimeFast" + (f" (also between the {repeats:g} repetitions)" if repeats else "")
-        gaps = [(v, n) for v, n in ((delay, "GenMsgDelayTime"), (fast, fast_name)) if v]
-        if kind == "cyclic":
-            period = fast if "fast" in (send_type or "").lower() and fast else cycle
-            if period is None:
-                return on_demand(f"{said} but no GenMsgCycleTime")
-            src = "GenMsgCycleTimeFast" if period is not cycle else "GenMsgCycleTime"
-            return _Timing({"period": ms_text(period)}, f"{said}, {src} {ms_text(period)}")
-        if kind == "event" or (kind == "mixed" and cycle is None):
-            if not gaps:
-                return on_demand(f"{said} with no GenMsgDelayTime or GenMsgCycleTimeFast to bound its rate")
-            gap, src = min(gaps)
-            return _Timing({"min_interarrival": ms_text(gap)}, f"{said}: sporadic, {src} {ms_text(gap)} apart")
-        if kind == "mixed":
-            assert cycle is not None
-            if not gaps:
-                self.add(
-                    "dbc-event-timing",
-                    f"message '{msg.name}': {said} also sends on events, but no GenMsgDelayTime or "
-                    f"GenMsgCycleTimeFast bounds them; analysed as periodic at {cyc} only",
-                    at,
-                    "warning",
-                )
-                return _Timing({"period": ms_text(cycle)}, f"{said}, {cyc}: events between cycles not analysed")
-            gap, src = min([*gaps, (cycle, "GenMsgCycleTime")])
-            return _Timing(
-                {"min_interarrival": ms_text(gap)}, f"{said}, {cyc}: sporadic, at least {src} {ms_text(gap)} apart"
-            )
-        # none, unknown or absent send type: the cycle time decides
-        if cycle is None:
-            return on_demand("no GenMsgCycleTime" + (f" ({said})" if send_type is not None else ""))
-        if kind != "absent":
-            self.add(
-                "dbc-send-type",
-                f"message '{msg.name}': {said} is not a cyclic send type, but {cyc} is given; analysed as periodic",
-                at,
-                "warning",
-            )
-        return _Timing({"period": ms_text(cycle)}, f"{said}, {cyc}")
 
     def signals(self, msg: Message, dbc_id: int) -> list[dict[str, Any]] | None:
         index = self.index
@@ -841,7 +378,7 @@ class _Importer:
                 self.add(
                     "dbc-name", f"signal '{s.name}' of message '{msg.name}': {why}; imported as '{name}'", at, "warning"
                 )
-        dropped = self.layout_drops(msg, ordered)
+        dropped = layout_drops(msg, ordered)
         for gone, why in dropped.items():
             self.add(
                 "dbc-signal-layout",
@@ -857,129 +394,17 @@ class _Importer:
         bit = 0
         for s in ordered:
             k = len(out)
-            self.comments[("messages", index, "signals", k)] = self.signal_note(s, dbc_id)
+            self.comments[("messages", index, "signals", k)] = signal_note(self.lines, s, dbc_id)
             at = self.lines.signals.get((dbc_id, s.name))
             if at:
                 self.positions[("messages", index, "signals", k)] = at
-            sig = self.signal(safe[s.name], s, safe, msg.name, at)
+            sig = signal_entry(self, safe[s.name], s, safe, msg.name, at)
             big = s.byte_order != "little_endian"
             if big or s.start != bit:  # not right after the previous one: the signal keeps its DBC start bit
                 sig = {"name": sig.pop("name"), "start_bit": s.start, **sig}
             out.append(sig)
             if not big:
                 bit = s.start + s.length
-        return out
-
-    def layout_drops(self, msg: Message, signals: list[Signal]) -> dict[str, str]:
-        """The signals netcfg cannot lay out, with the reason: reaching outside the frame, a float of other than
-        32 or 64 bits, a multiplexer that is not a signal, or overlapping a signal that can be in the same
-        frame. Of overlapping signals the narrower ones are kept (a wide one is often a group of the others)."""
-        names = {s.name: s for s in signals}
-        drops: dict[str, str] = {}
-        masks: dict[str, int] = {}
-        for s in signals:
-            big = s.byte_order != "little_endian"
-            if s.conversion.scale == 0:
-                drops[s.name] = "has a scale of 0 (every raw value would mean the offset)"
-            elif s.is_float and s.length not in (32, 64):
-                drops[s.name] = f"is a float of {s.length} bits (IEEE 754 floats have 32 or 64)"
-            elif s.multiplexer_signal is not None and s.multiplexer_signal not in names:
-                drops[s.name] = f"is multiplexed by '{s.multiplexer_signal}', which is not a signal of the message"
-            elif big and s.length > s.start % 8 + 1 + 8 * (MAX_FRAME_BYTES - 1 - s.start // 8):
-                drops[s.name] = "runs past the end of the largest frame"
-            elif last_byte(s.start, s.length, big) >= msg.length:
-                drops[s.name] = f"reaches outside the frame of {msg.length} bytes"
-            else:
-                masks[s.name] = sum(op.mask << (8 * op.index) for op in byte_ops(s.start, s.length, big))
-
-        def conditions(s: Signal) -> dict[str, set[int]]:
-            out: dict[str, set[int]] = {}
-            while s.multiplexer_signal is not None and s.multiplexer_signal in names:
-                if s.multiplexer_signal in out:
-                    break
-                out[s.multiplexer_signal] = set(s.multiplexer_ids or ())
-                s = names[s.multiplexer_signal]
-            return out
-
-        kept: list[Signal] = []
-        for s in sorted((s for s in signals if s.name in masks), key=lambda s: (s.length, s.start, s.name)):
-            cond = conditions(s)
-            clash = next(
-                (
-                    k
-                    for k in kept
-                    if masks[k.name] & masks[s.name]
-                    and not any(m in cond and not (v & cond[m]) for m, v in conditions(k).items())
-                ),
-                None,
-            )
-            if clash is None:
-                kept.append(s)
-            else:
-                drops[s.name] = f"overlaps signal '{clash.name}'"
-        # a signal multiplexed by a left-out multiplexer cannot be placed either
-        changed = True
-        while changed:
-            changed = False
-            for s in signals:
-                if s.name not in drops and s.multiplexer_signal in drops:
-                    drops[s.name] = f"is multiplexed by '{s.multiplexer_signal}', which is left out"
-                    changed = True
-        return drops
-
-    def signal_note(self, s: Signal, dbc_id: int) -> str:
-        """Where the signal is, and what the spec has no place for: its DBC comment and value names (VAL_)."""
-        at = self.lines.signals.get((dbc_id, s.name))
-        note = f"SG_ {s.name}" + (f", line {at[0]}" if at else "")
-        if s.comment and s.comment.strip():
-            note += ": " + " ".join(s.comment.split())
-        return note
-
-    def signal(
-        self, name: str, s: Signal, safe: dict[str, str], message: str = "", at: tuple[int, int] | None = None
-    ) -> dict[str, Any]:
-        out: dict[str, Any] = {"name": name, "bits": s.length}
-        if s.byte_order != "little_endian":
-            out["byte_order"] = "big_endian"
-        if s.is_float:
-            out["float"] = True
-        elif s.is_signed:
-            out["signed"] = True
-        scale, offset = s.conversion.scale, s.conversion.offset
-        if scale != 1:
-            out["scale"] = _number(float(scale))
-        if offset != 0:
-            out["offset"] = _number(float(offset))
-        low, high = s.minimum, s.maximum
-        if low is not None and high is not None and low > high:
-            self.add(
-                "dbc-signal-range",
-                f"signal '{s.name}' of message '{message}': its range [{low}|{high}] has min above max (cantools "
-                "only tolerates this); imported without a range",
-                at,
-                "warning",
-            )
-            low = high = None
-        for key, bound in (("min", low), ("max", high)):
-            if bound is not None and math.isfinite(float(bound)):
-                out[key] = _number(float(bound))
-        if s.unit:
-            out["unit"] = s.unit
-        if s.multiplexer_signal is not None:
-            out["mux"] = {"signal": safe[s.multiplexer_signal], "values": sorted(set(s.multiplexer_ids or ()))}
-        if s.choices:
-            lo, hi = int_range(s.length, s.is_signed)
-            fits = {int(raw): str(text) for raw, text in s.choices.items() if lo <= int(raw) <= hi}
-            if len(fits) < len(s.choices):
-                self.add(
-                    "dbc-signal-enum",
-                    f"signal '{s.name}' of message '{message}': {len(s.choices) - len(fits)} of its value names "
-                    f"(VAL_) are for values that {s.length} bits cannot hold ({lo}..{hi}); left out",
-                    at,
-                    "warning",
-                )
-            if fits:
-                out["enum"] = dict(sorted(fits.items()))
         return out
 
 
@@ -1013,12 +438,6 @@ def _tx_queue(db: Database, node: Any) -> dict[str, Any] | None:
 
 
 Positions = dict[DataPath, tuple[int, int]]
-
-
-def read_dbc(path: Path, diags: Collector) -> str | None:
-    """The DBC's text through the one input guard (netcfg.inputs: a regular file within the DBC size limit, refused
-    before it is read whole), decoded as DBC tools write it. InputError (an OSError) propagates: an I/O problem."""
-    return read_input_bytes(path, "DBC").decode(ENCODING, errors="replace")
 
 
 def import_dbc_located(path: Path, options: ImportOptions, diags: Collector) -> tuple[Imported | None, Positions]:

@@ -1,11 +1,11 @@
 """Network set-up of a CANopen master over SDO (seed 000, section 4.3): identity, PDO communication and mapping
-parameters, start-up values, read-back, NMT start. See netcfg.runtime.canopen_master for the whole picture."""
+parameters, start-up values, read-back, NMT start; what it found is netcfg.runtime.canopen_setup_report's. See
+netcfg.runtime.canopen_master for the whole picture."""
 
 from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 import can
@@ -16,6 +16,7 @@ from netcfg import cia301
 from netcfg.runtime import Bus, Message, Node, RuntimeConfig, SdoWrite, interpolation_period
 from netcfg.runtime.canopen_identity import Identity, identity_from_runtime
 from netcfg.runtime.canopen_network import canopen_bus, canopen_slaves
+from netcfg.runtime.canopen_setup_report import NodeSetup, PdoReadback, SetupReport
 from netcfg.runtime.codec import int_range
 
 __all__ = ["NodeSetup", "PdoReadback", "SetupReport", "configure_network", "configure_node"]
@@ -50,80 +51,6 @@ _ABORT_HINTS = {
     0x08000021: "the device refuses because of local control: release its local control (e.g. a commissioning tool)",
     0x08000022: "the device refuses in its present state: it must be PRE-OPERATIONAL with the PDO disabled",
 }
-
-
-# --- set-up results -------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class PdoReadback:
-    """One PDO as read back from the node over SDO."""
-
-    kind: str  # "rpdo" | "tpdo"
-    number: int
-    message: str | None  # the runtime message it carries; None for a PDO the spec does not use
-    cob_id: int  # the raw 0x14xx/0x18xx sub 1 value, flag bits included
-    transmission: int | None
-    inhibit_100us: int | None
-    event_timer_ms: int | None
-    sync_start: int | None
-    entries: tuple[tuple[int, int, int], ...]  # (index, sub, bits)
-
-    @property
-    def valid(self) -> bool:
-        return not self.cob_id & cia301.PDO_INVALID
-
-    @property
-    def can_id(self) -> int:
-        return cia301.pdo_can_id(self.cob_id)[0]
-
-
-@dataclass(frozen=True)
-class NodeSetup:
-    """The set-up of one node: ok, or an error saying what went wrong and what to do."""
-
-    node: str
-    node_id: int
-    ok: bool
-    error: str | None
-    step: str  # the step reached: identity, pre-operational, <PDO> ..., read-back, start, done
-    abort_code: int | None = None
-    identity: tuple[int, int] | None = None  # (vendor id, product code) read from 0x1018
-    pdos: tuple[PdoReadback, ...] = ()
-    interpolation: tuple[int, int] | None = None  # 0x60C2 (value, index) read back
-    started: bool = False
-    notes: tuple[str, ...] = ()
-    start_up: tuple[tuple[int, int, int], ...] = ()  # the start-up SDO writes read back: (index, sub, value)
-
-    def __str__(self) -> str:
-        if self.ok:
-            started = "started (OPERATIONAL)" if self.started else "configured, not started"
-            return f"{self.node} (node {self.node_id}): ok, {len(self.pdos)} PDOs verified, {started}"
-        return f"{self.node} (node {self.node_id}): FAILED at {self.step}: {self.error}"
-
-
-@dataclass(frozen=True)
-class SetupReport:
-    bus: str
-    nodes: tuple[NodeSetup, ...]
-
-    @property
-    def ok(self) -> bool:
-        return all(n.ok for n in self.nodes)
-
-    @property
-    def failed(self) -> tuple[NodeSetup, ...]:
-        return tuple(n for n in self.nodes if not n.ok)
-
-    def node(self, name: str) -> NodeSetup:
-        for n in self.nodes:
-            if n.node == name:
-                return n
-        raise KeyError(f"no node named {name!r} was set up on bus {self.bus!r}")
-
-    def __str__(self) -> str:
-        head = f"CANopen set-up of bus {self.bus}: {sum(n.ok for n in self.nodes)}/{len(self.nodes)} nodes ok"
-        return "\n".join([head, *(f"  {n}" for n in self.nodes)])
 
 
 # --- set-up ---------------------------------------------------------------------------------------------------------
@@ -516,34 +443,17 @@ def configure_node(
     remote.sdo.MAX_RETRIES = node.sdo_retries + 1  # canopen counts the first request among its "retries"
     network.add_node(remote)
     try:
-        return _configure_node(
-            cfg,
-            bus,
-            node,
-            remote,
-            identity or identity_from_runtime(cfg, node),
-            interpolation,
-            disable_unused,
-            start,
-            network.notifier,
+        job = _NodeConfigurator(
+            cfg, bus, node, remote, identity or identity_from_runtime(cfg, node), interpolation, disable_unused
         )
+        return _configure_node(job, start, network.notifier)
     finally:
         del network[node.node_id]
 
 
-def _configure_node(
-    cfg: RuntimeConfig,
-    bus: Bus,
-    node: Node,
-    remote: canopen.RemoteNode,
-    identity: Identity | None,
-    interpolation: bool,
-    disable_unused: bool,
-    start: bool,
-    notifier: can.Notifier | None = None,
-) -> NodeSetup:
+def _configure_node(job: _NodeConfigurator, start: bool, notifier: can.Notifier | None = None) -> NodeSetup:
+    node, remote = job.node, job.remote
     assert node.node_id is not None
-    job = _NodeConfigurator(cfg, bus, node, remote, identity, interpolation, disable_unused)
     error, code = None, None
     try:
         job.run()

@@ -28,43 +28,29 @@
 `BusLog` wraps the python-can bus the master uses and writes every frame it sends or receives to a python-can
 log file (`.log` candump -L, `.asc`, `.blf`, `.csv`, `.trc`: can.Logger picks by suffix), closed and flushed when it
 closes, which also happens on Ctrl-C or an error.
+
+This module runs the phases; the state they share is netcfg.runtime.operate_state's, a rebooted drive's recovery
+operate_recovery's, the plan and the outcome operate_outcome's and BusLog bus_log's.
 """
 
 from __future__ import annotations
 
-import threading
-import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 import can
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from netcfg.runtime import RuntimeConfig
-from netcfg.runtime.canopen_master import (
-    CycleRecord,
-    MasterCycle,
-    MasterRun,
-    Samples,
-    SetupReport,
-    canopen_bus,
-    canopen_slaves,
-    configure_network,
-)
-from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START, configure_node
-from netcfg.runtime.cia402 import (
-    CONTROLWORD,
-    STATUSWORD,
-    Cia402Error,
-    PdoEnabler,
-    enable_operation,
-    safe_stop,
-)
+from netcfg.runtime.bus_log import BUS_POLL_S, BusLog
+from netcfg.runtime.canopen_master import CycleRecord, MasterCycle, Samples, configure_network
+from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START
+from netcfg.runtime.cia402 import STATUSWORD, Cia402Error, PdoEnabler, enable_operation, safe_stop
 from netcfg.runtime.clock import Clock, SystemClock
 from netcfg.runtime.codec import Number
+from netcfg.runtime.operate_outcome import NodeOutcome, Outcome, Plan
+from netcfg.runtime.operate_recovery import RecoveringOperation
+from netcfg.runtime.operate_state import sdo_io
 from netcfg.runtime.supervision import Event, Supervisor
 
 __all__ = ["BusLog", "NodeOutcome", "Outcome", "Plan", "operate"]
@@ -72,260 +58,8 @@ __all__ = ["BusLog", "NodeOutcome", "Outcome", "Plan", "operate"]
 ABORT_NO_OBJECT = (0x06020000, 0x06090011)
 
 
-CAN_ERR_BUSOFF, CAN_ERR_RESTARTED = 0x40, 0x100  # SocketCAN error frame classes (linux/can/error.h)
-BUS_POLL_S = 0.001  # how often a master whose controller is bus-off looks whether the bus is back
-
-
-class BusLog(can.BusABC):
-    """A python-can bus that writes every frame sent or received through it to a log file (can.Logger).
-
-    It also plays a bus-off of the controller for drills (`bus_off(duration_s)`), which python-can's virtual bus
-    cannot: meanwhile `state` is can.BusState.ERROR, send() raises can.CanOperationError and nothing is received
-    (what came is dropped, as a controller off the bus never sees it). Otherwise `state` is the interface's."""
-
-    def __init__(self, bus: can.BusABC, path: str | Path | None) -> None:
-        self.inner = bus
-        self.path = Path(path) if path is not None else None
-        self._logger: Any = can.Logger(str(path)) if path is not None else None
-        self._lock = threading.Lock()
-        self.channel_info = f"logged {bus.channel_info}"
-        # the channel name the log gives the frames this side sends (received ones carry the interface's)
-        names = (getattr(bus, attr, None) for attr in ("channel_id", "channel"))  # virtual's, socketcan's, ...
-        self.channel_name = next((n for n in names if isinstance(n, (str, int))), None)
-        self._filters = None
-        self._is_shutdown = False
-        self._last = 0.0  # the log's latest timestamp
-        self._off_until: float | None = None  # time.monotonic() the simulated bus-off ends
-
-    def bus_off(self, duration_s: float) -> None:
-        """The controller goes bus-off now and is back on the bus after duration_s (a drill)."""
-        self._off_until = time.monotonic() + duration_s
-
-    def _off(self) -> bool:
-        if self._off_until is not None and time.monotonic() >= self._off_until:
-            self._off_until = None
-        return self._off_until is not None
-
-    @property
-    def state(self) -> can.BusState:
-        if self._off():
-            return can.BusState.ERROR
-        try:
-            return self.inner.state
-        except NotImplementedError:
-            return can.BusState.ACTIVE
-
-    @state.setter
-    def state(self, new_state: can.BusState) -> None:
-        self.inner.state = new_state
-
-    def _log(self, msg: can.Message) -> None:
-        if self._logger is not None:
-            with self._lock:
-                # in time order, as a log must be (netcfg verify reads it): a reply stamped by its sender can come
-                # in before our own frame's stamp is logged; it is logged no earlier than the frame before it
-                if msg.timestamp < self._last:
-                    msg.timestamp = self._last
-                self._last = msg.timestamp
-                self._logger.on_message_received(msg)
-
-    def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        if self._off():
-            raise can.CanOperationError("the CAN controller is bus-off")
-        queued = time.time()
-        self.inner.send(msg, timeout)
-        sent = can.Message(
-            timestamp=queued,
-            arbitration_id=msg.arbitration_id,
-            is_extended_id=msg.is_extended_id,
-            is_remote_frame=msg.is_remote_frame,
-            dlc=msg.dlc,
-            data=msg.data,
-            is_rx=False,
-            channel=msg.channel or self.channel_name,
-        )
-        self._log(sent)
-
-    def recv(self, timeout: float | None = None) -> can.Message | None:
-        if self._off():
-            end = None if timeout is None else time.monotonic() + timeout
-            while self._off():  # frames on the bus meanwhile never reach a controller that is off it
-                left = None if end is None else end - time.monotonic()
-                if left is not None and left <= 0:
-                    return None
-                self.inner.recv(min(left, BUS_POLL_S) if left is not None else BUS_POLL_S)
-            timeout = None if end is None else max(0.0, end - time.monotonic())
-        msg = self.inner.recv(timeout)
-        if msg is not None:
-            self._log(msg)
-        return msg
-
-    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        return self.recv(timeout), True  # pragma: no cover - recv is overridden
-
-    def shutdown(self) -> None:
-        """Flush and close the log, then the bus."""
-        if self._is_shutdown:
-            return
-        self._is_shutdown = True
-        with self._lock:
-            if self._logger is not None:
-                self._logger.stop()
-                self._logger = None
-        self.inner.shutdown()
-
-
-@dataclass
-class Plan:
-    """What to run. `cycles` None: until stop(). `at_cycle` holds actions run after a cycle whose end is at least
-    that many seconds into the cycle phase (fault drills on simulated drives: kill, EMCY)."""
-
-    cycles: int | None
-    bus_name: str | None = None
-    allow_missing: bool = False
-    transition_timeout_s: float = 0.5
-    sdo_timeout_s: float | None = None  # None: each node's sdo_timeout_ns (runtime.json)
-    drills: list[tuple[float, str, Callable[[], None]]] = field(default_factory=list)  # (at s, text, action)
-    stalls: list[tuple[float, float]] = field(default_factory=list)  # (from s, to s): the master's loop pauses
-    on_cycle: Callable[[CycleRecord, Outcome], None] | None = None  # e.g. a live view
-
-
-@dataclass
-class NodeOutcome:
-    name: str
-    node_id: int
-    setup_ok: bool = False
-    setup_error: str | None = None
-    started: bool = False
-    cia402: bool = False
-    cia402_over: str | None = None  # "SDO", or "PDO" when its controlword and statusword are mapped
-    state: str = "NOT STARTED"  # the drive's state as the master last knew it while running
-    enable_path: list[str] = field(default_factory=list)  # CiA 402 states passed through on the way up
-    safe_state: str | None = None  # the state after the safe stop
-    stopped_at_s: float | None = None  # stop_node: when the master stopped it (cycle phase seconds)
-    lost_at_s: float | None = None
-    lost_silent_ms: float | None = None
-    heartbeat_timeout_ms: float | None = None
-    emcy: list[dict[str, Any]] = field(default_factory=list)
-    errors: list[str] = field(default_factory=list)
-    # each boot-up while running: {"at_s", "action", "recovered_at_s", "recovery_ms", "result"}
-    reboots: list[dict[str, Any]] = field(default_factory=list)
-
-
-@dataclass
-class _Recovery:
-    """A drive that rebooted being set up again beside the cycle, on a worker thread; the cycle hands its SDO answers
-    to `network` (see _Operation._on_frame). `done` is the clock time it ended, `error` why it failed."""
-
-    node: str
-    booted: float  # clock time of the boot-up message
-    network: canopen.Network
-    thread: threading.Thread | None = None
-    done: float | None = None
-    error: str | None = None
-    path: list[str] = field(default_factory=list)
-
-
-@dataclass
-class Outcome:
-    bus: str
-    nodes: dict[str, NodeOutcome]
-    setup: SetupReport | None = None
-    run: MasterRun | None = None
-    events: list[tuple[float, Event]] = field(default_factory=list)  # (cycle phase seconds, event)
-    drills: list[tuple[float, str]] = field(default_factory=list)
-    ended_by: str = "cycles"  # cycles | stop_all:<node> | stop() | set-up
-    started: bool = False
-    sync_completion_ns: int | None = None
-    master_jitter_ns: int = 0  # the analysed bound of how late the master's SYNC may come
-    bad_emcy: int = 0
-    # the CAN controller off the bus: {"detected_s", "back_s", "first_sync_s", "off_ms", "recovery_ms"}
-    bus_offs: list[dict[str, Any]] = field(default_factory=list)
-    # SYNC instants the master let pass (its loop stalled): {"from_s", "to_s", "missed", "instants_s"}
-    sync_gaps: list[dict[str, Any]] = field(default_factory=list)
-    t0: float = 0.0  # clock time the cycle phase began: the origin of every *_s time above
-
-    def out_of_service(self, node: str, t: float) -> bool:
-        """The master had stopped the node, or found it lost, by clock time t."""
-        n = self.nodes[node]
-        marks = [m for m in (n.stopped_at_s, n.lost_at_s) if m is not None]
-        return bool(marks) and t - self.t0 >= min(marks)
-
-
-class _Operation:
-    def __init__(self, cfg: RuntimeConfig, bus: can.BusABC, plan: Plan, clock: Clock) -> None:
-        self.cfg, self.bus, self.plan, self.clock = cfg, bus, plan, clock
-        self.co_bus = canopen_bus(cfg, plan.bus_name)
-        assert self.co_bus.canopen is not None
-        self.slaves = canopen_slaves(cfg, self.co_bus)
-        self.out = Outcome(
-            self.co_bus.name,
-            {n.name: NodeOutcome(n.name, n.node_id or 0) for n in self.slaves},
-            sync_completion_ns=self.co_bus.canopen.sync_completion_ns,
-            master_jitter_ns=self.co_bus.canopen.master_jitter_ns,
-        )
-        self.stop_requested: str | None = None
-        self.supervisor: Supervisor | None = None
-        self.pdo_drives = self._pdo_mapped()  # node -> (RxPDO, controlword field, TPDO, statusword field)
-        self.enablers: dict[str, PdoEnabler] = {}
-        self.first: float | None = None
-        self.drills = sorted(plan.drills, key=lambda d: d[0])
-        self.stalls = sorted(plan.stalls)
-        self.last_sync: float | None = None
-        self.error_frame_bus_off = False  # SocketCAN said bus-off in an error frame, and no restart since
-        self.bus_back: tuple[float, float] | None = None  # (detected, back) of a bus-off the cycle resumes after
-        self.master: MasterCycle | None = None
-        self.recovering: dict[str, _Recovery] = {}
-        self.sdo_routes: dict[int, _Recovery] = {}  # SDO response COB-ID -> the recovery awaiting it
-        self.timeout_cycles = 1
-
-    # --- SDO access for the CiA 402 phases (a canopen Network with its own Notifier, outside the cycle) -------
-
-    def _with_sdo(self, job: Callable[[canopen.Network], None]) -> None:
-        network = canopen.Network(self.bus)
-        network.notifier = can.Notifier(self.bus, network.listeners, timeout=0.02)
-        try:
-            job(network)
-        finally:
-            network.notifier.stop(timeout=2.0)
-            network.notifier = None
-
-    def _remote(self, network: canopen.Network, node_id: int) -> canopen.RemoteNode:
-        remote = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
-        node = self.cfg.node(self._name(node_id))
-        timeout = self.plan.sdo_timeout_s
-        remote.sdo.RESPONSE_TIMEOUT = timeout if timeout is not None else node.sdo_timeout_ns / 1e9
-        remote.sdo.MAX_RETRIES = node.sdo_retries + 1
-        network.add_node(remote)
-        return remote
-
-    def _pdo_mapped(self) -> dict[str, tuple[str, str, str, str]]:
-        """Drives whose controlword (0x6040) a periodic RxPDO of the master carries and whose statusword (0x6041) a
-        synchronous TPDO the master collects carries."""
-        control: dict[str, tuple[str, str]] = {}
-        status: dict[str, tuple[str, str]] = {}
-        for m in self.cfg.messages_on(self.co_bus.name):
-            if m.pdo is None:
-                continue
-            for e in m.pdo.entries:
-                if (e.index, e.sub) == (CONTROLWORD, 0) and m.pdo.kind == "rpdo" and m.kind == "periodic":
-                    control.setdefault(m.pdo.node, (m.name, e.name))
-                elif (
-                    (e.index, e.sub) == (STATUSWORD, 0) and m.pdo.kind == "tpdo" and m.pdo.transmission in range(1, 241)
-                ):
-                    status.setdefault(m.pdo.node, (m.name, e.name))
-        return {n: (*control[n], *status[n]) for n in control if n in status}
-
-    def _nmt(self, command: int, node_id: int) -> None:
-        try:
-            self.bus.send(can.Message(arbitration_id=0, is_extended_id=False, data=[command, node_id]))
-        except can.CanError as exc:
-            self.out.nodes[self._name(node_id)].errors.append(f"NMT 0x{command:02X} not sent: {exc}")
-
-    def _name(self, node_id: int) -> str:
-        return next(n.name for n in self.slaves if n.node_id == node_id)
-
-    # --- the phases ---------------------------------------------------------------------------------------------
+class _Operation(RecoveringOperation):
+    """The phases of one run, in order: set_up, start, cycle (with what happens after each cycle), safe_stop."""
 
     def set_up(self) -> bool:
         report = configure_network(
@@ -376,7 +110,7 @@ class _Operation:
                 try:
                     node.enable_path = enable_operation(
                         n.name,
-                        *_sdo_io(remote),
+                        *sdo_io(remote),
                         timeout_s=self.plan.transition_timeout_s,
                     )
                     node.state = node.enable_path[-1]
@@ -427,108 +161,6 @@ class _Operation:
                 node.lost_at_s = w.lost_at - self.first
                 node.lost_silent_ms = 1e3 * w.silent_for_s
                 node.state = "LOST"
-
-    def _on_frame(self, frame: can.Message, t: float) -> None:
-        """Frames the cycle does not take: SDO answers to a drive being set up again go to its recovery, the rest
-        to supervision."""
-        if frame.is_error_frame:  # SocketCAN reports controller states in error frames, not in bus.state
-            if frame.arbitration_id & CAN_ERR_BUSOFF:
-                self.error_frame_bus_off = True
-            if frame.arbitration_id & CAN_ERR_RESTARTED:
-                self.error_frame_bus_off = False
-        route = self.sdo_routes.get(frame.arbitration_id) if not frame.is_extended_id else None
-        if route is not None:
-            route.network.notify(frame.arbitration_id, bytearray(frame.data), t)
-            return
-        assert self.supervisor is not None
-        self.supervisor.feed(frame, t)
-
-    # --- a drive that rebooted (on_reboot) ------------------------------------------------------------------------
-
-    def _recover(self, name: str, booted: float) -> None:
-        """Set the node up again (the set-up's own code path: identity, PDOs, start-up values, read-back, NMT start)
-        and, over SDO, enable its CiA 402 power state machine, on a worker thread while the others cycle."""
-        node_cfg = self.cfg.node(name)
-        assert node_cfg.node_id is not None
-        rec = _Recovery(name, booted, canopen.Network(self.bus))
-        self.sdo_routes[0x580 + node_cfg.node_id] = rec  # CiA 301 default SDO server -> client COB-ID
-        self.recovering[name] = rec
-        outcome = self.out.nodes[name]
-
-        def work() -> None:
-            try:
-                setup = configure_node(
-                    self.cfg, rec.network, node_cfg, bus=self.co_bus, sdo_timeout_s=self.plan.sdo_timeout_s
-                )
-                if not setup.ok:
-                    rec.error = f"set-up again failed at {setup.step}: {setup.error}"
-                elif outcome.cia402_over == "SDO":
-                    remote = self._remote(rec.network, node_cfg.node_id or 0)
-                    try:
-                        rec.path = enable_operation(name, *_sdo_io(remote), timeout_s=self.plan.transition_timeout_s)
-                    finally:
-                        del rec.network[node_cfg.node_id or 0]
-            except (Cia402Error, SdoAbortedError, SdoCommunicationError, can.CanError) as exc:
-                rec.error = f"enabling again failed: {exc}"
-            finally:
-                rec.done = self.clock.now()
-
-        rec.thread = threading.Thread(target=work, name=f"netcfg-recover-{name}", daemon=True)
-        rec.thread.start()
-
-    def _poll_recoveries(self) -> None:
-        """Recoveries that ended: a "recovered" event, or "recovery-failed" with the node's on_loss."""
-        assert self.supervisor is not None and self.master is not None
-        for name, rec in list(self.recovering.items()):
-            if rec.done is None:
-                continue
-            enabler = self.enablers.get(name)
-            if rec.error is None and self.out.nodes[name].cia402_over == "PDO":
-                if enabler is None or enabler.error is not None:  # configured and started: now its PDO walk
-                    self.enablers[name] = PdoEnabler(name, self.timeout_cycles)
-                    self.master.muted.discard(name)
-                    continue
-                if not enabler.enabled:
-                    continue
-                rec.path = list(enabler.path)
-            del self.recovering[name]
-            self.sdo_routes = {k: v for k, v in self.sdo_routes.items() if v is not rec}
-            node = self.out.nodes[name]
-            took_ms = 1e3 * (rec.done - rec.booted)
-            if rec.error is None:
-                self.master.muted.discard(name)
-                self.supervisor.quiet.discard(name)
-                text = (
-                    f"{name} recovered {took_ms:.1f} ms after its boot-up: identity checked, configuration written "
-                    f"and read back, started, {' -> '.join(rec.path) or 'OPERATIONAL'}"
-                )
-                self.supervisor.events.append(Event(rec.done, name, "recovered", "continue", text))
-                node.state = rec.path[-1] if rec.path else "OPERATIONAL"
-            else:
-                action = self.cfg.node(name).on_loss
-                text = f"{name} not recovered ({took_ms:.1f} ms after its boot-up): {rec.error}"
-                self.supervisor.events.append(Event(rec.done, name, "recovery-failed", action, text))
-                node.errors.append(rec.error)
-            node.reboots[-1].update(
-                recovered_at_s=round(rec.done - (self.first or 0.0), 6) if rec.error is None else None,
-                recovery_ms=round(took_ms, 3),
-                result="recovered" if rec.error is None else rec.error,
-            )
-
-    def _finish_recoveries(self) -> None:
-        """The cycle ended with a recovery under way: keep handing it its SDO answers until it ends."""
-        for rec in list(self.recovering.values()):
-            while rec.thread is not None and rec.thread.is_alive():
-                frame = self.bus.recv(timeout=0.01)
-                if frame is not None:
-                    self._on_frame(frame, self.clock.now())
-            if rec.done is not None and rec.error is None and self.out.nodes[rec.node].cia402_over == "PDO":
-                rec.error = "the run ended before its CiA 402 walk over PDOs"
-        if self.supervisor is not None and self.master is not None:
-            self._poll_recoveries()
-            while len(self.out.events) < len(self.supervisor.events):
-                event = self.supervisor.events[len(self.out.events)]
-                self.out.events.append((event.time - (self.first or 0.0), event))
 
     def _bus_is_off(self) -> bool:
         """The controller is off the bus: python-can's bus state says so (interfaces that report one), or a
@@ -718,7 +350,7 @@ class _Operation:
                 try:
                     node.safe_state = safe_stop(
                         n.name,
-                        *_sdo_io(remote),
+                        *sdo_io(remote),
                         n.safe_stop,
                         timeout_s=self.plan.transition_timeout_s,
                     )
@@ -732,17 +364,6 @@ class _Operation:
                 assert n.node_id is not None
                 self._nmt(NMT_PRE_OPERATIONAL, n.node_id)
 
-
-def _sdo_io(remote: canopen.RemoteNode) -> tuple[Callable[[], int], Callable[[int], None]]:
-    """Read the statusword, write the controlword of one drive over SDO."""
-
-    def read() -> int:
-        return int.from_bytes(remote.sdo.upload(STATUSWORD, 0)[:2], "little")
-
-    def write(controlword: int) -> None:
-        remote.sdo.download(CONTROLWORD, 0, controlword.to_bytes(2, "little"))
-
-    return read, write
 
 
 def operate(

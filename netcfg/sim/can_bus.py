@@ -4,31 +4,20 @@ Speed comes from two things. Frames whose release instants do not depend on the 
 periodic and sporadic traffic) arrive as precomputed, sorted release streams that the bus merges itself, in
 chunks, without one event per frame. And the bus runs its arbitration loop for as long as nothing else in the
 simulation can happen before the next decision, handing control back only when a delivered frame has a listener
-or another event is due.
+or another event is due. What it carries and exact stuffing's frame times are netcfg.sim.can_frames'.
 """
 
 from __future__ import annotations
 
 import heapq
-from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from netcfg.runtime.codec import Field, resting_payload
-from netcfg.runtime.columns import fill_in_range
+from netcfg.sim.can_frames import CanSource, ExactFrames, Gate, Listener, Pending, Record, Stream, TxFifo
 from netcfg.sim.engine import EARLY, LATE, NEVER, Simulator
-from netcfg.timing.frames import (
-    FrameStuffing,
-    arbitration_key,
-    bits_to_ns,
-    can_frame_bits_exact_batch,
-    can_frame_bits_of,
-    canfd_frame_bits_exact,
-    canfd_frame_bits_exact_batch,
-    frame_bits,
-)
+from netcfg.timing.frames import FrameStuffing, arbitration_key, bits_to_ns, frame_bits
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
 # intermission (3): ISO 11898-1's active error frame at its longest.
@@ -42,57 +31,6 @@ CHUNK_NS = 200_000_000  # release streams are expanded this much simulated time 
 # fixed cost (its numpy calls) beside its releases': 2 s chunks take 3 % off a fully loaded 1 Mbit/s bus's run.
 LONG_CHUNK_NS = 2_000_000_000
 LONG_CHUNK_RELEASES = 32_768  # at most this many releases per long chunk, at the rate of the last one (memory)
-
-Listener = Callable[[int, int, int, bytes | None], None]  # (end_ns, message index, release_ns, data)
-Gate = Callable[[int, int], int]  # (t, duration) -> earliest start >= t at which the frame may go
-Pending = tuple[int, int, int, int, bytes | None]  # key, release, seq (FIFO order), msg, data
-
-
-@dataclass
-class CanSource:
-    """A message as the bus sees it."""
-
-    index: int
-    name: str
-    can_id: int
-    extended: bool
-    size: int
-    producer: str
-    key: int = 0
-    dur_ns: int = 0  # frame time in the bus's stuffing mode (exact mode: computed per frame)
-    gated: bool = False  # FTT-CAN asynchronous traffic: only inside the asynchronous window
-    fd: bool = False  # CAN FD: arbitration and tail at the bus's bit rate, the data phase (brs) at its data rate
-    brs: bool = False
-    fields: tuple[Field, ...] = ()  # the payload's layout (netcfg.runtime.codec)
-    rest: bytes = b""  # what a frame nobody gives a payload carries: every field at its resting value
-
-
-@dataclass
-class TxFifo:
-    """A node's FIFO transmit queue: only its head competes in arbitration; the rest wait behind it in order."""
-
-    depth: int
-    drop: bool  # a frame queued into a full FIFO is dropped (counted); otherwise its writer blocks until a slot
-    behind: deque[Pending] = field(default_factory=deque)  # queued after the head, in order
-    size: int = 0  # frames queued, the head included
-    max_size: int = 0  # the largest backlog seen
-    overflows: int = 0  # frames that found the queue full (dropped, or their writer blocked)
-
-
-# Free-running sources, expanded a chunk at a time: (t0, t1) -> (release instants, source indices) of every
-# release whose nominal instant falls in [t0, t1); release jitter may put an instant a little after t1.
-Stream = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
-
-
-@dataclass
-class Record:
-    """Every transmitted frame: in bus order event by event; a whole run (netcfg.sim.ftt_whole_run) appends its
-    frames message by message, each message's in order, so readers group by message or sort by end."""
-
-    msg: list[int] = field(default_factory=list)
-    response: list[int] = field(default_factory=list)  # end - release
-    end: list[int] = field(default_factory=list)  # only when a trace is kept
-    data: list[bytes | None] = field(default_factory=list)  # only when a trace is kept
 
 
 class CanBus:
@@ -138,7 +76,7 @@ class CanBus:
         self._rel_t: list[int] = []
         self._rel_src: list[int] = []
         self._rel_data: list[bytes | None] = []  # payloads of free-running frames (exact stuffing only)
-        self._exact: dict[tuple[int, bytes], int] = {}  # (source, payload) -> frame time, exact stuffing
+        self._exact = ExactFrames(sim, self.sources, bitrate, self.data_bitrate)  # exact stuffing's frame times
         self._rel_i = 0
         self._chunk_end = 0
         self._chunk_ns = CHUNK_NS  # how much simulated time the next refill expands
@@ -233,7 +171,7 @@ class CanBus:
         """Queue a frame now (a reactive sender: a task, the CANopen master, the FTT-CAN master)."""
         now = self.sim.now
         if data is None and self.stuffing == "exact" and self.sources[source].size:
-            data = self._payloads(self.sources[source], 1)[0].tobytes()
+            data = self._exact.payloads(self.sources[source], 1)[0].tobytes()
         self._seq += 1
         item = (self._keys[source], now, self._seq, source, data)
         if self._fifo_of[source] < 0:
@@ -344,7 +282,7 @@ class CanBus:
         order = np.argsort(all_t, kind="stable")
         if self.stuffing == "exact":
             data: list[bytes | None] = self._rel_data[left] + [None] * (len(all_t) - len(times[0]))
-            data = self._random_payloads(all_s, data, len(times[0]))
+            data = self._exact.random_payloads(all_s, data, len(times[0]))
             self._rel_data = [data[i] for i in order.tolist()]
         else:  # only exact stuffing gives free-running frames payloads
             self._rel_data = [None] * len(all_t)
@@ -356,48 +294,10 @@ class CanBus:
         long = self._chunk_free and new * (LONG_CHUNK_NS // (t1 - t0)) <= LONG_CHUNK_RELEASES
         self._chunk_ns = LONG_CHUNK_NS if long else CHUNK_NS
 
-    def _random_payloads(self, srcs: np.ndarray, data: list[bytes | None], first_new: int) -> list[bytes | None]:
-        """Exact stuffing needs each frame's bits: free-running frames carry seeded random payloads, whose frame
-        lengths are computed here in one vectorised pass per message and remembered for the loop."""
-        carried = {(s, d) for s, d in zip(srcs[:first_new].tolist(), data[:first_new]) if d is not None}
-        self._exact = {k: v for k, v in self._exact.items() if k in carried}  # forget frames already sent
-        new = srcs[first_new:]
-        for s in np.unique(new).tolist():
-            src = self.sources[s]
-            rows = np.flatnonzero(new == s)
-            payloads = self._payloads(src, len(rows))
-            if src.fd:
-                nominal, fast = canfd_frame_bits_exact_batch(src.can_id, src.extended, src.brs, payloads)
-                durations = [
-                    bits_to_ns(n, self.bitrate) + bits_to_ns(f, self.data_bitrate)
-                    for n, f in zip(nominal.tolist(), fast.tolist())
-                ]
-            else:
-                bits = can_frame_bits_exact_batch(src.can_id, src.extended, payloads)
-                durations = [bits_to_ns(b, self.bitrate) for b in bits.tolist()]
-            for r, payload, dur in zip(rows.tolist(), payloads, durations):
-                blob = payload.tobytes()
-                data[first_new + r] = blob
-                self._exact[(s, blob)] = dur
-        return data
-
-    def _payloads(self, src: CanSource, n: int) -> np.ndarray:
-        """n seeded random payloads of the source, each field inside its [minimum, maximum]."""
-        payloads = self.sim.rng.integers(0, 256, (n, src.size), dtype=np.uint8)
-        fill_in_range(src.fields, payloads, self.sim.rng)
-        return payloads
-
     def _duration(self, src: CanSource, data: bytes | None) -> int:
         if self.stuffing != "exact":
             return src.dur_ns
-        payload = data if data is not None else src.rest
-        known = self._exact.get((src.index, payload))
-        if known is not None:
-            return known
-        if src.fd:
-            fd_bits = canfd_frame_bits_exact(src.can_id, src.extended, bytes(payload), src.brs)
-            return fd_bits.ns(self.bitrate, self.data_bitrate)
-        return bits_to_ns(can_frame_bits_of(src.can_id, src.extended, payload, "exact"), self.bitrate)
+        return self._exact.duration(src, data)
 
     def _step(self, token: int) -> None:
         if token != self._step_at:

@@ -125,7 +125,7 @@ class Fault:
                     src = bus.add_source(f"{node}_babble", int(self.value), False, 8, node)
                     bus.babble = (src, self.at_ns, self.until_ns)
         elif self.kind == "lose":
-            if self.target in sc.eth_owner:  # Ethernet
+            if self.target is not None and self.target in sc.eth_owner:  # Ethernet
                 sc.eth_owner[self.target].lose_at(self.target, self.at_ns)
                 return
             if self.target not in sc.msg_source:

@@ -36,13 +36,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, EMPTY, Stream, measure_flows, streams_measure
-from netcfg.sim.whole_run import clock_activations, exec_times
+from netcfg.sim.whole_run import WholeRunScenario, clock_activations, exec_times
 
 if TYPE_CHECKING:
     from netcfg.runtime import Task
     from netcfg.sim.can_bus import CanBus, Listener
     from netcfg.sim.ftt import FttMaster
-    from netcfg.sim.scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -68,7 +67,7 @@ class Plan:
     listened: frozenset[int]  # asynchronous sources someone listens to (a flow, a task)
 
 
-def plan(sc: Scenario) -> Plan | None:
+def plan(sc: WholeRunScenario) -> Plan | None:
     """What the whole run needs, worked out once; None if the run is not covered."""
     from netcfg.sim.ftt import FttMaster
 
@@ -129,7 +128,7 @@ def plan(sc: Scenario) -> Plan | None:
     )
 
 
-def run(sc: Scenario, p: Plan) -> None:
+def run(sc: WholeRunScenario, p: Plan) -> None:
     """Compute the whole run into the scenario's records, as Scenario.run() would leave them: the TM and
     synchronous frames, then the tasks that do not wait for an asynchronous frame, then the asynchronous frames
     (what those tasks send among them), then the tasks those frames start, then the flows."""

@@ -1,13 +1,16 @@
 """What a protocol driver (the FTT-CAN master, the CANopen master, an Ethernet network) and a fault need from a
 simulation run, and no more: the engine and its random numbers, the configuration and options, node clocks, the
 CAN buses with the source of every message, crashes, and the task and flow hooks. `Scenario` is the one run;
-the drivers are written against this interface, so none of them imports the scenario.
+the drivers are written against this interface, so none of them imports the scenario, and this module imports
+none of them: the scenario builds the drivers and stands above them (RunOptions says which of its options they
+read, ScriptedFault and MessageOwner what they ask of a fault and of an Ethernet network).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -16,23 +19,79 @@ from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NodeClock, Simulator
 from netcfg.sim.flows import FlowTracker
 
-if TYPE_CHECKING:
-    from netcfg.sim.ethernet import EthernetNetwork
-    from netcfg.sim.scenario import SimOptions
+
+@dataclass(frozen=True)
+class MasterTiming:
+    """The SDO-polling master's processing times in ns (the earlier approach seed 000 compares with; the PDO master is
+    the live one, timed by the spec). Per confirmed SDO transfer, from a joint read of three transfers (Table 4:
+    2.9486 ms), and per command write to the joints (Table 3: 32.1848 ms)."""
+
+    sdo_read_ns: int = 2_948_600 // 3
+    sdo_write_ns: int = 32_184_800
+
+
+class ScriptedFault(Protocol):
+    """A fault of the run's options as a driver sees it (netcfg.sim.faults.Fault)."""
+
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def target(self) -> str | None: ...
+
+
+class RunOptions(Protocol):
+    """The options the drivers, faults and whole-run computations read (netcfg.sim.scenario.SimOptions)."""
+
+    @property
+    def duration_ns(self) -> int: ...
+
+    @property
+    def stuffing(self) -> str: ...
+
+    @property
+    def canopen(self) -> str: ...
+
+    @property
+    def faults(self) -> Sequence[ScriptedFault]: ...
+
+    @property
+    def master(self) -> MasterTiming: ...
+
+    @property
+    def drive_delay_ns(self) -> int | None: ...
+
+    @property
+    def eth_queue_frames(self) -> int | None: ...
+
+    @property
+    def eth_processing_ns(self) -> Mapping[str, tuple[int, int]] | None: ...
+
+
+class MessageOwner(Protocol):
+    """An Ethernet network as a fault sees the messages it carries (netcfg.sim.ethernet.EthernetNetwork)."""
+
+    def lose_at(self, name: str, at_ns: int) -> None: ...
 
 
 class SimRun(Protocol):
     cfg: RuntimeConfig
-    opts: SimOptions
     sim: Simulator
     rng: np.random.Generator
     clock: dict[str, NodeClock]  # node -> its clock
     can: dict[str, CanBus]  # bus -> its CAN model
     msg_source: dict[str, tuple[CanBus, int]]  # CAN message -> (its bus, its source there)
-    eth_owner: dict[str, EthernetNetwork]  # Ethernet message -> its network
     protocols: dict[str, object]  # bus -> its protocol driver
     crash_at: dict[str, int]  # node -> when it crashes
     sends: dict[str, list[str]]  # task -> messages it sends as it finishes
+
+    @property
+    def opts(self) -> RunOptions: ...
+
+    @property
+    def eth_owner(self) -> Mapping[str, MessageOwner]:
+        """Ethernet message -> its network."""
+        ...
 
     def alive(self, node: str) -> bool: ...
 

@@ -32,6 +32,7 @@ from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, TASKS, NodeClock, Simulator
 from netcfg.sim.faults import Fault
 from netcfg.sim.flows import FlowTracker
+from netcfg.sim.run import MasterTiming
 from netcfg.sim.streams import PeriodicStreams
 
 if TYPE_CHECKING:
@@ -39,16 +40,6 @@ if TYPE_CHECKING:
 
 # a task's execution-time draws are taken from its generator this many at a time (_uniforms)
 DRAW_BLOCK = 256
-
-
-@dataclass(frozen=True)
-class MasterTiming:
-    """The SDO-polling master's processing times in ns (the earlier approach seed 000 compares with; the PDO master is
-    the live one, timed by the spec). Per confirmed SDO transfer, from a joint read of three transfers (Table 4:
-    2.9486 ms), and per command write to the joints (Table 3: 32.1848 ms)."""
-
-    sdo_read_ns: int = 2_948_600 // 3
-    sdo_write_ns: int = 32_184_800
 
 
 @dataclass(frozen=True)

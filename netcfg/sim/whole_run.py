@@ -22,28 +22,46 @@ event by event; so does a covered run that meets a tie only the order of two eve
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from netcfg.sim.engine import PPB, drift_ns
-from netcfg.sim.flows import AFTER, AFTER_OWN, EMPTY, Stream, Undecided, measure_flows, streams_measure
+from netcfg.runtime import Message, Task
+from netcfg.sim.engine import PPB, NodeClock, drift_ns
+from netcfg.sim.flows import AFTER, AFTER_OWN, EMPTY, FlowTracker, Stream, Undecided, measure_flows, streams_measure
+from netcfg.sim.run import SimRun
 
 if TYPE_CHECKING:
-    from netcfg.runtime import Task
     from netcfg.sim.ethernet import EthernetNetwork
-    from netcfg.sim.scenario import Scenario
 
-__all__ = ["Undecided", "covers", "plan", "run"]
+__all__ = ["Undecided", "WholeRunScenario", "covers", "plan", "run"]
+
+
+class WholeRunScenario(SimRun, Protocol):
+    """What a whole run (here, and netcfg.sim.ftt_whole_run) reads of its scenario besides a driver's view, and the
+    records it fills in (netcfg.sim.scenario.Scenario): the scenario calls it, so it does not import the scenario."""
+
+    flows: list[FlowTracker]
+    task_arrays: dict[str, tuple[np.ndarray, np.ndarray]]  # task -> (starts, ends) of its runs, computed whole
+    eth_owner: dict[str, EthernetNetwork]  # the networks themselves: whole_run reads their links
+
+    @property
+    def synchronised(self) -> bool: ...
+
+    def exec_draws(self, ref: str) -> np.random.Generator: ...
+
+    def free_running_tasks(self) -> list[tuple[Task, NodeClock, int]]: ...
+
+    def capture_lag(self, m: Message) -> int: ...
 
 Job = tuple[str, Any]  # ("task", Task) or ("link", (its network, Link))
 
 
-def covers(sc: Scenario) -> bool:
+def covers(sc: WholeRunScenario) -> bool:
     return plan(sc) is not None
 
 
-def _networks(sc: Scenario) -> list[EthernetNetwork] | None:
+def _networks(sc: WholeRunScenario) -> list[EthernetNetwork] | None:
     from netcfg.sim.ethernet import EthernetNetwork
 
     nets = [d for d in sc.protocols.values() if isinstance(d, EthernetNetwork)]
@@ -52,7 +70,7 @@ def _networks(sc: Scenario) -> list[EthernetNetwork] | None:
     return nets
 
 
-def plan(sc: Scenario) -> list[Job] | None:
+def plan(sc: WholeRunScenario) -> list[Job] | None:
     """The tasks and links in an order where each comes after everything that feeds it; None if the run is not
     covered."""
     if sc.opts.faults:
@@ -112,7 +130,7 @@ def plan(sc: Scenario) -> list[Job] | None:
     return order if len(order) == len(jobs) else None  # a cycle: feedback
 
 
-def run(sc: Scenario, order: list[Job]) -> None:
+def run(sc: WholeRunScenario, order: list[Job]) -> None:
     """Compute the whole run into the scenario's records, as Scenario.run() would leave them: a window of
     simulated time at a time (WINDOW_NS), every task and link in dependency order within it (`order`: plan(sc))."""
     nets = _networks(sc)
@@ -194,7 +212,7 @@ def clock_activations(phase: int, drift_ppb: int, offset: int, period: int, unti
     return t[t < until]
 
 
-def exec_times(sc: Scenario, task: Task, n: int) -> np.ndarray:
+def exec_times(sc: WholeRunScenario, task: Task, n: int) -> np.ndarray:
     """n execution times, as Scenario.run_task draws them one activation at a time."""
     lo, hi = task.bcet_ns, task.wcet_ns
     if hi <= lo:

@@ -32,71 +32,38 @@ as well: the analysed response counts from the nominal release and holds the rel
 sends, that task's spread), and the CANopen master's SYNC jitter is added for the SYNC. Being outside is a warning,
 not a violation, unless `strict`: a log does not show when a frame was queued, so a long interval is either a late
 frame or release jitter the spec does not declare.
+
+This module routes the frames to their messages and buses and checks what spans messages (load, error frames,
+unknown identifiers); each message's own checks and figures are netcfg.verify.message_checks'.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from netcfg.cia301 import sync_every
-from netcfg.runtime import Bus, Message, RuntimeConfig, columns
+from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.timing.can_errors import first_breach
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_MAX_PAYLOAD, frame_bits
-from netcfg.timing.load import FrameTiming, exact_rate, frame_timing, rate_hz
+from netcfg.timing.load import exact_rate, frame_timing, rate_hz
 from netcfg.verify.canopen import ServiceLog
 from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, REMOTE, Batch, ChannelTable, batch_from_messages
+from netcfg.verify.message_checks import HIST_BINS, MAX_VIOLATIONS, MessageState, id_text
 
 if TYPE_CHECKING:
     import can
 
 __all__ = ["MAX_VIOLATIONS", "Checker", "VerifyError"]
 
-MAX_VIOLATIONS = 1000  # kept in detail; more are counted
-HIST_BINS = 60
 DEFAULT_WINDOW_US = 100_000
 
 class VerifyError(ValueError):
     """The configuration and the log cannot be matched (e.g. which bus a channel is); a usage problem."""
 
-
-@dataclass
-class _MessageState:
-    msg: Message
-    bus: int
-    timing: FrameTiming  # the frame as check times it (netcfg.timing.load.frame_timing)
-    period_us: float | None  # periodic: the period; sporadic: None
-    min_gap_us: float | None  # sporadic: the least admissible interval
-    slack_us: float  # analysed jitter + worst-case response - best transmission time
-    wcrt_us: float | None
-    response_ref: str | None  # "sync": response measured from the last SYNC of the bus
-    ref_delay_us: float = 0.0  # a synchronous TPDO is queued its drive's tx_delay after the SYNC: its bound's start
-    count: int = 0
-    last_t: int | None = None
-    first_t: int | None = None
-    iv_min: int | None = None
-    iv_max: int | None = None
-    iv_sum: int = 0
-    iv_n: int = 0
-    dev_max: int = 0  # largest |interval - period| outside gaps
-    missing: int = 0
-    resp_min: int | None = None
-    resp_max: int | None = None
-    resp_sum: int = 0
-    resp_n: int = 0
-    violations: int = 0
-    warnings: int = 0
-    period_hist: NDArray[np.int64] = field(default_factory=lambda: np.zeros(HIST_BINS + 2, np.int64))
-    resp_hist: NDArray[np.int64] = field(default_factory=lambda: np.zeros(HIST_BINS + 2, np.int64))
-    period_edges: NDArray[np.float64] | None = None
-    resp_edges: NDArray[np.float64] | None = None
-    range_out: dict[str, list[Any]] = field(default_factory=dict)  # signal -> [count, first_t, worst value]
-    bad_size: list[int] = field(default_factory=list)  # [count, first_t, length]
-    jitter_out: list[Any] | None = None  # intervals outside period +- slack: [count, first_t, worst, its t, its iv]
 
 
 class Checker:
@@ -137,7 +104,7 @@ class Checker:
             else:
                 self.forced_bus = index
         self._channel_bus: list[int] = []
-        self.states: list[_MessageState] = []
+        self.states: list[MessageState] = []
         keys: list[int] = []
         trigger_messages = [_trigger_message(b) for b in self.buses if b.ftt is not None]
         for m in [*cfg.messages, *trigger_messages]:
@@ -186,7 +153,7 @@ class Checker:
 
     # --- setup --------------------------------------------------------------------------------------------------
 
-    def _state(self, m: Message, bus: int) -> _MessageState:
+    def _state(self, m: Message, bus: int) -> MessageState:
         timing = frame_timing(m, self.buses[bus].bitrate, self.buses[bus].data_bitrate)
         best_tx_us = timing.nominal_ns / 1000
         wcrt_us = None if m.wcrt_ns is None else m.wcrt_ns / 1000
@@ -213,16 +180,16 @@ class Checker:
                 slack += (co.master_jitter_ns + sync.wcrt_ns) / 1000
         elif ftt is not None and m.window == "sync":
             ref = "tm"  # a synchronous FTT-CAN message goes in the EC its trigger message opens (netcfg.timing.ftt)
-        st = _MessageState(m, bus, timing, period, min_gap, slack, wcrt_us, ref)
+        st = MessageState(m, bus, timing, period, min_gap, slack, wcrt_us, ref)
         if ref == "sync":
             st.ref_delay_us = self.cfg.node(m.producer).tx_delay_ns / 1000
         if period is not None:
-            st.period_edges = np.linspace(0.0, 2.0 * period, HIST_BINS + 1)
+            st.intervals.edges = np.linspace(0.0, 2.0 * period, HIST_BINS + 1)
         elif min_gap is not None:
-            st.period_edges = np.linspace(0.0, 4.0 * min_gap, HIST_BINS + 1)
+            st.intervals.edges = np.linspace(0.0, 4.0 * min_gap, HIST_BINS + 1)
         if st.response_ref is not None and wcrt_us is not None:
             top = 2.0 * wcrt_us  # the analysed worst case in the middle; later responses fall in the overflow bin
-            st.resp_edges = np.linspace(0.0, top, HIST_BINS + 1)
+            st.responses.edges = np.linspace(0.0, top, HIST_BINS + 1)
         return st
 
     def _unanalysed_jitter_ns(self, m: Message, bus: int) -> int:
@@ -369,7 +336,7 @@ class Checker:
 
     def _message(
         self,
-        st: _MessageState,
+        st: MessageState,
         t: NDArray[np.int64],
         length: NDArray[np.int16],
         data: NDArray[np.uint8],
@@ -377,126 +344,15 @@ class Checker:
         ref_times: dict[int, NDArray[np.int64]],
     ) -> None:
         m = st.msg
-        if st.first_t is None:
-            st.first_t = int(t[0])
-        st.count += len(t)
-        # payload length; a CAN FD message's frames carry its padded length (odd: FD or remote, as expected for it)
-        wrong = (length != m.frame_size) if m.fd else (length != m.size) | odd
-        if wrong.any():
-            if not st.bad_size:
-                st.bad_size = [0, int(t[wrong][0]), int(length[wrong][0])]
-            st.bad_size[0] += int(wrong.sum())
-        # intervals, the previous batch's last frame included
-        prev = np.concatenate([[st.last_t], t]) if st.last_t is not None else t
-        st.last_t = int(t[-1])
-        iv = np.diff(prev)
-        if len(iv):
-            st.iv_min = int(iv.min()) if st.iv_min is None else min(st.iv_min, int(iv.min()))
-            st.iv_max = int(iv.max()) if st.iv_max is None else max(st.iv_max, int(iv.max()))
-            st.iv_sum += int(iv.sum())
-            st.iv_n += len(iv)
-            if st.period_edges is not None:
-                st.period_hist += _hist(iv, st.period_edges)
-            ends = prev[1:]
-            if st.period_us is not None:
-                self._periodic(st, iv, ends)
-            elif st.min_gap_us is not None:
-                early = iv < st.min_gap_us - st.slack_us
-                for k in np.flatnonzero(early)[:MAX_VIOLATIONS]:
-                    self._violation(
-                        "early",
-                        st,
-                        int(ends[k]),
-                        f"{iv[k] / 1000:.3f} ms after the previous frame; the analysis assumes at least "
-                        f"{st.min_gap_us / 1000:.3f} ms (less {st.slack_us:.0f} us jitter), "
-                        f"{(st.min_gap_us - st.slack_us - iv[k]):.0f} us sooner",
-                    )
-        # response from the SYNC (TM) before each frame
+        refs = None  # the frames its responses are measured from: SYNC (TM), the last before this batch first
         if st.response_ref is not None and st.bus in self._ref_state:
             syncs = ref_times.get(st.bus, np.empty(0, np.int64))
             last = self._last_ref.get(st.bus)
             refs = np.concatenate([[last], syncs]) if last is not None else syncs
-            if len(refs):
-                at = np.searchsorted(refs, t, side="left") - 1
-                ok = at >= 0
-                resp = t[ok] - refs[at[ok]] + self._ref_offset[st.bus]
-                if len(resp):
-                    st.resp_min = int(resp.min()) if st.resp_min is None else min(st.resp_min, int(resp.min()))
-                    st.resp_max = int(resp.max()) if st.resp_max is None else max(st.resp_max, int(resp.max()))
-                    st.resp_sum += int(resp.sum())
-                    st.resp_n += len(resp)
-                    if st.resp_edges is not None:
-                        st.resp_hist += _hist(resp, st.resp_edges)
-                    if st.wcrt_us is not None:
-                        when = t[ok]
-                        bound = st.wcrt_us + st.ref_delay_us
-                        for k in np.flatnonzero(resp > bound)[:MAX_VIOLATIONS]:
-                            after = f" (its drive's tx_delay {st.ref_delay_us:.0f} + {st.wcrt_us:.0f})"
-                            self._violation(
-                                "late",
-                                st,
-                                int(when[k]),
-                                f"{resp[k]:.0f} us after {st.response_ref.upper()}; the analysed worst case is "
-                                f"{bound:.0f} us{after if st.ref_delay_us else ''}, {resp[k] - bound:.0f} us late",
-                            )
-        if m.signals and not wrong.all():
-            self._ranges(st, t[~wrong], data[~wrong])
+        st.take(t, length, data, odd, refs, self._ref_offset[st.bus], self._violation)
         if m.implicit == "heartbeat" and st.bus in self.services and not m.extended:
             for k in np.flatnonzero(length > 0):  # the NMT state each heartbeat carries
                 self.services[st.bus].note(m.id, int(t[k]), data[k])
-
-    def _periodic(self, st: _MessageState, iv: NDArray[np.int64], ends: NDArray[np.int64]) -> None:
-        period = st.period_us
-        assert period is not None
-        periods = _periods_spanned(iv, period, st.slack_us)
-        gaps = periods >= 2
-        for k in np.flatnonzero(gaps)[:MAX_VIOLATIONS]:
-            missing = int(periods[k] - 1)
-            st.missing += missing
-            self._violation(
-                "gap",
-                st,
-                int(ends[k]),
-                f"{missing} period{'s' if missing > 1 else ''} missing: {iv[k] / 1000:.3f} ms since the previous "
-                f"frame, period {period / 1000:g} ms",
-            )
-        if gaps.sum() > MAX_VIOLATIONS:
-            st.missing += int((periods[gaps] - 1)[MAX_VIOLATIONS:].sum())
-        dev = np.abs(iv[~gaps] - period)
-        if len(dev):
-            st.dev_max = max(st.dev_max, int(np.ceil(dev.max())))
-        if st.response_ref == "sync":  # a synchronous TPDO follows the SYNC: its response is the check
-            return
-        beyond = np.where(gaps, 0, np.abs(iv - period) - st.slack_us)
-        outside = beyond > 0
-        if outside.any():
-            k = int(np.argmax(beyond))
-            if st.jitter_out is None:
-                st.jitter_out = [0, int(ends[outside][0]), 0.0, 0, 0]
-            st.jitter_out[0] += int(outside.sum())
-            if beyond[k] > st.jitter_out[2]:
-                st.jitter_out[2:] = [float(beyond[k]), int(ends[k]), int(iv[k])]
-
-    def _ranges(self, st: _MessageState, t: NDArray[np.int64], data: NDArray[np.uint8]) -> None:
-        """Signals decoded as the codec decodes them (byte order, sign, float, multiplexing: netcfg.runtime.columns),
-        each in the frames that carry it; a signal beyond the bytes a batch keeps (PAYLOAD_COLUMNS) is not seen."""
-        signals = [s for s in st.msg.signals if columns.fits(s, data.shape[1])]
-        carried = columns.present_rows(signals, data)
-        for sig in signals:
-            if sig.minimum is None and sig.maximum is None:
-                continue
-            value = columns.physical(sig, columns.take(sig, data))
-            low = carried[sig.name] & (value < sig.minimum if sig.minimum is not None else False)
-            high = carried[sig.name] & (value > sig.maximum if sig.maximum is not None else False)
-            out = low | high
-            if out.any():
-                rec = st.range_out.setdefault(sig.name, [0, int(t[out][0]), None])
-                rec[0] += int(out.sum())
-                lo = float(value[low].min()) if low.any() else None
-                hi = float(value[high].max()) if high.any() else None
-                for v in (lo, hi):
-                    if v is not None and (rec[2] is None or _excess(sig, v) > _excess(sig, rec[2])):
-                        rec[2] = v
 
     def _unknown(self, t: Any, bus: Any, can_id: Any, ext: Any, data: NDArray[np.uint8]) -> None:
         """Frames of no configured message: CANopen services of the bus's nodes are noted (SDO and the like
@@ -538,79 +394,30 @@ class Checker:
             )
         self._violation("error_frames", None, breach.first_ns // 1000, detail)
 
-    def _violation(self, kind: str, st: _MessageState | None, t: int, detail: str) -> None:
+    def _violation(self, kind: str, st: MessageState | None, t: int, detail: str) -> None:
         self.violation_count[kind] = self.violation_count.get(kind, 0) + 1
         if st is not None:
             st.violations += 1
-        if len(self.violations) < MAX_VIOLATIONS:
-            self.violations.append(
-                {"kind": kind, "message": None if st is None else st.msg.name, "time_us": t, "detail": detail}
-            )
+        _keep(self.violations, kind, st, t, detail)
 
-    def _warning(self, kind: str, st: _MessageState | None, t: int, detail: str) -> None:
+    def _warning(self, kind: str, st: MessageState | None, t: int, detail: str) -> None:
         self.warning_count += 1
         if st is not None:
             st.warnings += 1
-        if len(self.warnings) < MAX_VIOLATIONS:
-            self.warnings.append(
-                {"kind": kind, "message": None if st is None else st.msg.name, "time_us": t, "detail": detail}
-            )
+        _keep(self.warnings, kind, st, t, detail)
 
     # --- the result ---------------------------------------------------------------------------------------------
 
     def finish(self) -> dict[str, Any]:
         """End of the log: trailing gaps, messages never seen, aggregated findings; -> the report document."""
         end = self.last_t
+        span = 0 if end is None or self.first_t is None else end - self.first_t
+        jitter = self._violation if self.strict else self._warning
         for st in self.states:
-            m = st.msg
-            if st.count == 0:
-                # a periodic message is due within its period and slack of the log's start; a sporadic one may
-                # rightly never come (its rate is a bound, not a promise)
-                span = 0 if end is None or self.first_t is None else end - self.first_t
-                if m.kind == "periodic" and st.period_us is not None and span > st.period_us + st.slack_us:
-                    self._violation("never_seen", st, end or 0, f"no frame with id {_id_text(m.id, m.extended)}")
-                continue
-            if st.period_us is not None and end is not None and st.last_t is not None:
-                trailing = int(_periods_spanned(np.array([end - st.last_t]), st.period_us, st.slack_us)[0]) - 1
-                if trailing >= 1:
-                    st.missing += trailing
-                    self._violation(
-                        "gap",
-                        st,
-                        end,
-                        f"{trailing} period{'s' if trailing > 1 else ''} missing at the end of the log: last frame "
-                        f"{(end - st.last_t) / 1000:.3f} ms before it, period {st.period_us / 1000:g} ms",
-                    )
-            if st.period_us is not None and st.first_t is not None and st.last_t is not None:
-                self._rate(st)
-            if st.jitter_out is not None:
-                count, first, worst, worst_t, worst_iv = st.jitter_out
-                assert st.period_us is not None
-                detail = (
-                    f"{count} of {st.iv_n} intervals outside the analysed {st.period_us / 1000:g} ms +- "
-                    f"{st.slack_us:.0f} us (jitter + worst-case response - transmission time), from "
-                    f"{self._since(first) / 1e6:.6f} s; the worst {worst_iv / 1000:.3f} ms at "
-                    f"{self._since(worst_t) / 1e6:.6f} s, "
-                    f"{worst:.0f} us beyond"
-                )
-                (self._violation if self.strict else self._warning)("jitter", st, first, detail)
-            if st.bad_size:
-                count, first, length = st.bad_size
-                self._violation(
-                    "size",
-                    st,
-                    first,
-                    f"{count} frame(s) with {length} bytes (or CAN FD / remote); the message has {m.size}",
-                )
-            for name, (count, first, worst) in st.range_out.items():
-                sig = next(s for s in m.signals if s.name == name)
-                self._violation(
-                    "range",
-                    st,
-                    first,
-                    f"signal {name} outside [{_g(sig.minimum)}, {_g(sig.maximum)}] in {count} frame(s), "
-                    f"worst {worst:g}{' ' + sig.unit if sig.unit else ''}",
-                )
+            ppm = self.clock_tolerance_ppm
+            if ppm is None:
+                ppm = self.buses[st.bus].clock_tolerance_ppm
+            st.close(end, span, ppm, self._since, self._violation, jitter)
         for b, bus_ in enumerate(self.buses):
             self._error_check(bus_, sorted(self.error_ns[b] + self.unplaced_error_ns))
         for (b, i, x), (count, first) in sorted(self.unknown.items(), key=lambda kv: (kv[1][1], kv[0])):
@@ -618,7 +425,7 @@ class Checker:
                 "unknown_id",
                 None,
                 first,
-                f"id {_id_text(i, x)} on bus {self.buses[b].name} is not in the configuration ({count} frame(s))",
+                f"id {id_text(i, x)} on bus {self.buses[b].name} is not in the configuration ({count} frame(s))",
             )
         buses = [self._bus_report(b) for b in range(len(self.buses))]
         # times count from the log's first frame: formats differ in their origin (ASC starts at its first frame)
@@ -627,7 +434,7 @@ class Checker:
         for services in self.services.values():
             services.shift_times(self.origin_t or 0)
         self.violations.sort(key=lambda v: (v["time_us"], v["kind"], v["message"] or ""))
-        messages = [self._message_report(st) for st in self.states]
+        messages = [st.report() for st in self.states]
         return {
             "system": self.cfg.system,
             "frames": self.frames + self.unjudged,
@@ -650,61 +457,8 @@ class Checker:
             "ok": not self.violation_count,
         }
 
-    def _rate(self, st: _MessageState) -> None:
-        """Fewer frames than the period needs over the message's span, beyond the gaps already counted: a sender
-        whose period is longer than configured. The sender's clock may run slow by the clock tolerance."""
-        assert st.period_us is not None and st.first_t is not None and st.last_t is not None
-        span = st.last_t - st.first_t
-        ppm = self.clock_tolerance_ppm
-        if ppm is None:
-            ppm = self.buses[st.bus].clock_tolerance_ppm
-        needed = int(np.floor((span * (1 - ppm / 1e6) - st.slack_us) / st.period_us)) + 1
-        short = needed - st.count - st.missing
-        if short > 0:
-            self._violation(
-                "rate",
-                st,
-                st.last_t,
-                f"{st.count} frames over {span / 1e6:.6f} s; a {st.period_us / 1000:g} ms period needs at least "
-                f"{needed} ({short} more than the gaps explain; mean period {span / max(st.count - 1, 1) / 1000:.3f} "
-                f"ms, clock tolerance {ppm:g} ppm)",
-            )
-
     def _since(self, t: int) -> int:
         return t - (self.origin_t or 0)
-
-    def _message_report(self, st: _MessageState) -> dict[str, Any]:
-        m = st.msg
-        period = None
-        if st.iv_n:
-            assert st.iv_min is not None and st.iv_max is not None
-            period = {"min": st.iv_min, "mean": round(st.iv_sum / st.iv_n, 3), "max": st.iv_max}
-        response = None
-        if st.resp_n:
-            assert st.resp_min is not None and st.resp_max is not None
-            response = {"min": st.resp_min, "mean": round(st.resp_sum / st.resp_n, 3), "max": st.resp_max}
-        return {
-            "name": m.name,
-            "bus": m.bus,
-            "id": m.id,
-            "extended": m.extended,
-            "kind": m.kind,
-            "count": st.count,
-            "period_us": period,
-            "nominal_period_us": None if st.period_us is None else round(st.period_us, 3),
-            "jitter_us": st.dev_max if period is not None and st.period_us is not None else None,
-            "analysed_jitter_us": round(st.slack_us, 3) if st.period_us is not None and not st.response_ref else None,
-            "response_us": response,
-            "response_from": st.response_ref,
-            "wcrt_us": st.wcrt_us,
-            "missing": st.missing,
-            "within_analysis": None if st.count == 0 and m.kind == "on-demand" else st.violations == 0,
-            "warnings": st.warnings,
-            "histograms": {
-                "period": _hist_doc(st.period_hist, st.period_edges),
-                "response": _hist_doc(st.resp_hist, st.resp_edges),
-            },
-        }
 
     def _bus_report(self, b: int) -> dict[str, Any]:
         bus = self.buses[b]
@@ -766,15 +520,17 @@ class Checker:
         sync = None
         if b in self._ref_state:
             st = self.states[self._ref_state[b]]
-            sync = {"count": st.count, "period_us": self._message_report(st)["period_us"], "jitter_us": st.dev_max}
+            sync = {"count": st.count, "period_us": st.report()["period_us"], "jitter_us": st.dev_max}
         co = self.buses[b].canopen
         assert co is not None
         window = co.sync_window_ns
         in_window = [
             {
                 "name": st.msg.name,
-                "response_max_us": st.resp_max,
-                "inside_window": None if window is None or st.resp_max is None else st.resp_max * 1000 <= window,
+                "response_max_us": st.responses.largest,
+                "inside_window": (
+                    None if window is None or st.responses.largest is None else st.responses.largest * 1000 <= window
+                ),
             }
             for st in self.states
             if st.bus == b and st.response_ref == "sync"
@@ -785,16 +541,6 @@ class Checker:
             "synchronous_pdos": in_window,
             **self.services[b].report(),
         }
-
-
-def _periods_spanned(iv: NDArray[np.int64], period: float, slack: float) -> NDArray[np.int64]:
-    """How many periods each interval spans, for counting missing frames: the nearest whole number (a log cannot
-    tell a frame later than half a period from a missing one), but no more than the fewest the analysis allows
-    (frames k periods apart are k * period +- slack apart), so a late frame within the analysed jitter is never
-    counted as a missing one."""
-    nearest = np.floor(iv / period + 0.5)
-    fewest = np.ceil((iv - slack) / period)
-    return np.maximum(np.minimum(nearest, fewest), 1).astype(np.int64)
 
 
 def _trigger_message(bus: Bus) -> Message:
@@ -827,6 +573,12 @@ def _trigger_message(bus: Bus) -> Message:
     )
 
 
+def _keep(found: list[dict[str, Any]], kind: str, st: MessageState | None, t: int, detail: str) -> None:
+    """A finding kept in detail, up to MAX_VIOLATIONS of each list (all of them are counted)."""
+    if len(found) < MAX_VIOLATIONS:
+        found.append({"kind": kind, "message": None if st is None else st.msg.name, "time_us": t, "detail": detail})
+
+
 def _key(bus: int, can_id: int, extended: bool) -> int:
     return (bus << 31) | (int(extended) << 30) | can_id
 
@@ -835,27 +587,3 @@ def _key_array(bus: NDArray[np.int64], can_id: NDArray[np.int64], ext: NDArray[n
     return (bus.astype(np.int64) << 31) | (ext.astype(np.int64) << 30) | can_id
 
 
-def _hist(values: NDArray[Any], edges: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Counts per bin, with an underflow and an overflow bin at the ends."""
-    idx = np.searchsorted(edges, values, side="right")
-    return np.bincount(idx, minlength=len(edges) + 1).astype(np.int64)
-
-
-def _hist_doc(counts: NDArray[np.int64], edges: NDArray[np.float64] | None) -> dict[str, Any] | None:
-    if edges is None or not counts.any():
-        return None
-    return {"edges_us": [round(float(e), 3) for e in edges], "counts": [int(c) for c in counts]}
-
-
-def _excess(sig: Any, v: float) -> float:
-    low = sig.minimum - v if sig.minimum is not None else 0.0
-    high = v - sig.maximum if sig.maximum is not None else 0.0
-    return max(low, high)
-
-
-def _g(x: float | None) -> str:
-    return "-" if x is None else f"{x:g}"
-
-
-def _id_text(can_id: int, extended: bool) -> str:
-    return f"0x{can_id:08X}" if extended else f"0x{can_id:03X}"
