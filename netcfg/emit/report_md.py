@@ -152,7 +152,7 @@ def _supervision(model: Model, node: Node) -> str:
 
 
 def _tx_queue(model: Model, node: Node) -> str:
-    if all(model.buses[b].protocol == "ethernet-udp" for b in node.buses):
+    if not any(model.buses[b].is_can for b in node.buses):
         return "-"
     q = node.tx_queue
     return f"FIFO, depth {q.depth}, {q.on_full} when full" if q.fifo else "priority"

@@ -152,7 +152,7 @@ class Resolver:
             path: Path = ("buses", i)
             for proto, rules in self.protocols.items():
                 key = rules.section
-                if key is not None and getattr(b, key) is not None and b.protocol != proto:
+                if key is not None and getattr(b, key) is not None and self.protocols[b.protocol] is not rules:
                     self.err(
                         "wrong-section",
                         f"bus '{b.name}' is {b.protocol}; '{key}:' belongs to {proto} buses",

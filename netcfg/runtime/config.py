@@ -18,7 +18,9 @@ from netcfg.runtime.codec import CodecError, Field, Number
 if TYPE_CHECKING:
     import can
 
-CAN_PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can")
+# The runtime's one table of the protocols runtime.json names (it imports without the compiler's layers)
+CAN_PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can")  # their frames arbitrate on a CAN link
+UDP_PROTOCOLS = ("ethernet-udp",)  # datagrams through switched Ethernet
 FD_PADDING = 0x00  # pads a CAN FD payload to its frame length, as netcfg.timing.frames.CANFD_PADDING (tested)
 
 
@@ -400,6 +402,10 @@ class Bus:
     @property
     def is_can(self) -> bool:
         return self.protocol in CAN_PROTOCOLS
+
+    @property
+    def is_udp(self) -> bool:
+        return self.protocol in UDP_PROTOCOLS
 
 
 @dataclass(frozen=True)

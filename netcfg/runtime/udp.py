@@ -123,7 +123,7 @@ class UdpEndpoint:
         self.cfg = cfg
         self.node: Node = cfg.node(node)
         self.bus = bus if bus is not None else self._only_udp_bus()
-        if cfg.bus(self.bus).protocol != UDP:
+        if not cfg.bus(self.bus).is_udp:
             raise ValueError(f"bus '{self.bus}' is {cfg.bus(self.bus).protocol}, not {UDP}")
         self.host_map = dict(host_map or {})
         self.port_offset = port_offset
@@ -154,7 +154,7 @@ class UdpEndpoint:
             raise
 
     def _only_udp_bus(self) -> str:
-        buses = [b for b in self.node.buses if self.cfg.bus(b).protocol == UDP]
+        buses = [b for b in self.node.buses if self.cfg.bus(b).is_udp]
         if len(buses) != 1:
             raise ValueError(f"node '{self.node.name}' is on {len(buses)} {UDP} buses {buses}; say which with bus=")
         return buses[0]

@@ -93,13 +93,13 @@ class Fault:
         buses = [b for b in sc.can.values() if self.target in (None, b.name)] if errors else []
         if errors and not buses:
             # Ethernet: only lose and crash (bit errors are modelled on CAN buses only)
-            if any(b.name == self.target and b.protocol == "ethernet-udp" for b in sc.cfg.buses):
+            if any(b.name == self.target and b.is_udp for b in sc.cfg.buses):
                 raise FaultError(
                     f"fault '{self.kind}': bus '{self.target}' is Ethernet; bit errors are simulated on CAN buses only"
                 )
             if self.target is None:
                 raise FaultError(f"fault '{self.kind}': no CAN bus to apply it to (bit errors are CAN only)")
-            can = [b.name for b in sc.cfg.buses if b.protocol != "ethernet-udp"]
+            can = [b.name for b in sc.cfg.buses if b.is_can]
             raise FaultError(f"fault '{self.kind}': no CAN bus named '{self.target}'{_hint(self.target, can)}")
         if self.kind == "ber":
             for bus in buses:

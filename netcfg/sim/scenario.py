@@ -136,7 +136,7 @@ class Scenario:
         for bus in cfg.buses:
             if bus.is_can:
                 self._build_can(bus)
-            elif bus.protocol == "ethernet-udp":
+            elif bus.is_udp:
                 from netcfg.sim.ethernet import EthernetNetwork
 
                 # chained messages are sent by their flow task (submit), not free-running: known before the build
@@ -315,7 +315,7 @@ class Scenario:
         can = CanBus(self.sim, bus.name, bus.bitrate, self.opts.stuffing, self.opts.trace, bus.data_bitrate)
         self.can[bus.name] = can
         sync = self.synchronised
-        ftt = bus.ftt if bus.protocol == "ftt-can" and sync else None
+        ftt = bus.ftt if sync else None  # the FTT-CAN master's schedule, on an FTT-CAN bus
         for m in self.cfg.messages_on(bus.name):
             gated = ftt is not None and m.window != "sync"
             src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs, m.fields)
@@ -328,7 +328,7 @@ class Scenario:
             from netcfg.sim.ftt import FttMaster
 
             driver = FttMaster(self, bus, can)
-        elif bus.protocol == "canopen" and sync:
+        elif bus.canopen is not None and sync:
             from netcfg.sim.canopen import CanopenMaster
 
             driver = CanopenMaster(self, bus, can)
