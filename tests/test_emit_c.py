@@ -25,10 +25,12 @@ from test_seeds import TABLE_2
 
 from netcfg.build import build
 from netcfg.check import analyse_spec
-from netcfg.emit import c_header, field_of, srt
+from netcfg.emit import c_header
 from netcfg.model import Model
+from netcfg.protocols.ftt import srt
 from netcfg.runtime import raw_signal_name
 from netcfg.runtime.codec import CodecError, Field, Number, decode, encode
+from netcfg.templating import field_of
 
 GCC = shutil.which("gcc")
 GXX = shutil.which("g++")
