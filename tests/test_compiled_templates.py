@@ -8,7 +8,7 @@ from pathlib import Path
 import jinja2
 import pytest
 
-from netcfg import emit
+from netcfg import emit, templating
 from netcfg.check import analyse_spec
 
 SPECS = Path(__file__).resolve().parent.parent / "specs"
@@ -21,16 +21,16 @@ def _no_compiling(*args: object, **kwargs: object) -> None:
 def test_a_build_renders_the_same_from_compiled_templates(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Every artifact of allex2 and cambada (C headers, DCFs, SRT, report, bus.yml) from templates compiled
     beforehand, with jinja's compiler switched off, is byte for byte what the sources give."""
-    written = emit.precompile_templates(tmp_path)
-    names = emit.make_environment(None).list_templates(extensions=["j2"])
+    written = templating.precompile_templates(tmp_path)
+    names = templating.make_environment(None).list_templates(extensions=["j2"])
     assert {p.name.split(".jinja2-")[0] for p in written} == set(names)
     built = {}
     for spec in ("allex2", "cambada"):
         model, report = analyse_spec(SPECS / f"{spec}.yaml")
         assert model is not None
         built[spec] = emit.emit_all(model, report)
-    emit.environment.cache_clear()
-    monkeypatch.setattr(emit, "compiled_templates_folder", lambda: tmp_path)
+    templating.environment.cache_clear()
+    monkeypatch.setattr(templating, "compiled_templates_folder", lambda: tmp_path)
     monkeypatch.setattr(jinja2.Environment, "compile", _no_compiling)
     try:
         for spec, files in built.items():
@@ -38,14 +38,14 @@ def test_a_build_renders_the_same_from_compiled_templates(tmp_path: Path, monkey
             assert model is not None
             assert emit.emit_all(model, report) == files, spec
     finally:
-        emit.environment.cache_clear()
+        templating.environment.cache_clear()
 
 
 def test_a_changed_template_is_compiled_from_its_source(tmp_path: Path) -> None:
     """The compiled file carries its source's checksum: a template edited since is compiled from the edit."""
     compiled = tmp_path / "compiled"
     old = jinja2.Environment(loader=jinja2.DictLoader({"t.j2": "old {{ x }}"}))
-    cache = emit.CompiledTemplates(compiled)
+    cache = templating.CompiledTemplates(compiled)
     compiled.mkdir()
     bucket = jinja2.bccache.Bucket(old, "t.j2", cache.get_source_checksum("old {{ x }}"))
     bucket.code = old.compile("old {{ x }}", "t.j2", None)
@@ -60,7 +60,7 @@ def test_a_changed_template_is_compiled_from_its_source(tmp_path: Path) -> None:
 def test_loading_templates_writes_nothing(tmp_path: Path) -> None:
     """Without compiled files a build compiles in memory and leaves the folder as it was (netcfg writes only
     into the output folder it owns)."""
-    cache = emit.CompiledTemplates(tmp_path)
+    cache = templating.CompiledTemplates(tmp_path)
     env = jinja2.Environment(loader=jinja2.DictLoader({"t.j2": "{{ x }}"}), bytecode_cache=cache)
     assert env.get_template("t.j2").render(x=2) == "2"
     assert list(tmp_path.iterdir()) == []
@@ -68,7 +68,7 @@ def test_loading_templates_writes_nothing(tmp_path: Path) -> None:
 
 def test_a_damaged_compiled_file_is_compiled_from_its_source(tmp_path: Path) -> None:
     """A file cut short after jinja's header (its checksum cannot be read) is passed over, not a crash."""
-    cache = emit.CompiledTemplates(tmp_path)
+    cache = templating.CompiledTemplates(tmp_path)
     cache.path("t.j2").write_bytes(jinja2.bccache.bc_magic + b"\x80")
     env = jinja2.Environment(loader=jinja2.DictLoader({"t.j2": "{{ x }}"}), bytecode_cache=cache)
     assert env.get_template("t.j2").render(x=3) == "3"
