@@ -26,8 +26,9 @@ from conftest import SPECS
 from test_emit_c import C_FLAGS, dump_spec, write
 
 from netcfg.check import analyse_spec
-from netcfg.emit import c_header, canopen_dcf, dbc
+from netcfg.emit import c_header, dbc
 from netcfg.model import Model
+from netcfg.protocols.canopen import dcf as canopen_dcf
 
 GCC = shutil.which("gcc")
 needs_gcc = pytest.mark.skipif(GCC is None, reason="gcc is not installed")

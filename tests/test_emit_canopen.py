@@ -27,8 +27,8 @@ from conftest import EPOS4_EDS, SPECS, load_spec
 from netcfg.check import analyse_spec
 from netcfg.devices import ObjectEntry, builtin_profile
 from netcfg.emit import c_header
-from netcfg.emit.canopen_dcf import emit, ini_text
 from netcfg.model import Model
+from netcfg.protocols.canopen.dcf import emit, ini_text
 
 logging.getLogger("canopen").setLevel(logging.ERROR)
 

@@ -28,8 +28,8 @@ Emitter = Callable[[Model, dict[str, Any]], Files]
 
 # name -> "module:function"; imported only when a build runs
 EMITTERS: dict[str, str] = {
-    "canopen": "netcfg.emit.canopen_dcf:emit",  # canopen/<node>.eds, canopen/<node>.dcf
-    "concise_dcf": "netcfg.emit.concise_dcf:emit",  # canopen/<node>.bin (Lely's concise DCF, per slave)
+    "canopen": "netcfg.protocols.canopen.dcf:emit",  # canopen/<node>.eds, canopen/<node>.dcf
+    "concise_dcf": "netcfg.protocols.canopen.concise_dcf:emit",  # canopen/<node>.bin (Lely's concise DCF, per slave)
     "c_headers": "netcfg.emit.c_header:emit",  # c/<node>.h
     "srt": "netcfg.protocols.ftt.srt:emit",  # ftt/<bus>_srt.{c,h,csv,md}
     "runtime": "netcfg.emit.runtime_json:emit",  # runtime.json

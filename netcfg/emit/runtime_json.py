@@ -7,7 +7,7 @@ nodes, messages per bus with the implicit SYNC/heartbeats where the resolver put
 byte-identical across builds. The FTT-CAN schedule comes from netcfg.timing.ftt, never recomputed here.
 
 CANopen facts a live master needs come from where the other artifacts take them, so they cannot disagree: the
-file names from netcfg.emit.canopen_dcf, the PDO COB-ID values from netcfg.cia301 (as the DCFs), the identity and
+file names from netcfg.protocols.canopen.dcf, the PDO COB-ID values from netcfg.cia301 (as the DCFs), the identity and
 PDO counts from the node's device profile (built-in or EDS). Keys added later within version 1 only ever add
 information (see netcfg.runtime).
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from netcfg import cia301, jsontext, links, model
-from netcfg.emit import canopen_dcf
+from netcfg.protocols.canopen import dcf as canopen_dcf
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
 from netcfg.timing import flows, ftt

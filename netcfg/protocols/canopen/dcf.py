@@ -7,7 +7,7 @@ canopen/<node>.dcf describing a CANopen master whose RPDOs mirror the slave TPDO
 the slave RPDOs it produces. A node on several CANopen buses gets one folder per bus: canopen/<bus>/<node>.*.
 
 The files are rendered from one jinja2 template (templates/canopen_dcf.j2; `dcf` switches the DCF-only parts on)
-up to the object lists and sections, which are plain `keyword=value` lines written by netcfg.emit.dcf_sections
+up to the object lists and sections, which are plain `keyword=value` lines written by dcf_sections
 (object_lists_text, section_text): a device's objects that no node configures are written once per profile and
 the text is shared by every node with it (126 drives with one vendor EDS write each such section once). The files
 are made rather than with canopen.objectdictionary.export_eds: that exporter stamps the current date and time into
@@ -26,7 +26,7 @@ Choices a reader may wonder about:
   object is an ARRAY when all its sub-entries share one data type (CiA 301 7.4.3), else a RECORD.
 
 This module configures each node's dictionary (a slave's from its device profile, the master's from the PDOs it
-mirrors); the dictionary and the CiA 301 objects are netcfg.emit.dcf_objects'.
+mirrors); the dictionary and the CiA 301 objects are netcfg.protocols.canopen.dcf_objects'.
 """
 
 from __future__ import annotations
@@ -37,7 +37,8 @@ from typing import Any
 
 from netcfg import cia301
 from netcfg.devices import WRITABLE, DeviceProfile
-from netcfg.emit.dcf_objects import (
+from netcfg.model import Bus, Message, Model, Node
+from netcfg.protocols.canopen.dcf_objects import (
     ARRAY,
     COMM_SUBS,
     NAMES,
@@ -59,7 +60,7 @@ from netcfg.emit.dcf_objects import (
     pdo_comment,
     sub_var,
 )
-from netcfg.emit.dcf_sections import (
+from netcfg.protocols.canopen.dcf_sections import (
     MANUFACTURER,
     FileView,
     Known,
@@ -69,7 +70,6 @@ from netcfg.emit.dcf_sections import (
     object_lists_text,
     shared_text,
 )
-from netcfg.model import Bus, Message, Model, Node
 from netcfg.templating import render
 
 __all__ = ["KINDS", "SYNC_PRODUCER", "PdoKind", "emit", "file_names", "ini_text"]

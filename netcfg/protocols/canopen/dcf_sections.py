@@ -1,4 +1,4 @@
-"""From a configured object dictionary (netcfg.emit.dcf_objects) to the view templates/canopen_dcf.j2 renders: the
+"""From a configured object dictionary (dcf_objects) to the view templates/canopen_dcf.j2 renders: the
 file's header values (FileView), the object lists and every object's sections as `keyword=value` text (CiA 306
 4.6), written once per distinct contents and shared between files; names, number formats and INI-safe text.
 """
@@ -13,8 +13,8 @@ from functools import lru_cache
 
 from netcfg import cia301
 from netcfg.devices import DATA_TYPES
-from netcfg.emit.dcf_objects import ARRAY, NAMES, RECORD, U8, Dictionary, Obj, Var
 from netcfg.model import Bus, Node
+from netcfg.protocols.canopen.dcf_objects import ARRAY, NAMES, RECORD, U8, Dictionary, Obj, Var
 
 MANDATORY = (0x1000, 0x1001, 0x1018)  # CiA 306 4.6.2: the mandatory objects of every device
 MANUFACTURER = range(0x2000, 0x6000)  # CiA 301 table 43: manufacturer-specific profile area

@@ -15,8 +15,8 @@ from typing import Any
 
 from netcfg import cia301
 from netcfg.devices import DeviceProfile
-from netcfg.emit.canopen_dcf import KINDS, SYNC_PRODUCER, PdoKind, file_names
 from netcfg.model import Bus, Message, Model, Node
+from netcfg.protocols.canopen.dcf import KINDS, SYNC_PRODUCER, PdoKind, file_names
 
 Write = tuple[int, int, int, int]  # index, sub-index, size in bytes, value
 

@@ -61,7 +61,7 @@ class Var:
 class Obj:
     subs: dict[int, Var] = field(default_factory=dict)
     name: str | None = None
-    object_type: int | None = None  # None: decided from the entries (netcfg.emit.canopen_dcf's docstring)
+    object_type: int | None = None  # None: decided from the entries (netcfg.protocols.canopen.dcf's docstring)
 
 
 Dictionary = dict[int, Obj]
