@@ -15,6 +15,7 @@ from netcfg.timing.frames import canfd_padded_size
 
 if TYPE_CHECKING:
     from netcfg.timing.ftt import Schedule
+from netcfg.runtime.config import FlowStep, TxQueue  # the same records in runtime.json: defined once, there
 from netcfg.spec.source import Path, SourceMap
 
 Protocol = Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp"]
@@ -41,19 +42,6 @@ class Task:
         return f"{self.node}.{self.name}"
 
 
-@dataclass(frozen=True)
-class TxQueue:
-    """A node's CAN transmit queue (spec: tx_queue)."""
-
-    policy: Literal["priority", "fifo"] = "priority"
-    depth: int = 10  # frames a FIFO holds (SocketCAN's default txqueuelen)
-    on_full: Literal["block", "drop"] = "block"
-
-    @property
-    def fifo(self) -> bool:
-        return self.policy == "fifo"
-
-
 @dataclass
 class Node:
     name: str
@@ -76,7 +64,7 @@ class Node:
     sdo_timeout_ns: int = 500_000_000  # the master's wait for each SDO answer
     sdo_retries: int = 0  # SDO requests repeated after a timeout
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
-    tx_queue: TxQueue = TxQueue()
+    tx_queue: TxQueue = field(default_factory=TxQueue)
     nic_queue: int = QUEUE_FRAMES  # Ethernet: frames its NIC's transmit queue holds
 
 
@@ -242,12 +230,6 @@ class Bus:
     def is_can(self) -> bool:
         """Its frames arbitrate as CAN's do (ISO 11898-1): classical CAN, CAN FD, CANopen and FTT-CAN."""
         return self.arbitrates
-
-
-@dataclass(frozen=True)
-class FlowStep:
-    kind: Literal["task", "message"]
-    refs: tuple[str, ...]  # node.task or message names; several = in parallel, all needed
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 from netcfg.runtime import codec
 from netcfg.runtime.codec import CodecError, Field, Number
@@ -215,11 +215,11 @@ class Task:
 @dataclass(frozen=True)
 class TxQueue:
     """How a node hands frames to its CAN controller: in priority order, or FIFO with a depth and what a send into
-    a full queue does (block the writer, or drop the frame)."""
+    a full queue does (block the writer, or drop the frame). The spec's model (netcfg.model) uses it too."""
 
-    policy: str = "priority"  # priority | fifo
-    depth: int = 10
-    on_full: str = "block"  # block | drop
+    policy: Literal["priority", "fifo"] = "priority"
+    depth: int = 10  # frames a FIFO holds (SocketCAN's default txqueuelen)
+    on_full: Literal["block", "drop"] = "block"
 
     @property
     def fifo(self) -> bool:
@@ -421,8 +421,8 @@ class Trigger:
 
 @dataclass(frozen=True)
 class FlowStep:
-    kind: str  # "task" | "message"
-    refs: tuple[str, ...]  # several: in parallel, all needed
+    kind: Literal["task", "message"]
+    refs: tuple[str, ...]  # node.task or message names; several: in parallel, all needed
 
 
 @dataclass(frozen=True)
