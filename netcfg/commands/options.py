@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -80,6 +81,13 @@ def duration_ns(text: str) -> int:
     if not ns:
         raise argparse.ArgumentTypeError(f"{text!r} is not a positive duration; write e.g. 100ms")
     return ns
+
+
+def not_json(path: Path, exc: json.JSONDecodeError) -> int:
+    """A runtime.json that does not parse: where, and how to get a good one (exit 1)."""
+    print(f"{path}:{exc.lineno}:{exc.colno}: error: not valid JSON ({exc.msg}); rebuild it with 'netcfg build'",
+          file=sys.stderr)
+    return 1
 
 
 def internal_error(doing: str, path: Path, exc: Exception, nothing_written: bool = False) -> int:

@@ -32,7 +32,7 @@ from typing import Any, TextIO
 
 from netcfg import jsontext
 from netcfg.commands.base import Subcommands
-from netcfg.commands.options import internal_error, io_problem
+from netcfg.commands.options import internal_error, io_problem, not_json
 
 NAME = "run"
 BATCH = False
@@ -240,12 +240,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
     except json.JSONDecodeError as exc:
-        print(
-            f"{args.source}:{exc.lineno}:{exc.colno}: error: not valid JSON ({exc.msg}); rebuild it with "
-            "'netcfg build'",
-            file=sys.stderr,
-        )
-        return 1
+        return not_json(args.source, exc)
 
 
 def _run_master(

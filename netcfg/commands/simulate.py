@@ -23,6 +23,7 @@ from netcfg.commands.options import (
     int_option,
     internal_error,
     io_problem,
+    not_json,
     number_option,
 )
 
@@ -115,12 +116,7 @@ def simulate_command(args: argparse.Namespace) -> int:
     try:
         doc = load_document(args.source, getattr(args, "force", False))
     except json.JSONDecodeError as exc:
-        print(
-            f"{args.source}:{exc.lineno}:{exc.colno}: error: not valid JSON ({exc.msg}); rebuild it with "
-            "'netcfg build'",
-            file=sys.stderr,
-        )
-        return 1
+        return not_json(args.source, exc)
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
