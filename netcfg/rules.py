@@ -25,6 +25,7 @@ class BusRules:
     extended_ids = True  # whether 'extended' means anything on this bus
     rate_adaptation = False  # 'period_range' (FTT-CAN on-line rate adaptation)
     auto_offsets = False  # 'offset: auto' (derived from flows)
+    device_nodes = False  # its nodes are devices of the protocol: node ids 1..127, device profiles, heartbeats
 
     def __init__(self, r: Resolver) -> None:
         self.r = r

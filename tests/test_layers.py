@@ -20,9 +20,10 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "netcfg"
 MAX_LINES = 600  # the structure issue's limit
 
-# Where a protocol's name may be compared: its own layer, and the one table the deployable runtime keeps (it reads
-# runtime.json's names and must import without the compiler, so it cannot ask the layers).
-NAMES_ALLOWED = ("netcfg/links/", "netcfg/protocols/", "netcfg/runtime/config.py")
+# Where a protocol's name may be compared: its own layer, and the deployable runtime's one table and runtime.json's
+# format check (the runtime reads runtime.json's names and imports without the compiler, so it cannot ask the layers).
+NAMES_ALLOWED = ("netcfg/links/", "netcfg/protocols/", "netcfg/runtime/config.py", "netcfg/runtime/schema.py")
+PROTOCOL_NAMES = ("can", "can-fd", "canopen", "ftt-can", "ethernet-udp")  # schema.Bus.protocol
 
 
 def _sources() -> list[Path]:
@@ -44,17 +45,30 @@ def test_no_import_cycle() -> None:
     assert cycles == []
 
 
+def _is_name(node: ast.expr) -> bool:
+    return isinstance(node, ast.Constant) and node.value in PROTOCOL_NAMES
+
+
 def _compares_a_protocol_name(node: ast.Compare) -> bool:
+    """`bus.protocol == x`, `x == "canopen"`, `p in ("can", "canopen")`, `"canopen" in protocols`."""
     operands = [node.left, *node.comparators]
+    if all(isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops):
+        return False
     named = any(
         (isinstance(p, ast.Attribute) and p.attr == "protocol") or (isinstance(p, ast.Name) and p.id == "protocol")
         for p in operands
     )
-    return named and not all(isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops)
+    literal = any(_is_name(p) for p in operands) and any(isinstance(op, (ast.Eq, ast.NotEq)) for op in node.ops)
+    listed = any(isinstance(p, (ast.Tuple, ast.List, ast.Set)) and any(_is_name(e) for e in p.elts) for p in operands)
+    member = _is_name(node.left) and any(isinstance(p, ast.Name) and "protocol" in p.id for p in node.comparators)
+    return named or literal or listed or member
 
 
 def test_no_command_decides_by_a_protocol_name() -> None:
     """`bus.protocol == "canopen"` outside the layers is a question the bus's link or protocol should answer."""
+    from netcfg.spec import schema
+
+    assert set(PROTOCOL_NAMES) == set(schema.Bus.model_fields["protocol"].annotation.__args__)
     found = []
     for path in _sources():
         rel = path.relative_to(ROOT).as_posix()

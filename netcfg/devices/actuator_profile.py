@@ -19,12 +19,14 @@ from typing import Any
 
 from netcfg.devices.actuator_ids import IdRuleError, parse_id_rule
 from netcfg.diagnostics import Collector, Position, SpecError
+from netcfg.links import LINKS
 from netcfg.runtime.actuators import SI_UNITS
 from netcfg.runtime.codec import byte_ops
 from netcfg.spec.source import SourceMap, load_yaml
 from netcfg.spec.suggest import did_you_mean
 
 FORMAT = 1
+CAN_LINKS = tuple(name for name, link in LINKS.items() if link.arbitrates)  # an actuator profile's `link:`
 CAN_FD_SIZES = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 _NAME = re.compile(r"^[a-z_][a-z0-9_]*$")
 
@@ -182,7 +184,7 @@ class _Checker:
                              "profile was written from", ("source",))
                 else:
                     self.text(source[k], ("source", k), f"source {k}")
-        link = self.choice(top.get("link", "can"), ("can", "can-fd"), ("link",), "link")
+        link = self.choice(top.get("link", "can"), CAN_LINKS, ("link",), "link")
         params = self.parameters(top.get("parameters") or {})
         messages = self.mapping(top.get("messages", {}), ("messages",), "messages") or {}
         out_messages = []
@@ -235,8 +237,8 @@ class _Checker:
             return None
         self.keys(body, MESSAGE_KEYS, path, f"message {name}")
         sender = self.choice(body.get("from"), ("host", "device"), (*path, "from"), f"{name}: from")
-        fd = body.get("fd", link == "can-fd")
-        if fd is True and link != "can-fd":
+        fd = body.get("fd", LINKS[link].data_phase)
+        if fd is True and not LINKS[link].data_phase:
             self.err("profile-fd", f"{name} is a CAN FD frame on a profile whose link is 'can'; say 'link: can-fd'",
                      (*path, "fd"))
         sizes = CAN_FD_SIZES if fd else tuple(range(9))

@@ -199,7 +199,7 @@ def _bus_view(model: Model, b: dict[str, Any]) -> dict[str, Any]:
         "utilization_nominal": pct(b["utilization_nominal"]) if "utilization_nominal" in b else None,
         "utilization_with_tm": pct(b["utilization_with_tm"]) if "utilization_with_tm" in b else None,
         "errors": _sentence(errors_text(b["errors"])) if "errors" in b else None,
-        "ethernet": b["protocol"] == "ethernet-udp",
+        "ethernet": "links" in b,  # an Ethernet bus's row carries its links' loads
         "messages": _messages_table(model, b, ftt is not None),
         "ftt": _ftt_view(model, b) if ftt else None,
         "sync": _sync_view(model, bus, b) if "sync" in b else None,

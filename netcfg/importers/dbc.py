@@ -80,6 +80,7 @@ from netcfg.importers import Path as DataPath
 from netcfg.importers.dbc_signals import layout_drops, signal_entry, signal_note
 from netcfg.importers.dbc_text import CAN_MAX_PAYLOAD, MAX_FRAME_BYTES, DbcFile, dbc_frame_id, is_fd, read_dbc
 from netcfg.importers.dbc_timing import bitrate, bitrate_text, data_bitrate, message_timing, ms_exact
+from netcfg.protocols import PROTOCOLS
 from netcfg.spec.names import safe_name
 from netcfg.spec.source import SourceMap
 
@@ -481,7 +482,8 @@ def merge_bus_imports(data: dict[str, Any], smap: SourceMap, base: Path, diags: 
         if not isinstance(source, str) or not source.lower().endswith(".dbc"):
             diags.add("import", "'import' names a DBC file, e.g. import: vehicle.dbc", smap.at(at))
             continue
-        if bus.get("protocol") not in ("can", "canopen", "ftt-can") or not isinstance(name, str):
+        layer = PROTOCOLS.get(bus.get("protocol"))  # type: ignore[arg-type]
+        if layer is None or not layer.link.arbitrates or layer.link.data_phase or not isinstance(name, str):
             diags.add("import", "a DBC describes a CAN bus: import it on a bus with protocol can", smap.at(at))
             continue
         path = base / source

@@ -31,8 +31,7 @@ def resolve_nodes(r: Resolver) -> None:
                 )
         if len(set(n.buses)) != len(n.buses):
             r.err("duplicate-name", f"node '{n.name}' lists the same bus twice", (*path, "buses"))
-        protocols = {r.spec_buses[b].protocol for b in n.buses if b in r.spec_buses}
-        on_canopen = "canopen" in protocols
+        on_canopen = any(r.protocol(r.spec_buses[b].protocol).device_nodes for b in n.buses if b in r.spec_buses)
         if n.node_id is not None:
             if on_canopen and n.node_id not in cia301.NODE_IDS:
                 r.err("node-id", f"CANopen node ids are 1..127; '{n.name}' has {n.node_id}", (*path, "node_id"))

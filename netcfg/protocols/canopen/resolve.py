@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 class CanopenRules(CanRules):
     name = "canopen"
     section = "canopen"
+    device_nodes = True
 
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
         super().resolve_bus(b, bus, path)
