@@ -90,9 +90,14 @@ def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
     for bus in buses:
         view = _bus_view(model, bus, buses)
         if view is not None:
-            name = "canopen/bus.yml" if len(buses) == 1 else f"canopen/{bus.name}.bus.yml"
-            files[name] = render(TEMPLATE, b=view)
+            files[bus_yml_name(model, bus.name)] = render(TEMPLATE, b=view)
     return files
+
+
+def bus_yml_name(model: Model, bus: str) -> str:
+    """The bus's file: canopen/bus.yml, or canopen/<bus>.bus.yml when the system has several CANopen buses."""
+    several = sum(1 for b in model.buses.values() if b.canopen is not None) > 1
+    return f"canopen/{bus}.bus.yml" if several else "canopen/bus.yml"
 
 
 def _note(**items: object) -> str:
