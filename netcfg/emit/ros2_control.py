@@ -39,6 +39,7 @@ from typing import Any
 
 from netcfg import model
 from netcfg.emit.bus_yml import bus_yml_name
+from netcfg.emit.joint_scaling import joint_bus
 from netcfg.templating import render
 
 XACRO_TEMPLATE = "ros2_control.xacro.j2"
@@ -113,12 +114,6 @@ def _canopen(m: model.Model, bus: model.Bus, several: bool) -> Hardware:
 # bus protocol -> its hardware plugin's block; EtherCAT and actuator buses add theirs here
 HARDWARE: dict[str, Callable[[model.Model, model.Bus, bool], Hardware]] = {"canopen": _canopen}
 
-
-def joint_bus(m: model.Model, j: model.Joint) -> model.Bus | None:
-    """The bus a joint's drive is driven over: the one its command or state messages travel."""
-    for carrier in (*j.command.values(), *j.state.values()):
-        return m.buses[m.messages[carrier.message].bus]
-    return None
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:

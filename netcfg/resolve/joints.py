@@ -33,7 +33,8 @@ def resolve_joints(r: Resolver) -> None:
     for i, j in enumerate(r.spec.joints):
         path: Path = ("joints", i)
         if j.name in seen:
-            r.err("duplicate-name", f"joint '{j.name}' appears twice (first as joints[{seen[j.name]}])", (*path, "name"))
+            first = seen[j.name]
+            r.err("duplicate-name", f"joint '{j.name}' appears twice (first as joints[{first}])", (*path, "name"))
             continue
         seen[j.name] = i
         if j.node not in r.model.nodes:
