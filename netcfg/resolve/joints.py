@@ -140,8 +140,7 @@ def _signal(r: Resolver, j: schema.Joint, ref: str, side: str, path: Path) -> mo
     carried = ", ".join(s.name for s in m.signals) or "none"
     r.err(
         "joint-signal",
-        f"joint '{j.name}': node '{j.node}' does not map '{signal}' into message '{name}' (it carries: {carried})"
-        f"{did_you_mean(signal, [s.name for s in m.signals])}",
+        f"joint '{j.name}': node '{j.node}' does not map '{signal}' into message '{name}' (it carries: {carried})",
         path,
     )
     return None
