@@ -26,7 +26,7 @@ Names as the consumers publish them:
   `forward_command_controller/ForwardCommandController` with `joints` and `interface_name`; the controller
   manager's `update_rate` in Hz (an integer).
 
-Other protocols are an entry in HARDWARE: a function from the bus (and its joints) to its `<hardware>` block. A
+Other protocols are an entry in HARDWARE: which buses it drives and a function from the bus to its `<hardware>` block. A
 bus without one (EtherCAT, an actuator bus) gets no block; its joints are named in a comment of the xacro file, so
 nothing is silently dropped.
 """
@@ -111,9 +111,16 @@ def _canopen(m: model.Model, bus: model.Bus, several: bool) -> Hardware:
     return Hardware("canopen_ros2_control/RobotSystem", params, args, joint_params)
 
 
-# bus protocol -> its hardware plugin's block; EtherCAT and actuator buses add theirs here
-HARDWARE: dict[str, Callable[[model.Model, model.Bus, bool], Hardware]] = {"canopen": _canopen}
+MakeHardware = Callable[[model.Model, model.Bus, bool], Hardware]
 
+# (which buses it drives, by their protocol's section of the bus; its block): EtherCAT and actuator buses add theirs
+HARDWARE: tuple[tuple[Callable[[model.Bus], bool], MakeHardware], ...] = (
+    (lambda bus: bus.canopen is not None, _canopen),
+)
+
+
+def hardware(bus: model.Bus) -> MakeHardware | None:
+    return next((make for drives, make in HARDWARE if drives(bus)), None)
 
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
@@ -124,14 +131,14 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
         bus = joint_bus(m, j)
         if bus is not None:
             by_bus.setdefault(bus.name, []).append(j)
-    driven = [b for b in by_bus if m.buses[b].protocol in HARDWARE]
+    driven = [b for b in by_bus if hardware(m.buses[b]) is not None]
     several = len(driven) > 1
     blocks: list[BlockView] = []
     args: list[MacroArg] = []
     left_out: list[str] = []
     for bus_name, joints in by_bus.items():
         bus = m.buses[bus_name]
-        make = HARDWARE.get(bus.protocol)
+        make = hardware(bus)
         if make is None:
             left_out.append(
                 f"joints {', '.join(j.name for j in joints)} on bus {bus_name}: no ros2_control hardware plugin "

@@ -38,6 +38,8 @@ def resolve_joints(r: Resolver) -> None:
             continue
         seen[j.name] = i
         if j.node not in r.model.nodes:
+            if j.node in r.spec_nodes:  # a node the spec has but could not resolve: its own error says why
+                continue
             hint = did_you_mean(j.node, r.model.nodes)
             r.err("unknown-node", f"joint '{j.name}': there is no node '{j.node}'{hint}", (*path, "node"))
             continue
@@ -77,6 +79,10 @@ def _joint(r: Resolver, j: schema.Joint, path: Path) -> model.Joint | None:
             sides[side_name][interface] = model.JointSignal(
                 ref.partition(".")[0], found.name, factor, offset, lo * factor + offset, hi * factor + offset
             )
+    buses = {r.model.messages[c.message].bus for side in sides.values() for c in side.values()}
+    if len(buses) > 1:  # one hardware block drives a joint: its signals travel one bus
+        r.err("joint-bus", f"joint '{j.name}': its signals travel several buses ({', '.join(sorted(buses))})", path)
+        ok = False
     limits = _limits(r, j, sides, path)
     if not ok or limits is None:
         return None
@@ -124,6 +130,8 @@ def _factor(r: Resolver, j: schema.Joint, interface: str, path: Path) -> float |
 def _signal(r: Resolver, j: schema.Joint, ref: str, side: str, path: Path) -> model.Signal | None:
     name, _, signal = ref.partition(".")
     m = r.model.messages.get(name)
+    if m is None and any(spec_m.name == name for spec_m in r.spec.messages):
+        return None  # a message the spec has but could not resolve: its own error says why
     if m is None:
         hint = did_you_mean(name, r.model.messages)
         r.err("joint-signal", f"joint '{j.name}': there is no message '{name}'{hint}", path)
