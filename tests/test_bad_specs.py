@@ -86,6 +86,8 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "joint_signal_not_mapped.yaml": (35, "joint-signal", "does not map 'velocity_actual_value' into message 'state'"),
     "joint_limits_outside_signal.yaml": (37, "joint-limits", "which carries -32.768..32.767 N m"),
     "joint_two_on_one_axis.yaml": (33, "joint-axis", "axis 1 of node 'drive' already moves joint 'hip'"),
+    "joint_position_without_encoder_counts.yaml": (29, "joint-scale", "give encoder_counts"),
+    "joint_name_twice.yaml": (32, "duplicate-name", "joint 'hip' appears twice"),
     "pdo_not_mappable.yaml": (34, "not-mappable", "not PDO-mappable"),
     "pdo_readonly_in_rpdo.yaml": (26, "pdo-direction", "read-only"),
     "tpdo_number_above_device.yaml": (30, "pdo-number", "TPDO 5 does not exist"),
