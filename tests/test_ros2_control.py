@@ -166,3 +166,35 @@ def test_dcfgen_takes_the_bus_yml_with_ros2_canopens_keys(tmp_path: Path) -> Non
     proc = subprocess.run([dcfgen, "-r", "bus.yml", "-d", "out"], cwd=work, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert (work / "out" / "master.dcf").is_file()
+
+
+PLAIN_CAN = """
+system: cart
+buses:
+  - {name: can0, protocol: can, bitrate: 500 kbit/s}
+nodes:
+  - {name: ctrl, buses: [can0]}
+  - {name: wheel, buses: [can0]}
+messages:
+  - name: wheel_state
+    id: 0x100
+    producer: wheel
+    consumers: [ctrl]
+    period: 10 ms
+    signals: [{name: speed, bits: 16, signed: true, unit: rpm}]
+joints:
+  - {name: wheel_joint, node: wheel, gear_ratio: 20, state: {velocity: wheel_state.speed}, limits: {velocity: 50.0}}
+"""
+
+
+def test_a_bus_without_a_hardware_plugin_gets_no_placeholder(tmp_path: Path) -> None:
+    """A joint on a plain CAN bus is checked (its 16-bit rpm signal carries 32767 / 20 rpm = 171.6 rad/s at the
+    wheel), but no published plugin drives such a bus: no ros2_control files rather than an empty block."""
+    spec = tmp_path / "cart.yaml"
+    spec.write_text(PLAIN_CAN, encoding="utf-8")
+    proc = cli("build", str(spec), "-o", str(tmp_path / "out"))
+    assert proc.returncode == 0, proc.stderr
+    assert not (tmp_path / "out" / "ros2_control").exists()
+    spec.write_text(PLAIN_CAN.replace("velocity: 50.0", "velocity: 200.0"), encoding="utf-8")
+    proc = cli("check", str(spec))
+    assert proc.returncode == 1 and "carries -171.573..171.568 rad/s" in proc.stderr

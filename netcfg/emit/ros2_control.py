@@ -27,8 +27,8 @@ Names as the consumers publish them:
   manager's `update_rate` in Hz (an integer).
 
 Other protocols are an entry in HARDWARE: which buses it drives and a function from the bus to its `<hardware>` block. A
-bus without one (EtherCAT, an actuator bus) gets no block; its joints are named in a comment of the xacro file, so
-nothing is silently dropped.
+bus without one (EtherCAT, an actuator bus) gets no block: its joints are named in a comment of the xacro file when
+another bus has one, and a system with no such bus gets no ros2_control files.
 """
 
 from __future__ import annotations
@@ -81,6 +81,7 @@ class Hardware:
     params: tuple[Param, ...]
     args: tuple[MacroArg, ...]
     joint_params: Callable[[model.Joint], tuple[Param, ...]]
+    note: str = ""  # for the file's header: where the parameters' files come from
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,11 @@ def _canopen(m: model.Model, bus: model.Bus, several: bool) -> Hardware:
         node = m.nodes[j.node]
         return (Param("device_name", j.node), Param("node_id", str(node.node_id)))
 
-    return Hardware("canopen_ros2_control/RobotSystem", params, args, joint_params)
+    note = (
+        f"bus {bus.name}: bus_config is netcfg's {bus_yml_name(m, bus.name)}; master_config the master.dcf dcfgen "
+        "writes from it"
+    )
+    return Hardware("canopen_ros2_control/RobotSystem", params, args, joint_params, note)
 
 
 MakeHardware = Callable[[model.Model, model.Bus, bool], Hardware]
@@ -133,8 +138,11 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
             by_bus.setdefault(bus.name, []).append(j)
     driven = [b for b in by_bus if hardware(m.buses[b]) is not None]
     several = len(driven) > 1
+    if not driven:
+        return {}  # no bus with a plugin: nothing to describe yet
     blocks: list[BlockView] = []
     args: list[MacroArg] = []
+    notes: list[str] = []
     left_out: list[str] = []
     for bus_name, joints in by_bus.items():
         bus = m.buses[bus_name]
@@ -147,6 +155,8 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
             continue
         hw = make(m, bus, several)
         args.extend(hw.args)
+        if hw.note:
+            notes.append(hw.note)
         blocks.append(
             BlockView(
                 name=f"${{prefix}}{m.system}_{bus_name}",
@@ -155,24 +165,22 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
                 joints=tuple(_joint_view(j, hw) for j in joints),
             )
         )
-    files = {
+    return {
         f"ros2_control/{m.system}.ros2_control.xacro": render(
             XACRO_TEMPLATE,
             system=m.system,
             args=[MacroArg("prefix", "''"), *args],
             blocks=blocks,
+            notes=notes,
             left_out=left_out,
-            bus_files={b: bus_yml_name(m, b) for b in driven},
-        )
-    }
-    if blocks:
-        files["ros2_control/controllers.yaml"] = render(
+        ),
+        "ros2_control/controllers.yaml": render(
             CONTROLLERS_TEMPLATE,
             system=m.system,
             update_rate=update_rate(m, [m.buses[b] for b in driven]),
             controllers=_controllers(m, {b: by_bus[b] for b in driven}),
-        )
-    return files
+        ),
+    }
 
 
 def _joint_view(j: model.Joint, hw: Hardware) -> JointView:
