@@ -577,6 +577,9 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
             messages.append(msg)
             tpdos.append(msg["name"])
     spec: dict[str, Any] = {"system": "random_canopen", "buses": [bus], "nodes": nodes, "messages": messages}
+    joints = [j for d in drives if f.feature("joints", 0.3) and (j := _joint(f, d, messages)) is not None]
+    if joints:
+        spec["joints"] = joints
     if f.feature("a SYNC task reading the TPDOs", 0.3):  # the master's work each cycle, and flows into it
         wcet = f(st.integers(10, 500))
         # it computes on what the read window collected: it starts after that window (check refuses it before)
@@ -608,6 +611,52 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
         spec.pop("flows", None)
     _bus_common(f, bus)
     return spec
+
+
+def _joint(f: Fields, d: str, messages: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """A robot joint on drive d: its command from the drive's RxPDO, its state from the TPDOs' position and velocity
+    (their unnamed EPOS4 entries), sometimes a position or torque command and the torque in the first TPDO."""
+    cmd = next(m for m in messages if m["name"] == f"{d}_cmd")
+    joint: dict[str, Any] = {"name": f"{d}_joint", "node": d, "command": {"velocity": f"{d}_cmd.target_velocity"}}
+    state: dict[str, str] = {}
+    for m in messages:
+        if m.get("producer") == d and "pdo" in m:
+            for entry in m["pdo"]["map"]:
+                if entry == 0x6064:
+                    state["position"] = f"{m['name']}.position_actual_value"
+                elif entry == 0x606C:
+                    state["velocity"] = f"{m['name']}.velocity_actual_value"
+    if f.feature("joints[].command.position", 0.3):
+        cmd["pdo"]["map"].append(0x607A)
+        joint["command"]["position"] = f"{d}_cmd.target_position"
+    elif f.feature("joints[].command.effort", 0.3):
+        cmd["pdo"]["map"].append(0x6071)
+        joint["command"]["effort"] = f"{d}_cmd.target_torque"
+    first = next((m for m in messages if m["name"] == f"{d}_tx1"), None)
+    if first is not None and f.feature("joints[].state.effort", 0.3):
+        first["pdo"]["map"].append(0x6077)
+        state["effort"] = f"{d}_tx1.torque_actual_value"
+    if state:
+        joint["state"] = state
+    f.opt(joint, "joints[].axis", st.just(1), 0.2)
+    f.opt(joint, "joints[].gear_ratio", st.sampled_from([1.0, 51.0, 100.0, 160.5]), 0.7)
+    f.opt(joint, "joints[].velocity_unit", st.sampled_from(["rpm", "counts/s"]), 0.3)
+    f.opt(joint, "joints[].zero", st.sampled_from([0.0, -0.25, 1.5]), 0.3)
+    f.opt(joint, "joints[].encoder_counts", st.sampled_from([2000, 4096, 1 << 17]), 0.8)
+    needs_counts = joint.get("velocity_unit") == "counts/s" or "position" in state or "position" in joint["command"]
+    if needs_counts and "encoder_counts" not in joint:
+        return None  # check refuses a position in counts without the encoder's counts
+    effort = "effort" in {*state, *joint["command"]}
+    f.opt(joint, "joints[].rated_torque", st.sampled_from([0.5, 2.0]), 1.0 if effort else 0.2)
+    if effort and "rated_torque" not in joint:
+        return None  # nor an effort in per mille without the rated torque
+    limits: dict[str, Any] = {}
+    f.opt(limits, "joints[].limits.position", st.just([-1.0, 1.5]), 0.5)
+    f.opt(limits, "joints[].limits.velocity", st.sampled_from([0.5, 4.0]), 0.5)
+    f.opt(limits, "joints[].limits.effort", st.just(5.0), 0.5)
+    if limits:
+        joint["limits"] = limits
+    return joint
 
 
 def _add_flows(f: Fields, spec: dict[str, Any], periods: dict[str, int], ftt_ids: int | None = None) -> None:

@@ -241,6 +241,38 @@ class Flow:
     description: str | None = None
 
 
+@dataclass(frozen=True)
+class JointSignal:
+    """One interface of a joint: the message and signal that carry it, the factor from the device's value to the
+    joint's SI unit (rad, rad/s, N m) and the SI range the signal's bits can hold."""
+
+    message: str
+    signal: str
+    from_dev: float
+    offset: float = 0.0  # the joint value at device value 0 (position: the joint's zero)
+    lowest: float = 0.0
+    highest: float = 0.0
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A robot joint moved by one axis of one drive (netcfg.resolve.joints)."""
+
+    name: str
+    node: str
+    axis: int
+    gear_ratio: float
+    encoder_counts: int | None
+    command: dict[str, JointSignal]  # interface (position, velocity, effort) -> its signal
+    state: dict[str, JointSignal]
+    limits: dict[str, tuple[float, float]]  # interface -> (lowest, highest), SI
+    path: Path
+    description: str | None = None
+    velocity_unit: str = "rpm"  # the velocity signal's unit at the motor: rpm or counts/s
+    rated_torque: float | None = None  # the motor's, N m: the effort signal is in per mille of it
+    zero: float = 0.0  # the joint position, rad, where the device's position reads 0
+
+
 @dataclass
 class Model:
     system: str
@@ -254,6 +286,7 @@ class Model:
     description: str | None = None
     # message -> the tasks (node.task) that send it as they finish (netcfg.resolve.flows); others run free
     sent_by: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    joints: dict[str, Joint] = field(default_factory=dict)  # robot joints by name (netcfg.resolve.joints)
 
     def task(self, ref: str) -> Task:
         node, name = ref.split(".", 1)

@@ -30,6 +30,7 @@ NOT_DRAWN = {
     "messages[].description": "free text",
     "triggers[].description": "free text",
     "flows[].description": "free text",
+    "joints[].description": "free text",
     # a DBC file beside the spec: its nodes and messages are plain CAN ones, which the generator draws directly
     "buses[].import": "a DBC file to import",
 }

@@ -37,6 +37,7 @@ EMITTERS: dict[str, str] = {
     "report": "netcfg.emit.report_html:emit",  # report.md, report/*.png (report_md) and report.html from them
     "report_json": "netcfg.emit.report_json:emit",  # report.json: the check report, for tools and `netcfg diff`
     "bus_yml": "netcfg.emit.bus_yml:emit",  # canopen/bus.yml
+    "ros2_control": "netcfg.emit.ros2_control:emit",  # ros2_control/<system>.ros2_control.xacro, controllers.yaml
 }
 
 

@@ -29,9 +29,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from netcfg import cia301
+from netcfg.emit import joint_scaling
 from netcfg.emit.bus_yml_spec import SPEC_NOTE, spec_notes
 from netcfg.importers.bus_yml_keys import default_timing, safe_name
-from netcfg.model import Bus, Message, Model, Node, PdoEntry
+from netcfg.model import Bus, Joint, Message, Model, Node, PdoEntry
 from netcfg.resolve import snake
 from netcfg.templating import render
 
@@ -69,6 +70,9 @@ class SlaveView:
     rpdo: tuple[PdoView, ...]
     tpdo: tuple[PdoView, ...]
     heartbeat_multiplier: str | None = None  # only when the consumer time is not dcfgen's default 3 x
+    # a drive that moves a joint: ros2_canopen's CiA 402 driver (driver, package) and its scaling, as (key, value)
+    driver: tuple[tuple[str, str], ...] = ()
+    scaling: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -90,9 +94,14 @@ def emit(model: Model, report: dict[str, Any]) -> dict[str, bytes]:
     for bus in buses:
         view = _bus_view(model, bus, buses)
         if view is not None:
-            name = "canopen/bus.yml" if len(buses) == 1 else f"canopen/{bus.name}.bus.yml"
-            files[name] = render(TEMPLATE, b=view)
+            files[bus_yml_name(model, bus.name)] = render(TEMPLATE, b=view)
     return files
+
+
+def bus_yml_name(model: Model, bus: str) -> str:
+    """The bus's file: canopen/bus.yml, or canopen/<bus>.bus.yml when the system has several CANopen buses."""
+    several = sum(1 for b in model.buses.values() if b.canopen is not None) > 1
+    return f"canopen/{bus}.bus.yml" if several else "canopen/bus.yml"
 
 
 def _note(**items: object) -> str:
@@ -115,7 +124,7 @@ def _bus_view(model: Model, bus: Bus, buses: list[Bus]) -> BusView | None:
         "The dcf files are the EDS netcfg generates next to this file; '# netcfg:' comments are for netcfg import.",
     ]
     notes, crossing = spec_notes(model, bus)
-    left_out = [*_left_out(model, bus, master), *crossing]
+    left_out = [*_left_out(model, bus, master), *crossing, *_other_axes(model, bus)]
     header.extend(f"not expressible here, kept in the netcfg spec: {text}" for text in left_out)
     header.extend(f"{SPEC_NOTE} {note}" for note in notes)
     annotation = {
@@ -126,8 +135,11 @@ def _bus_view(model: Model, bus: Bus, buses: list[Bus]) -> BusView | None:
         "sync_id": f"0x{co.sync_id:X}" if co.sync_id != cia301.SYNC_ID else None,
         "sync_producer": co.sync_producer if co.sync_producer != master.name else None,
     }
+    joints = joint_scaling.bus_joints(model, bus)
     slaves = tuple(
-        _slave_view(model, bus, node, buses, master) for node in on_bus if node is not master and node.role != "master"
+        _slave_view(model, bus, node, buses, master, joints.get(node.name))
+        for node in on_bus
+        if node is not master and node.role != "master"
     )
     return BusView(
         header=tuple(header),
@@ -161,7 +173,34 @@ def _left_out(model: Model, bus: Bus, master: Node) -> list[str]:
     return out
 
 
-def _slave_view(model: Model, bus: Bus, node: Node, buses: list[Bus], master: Node) -> SlaveView:
+def _other_axes(model: Model, bus: Bus) -> list[str]:
+    """Joints on a drive's second axis or beyond: ros2_canopen's bus.yml scales a drive, not an axis."""
+    return [
+        f"joint {j.name} (axis {j.axis} of {j.node}): its scaling, per axis"
+        for j in model.joints.values()
+        if j.axis != 1 and joint_scaling.joint_bus(model, j) is bus
+    ]
+
+
+def _ros_driver(joint: Joint | None) -> tuple[tuple[tuple[str, str], ...], tuple[tuple[str, str], ...]]:
+    """(driver and package, scaling) of a drive that moves a joint, as the bus.yml writes them; nothing otherwise."""
+    if joint is None:
+        return (), ()
+    driver = (("driver", f'"{joint_scaling.DRIVER}"'), ("package", f'"{joint_scaling.PACKAGE}"'))
+    return driver, tuple((key, _yaml_float(value)) for key, value in joint_scaling.scaling(joint))
+
+
+def _yaml_float(value: float) -> str:
+    """The shortest text that reads back as the same float, with the dot YAML 1.1 (PyYAML, so dcfgen) needs to
+    take an exponent's number as a float rather than a string."""
+    text = repr(value)
+    mantissa, e, exponent = text.partition("e")
+    return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
+
+
+def _slave_view(
+    model: Model, bus: Bus, node: Node, buses: list[Bus], master: Node, joint: Joint | None = None
+) -> SlaveView:
     assert node.node_id is not None and bus.canopen is not None
     dev = node.device
     comments: list[str] = []
@@ -196,6 +235,8 @@ def _slave_view(model: Model, bus: Bus, node: Node, buses: list[Bus], master: No
         rpdo=pdos["rpdo"],
         tpdo=pdos["tpdo"],
         heartbeat_multiplier=_heartbeat_multiplier(node),
+        driver=_ros_driver(joint)[0],
+        scaling=_ros_driver(joint)[1],
     )
 
 

@@ -9,9 +9,12 @@ the tasks and their flows, supervision). Each line is one item in spec keys, as 
     # netcfg-spec: {"node": "master", "tx_queue": {"policy": "fifo", "depth": 16, "on_full": "block"}, "tasks": [...]}
     # netcfg-spec: {"message": "hip_l_cmd", "deadline": "5 ms"}
     # netcfg-spec: {"flow": {"name": "joint_feedback", "chain": ["hip_l_state", "master.control"]}}
+    # netcfg-spec: {"joint": {"name": "left_hip_joint", "node": "hip_l", "gear_ratio": 100.0, ...}}
 
 Only what differs from the spec language's defaults is written. A flow is written when every step of it is on this
 bus (its messages on the bus, its tasks on the bus's nodes); one that crosses buses is named in the header instead.
+A joint is written whole in the bus.yml of the bus its drive is driven over: the scaling keys dcfgen and ros2_canopen
+read are derived from it, and a drive's gear and encoder cannot be told apart from their product alone.
 """
 
 from __future__ import annotations
@@ -20,8 +23,9 @@ import json
 from dataclasses import MISSING, fields
 from typing import Any
 
+from netcfg.emit.joint_scaling import joint_bus
 from netcfg.importers.bus_yml_notes import SPEC_NOTE
-from netcfg.model import Bus, Flow, Model, Node, Task, TxQueue
+from netcfg.model import Bus, Flow, Joint, Model, Node, Task, TxQueue
 from netcfg.spec.units import format_ns  # exact to the nanosecond, in the spec's grammar
 
 __all__ = ["SPEC_NOTE", "spec_notes"]
@@ -72,6 +76,7 @@ def spec_notes(model: Model, bus: Bus) -> tuple[list[str], list[str]]:
             items.append({"flow": _flow_keys(flow)})
         else:
             left.append(f"flow {flow.name} crosses buses")
+    items.extend({"joint": _joint_keys(j)} for j in model.joints.values() if joint_bus(model, j) is bus)
     return [json.dumps(item, ensure_ascii=False, separators=(", ", ": ")) for item in items], left
 
 
@@ -151,4 +156,27 @@ def _flow_keys(flow: Flow) -> dict[str, Any]:
         out["deadline"] = format_ns(flow.deadline_ns)
     if flow.description:
         out["description"] = flow.description
+    return out
+
+
+def _joint_keys(j: Joint) -> dict[str, Any]:
+    out: dict[str, Any] = {"name": j.name, "node": j.node}
+    if j.axis != 1:
+        out["axis"] = j.axis
+    out["gear_ratio"] = j.gear_ratio
+    if j.encoder_counts is not None:
+        out["encoder_counts"] = j.encoder_counts
+    if j.velocity_unit != "rpm":
+        out["velocity_unit"] = j.velocity_unit
+    if j.rated_torque is not None:
+        out["rated_torque"] = j.rated_torque
+    if j.zero:
+        out["zero"] = j.zero
+    for side_name, side in (("command", j.command), ("state", j.state)):
+        if side:
+            out[side_name] = {i: f"{c.message}.{c.signal}" for i, c in side.items()}
+    if j.limits:
+        out["limits"] = {i: list(lim) if i == "position" else lim[1] for i, lim in j.limits.items()}
+    if j.description:
+        out["description"] = j.description
     return out

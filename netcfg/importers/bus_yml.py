@@ -56,6 +56,7 @@ the vocabulary bus_yml_keys' and the `# netcfg-spec:` notes bus_yml_notes'.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from pathlib import Path
@@ -73,6 +74,7 @@ from netcfg.importers.bus_yml_dcf import DeviceFile
 from netcfg.importers.bus_yml_keys import (
     _PLACEHOLDER_ANY,
     HEADER_KEYS,
+    JOINT_KEYS,
     MASTER_KEPT,
     MASTER_MAPPED,
     NODE_ID_LIMITS,
@@ -86,6 +88,7 @@ from netcfg.importers.bus_yml_keys import (
     duration,
     duration_ns,
     parse_annotation,
+    ros2_canopen_scaling,
     safe_name,
 )
 from netcfg.importers.bus_yml_notes import apply_spec_notes, read_spec_notes
@@ -105,6 +108,8 @@ class BusYmlImporter(BusYmlPdos):
         self.heartbeat_multiplier: Val | None = None  # options.heartbeat_multiplier, for every slave
         self.nodes: list[dict[str, Any]] = []
         self.device_files: dict[int, DeviceFile] = {}  # id of a parsed object dictionary -> its one DeviceFile
+        self.joint_nodes: set[str] = set()  # the slaves a `# netcfg-spec:` joint names: their JOINT_KEYS are read
+        self.joint_keys: dict[str, dict[str, Val]] = {}  # node -> its JOINT_KEYS as the file gives them
 
     # -- the whole file ------------------------------------------------------------------------------------------
     def run(self) -> Imported | None:
@@ -128,6 +133,10 @@ class BusYmlImporter(BusYmlPdos):
         if "master" not in top:
             self.err("bus-yml-master", f"{self.name} has no 'master' section; dcfgen needs one", ())
             return None
+        notes = read_spec_notes(self.lines, self.file, self.d)
+        self.joint_nodes = {
+            str(item["joint"].get("node")) for _, item in notes if "joint" in item and isinstance(item["joint"], dict)
+        }
         slaves = self.slaves(top)
         master = self.mapping(top["master"], "master")
         if master is None:
@@ -153,7 +162,8 @@ class BusYmlImporter(BusYmlPdos):
         spec["messages"] = self.messages
         if self.d.errors:
             return None
-        apply_spec_notes(spec, read_spec_notes(self.lines, self.file, self.d), self.link_note, self.warn_note)
+        apply_spec_notes(spec, notes, self.link_note, self.warn_note)
+        self.check_joint_keys(spec)
         self.validate(spec)
         if self.d.errors:
             return None
@@ -339,7 +349,10 @@ class BusYmlImporter(BusYmlPdos):
     def slave(self, name: str, own: BusPath, cfg: dict[str, Val], bus: str) -> tuple[DeviceFile, int, str] | None:
         """Add the node; -> (its device file, node id, spec name), or None when it cannot be used."""
         kept: list[str] = []
-        self.keys(cfg, SLAVE_MAPPED, SLAVE_KEPT | ROS_KEYS, f"node '{name}'", kept)
+        joint = safe_name(name, "node") in self.joint_nodes
+        self.keys(cfg, SLAVE_MAPPED | (JOINT_KEYS if joint else set()), SLAVE_KEPT | ROS_KEYS, f"node '{name}'", kept)
+        if joint:
+            self.joint_keys[safe_name(name, "node")] = {k: v for k, v in cfg.items() if k in JOINT_KEYS}
         dcf = cfg.get("dcf")
         if dcf is None:
             self.err("bus-yml-dcf", f"node '{name}' has no 'dcf' (its EDS/DCF file), which dcfgen needs", own, True)
@@ -394,6 +407,36 @@ class BusYmlImporter(BusYmlPdos):
         self.comments[path] = "\n".join(lines)
         self.nodes.append(node)
         return device, nid, node_name
+
+    def check_joint_keys(self, spec: dict[str, Any]) -> None:
+        """A joint's drive's scaling in the file against the one its joint gives: a hand-edited factor is a warning,
+        and the joint's (its gear and encoder, which a factor alone cannot tell apart) is what the spec keeps."""
+        for joint in spec.get("joints", []):
+            given = self.joint_keys.get(str(joint.get("node"))) if isinstance(joint, dict) else None
+            if not given:
+                continue
+            try:
+                expected = ros2_canopen_scaling(
+                    float(joint.get("gear_ratio", 1.0)),
+                    joint.get("encoder_counts"),
+                    str(joint.get("velocity_unit", "rpm")),
+                    joint.get("rated_torque"),
+                    float(joint.get("zero", 0.0)),
+                )
+            except (TypeError, ValueError, ZeroDivisionError):  # the spec's check reports the joint's values
+                continue
+            for key, val in given.items():
+                want = expected.get(key)
+                if key in ("driver", "package") or want is None:
+                    continue
+                got = val.value
+                if isinstance(got, bool) or not isinstance(got, (int, float)) or not math.isclose(got, want):
+                    self.warn(
+                        "bus-yml-joint",
+                        f"{key} of node '{joint.get('node')}' is {got!r}, but joint '{joint.get('name')}' gives "
+                        f"{want!r}; the joint's is kept",
+                        val.path,
+                    )
 
     def device_file(self, name: str, dcf: Val) -> tuple[DeviceFile | None, Path | None]:
         if not isinstance(dcf.value, str) or not dcf.value.strip():

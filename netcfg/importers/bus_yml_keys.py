@@ -4,6 +4,7 @@ durations as the spec writes them, and the `# netcfg:` annotations."""
 
 from __future__ import annotations
 
+import math
 import re
 
 from netcfg import cia301
@@ -45,6 +46,41 @@ ROS_KEYS = frozenset(
         "offset_pos_to_dev offset_pos_from_dev"
     ).split()
 )
+# what a drive that moves a spec joint says in the bus.yml: ros2_canopen's CiA 402 driver and its scaling, all derived
+# from the joint (its `# netcfg-spec:` line), so read against it rather than kept
+JOINT_KEYS = frozenset(
+    (
+        "driver package scale_pos_to_dev scale_pos_from_dev scale_vel_to_dev scale_vel_from_dev scale_eff_from_dev "
+        "offset_pos_to_dev offset_pos_from_dev"
+    ).split()
+)
+
+
+def ros2_canopen_scaling(
+    gear_ratio: float, encoder_counts: int | None, velocity_unit: str, rated_torque: float | None, zero: float
+) -> dict[str, float]:
+    """ros2_canopen's scaling keys of a joint's drive, in the order the bus.yml writes them (netcfg.emit.joint_scaling
+    says what each means): position once the encoder's counts are known, velocity always, effort with a rated
+    torque."""
+    out: dict[str, float] = {}
+    counts = encoder_counts * gear_ratio if encoder_counts is not None else None
+    if counts is not None:
+        to_dev = counts / (2 * math.pi)
+        out["scale_pos_to_dev"] = to_dev
+        out["scale_pos_from_dev"] = 2 * math.pi / counts
+        out["offset_pos_to_dev"] = -zero * to_dev + 0.0  # + 0.0: no -0.0 for a zero of 0
+        out["offset_pos_from_dev"] = zero
+    if velocity_unit == "rpm":
+        out["scale_vel_to_dev"] = 60 * gear_ratio / (2 * math.pi)
+        out["scale_vel_from_dev"] = 2 * math.pi / (60 * gear_ratio)
+    elif counts is not None:
+        out["scale_vel_to_dev"] = counts / (2 * math.pi)
+        out["scale_vel_from_dev"] = 2 * math.pi / counts
+    if rated_torque is not None:
+        out["scale_eff_from_dev"] = rated_torque * gear_ratio / 1000
+    return out
+
+
 PDO_KEYS = frozenset("enabled cob_id transmission inhibit_time event_timer event_deadline sync_start mapping".split())
 MAPPING_KEYS = {"index", "sub_index"}
 SDO_KEYS = {"index", "sub_index", "value"}

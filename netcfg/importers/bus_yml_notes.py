@@ -11,7 +11,7 @@ from typing import Any
 from netcfg.diagnostics import Collector, Position
 
 SPEC_NOTE = "netcfg-spec:"
-KINDS = ("system", "bus", "node", "message", "flow")
+KINDS = ("system", "bus", "node", "message", "flow", "joint")
 SpecPath = tuple[str | int, ...]
 
 
@@ -56,10 +56,11 @@ def apply_spec_notes(
             _merge(spec, item["system"], (), line, link)
         elif "bus" in item:
             _merge(spec["buses"][0], item["bus"], ("buses", 0), line, link)
-        elif "flow" in item:
-            flows = spec.setdefault("flows", [])
-            flows.append(item["flow"])
-            link(("flows", len(flows) - 1), line)
+        elif "flow" in item or "joint" in item:
+            kind = "flow" if "flow" in item else "joint"
+            section = spec.setdefault(f"{kind}s", [])
+            section.append(item[kind])
+            link((f"{kind}s", len(section) - 1), line)
         else:
             kind = "node" if "node" in item else "message"
             section = "nodes" if kind == "node" else "messages"

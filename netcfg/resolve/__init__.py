@@ -16,6 +16,7 @@ from netcfg.diagnostics import Collector
 from netcfg.protocols.canopen.pdo import snake
 from netcfg.resolve.core import Resolver
 from netcfg.resolve.flows import resolve_flows
+from netcfg.resolve.joints import resolve_joints
 from netcfg.resolve.nodes import resolve_nodes
 from netcfg.rules import BusRules
 from netcfg.spec import schema
@@ -40,6 +41,7 @@ def resolve(spec: schema.Spec, smap: SourceMap, diags: Collector, spec_dir: FsPa
     r.check_tasks_activated()
     r.check_identifiers()
     resolve_flows(r)
+    resolve_joints(r)
     if not diags.errors:
         derive_offsets(r.model, r.err)
     if diags.errors:

@@ -1,0 +1,244 @@
+"""ros2_control/: the robot's ros2_control description from the spec's joints, for systems that have joints.
+
+- ros2_control/<system>.ros2_control.xacro (ros2_control.xacro.j2): one xacro macro, `<system>_ros2_control`,
+  with one `<ros2_control type="system">` block per bus whose joints a published hardware plugin drives, and in it
+  each joint with its command interfaces (their `min`/`max` from the joint's limits) and state interfaces. A robot's
+  URDF includes the file and calls the macro (docs/how-to/ros2-control.md).
+- ros2_control/controllers.yaml (ros2_controllers.yaml.j2): the controller manager's parameters: `update_rate`
+  from the rate of the master's control task, a `joint_state_broadcaster`, and per bus one
+  `forward_command_controller/ForwardCommandController` for each command interface its joints offer.
+
+Names as the consumers publish them:
+- CANopen: ros2_canopen's `canopen_ros2_control/RobotSystem` (canopen_ros2_control/src/robot_system.cpp): the
+  hardware parameters `bus_config`, `master_config`, `can_interface_name` (required) and `master_bin` (optional;
+  `""` for none), and per joint the parameter `device_name`, the slave's name in bus.yml, whose `driver` must be
+  `ros2_canopen::Cia402Driver` (the bus.yml emitter writes it for every drive that moves a joint). Its docs
+  (user-guide/operation/ros2-control-interface.rst) name the joint parameter `node_id`, which the code does not
+  read: both are written, so the block works with either. RobotSystem drives each CiA 402 drive itself (it enables
+  the drive on activation and switches its mode with the controllers), so a plain forward-command controller
+  feeds it; ros2_canopen's Cia402DeviceController belongs to its other plugin, Cia402System, whose interfaces are
+  per device, not per joint.
+- ros2_control's hardware description (hardware_interface's component_parser, doc/hardware_interface_types):
+  `<ros2_control name type>`, `<hardware><plugin>`, `<param name>`, `<joint name>`, `<command_interface name>`
+  with `<param name="min">`/`"max"`, `<state_interface name>`; the interface names `position`, `velocity`,
+  `effort` (hardware_interface_type_values.hpp).
+- The controllers: ros2_controllers' `joint_state_broadcaster/JointStateBroadcaster` and
+  `forward_command_controller/ForwardCommandController` with `joints` and `interface_name`; the controller
+  manager's `update_rate` in Hz (an integer).
+
+Other protocols are an entry in HARDWARE: which buses it drives and a function from the bus to its `<hardware>` block. A
+bus without one (EtherCAT, an actuator bus) gets no block: its joints are named in a comment of the xacro file when
+another bus has one, and a system with no such bus gets no ros2_control files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from netcfg import model
+from netcfg.emit.bus_yml import bus_yml_name
+from netcfg.emit.joint_scaling import joint_bus
+from netcfg.templating import render
+
+XACRO_TEMPLATE = "ros2_control.xacro.j2"
+CONTROLLERS_TEMPLATE = "ros2_controllers.yaml.j2"
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    value: str
+
+
+@dataclass(frozen=True)
+class Interface:
+    name: str
+    limits: tuple[Param, ...] = ()
+
+
+@dataclass(frozen=True)
+class JointView:
+    name: str
+    params: tuple[Param, ...]
+    command: tuple[Interface, ...]
+    state: tuple[Interface, ...]
+
+
+@dataclass(frozen=True)
+class MacroArg:
+    name: str
+    default: str | None  # None: the caller must give it
+
+
+@dataclass(frozen=True)
+class Hardware:
+    """One bus's `<ros2_control>` block: its plugin, its hardware parameters (as xacro expressions) and the
+    macro's arguments they use, and the per-joint parameters."""
+
+    plugin: str
+    params: tuple[Param, ...]
+    args: tuple[MacroArg, ...]
+    joint_params: Callable[[model.Joint], tuple[Param, ...]]
+    note: str = ""  # for the file's header: where the parameters' files come from
+
+
+@dataclass(frozen=True)
+class BlockView:
+    name: str
+    plugin: str
+    params: tuple[Param, ...]
+    joints: tuple[JointView, ...]
+
+
+def _canopen(m: model.Model, bus: model.Bus, several: bool) -> Hardware:
+    """ros2_canopen's RobotSystem: the bus.yml, the master DCF dcfgen makes from it, the SocketCAN interface."""
+    prefix = f"{bus.name}_" if several else ""
+    names = ("bus_config", "master_config", "can_interface_name", "master_bin")
+    defaults: dict[str, str | None] = {
+        "bus_config": None,
+        "master_config": None,
+        "can_interface_name": bus.name,  # SocketCAN names the interface as the spec names the bus, by default
+        "master_bin": "&quot;&quot;",  # RobotSystem reads "" (the two characters) as no master.bin
+    }
+    args = tuple(MacroArg(prefix + n, defaults[n]) for n in names)
+    params = tuple(Param(n, "${" + prefix + n + "}") for n in names)
+
+    def joint_params(j: model.Joint) -> tuple[Param, ...]:
+        node = m.nodes[j.node]
+        return (Param("device_name", j.node), Param("node_id", str(node.node_id)))
+
+    note = (
+        f"bus {bus.name}: bus_config is netcfg's {bus_yml_name(m, bus.name)}; master_config the master.dcf dcfgen "
+        "writes from it"
+    )
+    return Hardware("canopen_ros2_control/RobotSystem", params, args, joint_params, note)
+
+
+MakeHardware = Callable[[model.Model, model.Bus, bool], Hardware]
+
+# (which buses it drives, by their protocol's section of the bus; its block): EtherCAT and actuator buses add theirs
+HARDWARE: tuple[tuple[Callable[[model.Bus], bool], MakeHardware], ...] = (
+    (lambda bus: bus.canopen is not None, _canopen),
+)
+
+
+def hardware(bus: model.Bus) -> MakeHardware | None:
+    return next((make for drives, make in HARDWARE if drives(bus)), None)
+
+
+def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
+    if not m.joints:
+        return {}
+    by_bus: dict[str, list[model.Joint]] = {}
+    for j in m.joints.values():
+        bus = joint_bus(m, j)
+        if bus is not None:
+            by_bus.setdefault(bus.name, []).append(j)
+    driven = [b for b in by_bus if hardware(m.buses[b]) is not None]
+    several = len(driven) > 1
+    if not driven:
+        return {}  # no bus with a plugin: nothing to describe yet
+    blocks: list[BlockView] = []
+    args: list[MacroArg] = []
+    notes: list[str] = []
+    left_out: list[str] = []
+    for bus_name, joints in by_bus.items():
+        bus = m.buses[bus_name]
+        make = hardware(bus)
+        if make is None:
+            left_out.append(
+                f"joints {', '.join(j.name for j in joints)} on bus {bus_name}: no ros2_control hardware plugin "
+                f"for {bus.protocol} buses here"
+            )
+            continue
+        hw = make(m, bus, several)
+        args.extend(hw.args)
+        if hw.note:
+            notes.append(hw.note)
+        blocks.append(
+            BlockView(
+                name=f"${{prefix}}{m.system}_{bus_name}",
+                plugin=hw.plugin,
+                params=hw.params,
+                joints=tuple(_joint_view(j, hw) for j in joints),
+            )
+        )
+    return {
+        f"ros2_control/{m.system}.ros2_control.xacro": render(
+            XACRO_TEMPLATE,
+            system=m.system,
+            args=[MacroArg("prefix", "''"), *args],
+            blocks=blocks,
+            notes=notes,
+            left_out=left_out,
+        ),
+        "ros2_control/controllers.yaml": render(
+            CONTROLLERS_TEMPLATE,
+            system=m.system,
+            update_rate=update_rate(m, [m.buses[b] for b in driven]),
+            controllers=_controllers(m, {b: by_bus[b] for b in driven}),
+        ),
+    }
+
+
+def _joint_view(j: model.Joint, hw: Hardware) -> JointView:
+    def limits(interface: str) -> tuple[Param, ...]:
+        bounds = j.limits.get(interface)
+        if bounds is None:
+            return ()
+        return (Param("min", repr(bounds[0])), Param("max", repr(bounds[1])))
+
+    return JointView(
+        name="${prefix}" + j.name,
+        params=hw.joint_params(j),
+        command=tuple(Interface(i, limits(i)) for i in j.command),
+        state=tuple(Interface(i) for i in j.state),
+    )
+
+
+@dataclass(frozen=True)
+class ControllerView:
+    name: str
+    joints: tuple[str, ...]
+    interface: str
+
+
+def _controllers(m: model.Model, by_bus: dict[str, list[model.Joint]]) -> list[ControllerView]:
+    out = []
+    for bus_name, joints in by_bus.items():
+        for interface in ("position", "velocity", "effort"):
+            moved = tuple(j.name for j in joints if interface in j.command)
+            if moved:
+                out.append(ControllerView(f"{bus_name}_{interface}_controller", moved, interface))
+    return out
+
+
+def control_period_ns(m: model.Model, bus: model.Bus) -> int | None:
+    """The period of the master's control step on the bus: its SYNC task's (each SYNC, on CANopen), else its
+    fastest periodic task's; None when the master has no task."""
+    masters = [n for n in bus.nodes if m.nodes[n].role == "master"]
+    periods = []
+    for name in masters:
+        for t in m.nodes[name].tasks.values():
+            if t.sync_bus == bus.name and bus.canopen is not None:
+                periods.append(bus.canopen.sync_period_ns)
+            elif t.period_ns is not None:
+                periods.append(t.period_ns)
+    return min(periods) if periods else None
+
+
+def update_rate(m: model.Model, buses: list[model.Bus]) -> int:
+    """The controller manager's rate, Hz: the fastest control step of the buses (their SYNC when the master has no
+    task), rounded to a whole Hz as ros2_control takes it, at least 1."""
+    periods = []
+    for bus in buses:
+        period = control_period_ns(m, bus)
+        if period is None and bus.canopen is not None:
+            period = bus.canopen.sync_period_ns
+        if period is not None:
+            periods.append(period)
+    if not periods:
+        return 100  # the controller manager's own default
+    return max(1, round(1e9 / min(periods)))
