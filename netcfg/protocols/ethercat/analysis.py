@@ -116,6 +116,7 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
             m.source.at((*seg.path, "cycle")),
         )
     slaves = []
+    early: dict[tuple[str | int, ...], list[tuple[str, int, int]]] = {}  # SYNC0 too early, by the shift's place
     for s, passed in zip(seg.slaves, t.passed_ns):
         shift = s.sync0_shift_ns if s.sync0_shift_ns is not None else seg.sync0_shift_ns
         ok = shift >= passed and (s.min_cycle_ns is None or seg.cycle_ns >= s.min_cycle_ns)
@@ -128,13 +129,7 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
             )
         if s.assign_activate and shift < passed:
             where = (*s.path, "sync0_shift") if s.sync0_shift_ns is not None else (*seg.path, "sync0_shift")
-            diags.add(
-                "dc-shift",
-                f"slave '{s.node}': SYNC0 comes {shift / 1000:g} us after the cycle starts, but the "
-                f"last frame has passed it only {passed / 1000:.2f} us after: it would latch outputs of a frame "
-                f"still passing; shift SYNC0 to {-(-passed // 1000)} us or later",
-                m.source.at(where),
-            )
+            early.setdefault(where, []).append((s.node, shift, passed))
         slaves.append(
             {
                 "node": s.node,
@@ -147,6 +142,16 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
                 "assign_activate": f"0x{s.assign_activate:04X}",
                 "ok": ok,
             }
+        )
+    for where, late in early.items():
+        names = ", ".join(f"'{n}'" for n, _, _ in late)
+        node, shift, passed = late[-1]  # the slave farthest down the line
+        diags.add(
+            "dc-shift",
+            f"SYNC0 comes {shift / 1000:g} us after the cycle starts, but the last frame has passed slave '{node}' "
+            f"only {passed / 1000:.2f} us after (slaves {names} latch the outputs of a frame still passing): shift "
+            f"SYNC0 to {-(-passed // 1000)} us or later",
+            m.source.at(where),
         )
     row["cycle"] = {
         "cycle_us": us(seg.cycle_ns),
