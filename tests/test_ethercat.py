@@ -237,3 +237,30 @@ def test_image_beyond_one_frame() -> None:
     assert t.frames == (1486, 514) and len(t.frame_bytes) == 2
     assert t.wire_ns == link.wire_ns(sum(t.frame_bytes), RATE)
     assert t.propagation_ns == round(2 * 10 / (0.7 * 299_792_458) * 1e9)
+
+
+# -- runtime.json ------------------------------------------------------------------------------------------------
+def test_runtime_section(tmp_path: Path) -> None:
+    from tests.conftest import runtime_config_of
+
+    data = spec(tmp_path, [
+        {"node": "io", "esi": {"file": "io.xml"}},
+        {"node": "d1", "esi": {"file": "drive.xml"}, "txpdo": [0x1A00, 0x1A01],
+         "pdos": [{"index": 0x1A01, "map": [0x6077]}], "sync0_shift": "100 us"},
+    ])
+    cfg = runtime_config_of(tmp_path / "spec.yaml", data)
+    (bus,) = cfg.buses
+    ec = bus.ethercat
+    assert ec is not None and (ec["out_bytes"], ec["in_bytes"]) == (2 + 6, 1 + 8)
+    io, d1 = ec["slaves"]
+    assert io["sdo"] == []  # fixed PDOs, a read-only assignment: nothing to write
+    assert [(x["index"], x["sub"], x["value"]) for x in d1["sdo"]] == [
+        (0x1A01, 0, 0), (0x1A01, 1, 0x6077_0010), (0x1A01, 0, 1),  # the mapping, then the assignments
+        (0x1C12, 0, 0), (0x1C12, 1, 0x1600), (0x1C12, 0, 1),
+        (0x1C13, 0, 0), (0x1C13, 1, 0x1A00), (0x1C13, 2, 0x1A01), (0x1C13, 0, 2),
+    ]
+    assert d1["fmmu"] == [{"direction": "outputs", "logical": 2, "length": 6, "physical": 0x1100},
+                          {"direction": "inputs", "logical": 8 + 1, "length": 8, "physical": 0x1180}]
+    assert d1["dc"] == {"assign_activate": 0x0300, "sync0_cycle_ns": 1_000_000, "sync0_shift_ns": 100_000}
+    assert [(e["name"], e["bit_offset"]) for e in d1["entries"] if e["direction"] == "inputs"] == [
+        ("Statusword", 8), ("Position actual value", 24), ("Torque actual value", 56)]

@@ -107,6 +107,7 @@ class EsiDevice:
     tx_pdos: list[Pdo] = field(default_factory=list)
     op_modes: list[OpMode] = field(default_factory=list)
     objects: dict[tuple[int, int], OdEntry] = field(default_factory=dict)
+    pdo_assign: bool = False  # <Mailbox><CoE PdoAssign="true">: the master may write 0x1C12/0x1C13
 
     def pdo(self, index: int) -> Pdo | None:
         return next((p for p in (*self.rx_pdos, *self.tx_pdos) if p.index == index), None)
@@ -254,6 +255,8 @@ def _device(r: _Reader, d: ET.Element, vendor_id: int) -> EsiDevice:
             )
         )
     dev.objects = _dictionary(r, d)
+    coe = d.find("Mailbox/CoE")
+    dev.pdo_assign = coe is not None and _flag(coe.get("PdoAssign"))
     return dev
 
 

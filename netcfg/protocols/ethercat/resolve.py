@@ -180,6 +180,8 @@ class EthercatRules(BusRules):
             return None
         slave.vendor_id, slave.product_code, slave.revision = dev.vendor_id, dev.product_code, dev.revision
         slave.device, slave.source = dev.type_name, e.file
+        assign = dev.objects.get((0x1C12, 1))
+        slave.assign_writable = dev.pdo_assign or (assign is not None and "w" in assign.access)
         where = f"{e.file}:{dev.line}"
         mappings = self.mappings(s, spath, lambda index: dev.pdo(index) is not None, where)
         for side, given, pdos in (("rx", s.rxpdo, dev.rx_pdos), ("tx", s.txpdo, dev.tx_pdos)):

@@ -66,6 +66,7 @@ class Slave:
     assign_activate: int = 0
     sync0_shift_ns: int | None = None
     min_cycle_ns: int | None = None
+    assign_writable: bool = True  # the device takes a PDO assignment by SDO (its 0x1C12/0x1C13 are writable)
     out_offset: int = 0  # bytes into the output image
     in_offset: int = 0
 
