@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from netcfg.links import ethercat as link
 from netcfg.protocols.ethercat import esi
@@ -264,3 +265,33 @@ def test_runtime_section(tmp_path: Path) -> None:
     assert d1["dc"] == {"assign_activate": 0x0300, "sync0_cycle_ns": 1_000_000, "sync0_shift_ns": 100_000}
     assert [(e["name"], e["bit_offset"]) for e in d1["entries"] if e["direction"] == "inputs"] == [
         ("Statusword", 8), ("Position actual value", 24), ("Torque actual value", 56)]
+
+
+# -- build outputs ---------------------------------------------------------------------------------------------
+def test_outputs(tmp_path: Path) -> None:
+    import subprocess
+
+    from netcfg.check import analyse_spec
+    from netcfg.emit import emit_all
+    from tests.conftest import SPECS
+
+    model, report = analyse_spec(SPECS / "allex2_ethercat.yaml")
+    assert model is not None and not report["errors"]
+    files = emit_all(model, report)
+    slave = yaml.safe_load(files["ethercat/ecat0/hip_l.yaml"])
+    assert (slave["vendor_id"], slave["assign_activate"]) == (0xFB, 0x0300)
+    assert slave["rpdo"][0]["channels"][1] == {"index": 0x607A, "sub_index": 0, "type": "int32",
+                                               "command_interface": "position", "default": 0}
+    assert [c.get("state_interface") for c in slave["tpdo"][0]["channels"]] == ["status_word", "position", "velocity"]
+    assert slave["sm"][2] == {"index": 2, "type": "output", "pdo": "rpdo", "watchdog": "disable"}
+    assert sum(1 for x in slave["sdo"] if x["index"] == 0x1C13) == 4
+    header = files["ethercat/ecat0_image.h"]
+    assert b"#define ECAT_ECAT0_KNEE_L_IN_6064_00_POSITION_ACTUAL_VALUE_OFFSET 78u" in header  # 60 + 16 + 2
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        pytest.skip("gcc is not installed")
+    (tmp_path / "image.h").write_bytes(header)
+    main = '#include "image.h"\nint main(void) { return (int)ECAT_ECAT0_IOMAP_BYTES - 156; }\n'
+    (tmp_path / "main.c").write_text(main)
+    subprocess.run([gcc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-c", "main.c"], cwd=tmp_path,
+                   check=True)

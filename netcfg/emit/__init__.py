@@ -37,6 +37,8 @@ EMITTERS: dict[str, str] = {
     "report": "netcfg.emit.report_html:emit",  # report.md, report/*.png (report_md) and report.html from them
     "report_json": "netcfg.emit.report_json:emit",  # report.json: the check report, for tools and `netcfg diff`
     "bus_yml": "netcfg.emit.bus_yml:emit",  # canopen/bus.yml
+    "ethercat_ros2": "netcfg.protocols.ethercat.ros2:emit",  # ethercat/<bus>/<node>.yaml (ethercat_driver_ros2)
+    "ethercat_image": "netcfg.protocols.ethercat.c_image:emit",  # ethercat/<bus>_image.h
 }
 
 
