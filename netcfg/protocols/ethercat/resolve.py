@@ -212,12 +212,9 @@ class EthercatRules(BusRules):
                 if index in assigned:
                     self.r.err("pdo-assignment", f"slave '{s.node}': PDO 0x{index:04X} is assigned twice", at)
                     continue
+                excluded = {x for x in assigned if index in getattr(dev.pdo(x), "excludes", ())}
                 clash = next(
-                    (
-                        x
-                        for x in assigned
-                        if x in pdo.excludes or index in dev.pdo(x).excludes  # type: ignore[union-attr]
-                    ),
+                    (x for x in assigned if x in pdo.excludes or x in excluded),
                     None,
                 )
                 if clash is not None:
