@@ -70,9 +70,10 @@ from netcfg.sim.scenario import SimOptions
 from netcfg.spec.schema import ObjectType
 from netcfg.timing.can_errors import first_breach
 
-PROTOCOLS = ("can", "ftt-can", "ethernet-udp", "canopen")
+PROTOCOLS = ("can", "ftt-can", "ethernet-udp", "canopen", "ethercat")
 US = 1_000
 EDS = Path(__file__).with_name("drive_et.eds")  # an EPOS4 EDS with the TPDO event timer (0x18xx sub-index 5)
+ESI = Path(__file__).with_name("ethercat_drive.xml")  # a CiA 402 drive's ESI: Fixed, Exclude, a free PDO, DC modes
 
 
 def us(lo: int, hi: int) -> st.SearchStrategy[str]:
@@ -488,6 +489,50 @@ def ethernet_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[s
     return spec
 
 
+@st.composite
+def ethercat_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, Any]:
+    """EtherCAT: a master and 1-8 slaves in wire order (cables, forwarding delays), each a drive from the ESI beside
+    this file (CSP or CSV outputs, which exclude each other; the fixed status PDO and sometimes the free one mapped)
+    or a built-in CoE profile with its mapping; distributed clocks (SYNC0 cycle and shift, per-slave shifts), the
+    master's jitter, 100 Mbit/s or 1 Gbit/s."""
+    f = Fields(draw, held)
+    cycle_us = f(st.sampled_from([250, 500, 1000, 2000, 4000]))
+    sec: dict[str, Any] = {"cycle": f"{cycle_us} us"}
+    f.opt(sec, "buses[].ethercat.master", st.just("master"), 0.3)
+    f.opt(sec, "buses[].ethercat.sync0_cycle", st.just(f"{cycle_us} us"), 0.2)
+    f.opt(sec, "buses[].ethercat.sync0_shift", us(cycle_us // 2, cycle_us - 1), 0.4)
+    f.opt(sec, "buses[].ethercat.master_jitter", us(0, 50), 0.4)
+    slaves = []
+    for i in range(f(st.integers(1, 8))):
+        slave: dict[str, Any] = {"node": f"s{i}", "position": i}
+        f.opt(slave, "buses[].ethercat.slaves[].cable", CABLE.map(lambda m: min(m, 100.0)), 0.3)
+        f.opt(slave, "buses[].ethercat.slaves[].forwarding_delay", ns(100, 2_000), 0.3)
+        if f.feature("buses[].ethercat.slaves[].esi", 0.6):
+            slave["esi"] = {"file": ESI.name}
+            f.opt(slave["esi"], "buses[].ethercat.slaves[].esi.device", st.sampled_from(["ExampleDrive", 0x1402]), 0.3)
+            f.opt(slave, "buses[].ethercat.slaves[].rxpdo", st.sampled_from([[0x1600], [0x1601]]), 0.5)
+            if f.chance(0.4):
+                slave["txpdo"] = [0x1A00, 0x1A01]
+                f.opt(slave, "buses[].ethercat.slaves[].pdos", st.just([{"index": 0x1A01, "map": [0x6077]}]), 1.0)
+            else:
+                f.opt(slave, "buses[].ethercat.slaves[].txpdo", st.just([0x1A00]), 0.3)
+            f.opt(slave, "buses[].ethercat.slaves[].opmode", st.sampled_from(["DC", "FreeRun"]), 0.3)
+        else:
+            f.opt(slave, "buses[].ethercat.slaves[].profile", st.sampled_from(["cia402", "epos4"]), 1.0)
+            slave.setdefault("profile", "cia402")
+            slave["pdos"] = [{"index": 0x1600, "map": [0x6040, 0x607A]}, {"index": 0x1A00, "map": [0x6041, 0x6064]}]
+        f.opt(slave, "buses[].ethercat.slaves[].assign_activate", st.sampled_from([0x0300, 0x0000]), 0.2)
+        f.opt(slave, "buses[].ethercat.slaves[].sync0_shift", us(cycle_us // 2, cycle_us - 1), 0.2)
+        f.opt(slave, "buses[].ethercat.slaves[].min_cycle", us(62, cycle_us), 0.2)
+        slaves.append(slave)
+    sec["slaves"] = slaves
+    bus: dict[str, Any] = {"name": "ecat", "protocol": "ethercat", "ethercat": sec}
+    f.opt(bus, "buses[].bitrate", st.sampled_from(["100 Mbit/s", "1 Gbit/s"]), 0.3)
+    nodes = [{"name": "master", "role": "master", "buses": ["ecat"]}]
+    nodes += [{"name": s["node"], "buses": ["ecat"]} for s in slaves]
+    return {"system": "random_ecat", "buses": [bus], "nodes": nodes, "messages": []}
+
+
 TPDO_TYPES = st.one_of(st.integers(1, 3), st.sampled_from([0, 254, 255]))
 TPDO_EVERY_NTH = st.one_of(st.sampled_from([4, 240]), st.integers(4, 240))  # every n-th SYNC, up to CiA 301's 240
 
@@ -742,6 +787,7 @@ def _spec_path() -> Path:
     if not _SCRATCH:
         _SCRATCH.append(tempfile.TemporaryDirectory(prefix="soundness-"))
         shutil.copy(EDS, Path(_SCRATCH[0].name) / EDS.name)  # the drives' `device: {eds: ...}` beside the spec
+        shutil.copy(ESI, Path(_SCRATCH[0].name) / ESI.name)  # the EtherCAT slaves' `esi: {file: ...}`
     return Path(_SCRATCH[0].name) / "spec.yaml"
 
 
@@ -1151,7 +1197,8 @@ def ftt_wide_spec(draw: st.DrawFn) -> dict[str, Any]:
 
 OPT_IN = {"ftt-can-wide": ftt_wide_spec}  # not in the default sweep; built only when asked for
 STRATEGIES: dict[str, Callable[[frozenset[str]], st.SearchStrategy[dict[str, Any]]]] = {
-    "can": can_spec, "ftt-can": ftt_spec, "ethernet-udp": ethernet_spec, "canopen": canopen_spec}
+    "can": can_spec, "ftt-can": ftt_spec, "ethernet-udp": ethernet_spec, "canopen": canopen_spec,
+    "ethercat": ethercat_spec}
 _BUILT: dict[tuple[str, frozenset[str]], st.SearchStrategy[dict[str, Any]]] = {}
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from netcfg.devices import DeviceProfile
 from netcfg.timing.ethernet import QUEUE_FRAMES
@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 from netcfg.runtime.config import FlowStep, TxQueue  # the same records in runtime.json: defined once, there
 from netcfg.spec.source import Path, SourceMap
 
-Protocol = Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp"]
+Protocol = Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat"]
 MessageKind = Literal["periodic", "sporadic", "on-demand"]
 
 
@@ -217,6 +217,7 @@ class Bus:
     ftt: FttBus | None = None
     canopen: CanopenBus | None = None
     switches: list[Switch] = field(default_factory=list)
+    ethercat: Any = None  # EtherCAT: its segment (netcfg.protocols.ethercat.segment), which the core need not know
     description: str | None = None
     data_bitrate: int | None = None  # CAN FD: the data-phase rate
     clock_tolerance_ppm: int = 100  # CAN: senders' clocks within +-this of nominal (timing.clocks)

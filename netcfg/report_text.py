@@ -101,7 +101,12 @@ def render(report: dict[str, Any]) -> str:
                 ]
             )
         headers = ["message", "id", "bytes", "every/us", "bits", "tx/us", "load", "wcrt/us", "deadline/us", "ok"]
-        out.extend(table(headers, rows, "lrrrrrrrrl"))
+        if rows or "cycle" not in bus:  # an EtherCAT segment's process data is its cycle's rows
+            out.extend(table(headers, rows, "lrrrrrrrrl"))
+        if "cycle" in bus:
+            from netcfg.protocols.ethercat.report import render_cycle
+
+            out.extend(render_cycle(bus, table, num))
         if "ftt" in bus:
             out.extend(render_ftt(bus["ftt"]))
         if "sync" in bus:

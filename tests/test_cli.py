@@ -81,7 +81,7 @@ def test_schema_describes_the_spec_language() -> None:
     assert {"system", "buses", "nodes"} <= set(schema["required"])
     assert schema["additionalProperties"] is False
     bus = schema["$defs"]["Bus"]["properties"]
-    assert bus["protocol"]["enum"] == ["can", "can-fd", "canopen", "ftt-can", "ethernet-udp"]
+    assert bus["protocol"]["enum"] == ["can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat"]
 
 
 def test_every_example_spec_validates_against_the_json_schema() -> None:

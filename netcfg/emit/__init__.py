@@ -38,6 +38,8 @@ EMITTERS: dict[str, str] = {
     "report_json": "netcfg.emit.report_json:emit",  # report.json: the check report, for tools and `netcfg diff`
     "bus_yml": "netcfg.emit.bus_yml:emit",  # canopen/bus.yml
     "ros2_control": "netcfg.emit.ros2_control:emit",  # ros2_control/<system>.ros2_control.xacro, controllers.yaml
+    "ethercat_ros2": "netcfg.protocols.ethercat.ros2:emit",  # ethercat/<bus>/<node>.yaml (ethercat_driver_ros2)
+    "ethercat_image": "netcfg.protocols.ethercat.c_image:emit",  # ethercat/<bus>_image.h
 }
 
 

@@ -20,6 +20,7 @@ from typing import Any
 
 from netcfg import cia301, jsontext, links, model
 from netcfg.protocols.canopen import dcf as canopen_dcf
+from netcfg.protocols.ethercat.runtime_section import runtime_section
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
 from netcfg.timing import flows, ftt
@@ -89,10 +90,13 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
     errors = {"errors": {"burst": b.errors.burst, "interval_ns": b.errors.interval_ns}} if b.errors else {}
     # the senders' clock tolerance only where the spec changes the default, for the same reason
     tolerance = {"clock_tolerance_ppm": b.clock_tolerance_ppm} if b.clock_tolerance_ppm != DEFAULT_TOLERANCE_PPM else {}
+    # an EtherCAT segment's section only on EtherCAT buses: files of the other protocols stay as they were
+    ethercat = {"ethercat": runtime_section(b.ethercat)} if b.ethercat is not None else {}
     return {
         **fd,
         **errors,
         **tolerance,
+        **ethercat,
         "name": b.name,
         "protocol": b.protocol,
         "bitrate": b.bitrate,

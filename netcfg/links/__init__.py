@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 from netcfg.links.base import Link
 from netcfg.links.can import CLASSICAL_CAN
 from netcfg.links.canfd import CAN_FD
+from netcfg.links.ethercat import ETHERCAT
 from netcfg.links.ethernet import ETHERNET
 
 if TYPE_CHECKING:
@@ -18,7 +19,7 @@ if TYPE_CHECKING:
 
 __all__ = ["LINKS", "Link", "of"]
 
-LINKS: dict[str, Link] = {link.name: link for link in (CLASSICAL_CAN, CAN_FD, ETHERNET)}
+LINKS: dict[str, Link] = {link.name: link for link in (CLASSICAL_CAN, CAN_FD, ETHERNET, ETHERCAT)}
 
 
 def of(bus: model.Bus) -> Link:

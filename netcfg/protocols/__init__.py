@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from netcfg.protocols.base import Protocol
 from netcfg.protocols.canopen import CANOPEN
+from netcfg.protocols.ethercat import ETHERCAT_PROTOCOL
 from netcfg.protocols.ftt import FTT
 from netcfg.protocols.raw import CAN, CAN_FD_RAW
 from netcfg.protocols.udp import UDP
@@ -20,7 +21,7 @@ if TYPE_CHECKING:
 
 __all__ = ["PROTOCOLS", "Protocol", "of", "release_offsets"]
 
-PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (CAN, CAN_FD_RAW, CANOPEN, FTT, UDP)}
+PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (CAN, CAN_FD_RAW, CANOPEN, FTT, UDP, ETHERCAT_PROTOCOL)}
 
 
 def of(bus: model.Bus) -> Protocol:

@@ -398,6 +398,8 @@ class Bus:
     data_bitrate: int | None = None  # CAN FD: the data-phase rate
     errors: ErrorAssumption | None = None  # the bit errors the analysis allowed for; None: an error-free bus
     clock_tolerance_ppm: int = DEFAULT_CLOCK_TOLERANCE_PPM  # senders' clocks within +-this, as analysed
+    # EtherCAT: the segment's section as runtime.json has it (netcfg.runtime.schema.ETHERCAT), for a SOEM master
+    ethercat: Mapping[str, Any] | None = None
 
     @property
     def is_can(self) -> bool:

@@ -198,6 +198,7 @@ def _bus(d: dict[str, Any]) -> Bus:
         bitrate=d["bitrate"],
         data_bitrate=d.get("data_bitrate"),
         clock_tolerance_ppm=d.get("clock_tolerance_ppm", DEFAULT_CLOCK_TOLERANCE_PPM),
+        ethercat=d.get("ethercat"),
         errors=None if d.get("errors") is None else ErrorAssumption(d["errors"]["burst"], d["errors"]["interval_ns"]),
         id_bits=d["id_bits"],
         nodes=_strs(d["nodes"]),

@@ -22,9 +22,9 @@ from netcfg.runtime.codec import byte_ops
 MAX_NS = 10**15  # the longest duration netcfg handles (netcfg.spec.units.MAX_DURATION_NS; a test ties the two)
 U8, U16, U32 = 0xFF, 0xFFFF, 0xFFFF_FFFF
 MAX_NAME_CHARS = 255
-PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can", "ethernet-udp")
+PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat")
 # CAN 2.0; CAN FD (ISO 11898-1:2015); UDP without fragmentation
-MAX_PAYLOAD = {"can": 8, "can-fd": 64, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472}
+MAX_PAYLOAD = {"can": 8, "can-fd": 64, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472, "ethercat": 0}
 # CAN FD data lengths (ISO 11898-1:2015), as netcfg.timing.frames has them (a master does not import the compiler;
 # a test keeps the two equal)
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
@@ -149,9 +149,26 @@ ETHERNET = obj(
                                    queue=i(1, 1_000_000, optional=True))))),
     nics=lst(obj(node=name(), queue=i(1, 1_000_000)), optional=True),
 )
+# An EtherCAT segment, as a SOEM master (pysoem) applies it in its configuration hook: each slave's identity, its
+# CoE start-up SDOs (PDO mappings, then the 0x1C12/0x1C13 assignment), sync managers, FMMUs and DC settings, and
+# where each entry sits in the process image (the IOmap: every slave's outputs, then every slave's inputs).
+ECAT_SLAVE = obj(
+    node=name(), position=i(0, 65534), vendor_id=i(0, U32), product_code=i(0, U32), revision=i(0, U32),
+    device=text(), rxpdo=lst(i(0x1600, 0x17FF)), txpdo=lst(i(0x1A00, 0x1BFF)),
+    sdo=lst(obj(index=i(0, U16), sub=i(0, U8), bits=enum(8, 16, 32), value=i(0, U32))),
+    sm=lst(obj(number=i(0, 15), kind=text(), start=i(0, U16), length=i(0, U16), control=i(0, U8))),
+    fmmu=lst(obj(direction=enum("outputs", "inputs"), logical=i(0, U32), length=i(0, U16), physical=i(0, U16))),
+    dc=obj(assign_activate=i(0, U16), sync0_cycle_ns=ns(), sync0_shift_ns=ns()),
+    entries=lst(obj(direction=enum("outputs", "inputs"), pdo=i(0x1600, 0x1BFF), index=i(0, U16), sub=i(0, U8),
+                    bits=i(1, 64), name=text(), bit_offset=i(0, 8 * U32))),
+)
+ETHERCAT = obj(
+    optional=True, cycle_ns=ns(1), sync0_cycle_ns=ns(1), sync0_shift_ns=ns(), master=name(null=True),
+    master_jitter_ns=ns(), out_bytes=i(0, U32), in_bytes=i(0, U32), slaves=lst(ECAT_SLAVE),
+)
 BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),
-    canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET, data_bitrate=i(1, 10**12, optional=True),
+    canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET, ethercat=ETHERCAT, data_bitrate=i(1, 10**12, optional=True),
     errors=obj(null=True, optional=True, burst=i(0, 10_000), interval_ns=ns(1)),
     clock_tolerance_ppm=i(0, 10_000, optional=True),
 )
@@ -273,8 +290,10 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
     protocol = {b["name"]: b["protocol"] for b in doc["buses"]}
     for b in doc["buses"]:
         where = f"bus {b['name']!r}"
-        section = {"canopen": "canopen", "ftt-can": "ftt", "ethernet-udp": "ethernet"}.get(b["protocol"])
-        if section is not None and b[section] is None:
+        section = {"canopen": "canopen", "ftt-can": "ftt", "ethernet-udp": "ethernet", "ethercat": "ethercat"}.get(
+            b["protocol"]
+        )
+        if section is not None and b.get(section) is None:
             out.append(f"{where}: a {b['protocol']} bus needs its '{section}' section")
         if b["protocol"] == "can-fd" and "data_bitrate" not in b:
             out.append(f"{where}: a can-fd bus needs its data_bitrate")

@@ -1,0 +1,35 @@
+"""EtherCAT (IEC 61158 type 12): a master's cyclic frames through slaves in wire order, each slave's process data
+from its ESI file or a CoE profile, distributed clocks, and the cycle's timing on the wire."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from netcfg.links.ethercat import ETHERCAT
+from netcfg.protocols.base import Protocol
+
+if TYPE_CHECKING:
+    from netcfg import model
+    from netcfg.bus_analysis import Analysis
+    from netcfg.diagnostics import Collector
+    from netcfg.rules import BusRules
+
+
+class EtherCatProtocol(Protocol):
+    def rules(self) -> type[BusRules]:
+        from netcfg.protocols.ethercat.resolve import EthercatRules
+
+        return EthercatRules
+
+    def analyze(self, m: model.Model, bus: model.Bus, diags: Collector, acc: Analysis) -> dict[str, Any]:
+        from netcfg.protocols.ethercat.analysis import analyze_segment
+
+        return analyze_segment(m, bus, diags)
+
+    def assumptions(self, bus: model.Bus, fifo_nodes: tuple[str, ...]) -> list[str]:
+        from netcfg.protocols.ethercat.analysis import ASSUMES
+
+        return list(ASSUMES)
+
+
+ETHERCAT_PROTOCOL = EtherCatProtocol("ethercat", ETHERCAT)

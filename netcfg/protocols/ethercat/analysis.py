@@ -1,0 +1,172 @@
+"""The cycle of an EtherCAT segment: how long the master's frames take on the wire and through the line of
+slaves, whether that fits the cycle, whether SYNC0 comes after the frame has passed every slave, and how much of
+the cycle is left for mailbox (CoE SDO) traffic.
+
+The model, per cycle:
+
+- The process image is the slaves' outputs and inputs side by side (SOEM's IOmap), read and written by one LRW
+  datagram per frame; an image above 1,486 bytes takes several frames, sent back to back.
+- A frame's bytes on the wire (IEEE 802.3; ETG.1000.4 for the EtherCAT header and datagrams): preamble and SFD 8,
+  Ethernet header 14, EtherCAT header 2, per datagram 10 + data + working counter 2, FCS 4, inter-frame gap 12,
+  the Ethernet frame padded to 64 bytes (netcfg.links.ethercat.frame_bytes). A byte is 80 ns at 100 Mbit/s.
+- The bus is busy for the frames' wire time (the shortest cycle its bandwidth allows: Beckhoff's "100 servo
+  axes every 100 us" is this figure).
+- A frame comes back to the master after its wire time, the master's send jitter, each slave's forwarding delay
+  (default 1 us: Beckhoff EK1101 technical data, "propagation delay 1 us typ.", an RJ45 slave; an E-bus terminal
+  is far faster: set it per slave) and the cables out and back at 0.7 c. This latency is what the cycle must
+  hold (Beckhoff's "1,000 distributed digital I/O in about 30 us" and "about 12,000 I/O in one frame in 300 us"
+  are this figure).
+- The end of the last frame has passed slave k after the jitter, the wire time, and the forwarding delays and
+  cables up to k: SYNC0 (each slave's shift after the cycle start) must come later, or the slave latches outputs
+  from the frame that is still passing.
+- What the latency leaves of the cycle is the room for mailbox traffic (CoE SDOs in frames of their own).
+
+Beckhoff's figures: Beckhoff Automation, "Next Generation Ethernet: EtherCAT I/O" (product overview, as published
+at globalspec.com, FeaturedProducts/Detail/BeckhoffAutomation/Next_Generation_Ethernet_EtherCAT_IO): "The update
+time for 1000 distributed I/Os is only 30 us. Up to 1486 bytes of process data can be exchanged with a single
+Ethernet frame - this is equivalent to almost 12,000 digital inputs and outputs. The transfer of this data
+quantity only takes 300 us. EtherCAT communication with 100 servo axes only takes 100 us"; Beckhoff's EtherCAT
+system description adds that 30 us "is typical for a transfer of 125 byte over 100Mb/s Ethernet".
+tests/test_ethercat.py derives each from this model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from netcfg import model
+from netcfg.bus_analysis import us
+from netcfg.diagnostics import Collector
+from netcfg.links import ethercat as link
+from netcfg.protocols.ethercat.segment import Segment
+
+ASSUMES = [
+    "one LRW datagram per frame carries the process image (outputs then inputs), several frames back to back when "
+    f"it exceeds {link.MAX_DATAGRAM_DATA} bytes; the master sends a cycle's first frame at most its master_jitter "
+    "late and waits for the last one to come back within the cycle",
+    "each slave adds its forwarding delay to the round trip once (default 1 us, an RJ45 coupler's); cables at 0.7 c",
+    "no frame is lost (a lost frame is a working-counter mismatch the master must detect) and mailbox traffic goes "
+    "in the room the cyclic frames leave",
+]
+
+
+@dataclass(frozen=True)
+class CycleTiming:
+    frames: tuple[int, ...]  # data bytes of each frame's datagram
+    frame_bytes: tuple[int, ...]  # each frame on the wire
+    wire_ns: int  # all frames back to back: the bus's busy time
+    forwarding_ns: int  # the slaves' forwarding delays
+    propagation_ns: int  # the cables, out and back
+    jitter_ns: int
+    passed_ns: tuple[int, ...]  # per slave: the last frame's end has passed it, from the cycle's start
+
+    @property
+    def latency_ns(self) -> int:
+        """From the cycle's start to the last frame back at the master."""
+        return self.jitter_ns + self.wire_ns + self.forwarding_ns + self.propagation_ns
+
+
+def cycle_timing(
+    image_bytes: int, bitrate: int, forwarding_ns: list[int], cables_m: list[float], jitter_ns: int = 0
+) -> CycleTiming:
+    frames = tuple(link.split_image(image_bytes))
+    sizes = tuple(link.frame_bytes([d]) for d in frames)
+    wire = link.wire_ns(sum(sizes), bitrate)
+    passed, fwd, prop = [], 0.0, 0.0
+    for d, cable in zip(forwarding_ns, cables_m):
+        fwd += d
+        prop += link.propagation_ns(cable)
+        passed.append(round(jitter_ns + wire + fwd + prop))
+    return CycleTiming(frames, sizes, wire, round(fwd), round(2 * prop), jitter_ns, tuple(passed))
+
+
+def segment_timing(bus: model.Bus, seg: Segment) -> CycleTiming:
+    return cycle_timing(
+        seg.out_bytes + seg.in_bytes,
+        bus.bitrate,
+        [s.forwarding_ns for s in seg.slaves],
+        [s.cable_m for s in seg.slaves],
+        seg.master_jitter_ns,
+    )
+
+
+def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[str, Any]:
+    seg: Segment | None = bus.ethercat
+    row: dict[str, Any] = {
+        "name": bus.name,
+        "protocol": bus.protocol,
+        "bitrate": bus.bitrate,
+        "utilization": 0.0,
+        "messages": [],
+    }
+    if seg is None:
+        return row
+    t = segment_timing(bus, seg)
+    room = seg.cycle_ns - t.latency_ns
+    row["utilization"] = round(t.wire_ns / seg.cycle_ns, 6)
+    if room < 0:
+        diags.add(
+            "cycle-overload",
+            f"EtherCAT bus '{bus.name}': the process image ({seg.out_bytes} bytes out, {seg.in_bytes} in, "
+            f"{len(t.frames)} frame(s)) is back at the master {t.latency_ns / 1000:.2f} us after the cycle starts "
+            f"(wire {t.wire_ns / 1000:.2f}, slaves {t.forwarding_ns / 1000:.2f}, cables {t.propagation_ns / 1000:.2f}, "
+            f"jitter {t.jitter_ns / 1000:.2f}), longer than the {seg.cycle_ns / 1000:g} us cycle: lengthen the cycle "
+            "or map less",
+            m.source.at((*seg.path, "cycle")),
+        )
+    slaves = []
+    early: dict[tuple[str | int, ...], list[tuple[str, int, int]]] = {}  # SYNC0 too early, by the shift's place
+    for s, passed in zip(seg.slaves, t.passed_ns):
+        shift = s.sync0_shift_ns if s.sync0_shift_ns is not None else seg.sync0_shift_ns
+        ok = shift >= passed and (s.min_cycle_ns is None or seg.cycle_ns >= s.min_cycle_ns)
+        if s.min_cycle_ns is not None and seg.cycle_ns < s.min_cycle_ns:
+            diags.add(
+                "min-cycle",
+                f"slave '{s.node}' ({s.device}) needs a cycle of at least "
+                f"{s.min_cycle_ns / 1000:g} us; bus '{bus.name}' runs {seg.cycle_ns / 1000:g} us",
+                m.source.at((*s.path, "min_cycle")),
+            )
+        if s.assign_activate and shift < passed:
+            where = (*s.path, "sync0_shift") if s.sync0_shift_ns is not None else (*seg.path, "sync0_shift")
+            early.setdefault(where, []).append((s.node, shift, passed))
+        slaves.append(
+            {
+                "node": s.node,
+                "position": s.position,
+                "device": s.device,
+                "out_bytes": s.out_bytes,
+                "in_bytes": s.in_bytes,
+                "frame_passed_us": us(passed),
+                "sync0_shift_us": us(shift),
+                "assign_activate": f"0x{s.assign_activate:04X}",
+                "ok": ok,
+            }
+        )
+    for where, late in early.items():
+        names = ", ".join(f"'{n}'" for n, _, _ in late)
+        node, shift, passed = late[-1]  # the slave farthest down the line
+        diags.add(
+            "dc-shift",
+            f"SYNC0 comes {shift / 1000:g} us after the cycle starts, but the last frame has passed slave '{node}' "
+            f"only {passed / 1000:.2f} us after (slaves {names} latch the outputs of a frame still passing): shift "
+            f"SYNC0 to {-(-passed // 1000)} us or later",
+            m.source.at(where),
+        )
+    row["cycle"] = {
+        "cycle_us": us(seg.cycle_ns),
+        "sync0_cycle_us": us(seg.sync0_cycle_ns),
+        "out_bytes": seg.out_bytes,
+        "in_bytes": seg.in_bytes,
+        "frames": len(t.frames),
+        "frame_bytes": list(t.frame_bytes),
+        "wire_us": us(t.wire_ns),
+        "forwarding_us": us(t.forwarding_ns),
+        "propagation_us": us(t.propagation_ns),
+        "master_jitter_us": us(t.jitter_ns),
+        "latency_us": us(t.latency_ns),
+        "mailbox_room_us": us(max(room, 0)),
+        "ok": room >= 0,
+    }
+    row["slaves"] = slaves
+    return row

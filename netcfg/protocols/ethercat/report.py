@@ -1,0 +1,34 @@
+"""The text report's rows of an EtherCAT segment: the cycle's budget and each slave's place in it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def render_cycle(bus: dict[str, Any], table: Any, num: Any) -> list[str]:
+    c = bus["cycle"]
+    out = [
+        f"  cycle {num(c['cycle_us'])} us (SYNC0 every {num(c['sync0_cycle_us'])} us): {c['out_bytes']} bytes out, "
+        f"{c['in_bytes']} in, {c['frames']} frame(s) of {', '.join(map(str, c['frame_bytes']))} bytes on the wire",
+        f"  back at the master after {num(c['latency_us'])} us = jitter {num(c['master_jitter_us'])} + wire "
+        f"{num(c['wire_us'])} + slaves {num(c['forwarding_us'])} + cables {num(c['propagation_us'])}; "
+        f"{num(c['mailbox_room_us'])} us left for mailbox traffic"
+        + ("" if c["ok"] else " (NO: the cycle is too short)"),
+    ]
+    rows = [
+        [
+            str(s["position"]),
+            s["node"],
+            s["device"],
+            str(s["out_bytes"]),
+            str(s["in_bytes"]),
+            num(s["frame_passed_us"]),
+            num(s["sync0_shift_us"]),
+            s["assign_activate"],
+            num(s["ok"], false="NO"),
+        ]
+        for s in bus["slaves"]
+    ]
+    head = ["pos", "slave", "device", "out B", "in B", "frame passed/us", "SYNC0/us", "DC", "ok"]
+    out.extend(table(head, rows, "rllrrrrrl"))
+    return out

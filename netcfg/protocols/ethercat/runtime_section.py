@@ -1,0 +1,115 @@
+"""runtime.json's section of an EtherCAT segment: what a SOEM master (through pysoem) applies in each slave's
+configuration hook (the PO2SO hook, in PRE-OP): the CoE start-up SDOs, then the sync managers, FMMUs and DC
+activation, and where each entry of the process image lies. Checked against netcfg.runtime.schema.ETHERCAT."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from netcfg.protocols.ethercat.segment import Segment, Slave
+
+ASSIGN = {"rx": 0x1C12, "tx": 0x1C13}
+
+
+def startup_sdos(s: Slave) -> list[dict[str, int]]:
+    """CoE downloads in the order ETG.1020 asks: each PDO mapping the master writes (sub-index 0 cleared, the
+    entries, the count), then each PDO assignment (cleared, the PDOs, the count). A device whose assignment objects
+    are read-only (a fixed-PDO slave) gets no assignment writes."""
+    out: list[dict[str, int]] = []
+
+    def sdo(index: int, sub: int, bits: int, value: int) -> None:
+        out.append({"index": index, "sub": sub, "bits": bits, "value": value})
+
+    for index, entries in s.pdo_mappings.items():
+        sdo(index, 0, 8, 0)
+        for k, (obj, sub, bits) in enumerate(entries, 1):
+            sdo(index, k, 32, obj << 16 | sub << 8 | bits)
+        sdo(index, 0, 8, len(entries))
+    if s.assign_writable:
+        for side, pdos in (("rx", s.rx), ("tx", s.tx)):
+            sdo(ASSIGN[side], 0, 8, 0)
+            for k, p in enumerate(pdos, 1):
+                sdo(ASSIGN[side], k, 16, p.index)
+            sdo(ASSIGN[side], 0, 8, len(pdos))
+    return out
+
+
+def runtime_section(seg: Segment) -> dict[str, Any]:
+    slaves = []
+    for s in seg.slaves:
+        sms = {sm.kind: sm for sm in s.sync_managers}
+        fmmu = []
+        if s.out_bytes and "Outputs" in sms:
+            fmmu.append(
+                {
+                    "direction": "outputs",
+                    "logical": s.out_offset,
+                    "length": s.out_bytes,
+                    "physical": sms["Outputs"].start,
+                }
+            )
+        if s.in_bytes and "Inputs" in sms:
+            fmmu.append(
+                {
+                    "direction": "inputs",
+                    "logical": seg.out_bytes + s.in_offset,
+                    "length": s.in_bytes,
+                    "physical": sms["Inputs"].start,
+                }
+            )
+        entries = [
+            {
+                "direction": direction,
+                "pdo": e.pdo,
+                "index": e.index,
+                "sub": e.sub,
+                "bits": e.bits,
+                "name": e.name,
+                "bit_offset": e.bit_offset,
+            }
+            for direction, image in (("outputs", seg.outputs), ("inputs", seg.inputs))
+            for e in image
+            if e.slave == s.node
+        ]
+        slaves.append(
+            {
+                "node": s.node,
+                "position": s.position,
+                "vendor_id": s.vendor_id,
+                "product_code": s.product_code,
+                "revision": s.revision,
+                "device": s.device,
+                "rxpdo": [p.index for p in s.rx],
+                "txpdo": [p.index for p in s.tx],
+                "sdo": startup_sdos(s),
+                "sm": [
+                    {
+                        "number": sm.number,
+                        "kind": sm.kind,
+                        "start": sm.start,
+                        "length": sm.length,
+                        "control": sm.control,
+                    }
+                    for sm in s.sync_managers
+                ],
+                "fmmu": fmmu,
+                "dc": {
+                    "assign_activate": s.assign_activate,
+                    "sync0_cycle_ns": seg.sync0_cycle_ns if s.assign_activate else 0,
+                    "sync0_shift_ns": (s.sync0_shift_ns if s.sync0_shift_ns is not None else seg.sync0_shift_ns)
+                    if s.assign_activate
+                    else 0,
+                },
+                "entries": entries,
+            }
+        )
+    return {
+        "cycle_ns": seg.cycle_ns,
+        "sync0_cycle_ns": seg.sync0_cycle_ns,
+        "sync0_shift_ns": seg.sync0_shift_ns,
+        "master": seg.master,
+        "master_jitter_ns": seg.master_jitter_ns,
+        "out_bytes": seg.out_bytes,
+        "in_bytes": seg.in_bytes,
+        "slaves": slaves,
+    }
