@@ -7,72 +7,40 @@ is netcfg.spec.names'.
 
 from __future__ import annotations
 
-import math
-import re
 from typing import Annotated, Literal
 
 from pydantic import (
     AfterValidator,
-    BaseModel,
     BeforeValidator,
-    ConfigDict,
     Discriminator,
     Field,
-    Strict,
     Tag,
     model_validator,
 )
 
 from netcfg.spec.fields import BitRateField, DurationField, FrequencyField, OffsetField
-from netcfg.spec.names import check_name
+from netcfg.spec.names import check_name as check_name  # the name rule, through this module
 from netcfg.spec.names import safe_name as safe_name  # the resolver's, through this module
-from netcfg.spec.units import Duration
+from netcfg.spec.schema_ethercat import EthercatEsi as EthercatEsi  # the resolver's, through this module
+from netcfg.spec.schema_ethercat import EthercatParams
+from netcfg.spec.schema_ethercat import EthercatSlave as EthercatSlave
+from netcfg.spec.schema_joints import Joint
+from netcfg.spec.schema_types import (
+    Bool,
+    Float,
+    Int,
+    IntKey,
+    Name,
+    ObjectRef,
+    SpecModel,
+    TaskRef,
+    _non_zero,
+    _ns,
+)
 
-Name = Annotated[str, AfterValidator(check_name)]
-
-
-def _no_bool(value: object) -> object:
-    if isinstance(value, bool):
-        raise ValueError(f"expected a number, not {str(value).lower()}")
-    return value
-
-
-def _finite(value: float) -> float:
-    if not math.isfinite(value):
-        raise ValueError(f"expected a finite number, not {value}")
-    return value
-
-
-def _non_zero(value: float) -> float:
-    if value == 0:
-        raise ValueError("a scale of 0 would map every raw value to the offset; use a non-zero scale")
-    return value
-
-
-# YAML reads yes/no/true/false as booleans: never let them pass for numbers (or numbers for booleans).
-Int = Annotated[int, Strict()]
-Float = Annotated[float, BeforeValidator(_no_bool), AfterValidator(_finite)]
-Bool = Annotated[bool, Strict()]
-
-
-def _int_key(value: object) -> object:
-    """Mapping keys reach the model as text (YAML's `0:`, JSON's "0"): whole numbers only, no booleans."""
-    if isinstance(value, str) and re.fullmatch(r"-?[0-9]{1,20}", value.strip()):
-        return int(value)
-    return value
-
-
-IntKey = Annotated[int, BeforeValidator(_int_key), Strict()]
-# "node.task" references to tasks; flows and triggers use them.
-TaskRef = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$")]
-ObjectRef = Annotated[
-    Int | str,
-    Field(description="a device object: 0x6064 (sub-index 0) or '0x30D1:2' (index:sub-index)"),
-]
-
-
-class SpecModel(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
+# The bit rate a bus of these protocols runs at unless the spec says: an EtherCAT segment is 100BASE-TX (1 Gbit/s,
+# EtherCAT G, when the spec says so)
+DEFAULT_BITRATES = {"ethercat": "100 Mbit/s"}
 
 
 class FttParams(SpecModel):
@@ -144,66 +112,8 @@ class Switch(SpecModel):
     )
 
 
-def _ns(ns: int) -> Duration:
-    return Duration(ns=ns)
-
-
 class EthernetParams(SpecModel):
     switches: list[Switch] = Field(default_factory=list)
-
-
-class EthercatEsi(SpecModel):
-    file: str = Field(description="path of the vendor's ESI file (ETG.2000 XML), relative to the spec")
-    device: str | Int | None = Field(
-        None, description="which <Device> of the file: its <Type> name or product code (default: the only one)"
-    )
-
-
-class EthercatPdo(SpecModel):
-    """A PDO's mapping (0x16xx/0x1Axx) the master writes at start-up: for a profile drive, or an ESI PDO that is
-    not Fixed."""
-
-    index: Int = Field(ge=0x1600, le=0x1BFF, description="the PDO's mapping object: 0x1600.. (Rx), 0x1A00.. (Tx)")
-    map: list[ObjectRef] = Field(min_length=1, description="mapped objects, first byte first")
-
-
-class EthercatSlave(SpecModel):
-    node: Name = Field(description="the node (in nodes:) this slave is")
-    position: Int = Field(ge=0, le=65534, description="its place in the line: 0 next to the master, then 1, 2, ...")
-    cable: Float = Field(0.0, ge=0, le=100, description="metres of cable from the previous device (100BASE-TX: <= 100)")
-    forwarding_delay: DurationField | None = Field(
-        None,
-        description="what the slave adds to the frame's round trip (default 1 us, an EtherCAT coupler's typical "
-        "propagation delay)",
-    )
-    esi: EthercatEsi | None = Field(None, description="the slave's ESI file and device in it")
-    profile: Name | None = Field(None, description="a built-in CoE profile instead of an ESI: cia402, epos4")
-    rxpdo: list[Int] | None = Field(
-        None, description="PDO assignment of the outputs (0x1C12); default: the ESI's mandatory RxPDOs, else its first"
-    )
-    txpdo: list[Int] | None = Field(
-        None, description="PDO assignment of the inputs (0x1C13); default: the ESI's mandatory TxPDOs, else its first"
-    )
-    pdos: list[EthercatPdo] = Field(default_factory=list, description="PDO mappings the master writes at start-up")
-    opmode: str | None = Field(None, description="the ESI's <Dc><OpMode> by name (default: its first, if any)")
-    assign_activate: Int | None = Field(
-        None, ge=0, le=0xFFFF, description="DC activation (register 0x0980); default: the op mode's"
-    )
-    sync0_shift: DurationField | None = Field(None, description="this slave's SYNC0 shift (default: the bus's)")
-    min_cycle: DurationField | None = Field(None, description="the slave's shortest cycle (its 0x1C32:05)")
-
-
-class EthercatParams(SpecModel):
-    cycle: DurationField = Field(description="the master's cycle: one exchange of the process image")
-    master: Name | None = Field(None, description="the EtherCAT master (default: the node with role master)")
-    slaves: list[EthercatSlave] = Field(min_length=1, description="the slaves in wire order")
-    sync0_cycle: DurationField | None = Field(None, description="distributed clocks' SYNC0 period (default: cycle)")
-    sync0_shift: DurationField | None = Field(
-        None, description="SYNC0 after the cycle's start, when the slaves latch the outputs (default: half a cycle)"
-    )
-    master_jitter: DurationField = Field(
-        default_factory=lambda: _ns(0), description="how late the master may send a cycle's first frame"
-    )
 
 
 class ErrorModel(SpecModel):
@@ -259,10 +169,10 @@ class Bus(SpecModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _ethercat_rate(cls, data: object) -> object:
-        """An EtherCAT segment runs 100BASE-TX unless the spec says (1 Gbit/s: EtherCAT G)."""
-        if isinstance(data, dict) and data.get("protocol") == "ethercat" and "bitrate" not in data:
-            return {**data, "bitrate": "100 Mbit/s"}
+    def _default_rate(cls, data: object) -> object:
+        """A protocol whose link has a standard rate gets it when the spec gives none (DEFAULT_BITRATES)."""
+        if isinstance(data, dict) and "bitrate" not in data and data.get("protocol") in DEFAULT_BITRATES:
+            return {**data, "bitrate": DEFAULT_BITRATES[data["protocol"]]}
         return data
 
 
@@ -569,57 +479,6 @@ class Flow(SpecModel):
         "several items in parallel (all their data is needed). Tasks on one node may follow each other",
     )
     deadline: DurationField | None = None
-    description: str | None = None
-
-
-# "message.signal": a signal of a message, as a joint names the PDO entries that carry its interfaces
-SignalRef = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$")]
-
-
-class JointSignals(SpecModel):
-    """The signals that carry a joint's interfaces, as message.signal (a PDO entry's signal name); the interfaces
-    named here are the ones the joint offers to ros2_control."""
-
-    position: SignalRef | None = Field(None, description="position, in the device's counts (encoder increments)")
-    velocity: SignalRef | None = Field(None, description="velocity, in the device's velocity unit (velocity_unit)")
-    effort: SignalRef | None = Field(None, description="torque, in per mille of the motor's rated torque (CiA 402)")
-
-
-class JointLimits(SpecModel):
-    position: tuple[Float, Float] | None = Field(None, description="[lowest, highest] joint position, rad")
-    velocity: Float | None = Field(None, gt=0, description="highest joint speed, rad/s")
-    effort: Float | None = Field(None, gt=0, description="highest joint torque, N m")
-
-
-class Joint(SpecModel):
-    """A robot joint and the drive axis that moves it: what ros2_control's description of the robot needs and the
-    scaling between the joint's SI units and the device's."""
-
-    name: Name = Field(description="the joint's name in the robot's URDF")
-    node: Name = Field(description="the drive that moves it")
-    axis: Int = Field(1, ge=1, le=8, description="the drive's axis, for multi-axis drives (CiA 402: 1..8)")
-    gear_ratio: Float = Field(1.0, gt=0, description="motor revolutions per joint revolution")
-    encoder_counts: Int | None = Field(
-        None,
-        ge=1,
-        le=1 << 31,
-        description="position counts per motor revolution (a quadrature encoder: 4 x its pulses); required when "
-        "a position signal is given",
-    )
-    velocity_unit: Literal["rpm", "counts/s"] = Field(
-        "rpm", description="the velocity signal's unit at the motor: rpm (the EPOS4's default, 0x60A9) or counts/s"
-    )
-    rated_torque: Float | None = Field(
-        None, gt=0, description="the motor's rated torque in N m (0x6076), required when an effort signal is given"
-    )
-    zero: Float = Field(0.0, description="the joint position, rad, at which the device's position reads 0")
-    command: JointSignals = Field(
-        default_factory=lambda: JointSignals.model_validate({}), description="command interfaces and their signals"
-    )
-    state: JointSignals = Field(
-        default_factory=lambda: JointSignals.model_validate({}), description="state interfaces and their signals"
-    )
-    limits: JointLimits = Field(default_factory=lambda: JointLimits.model_validate({}))
     description: str | None = None
 
 
