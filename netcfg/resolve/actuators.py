@@ -46,7 +46,9 @@ MS = 1_000_000
 
 def is_actuator_device(device: object) -> bool:
     """The `device:` forms that name an actuator profile (the others are CANopen's)."""
-    return isinstance(device, schema.ActuatorDevice) or (isinstance(device, str) and "-" in device)
+    if isinstance(device, str):  # a name with '-' is no spec Name: only a profile's (moteus is both)
+        return "-" in device or device in builtin_actuator_names()
+    return isinstance(device, schema.ActuatorDevice)
 
 
 def load_profile(r: Resolver, n: schema.Node, path: Path) -> ActuatorProfile | None:
