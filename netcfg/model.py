@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from netcfg.devices import DeviceProfile
 from netcfg.timing.ethernet import QUEUE_FRAMES
@@ -66,6 +66,9 @@ class Node:
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
     tx_queue: TxQueue = field(default_factory=TxQueue)
     nic_queue: int = QUEUE_FRAMES  # Ethernet: frames its NIC's transmit queue holds
+    # an actuator profile's node: its plain profile, parameters and which model messages carry its commands, replies
+    # and cyclic messages (netcfg.resolve.actuators; runtime.json's `actuator`, netcfg.runtime.config.Actuator)
+    actuator: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)

@@ -130,9 +130,18 @@ class _Actuator:
             return
         node = r.model.nodes[n.name]
         replies: dict[str, int] = {}  # reply message -> the command's index
+        self.commands: list[dict[str, Any]] = []
+        self.cyclics: list[dict[str, Any]] = []
         for j, c in enumerate(self.setup.commands):
             self.command(j, c, codec, commander, bus, node, replies)
         self.cyclic(codec, commander, bus)
+        node.actuator = {  # what a master needs to run its codec (runtime.json's node `actuator`)
+            "profile": self.plain,
+            "parameters": [[k, v] for k, v in sorted(codec.parameters.items()) if v is not None],
+            "commanded_by": commander,
+            "commands": self.commands,
+            "cyclic": self.cyclics,
+        }
 
     # -- who, and with which parameters
     def commander(self, sbus: schema.Bus) -> str | None:
@@ -232,7 +241,11 @@ class _Actuator:
         mc = codec.message(c.message)
         cmd = self.message(mc, pm, f"{self.n.name}_{c.message}", commander, self.n.name, period, bus, cpath,
                            c.description)
-        if cmd is None or mc.reply is None or mc.reply_delay_us is None:
+        if cmd is None:
+            return
+        record: dict[str, Any] = {"command": c.message, "message": cmd.name, "reply": None, "reply_message": None}
+        self.commands.append(record)
+        if mc.reply is None or mc.reply_delay_us is None:
             return
         lo, hi = (round(d * 1000) for d in mc.reply_delay_us)
         basis = mc.delay_basis
@@ -270,6 +283,7 @@ class _Actuator:
                              cpath, None)
         if reply is not None:
             self.r.actuator_replies[reply.name] = task.ref
+            record["reply"], record["reply_message"] = mc.reply, reply.name
 
     def cyclic_period(self, c: schema.ActuatorCyclic) -> tuple[str, int] | None:
         j = self.setup.cyclic.index(c)
@@ -306,8 +320,10 @@ class _Actuator:
                 self.r.err("actuator-reply", f"'{pm['name']}' answers a command of '{self.n.name}' and is sent every "
                            f"{param} ms too; set 'parameters: {{{param}: 0}}' (off) to command it at a rate", path)
                 continue
-            self.message(codec.message(pm["name"]), pm, f"{self.n.name}_{pm['name']}", self.n.name, commander,
-                         int(value * MS), bus, path, None)
+            got = self.message(codec.message(pm["name"]), pm, f"{self.n.name}_{pm['name']}", self.n.name, commander,
+                               int(value * MS), bus, path, None)
+            if got is not None:
+                self.cyclics.append({"profile_message": pm["name"], "message": got.name})
 
     def message(self, mc: MessageCodec, pm: dict[str, Any], name: str, producer: str, consumer: str, period: int,
                 bus: model.Bus, path: Path, description: str | None) -> model.Message | None:
