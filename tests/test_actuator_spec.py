@@ -190,3 +190,50 @@ def test_errors_in_a_profile_file_are_at_the_profile_s_line(tmp_path: Path) -> N
     data = mutate(_set(["nodes", 1, "device"], {"actuator": "bad.yaml"}))
     got = errors(tmp_path, data)
     assert any(e["file"].endswith("bad.yaml") and e["line"] == 5 for e in got), got
+
+
+def test_runtime_json_carries_what_the_codec_needs(tmp_path: Path) -> None:
+    """A master builds each actuator's codec from runtime.json alone; the frames are the profile's own."""
+    from conftest import runtime_config_of
+
+    from netcfg.runtime.schema import check_document
+
+    cfg = runtime_config_of(tmp_path / "spec.yaml", spec(joint("j1", 1, 0x11)))
+    node = next(n for n in cfg.nodes if n.name == "j1")
+    assert node.actuator is not None and node.actuator.commanded_by == "host"
+    (command,) = node.actuator.commands
+    assert (command.command, command.message, command.reply, command.reply_message) == (
+        "mit_command", "j1_mit_command", "feedback", "j1_feedback")
+    values = {"position": 0.5, "velocity": -1.0, "kp": 20.0, "kd": 1.0, "torque": 0.25}
+    expected = ActuatorCodec(builtin_actuator_profile("damiao-dm-j4310").plain, node_id=1, master_id=0x11)
+    got = node.actuator.codec().encode("mit_command", values)
+    assert got == expected.encode("mit_command", values)
+    assert got.arbitration_id == next(m for m in cfg.messages if m.name == "j1_mit_command").id
+    # a node without the key (every runtime.json written before it) has no actuator
+    assert next(n for n in cfg.nodes if n.name == "host").actuator is None
+    # a profile that no longer makes a codec is the file's problem, named
+    import json
+
+    from netcfg.check import analyse_spec
+    from netcfg.emit.runtime_json import runtime_document
+
+    model, report = analyse_spec(tmp_path / "spec.yaml")
+    assert model is not None
+    doc = json.loads(json.dumps(runtime_document(model, report)))
+    assert check_document(doc, strict=True) == []
+    j1 = next(n for n in doc["nodes"] if n["name"] == "j1")
+    j1["actuator"]["parameters"] = [p for p in j1["actuator"]["parameters"] if p[0] != "node_id"]
+    assert any("do not make a codec" in p for p in check_document(doc))
+
+
+def test_dbc_and_header_say_what_their_signals_cannot(tmp_path: Path) -> None:
+    from conftest import cli
+
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(spec(joint("j1", 1, 0x11))))
+    assert cli("build", str(path), "-o", str(tmp_path / "out")).returncode == 0
+    dbc = (tmp_path / "out" / "dbc" / "can0.dbc").read_text()
+    assert 'CM_ BO_ 1 "damiao-dm-j4310 mit_command; position, velocity, kp, kd, torque MIT-packed' in dbc
+    assert "SG_ position : 15|16@0+ (0.00038147554741741054,-12.5) [-12.5|12.5]" in dbc
+    header = (tmp_path / "out" / "c" / "host.h").read_text()
+    assert "truncate to the count below" in header

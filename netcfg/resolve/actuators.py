@@ -341,6 +341,7 @@ class _Actuator:
             return None
         fd = mc.is_fd
         fields = {f["name"]: f for f in pm.get("fields") or ()}
+        description = description or _limits(self.profile.name, mc)
         msg = model.Message(
             name=name, bus=bus.name, producer=producer, consumers=(consumer,), id=mc.base_id,
             extended=mc._frame_extended(mc.base_id), size=mc.size, kind="periodic", period_ns=period,
@@ -351,6 +352,21 @@ class _Actuator:
         self.r.model.messages[name] = msg
         bus.messages.append(msg)
         return msg
+
+
+def _limits(profile: str, mc: MessageCodec) -> str:
+    """What a DBC or a C header's signals cannot say of a profile message, for their comments."""
+    words = [f"{profile} {mc.name}"]
+    span = [f.name for f in mc.payload if f.encoding == "span"]
+    const = [f.name for f in mc.payload if f.const is not None]
+    if span:
+        words.append(f"{', '.join(span)} MIT-packed: the device and netcfg.runtime.actuators truncate to the count "
+                     "below, a signal's factor rounds to the nearest (at most one count apart)")
+    if const:
+        words.append(f"constant {', '.join(const)} written by the codec, not signals")
+    if mc.fixed is not None:
+        words.append(f"fixed payload {mc.fixed.hex(' ').upper()}")
+    return "; ".join(words)
 
 
 def _signal(f: Any, plain: dict[str, Any]) -> model.Signal:
