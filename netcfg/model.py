@@ -143,6 +143,7 @@ class Message:
     fd: bool = False  # a CAN FD frame (FDF recessive); size may then be up to 64, sent padded to frame_size
     brs: bool = False  # CAN FD bit-rate switch: the data phase at the bus's data_bitrate
     may_be_lost: bool = False  # a FIFO that drops may lose some of its frames: no bound, and no error
+    fixed_by: str | None = None  # what sets its identifier and release (an actuator profile): `netcfg tune` keeps both
 
     @property
     def frame_size(self) -> int:

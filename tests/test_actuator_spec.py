@@ -237,3 +237,23 @@ def test_dbc_and_header_say_what_their_signals_cannot(tmp_path: Path) -> None:
     assert "SG_ position : 15|16@0+ (0.00038147554741741054,-12.5) [-12.5|12.5]" in dbc
     header = (tmp_path / "out" / "c" / "host.h").read_text()
     assert "truncate to the count below" in header
+
+
+def test_tune_keeps_what_the_profile_fixes(tmp_path: Path) -> None:
+    """An actuator's identifiers are its firmware's, and the spec has no place for their offsets: tune reorders the
+    others only, and writes a spec check accepts."""
+    from conftest import cli
+
+    data = spec(joint("j1", 1, 0x11, commands=[{"message": "mit_command", "rate": "250 Hz"}]))
+    data["nodes"].append({"name": "other", "buses": ["can0"]})
+    data["messages"] = [{"name": f"status{k}", "producer": "other", "consumers": ["host"], "id": 0x300 + k,
+                         "size": 8, "period": "10 ms"} for k in range(2)]
+    path, out = tmp_path / "spec.yaml", tmp_path / "tuned.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    done = cli("tune", str(path), "-o", str(out), "--robust")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "j1_" not in done.stdout
+    assert check(out)["ok"]
+    tuned = yaml.safe_load(out.read_text())
+    assert tuned["nodes"][1]["actuator"] == data["nodes"][1]["actuator"]
+    assert {m["id"] for m in tuned["messages"]} == {0x300, 0x301}

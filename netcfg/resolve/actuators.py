@@ -347,7 +347,7 @@ class _Actuator:
             extended=mc._frame_extended(mc.base_id), size=mc.size, kind="periodic", period_ns=period,
             interval_ns=period, offset_ns=None, offset_auto=False, deadline_ns=period, jitter_ns=0, path=path,
             signals=tuple(_signal(f, fields[f.name]) for f in mc.payload if f.const is None), description=description,
-            fd=fd, brs=fd,
+            fd=fd, brs=fd, fixed_by=f"actuator profile {self.profile.name}",
         )
         self.r.model.messages[name] = msg
         bus.messages.append(msg)
