@@ -292,6 +292,8 @@ def can_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
             if queue.get("on_full") == "drop":
                 f.opt(msg, "messages[].may_be_lost", st.booleans(), 0.6)
     _add_flows(f, spec, periods)
+    if f.feature("actuator nodes", 0.3):
+        _add_actuators(f, spec, fd)
     if len(names) >= 3 and f.feature("sporadic sender with a second input", 0.3):
         _add_gateway(f, spec, nodes, message)
     _add_id_ranges(f, spec)
@@ -704,6 +706,64 @@ def _joint(f: Fields, d: str, messages: list[dict[str, Any]]) -> dict[str, Any] 
     return joint
 
 
+# Actuator profiles a random CAN spec may hold: (profile, commands it may send at a rate, node id base, the
+# parameters that keep its identifiers apart from the others'), each reply answering its command within the
+# profile's delay range (or the spec's reply_delay). Not here: RobStride's private protocol, whose feedback carries
+# fields in its identifier (refused at a rate), and ODrive's remote requests, whose replies share their identifier
+ACTUATORS: list[tuple[str, list[str], int, dict[str, int]]] = [
+    ("damiao-dm-j4310", ["mit_command", "vel_command", "pos_vel_command"], 40, {"master_id": 80}),
+    ("cubemars-ak80-9-mit", ["mit_command"], 100, {"master_id": 120}),
+    ("myactuator-rmd-x8", ["torque_command", "speed_command", "position_command"], 1, {}),
+    ("odrive-cansimple", ["set_input_torque", "set_input_vel", "set_input_pos"], 20, {"encoder_msg_rate_ms": 50}),
+    ("moteus", ["position_query", "query"], 1, {"host_id": 0}),  # CAN FD frames: on a can-fd bus only
+]
+# command rates by bit rate (else slow ones): light enough that the random traffic beside them still fits often
+RATES = {"1 Mbit/s": [50, 100, 250, 1000], "500 kbit/s": [20, 50, 100]}
+ACTUATOR_PROFILE = Path(__file__).resolve().parent.parent / "netcfg" / "devices" / "actuators" / "odrive-cansimple.yaml"
+
+
+def _add_actuators(f: Fields, spec: dict[str, Any], fd: bool) -> None:
+    """One to three actuators of built-in profiles (one of them sometimes from its file, as a user's profile),
+    commanded at 10 Hz..1 kHz (by bit rate) by the bus's master or a node the spec names, sometimes with a
+    measured reply delay, ODrive's cyclic messages at their rates."""
+    hosts = [n["name"] for n in spec["nodes"]]
+    master = next((n["name"] for n in spec["nodes"] if n.get("role") == "master"), None)
+    if master is None and f.chance(0.5):
+        spec["nodes"][0]["role"], master = "master", hosts[0]
+    choices = [a for a in ACTUATORS if fd or a[0] != "moteus"]
+    for k in range(f(st.integers(1, 3))):
+        profile, commands, base, params = f(st.sampled_from(choices))
+        node: dict[str, Any] = {"name": f"act{k}", "node_id": base + k, "buses": ["can0"], "device": profile}
+        if profile == "odrive-cansimple" and f.feature("nodes[].device.actuator", 0.3):
+            node["device"] = {"actuator": ACTUATOR_PROFILE.name}  # the file beside the spec (_spec_path)
+        setup: dict[str, Any] = {}
+        values = {name: value + k if name.endswith("_id") else value for name, value in params.items()}
+        if values or f.chance(0.5):
+            f.opt(setup, "nodes[].actuator.parameters", st.just(values), 1.0 if values else 0.5)
+        command: dict[str, Any] = {"message": f(st.sampled_from(commands))}
+        hz = f(st.sampled_from(RATES.get(spec["buses"][0]["bitrate"], [10, 20])))
+        if f.chance(0.5):
+            f.opt(command, "nodes[].actuator.commands[].rate", st.just(f"{hz} Hz"), 1.0)
+        else:
+            f.opt(command, "nodes[].actuator.commands[].period", st.just(f"{1_000_000 // hz} us"), 1.0)
+        f.opt(command, "nodes[].actuator.commands[].reply_delay", st.integers(0, 100).map(
+            lambda lo: [f"{lo} us", f"{lo + 150} us"]), 0.5)
+        f.opt(command, "nodes[].actuator.commands[].description", st.just("a command at the loop's rate"), 0.1)
+        f.opt(setup, "nodes[].actuator.commands", st.just([command]), 0.9)
+        if profile == "odrive-cansimple":
+            cyclic: dict[str, Any] = {"message": f(st.sampled_from(["heartbeat", "get_encoder_estimates"]))}
+            if f.chance(0.5):
+                f.opt(cyclic, "nodes[].actuator.cyclic[].period", st.sampled_from(["20 ms", "100 ms"]), 1.0)
+            else:
+                f.opt(cyclic, "nodes[].actuator.cyclic[].rate", st.sampled_from(["50 Hz", "200 Hz"]), 1.0)
+            f.opt(setup, "nodes[].actuator.cyclic", st.just([cyclic]), 0.6)
+        if master is None or f.chance(0.2):
+            f.opt(setup, "nodes[].actuator.commanded_by", st.sampled_from(hosts), 1.0)
+        if setup:
+            node["actuator"] = setup
+        spec["nodes"].append(node)
+
+
 def _add_flows(f: Fields, spec: dict[str, Any], periods: dict[str, int], ftt_ids: int | None = None) -> None:
     """Tasks around some periodic messages (`periods`: their periods in us), and a flow producer task -> message
     -> consumer task for each. FTT-CAN synchronous messages get triggered tasks (a trigger per task pair), others
@@ -788,6 +848,7 @@ def _spec_path() -> Path:
         _SCRATCH.append(tempfile.TemporaryDirectory(prefix="soundness-"))
         shutil.copy(EDS, Path(_SCRATCH[0].name) / EDS.name)  # the drives' `device: {eds: ...}` beside the spec
         shutil.copy(ESI, Path(_SCRATCH[0].name) / ESI.name)  # the EtherCAT slaves' `esi: {file: ...}`
+        shutil.copy(ACTUATOR_PROFILE, Path(_SCRATCH[0].name) / ACTUATOR_PROFILE.name)  # `device: {actuator: ...}`
     return Path(_SCRATCH[0].name) / "spec.yaml"
 
 

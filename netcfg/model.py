@@ -66,6 +66,9 @@ class Node:
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
     tx_queue: TxQueue = field(default_factory=TxQueue)
     nic_queue: int = QUEUE_FRAMES  # Ethernet: frames its NIC's transmit queue holds
+    # an actuator profile's node: its plain profile, parameters and which model messages carry its commands, replies
+    # and cyclic messages (netcfg.resolve.actuators; runtime.json's `actuator`, netcfg.runtime.config.Actuator)
+    actuator: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -140,6 +143,7 @@ class Message:
     fd: bool = False  # a CAN FD frame (FDF recessive); size may then be up to 64, sent padded to frame_size
     brs: bool = False  # CAN FD bit-rate switch: the data phase at the bus's data_bitrate
     may_be_lost: bool = False  # a FIFO that drops may lose some of its frames: no bound, and no error
+    fixed_by: str | None = None  # what sets its identifier and release (an actuator profile): `netcfg tune` keeps both
 
     @property
     def frame_size(self) -> int:

@@ -325,7 +325,7 @@ def plan_bus(
             msg.extended,
             msg.id,
             msg.producer,
-            msg.name in pins and pins[msg.name].id == "fixed",  # type: ignore[union-attr]
+            (msg.name in pins and pins[msg.name].id == "fixed") or msg.fixed_by is not None,  # type: ignore[union-attr]
             ranges.get(msg.producer),
         )
         for msg in bus.messages
@@ -350,7 +350,7 @@ def plan_bus(
     fixed: dict[str, dict[str, int]] = {}
     for msg in bus.messages:
         free = msg.kind == "periodic" and msg.period_ns and msg.period_ns == msg.interval_ns
-        if not free or flows.sending_tasks(m, msg):
+        if not free or flows.sending_tasks(m, msg) or msg.fixed_by is not None:
             continue
         if msg.name in pins and pins[msg.name].offset == "fixed":  # type: ignore[union-attr]
             if msg.offset_ns is not None:

@@ -185,6 +185,13 @@ def _switch(s: model.Switch) -> dict[str, Any]:
 
 
 def _node(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[str, str]]) -> dict[str, Any]:
+    out = _node_keys(m, n, files)
+    if n.actuator is not None:  # written only for an actuator: every other node's keys stay as they were
+        out["actuator"] = n.actuator
+    return out
+
+
+def _node_keys(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[str, str]]) -> dict[str, Any]:
     dev = n.device
     # a node on several CANopen buses has one folder of files per bus (canopen/<bus>/); these keys then stay null
     own = [paths for (_, name), paths in files.items() if name == n.name]

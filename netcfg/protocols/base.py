@@ -17,6 +17,10 @@ if TYPE_CHECKING:
 
 
 class Protocol:
+    # a node speaking an actuator's own protocol (netcfg.devices.actuator_profile) may sit on a bus of it: only where
+    # the protocol adds nothing to the link's frames (no SYNC, no schedule, no identifier scheme of its own)
+    carries_actuators = False
+
     def __init__(self, name: str, link: Link) -> None:
         self.name = name  # as the spec's `protocol:` says it
         self.link = link  # the link that name stands for

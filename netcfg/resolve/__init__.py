@@ -14,6 +14,7 @@ from pathlib import Path as FsPath
 from netcfg import model, protocols
 from netcfg.diagnostics import Collector
 from netcfg.protocols.canopen.pdo import snake
+from netcfg.resolve.actuators import add_reply_senders, resolve_actuators
 from netcfg.resolve.core import Resolver
 from netcfg.resolve.flows import resolve_flows
 from netcfg.resolve.joints import resolve_joints
@@ -36,12 +37,15 @@ def resolve(spec: schema.Spec, smap: SourceMap, diags: Collector, spec_dir: FsPa
     r.resolve_buses()
     resolve_nodes(r)
     r.resolve_messages()
+    resolve_actuators(r)  # an actuator profile's messages and reply tasks, as if the spec had written them
     for rules in r.protocols.values():
         rules.resolve_items()  # implicit messages, triggers, topologies
     r.check_tasks_activated()
     r.check_identifiers()
     resolve_flows(r)
     resolve_joints(r)
+    if not diags.errors:
+        add_reply_senders(r)
     if not diags.errors:
         derive_offsets(r.model, r.err)
     if diags.errors:

@@ -51,6 +51,7 @@ class Resolver:
         )
         self.spec_nodes = {n.name: n for n in spec.nodes}
         self.shared_node_ids: set[str] = set()  # nodes whose node id another node on one of their buses has too
+        self.actuator_replies: dict[str, str] = {}  # an actuator's reply message -> the task that sends it
         self.spec_buses = {b.name: b for b in spec.buses}
         self.protocols = {name: rules(self) for name, rules in protocols.items()}
 

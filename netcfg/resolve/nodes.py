@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 from netcfg import cia301, model
 from netcfg.protocols import PROTOCOLS
 from netcfg.protocols.canopen import resolve as canopen
+from netcfg.resolve.actuators import is_actuator_device
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.suggest import did_you_mean, some_names
@@ -49,7 +50,7 @@ def resolve_nodes(r: Resolver) -> None:
                 ids[key] = n.name
         elif on_canopen:
             r.err("node-id", f"node '{n.name}' is on a CANopen bus and needs a node_id (1..127)", path)
-        device = canopen.load_device(r, n, path, on_canopen)
+        device = None if is_actuator_device(n.device) else canopen.load_device(r, n, path, on_canopen)
         # a node on a misspelt bus may well be on a CANopen one: the unknown bus is the one error
         if n.heartbeat is not None and not on_canopen and all(b in r.spec_buses for b in n.buses):
             r.err(

@@ -256,9 +256,36 @@ class Node:
     safe_stop: str = "quick_stop"  # quick_stop | disable_operation (CiA 402 controlword)
     # CAN transmit queue; a file written before this key: priority-queued
     tx_queue: TxQueue = TxQueue()
+    # an actuator profile's node (None: not one, or a file written before the key)
+    actuator: Actuator | None = None
 
     def task(self, name: str) -> Task:
         return _lookup({t.name: t for t in self.tasks}, name, f"task of node '{self.name}'")
+
+
+@dataclass(frozen=True)
+class ActuatorCommand:
+    command: str  # the profile's message
+    message: str  # the runtime.json message that carries it
+    reply: str | None  # the profile's reply message, and the runtime.json message carrying it
+    reply_message: str | None
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """An actuator profile's node: what a master needs to encode its commands and decode what it sends."""
+
+    profile: Mapping[str, Any]  # the profile's plain form (netcfg.runtime.actuators)
+    parameters: tuple[tuple[str, Number], ...]
+    commanded_by: str
+    commands: tuple[ActuatorCommand, ...]
+    cyclic: tuple[tuple[str, str], ...]  # (profile message, runtime.json message)
+
+    def codec(self) -> Any:
+        """Its netcfg.runtime.actuators.ActuatorCodec."""
+        from netcfg.runtime.actuators import ActuatorCodec
+
+        return ActuatorCodec(self.profile, **dict(self.parameters))
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,8 @@ from typing import Any
 from netcfg.inputs import InputError, JsonInputError, parse_json, read_input_text
 from netcfg.runtime.config import (
     DEFAULT_CLOCK_TOLERANCE_PPM,
+    Actuator,
+    ActuatorCommand,
     Bus,
     CanopenParams,
     EcSlot,
@@ -311,6 +313,20 @@ def _node(d: dict[str, Any]) -> Node:
         sdo_retries=d.get("sdo_retries", 0),
         safe_stop=d.get("safe_stop", "quick_stop"),
         tx_queue=TxQueue(**d["tx_queue"]) if d.get("tx_queue") else TxQueue(),
+        actuator=_actuator(d.get("actuator")),
+    )
+
+
+def _actuator(d: dict[str, Any] | None) -> Actuator | None:
+    if d is None:
+        return None
+    return Actuator(
+        profile=d["profile"],
+        parameters=tuple((str(k), v) for k, v in d["parameters"]),
+        commanded_by=d["commanded_by"],
+        commands=tuple(ActuatorCommand(c["command"], c["message"], c["reply"], c["reply_message"])
+                       for c in d["commands"]),
+        cyclic=tuple((c["profile_message"], c["message"]) for c in d["cyclic"]),
     )
 
 

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from netcfg.runtime.codec import byte_ops
+from netcfg.runtime.codec import CodecError, byte_ops
 
 MAX_NS = 10**15  # the longest duration netcfg handles (netcfg.spec.units.MAX_DURATION_NS; a test ties the two)
 U8, U16, U32 = 0xFF, 0xFFFF, 0xFFFF_FFFF
@@ -33,7 +33,8 @@ MAX_ID = {11: 0x7FF, 29: 0x1FFF_FFFF}
 
 @dataclass(frozen=True)
 class F:
-    """One field: its kind and range. kind: int | float | bool | str | name | enum | list | obj."""
+    """One field: its kind and range. kind: int | float | bool | str | name | enum | list | obj | json (any value,
+    checked by its reader)."""
 
     kind: str
     lo: float | None = None
@@ -127,6 +128,14 @@ NODE = obj(
     tx_queue=obj(optional=True, policy=enum("priority", "fifo"), depth=i(1, 1_000_000), on_full=enum("block", "drop")),
     sdo_init=lst(obj(index=i(0, U16), sub=i(0, U8), data_type=i(1, U16), value=i(-(2**63), 2**64 - 1)),
                  null=True, optional=True),
+    # an actuator profile's node: the profile's plain form (netcfg.runtime.actuators reads and checks it), its
+    # parameters, and the messages of this file that carry its commands, replies and cyclic messages
+    actuator=obj(
+        null=True, optional=True, profile=F("json"), parameters=lst(F("tuple", parts=(name(), num(-BIG, BIG)))),
+        commanded_by=name(),
+        commands=lst(obj(command=name(), message=name(), reply=name(null=True), reply_message=name(null=True))),
+        cyclic=lst(obj(profile_message=name(), message=name())),
+    ),
 )
 CANOPEN = obj(
     null=True, sync_period_ns=ns(1), sync_window_ns=ns(null=True), read_window_ns=ns(null=True),
@@ -259,6 +268,8 @@ def _check(value: Any, f: F, where: Where, out: list[str], strict: bool) -> None
         else:
             for n, (item, part) in enumerate(zip(value, f.parts)):
                 _check(item, part, (where, (None, n)), out, strict)
+    elif k == "json":
+        pass  # any JSON value: its reader checks it (an actuator profile: netcfg.runtime.actuators)
     elif k == "obj":
         if not isinstance(value, dict):
             out.append(f"{_text(where)}: must be an object, not {type(value).__name__}")
@@ -272,6 +283,20 @@ def _check(value: Any, f: F, where: Where, out: list[str], strict: bool) -> None
         if strict:
             unknown = [key for key in value if key not in f.fields]
             out += [f"{_text(where) or 'the file'}: key '{key}' is not in the schema" for key in unknown]
+
+
+def _actuator_problems(node: dict[str, Any], messages: set[str]) -> list[str]:
+    """An actuator node's profile must build its codec with its parameters, and name messages of the file."""
+    from netcfg.runtime.actuators import ActuatorCodec
+
+    where, a = f"node {node['name']!r}.actuator", node["actuator"]
+    try:
+        ActuatorCodec(a["profile"], **dict(a["parameters"]))
+    except (CodecError, KeyError, TypeError, ValueError) as exc:
+        return [f"{where}: its profile and parameters do not make a codec: {exc}"]
+    named = [c["message"] for c in a["commands"]] + [c["reply_message"] for c in a["commands"] if c["reply_message"]]
+    named += [c["message"] for c in a["cyclic"]]
+    return [f"{where}: message {x!r} is not in the file" for x in named if x not in messages]
 
 
 def check_document(doc: Any, strict: bool = False) -> list[str]:
@@ -305,6 +330,8 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
         tasks = [t["name"] for t in n["tasks"]]
         if len(set(tasks)) != len(tasks):
             out.append(f"node {n['name']!r}: duplicate task names")
+        if n.get("actuator") is not None:
+            out += _actuator_problems(n, {m["name"] for m in doc["messages"]})
     for m in doc["messages"]:
         where = f"message {m['name']!r}"
         proto = protocol.get(m["bus"])

@@ -128,6 +128,8 @@ class Scenario:
         for tr in self.flows:
             for ref in tr.refs():
                 self._flow_refs.setdefault(ref, []).append(tr)
+        # tasks that send a message as they end run even where no flow follows them (an actuator's reply task)
+        self._senders = {ref for m in cfg.messages for ref in m.sent_by or ()}
         self._message_tasks: dict[str, list[Task]] = {}
         for node in cfg.nodes:
             for task in node.tasks:
@@ -182,7 +184,7 @@ class Scenario:
         return self.opts.mode != "unsync"
 
     def _wanted(self, task: Task) -> bool:
-        return task.ref in self._flow_refs
+        return task.ref in self._flow_refs or task.ref in self._senders
 
     def random(self, source: str) -> np.random.Generator:
         return self.sim.random(source)

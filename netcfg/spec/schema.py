@@ -228,12 +228,27 @@ class ProfileDevice(SpecModel):
     objects: list[DeviceObject] = Field(default_factory=list, description="the application objects it adds")
 
 
+class ActuatorDevice(SpecModel):
+    actuator: str = Field(
+        min_length=1,
+        description="path of an actuator profile file (docs/how-to/actuator-profile.md), relative to the spec",
+    )
+
+
+# an actuator profile's name, as its file's `profile:` says it: lower-case words joined by '-' (no spec Name has one)
+ActuatorName = Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9._-]*-[a-z0-9._-]*$")]
+
+
 def _device_form(value: object) -> str:
-    """Which of the three forms a `device:` is, from its shape: one form's errors, not all three's."""
+    """Which of the forms a `device:` is, from its shape: one form's errors, not all of them."""
     if isinstance(value, dict):
+        if "actuator" in value:
+            return "ActuatorDevice"
         return "ProfileDevice" if "profile" in value else "EdsDevice"
-    if isinstance(value, (EdsDevice, ProfileDevice)):
+    if isinstance(value, (EdsDevice, ProfileDevice, ActuatorDevice)):
         return type(value).__name__
+    if isinstance(value, str) and "-" in value:
+        return "ActuatorName"
     return "Name"
 
 
@@ -241,9 +256,49 @@ def _device_form(value: object) -> str:
 DeviceField = Annotated[
     Annotated[Name, Tag("Name")]
     | Annotated[EdsDevice, Tag("EdsDevice")]
-    | Annotated[ProfileDevice, Tag("ProfileDevice")],
+    | Annotated[ProfileDevice, Tag("ProfileDevice")]
+    | Annotated[ActuatorName, Tag("ActuatorName")]
+    | Annotated[ActuatorDevice, Tag("ActuatorDevice")],
     Discriminator(_device_form),
 ]
+
+
+class ActuatorCommand(SpecModel):
+    """A command of the actuator's profile that the host sends at a rate (its reply, if the profile gives one,
+    follows each)."""
+
+    message: Name = Field(description="the profile's message (from: host), e.g. mit_command")
+    period: DurationField | None = None
+    rate: FrequencyField | None = Field(None, description="alternative to period: commands per second")
+    reply_delay: tuple[DurationField, DurationField] | None = Field(
+        None,
+        description="[shortest, longest] time from the command's end on the bus to the device's reply, as measured "
+        "on your devices (default: the profile's delay range, which says whether it is published or assumed)",
+    )
+    description: str | None = None
+
+
+class ActuatorCyclic(SpecModel):
+    """A message the actuator sends on its own, at the rate its profile's parameter sets."""
+
+    message: Name = Field(description="the profile's cyclic message (from: device), e.g. heartbeat")
+    period: DurationField | None = None
+    rate: FrequencyField | None = Field(None, description="alternative to period: messages per second")
+
+
+class Actuator(SpecModel):
+    """How an actuator with its own CAN protocol (`device:` an actuator profile) is set up and driven."""
+
+    parameters: dict[Name, Float] = Field(
+        default_factory=dict,
+        description="the profile's parameters this actuator sets (e.g. master_id, p_max); node_id is the node's",
+    )
+    commands: list[ActuatorCommand] = Field(default_factory=list, description="what the host sends, at which rates")
+    cyclic: list[ActuatorCyclic] = Field(
+        default_factory=list,
+        description="rates of the messages the device sends on its own (default: the profile's parameter defaults)",
+    )
+    commanded_by: Name | None = Field(None, description="the node that sends the commands (default: the bus's master)")
 
 
 class TxQueue(SpecModel):
@@ -281,6 +336,10 @@ class Node(SpecModel):
         None,
         description="CANopen device profile: a built-in name ('epos4', the generic 'cia301' and 'cia402'), "
         "{eds: file.eds}, or {profile: cia301, objects: [...]} for a device without a vendor file",
+    )
+    actuator: Actuator | None = Field(
+        None,
+        description="an actuator profile's node (device: cubemars-ak80-9-mit ...): its parameters, commands, rates",
     )
     heartbeat: DurationField | None = Field(None, description="CANopen producer heartbeat time (0x1017)")
     heartbeat_timeout: DurationField | None = Field(

@@ -297,6 +297,7 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
             )
             return None
         return base if isinstance(n.device, str) else _with_objects(r, base, n.device, dpath)
+    assert isinstance(n.device, schema.EdsDevice)  # an actuator profile is netcfg.resolve.actuators'
     try:  # the input guard: a NUL byte, a symlink loop or a missing file is placed at the spec's line
         file = check_input_path(r.spec_dir, n.device.eds, "EDS file")
     except ValueError as exc:

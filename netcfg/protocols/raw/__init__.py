@@ -8,5 +8,10 @@ from netcfg.links.can import CLASSICAL_CAN
 from netcfg.links.canfd import CAN_FD
 from netcfg.protocols.base import Protocol
 
-CAN = Protocol("can", CLASSICAL_CAN)
-CAN_FD_RAW = Protocol("can-fd", CAN_FD)
+
+class Raw(Protocol):
+    carries_actuators = True  # raw frames are what an actuator's own protocol sends
+
+
+CAN = Raw("can", CLASSICAL_CAN)
+CAN_FD_RAW = Raw("can-fd", CAN_FD)
