@@ -58,7 +58,7 @@ def test_every_builtin_message_round_trips() -> None:
 
 
 def _howto_example() -> str:
-    return re.findall(r"```yaml\n(.*?)```", HOWTO.read_text(encoding="utf-8"), re.S)[0]
+    return re.findall(r"```yaml title=\"acme-j60.yaml\"\n(.*?)```", HOWTO.read_text(encoding="utf-8"), re.S)[0]
 
 
 def test_howto_example_is_a_working_profile(tmp_path: Path) -> None:
