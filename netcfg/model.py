@@ -67,7 +67,7 @@ class Node:
     tx_queue: TxQueue = field(default_factory=TxQueue)
     nic_queue: int = QUEUE_FRAMES  # Ethernet: frames its NIC's transmit queue holds
     # an actuator profile's node: its plain profile, parameters and which model messages carry its commands, replies
-    # and cyclic messages (netcfg.resolve.actuators; runtime.json's `actuator`, netcfg.runtime.config.Actuator)
+    # and cyclic messages (netcfg.resolve.actuators; runtime.json's `actuator`, netcfg.runtime.actuators.Actuator)
     actuator: dict[str, Any] | None = None
 
 

@@ -351,3 +351,26 @@ class ActuatorCodec:
     def decode_as(self, name: str, arbitration_id: int, data: bytes, *, units: str = "si") -> Decoded:
         """Frame read as message `name`, whether or not it matches (for tests and log tools)."""
         return self.message(name).decode(arbitration_id, data, si=units == "si")
+
+
+@dataclass(frozen=True)
+class ActuatorCommand:
+    command: str  # the profile's message
+    message: str  # the runtime.json message that carries it
+    reply: str | None  # the profile's reply message, and the runtime.json message carrying it
+    reply_message: str | None
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """An actuator profile's node in runtime.json (runtime.config.Node.actuator): what a master needs to encode
+    its commands and decode what the actuator sends."""
+
+    profile: Mapping[str, Any]  # the profile's plain form (netcfg.runtime.actuators)
+    parameters: tuple[tuple[str, Number], ...]
+    commanded_by: str
+    commands: tuple[ActuatorCommand, ...]
+    cyclic: tuple[tuple[str, str], ...]  # (profile message, runtime.json message)
+
+    def codec(self) -> ActuatorCodec:
+        return ActuatorCodec(self.profile, **dict(self.parameters))

@@ -18,6 +18,8 @@ from netcfg.runtime.codec import CodecError, Field, Number
 if TYPE_CHECKING:
     import can
 
+    from netcfg.runtime.actuators import Actuator
+
 # The runtime's one table of the protocols runtime.json names (it imports without the compiler's layers)
 CAN_PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can")  # their frames arbitrate on a CAN link
 UDP_PROTOCOLS = ("ethernet-udp",)  # datagrams through switched Ethernet
@@ -261,31 +263,6 @@ class Node:
 
     def task(self, name: str) -> Task:
         return _lookup({t.name: t for t in self.tasks}, name, f"task of node '{self.name}'")
-
-
-@dataclass(frozen=True)
-class ActuatorCommand:
-    command: str  # the profile's message
-    message: str  # the runtime.json message that carries it
-    reply: str | None  # the profile's reply message, and the runtime.json message carrying it
-    reply_message: str | None
-
-
-@dataclass(frozen=True)
-class Actuator:
-    """An actuator profile's node: what a master needs to encode its commands and decode what it sends."""
-
-    profile: Mapping[str, Any]  # the profile's plain form (netcfg.runtime.actuators)
-    parameters: tuple[tuple[str, Number], ...]
-    commanded_by: str
-    commands: tuple[ActuatorCommand, ...]
-    cyclic: tuple[tuple[str, str], ...]  # (profile message, runtime.json message)
-
-    def codec(self) -> Any:
-        """Its netcfg.runtime.actuators.ActuatorCodec."""
-        from netcfg.runtime.actuators import ActuatorCodec
-
-        return ActuatorCodec(self.profile, **dict(self.parameters))
 
 
 @dataclass(frozen=True)

@@ -10,10 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from netcfg.inputs import InputError, JsonInputError, parse_json, read_input_text
+from netcfg.runtime.actuators import Actuator, ActuatorCommand
 from netcfg.runtime.config import (
     DEFAULT_CLOCK_TOLERANCE_PPM,
-    Actuator,
-    ActuatorCommand,
     Bus,
     CanopenParams,
     EcSlot,
