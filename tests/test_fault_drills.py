@@ -63,6 +63,12 @@ def kinds(out: Outcome) -> list[tuple[str, str, str]]:
     return [(e.node, e.kind, e.action) for _, e in out.events]
 
 
+def drive_kinds(out: Outcome) -> list[tuple[str, str, str]]:
+    """The events of a drill on a drive: the master's own missed SYNCs left out, which a wall-clock master on a
+    loaded host may report whatever the drill (the drills that cause them assert them with kinds)."""
+    return [k for k in kinds(out) if k[:2] != ("master", "missed-sync")]
+
+
 def assert_boot_up_in_time(out: Outcome, at_s: float, outage_s: float) -> float:
     ((drill_s, _),) = out.drills
     assert at_s <= drill_s <= at_s + PERIOD_S + SLACK_S
@@ -77,7 +83,7 @@ def test_a_rebooted_drive_is_set_up_again_and_enabled_with_recover(cfg: rt.Runti
     and reads back its PDOs and start-up values (the set-up's code path), starts it and walks it to OPERATION ENABLED
     over SDO while the others keep cycling."""
     out, bench = drill_run(with_on_reboot(cfg, "recover"), 40, 0.2, 0.05)
-    assert kinds(out) == [("knee_r", "boot-up", "recover"), ("knee_r", "recovered", "continue")]
+    assert drive_kinds(out) == [("knee_r", "boot-up", "recover"), ("knee_r", "recovered", "continue")]
     boot_s = assert_boot_up_in_time(out, 0.2, 0.05)
     knee = out.nodes["knee_r"]
     (reboot,) = knee.reboots
@@ -115,7 +121,7 @@ def test_a_rebooted_drive_is_left_stopped_by_default(cfg: rt.RuntimeConfig) -> N
     """allex2 gives no on_reboot: stop_node. No RxPDO goes to the unconfigured drive, nothing is set up again: it
     stays PRE-OPERATIONAL in SWITCH ON DISABLED, and the others cycle on."""
     out, bench = drill_run(cfg, 30, 0.2, 0.05)
-    assert kinds(out) == [("knee_r", "boot-up", "stop_node")]
+    assert drive_kinds(out) == [("knee_r", "boot-up", "stop_node")]
     boot_s = assert_boot_up_in_time(out, 0.2, 0.05)
     knee = out.nodes["knee_r"]
     assert knee.stopped_at_s == boot_s and knee.reboots[0]["result"] == "left stopped"
@@ -127,7 +133,7 @@ def test_a_rebooted_drive_is_left_stopped_by_default(cfg: rt.RuntimeConfig) -> N
 
 def test_a_rebooted_drive_stops_everyone_with_stop_all(cfg: rt.RuntimeConfig) -> None:
     out, _ = drill_run(with_on_reboot(cfg, "stop_all"), 40, 0.2, 0.05)
-    assert kinds(out) == [("knee_r", "boot-up", "stop_all")]
+    assert drive_kinds(out) == [("knee_r", "boot-up", "stop_all")]
     assert out.ended_by.startswith("stop_all: knee_r (node 5) rebooted")
     assert out.run is not None and out.run.cycles < 40
     assert {out.nodes[n].safe_state for n in out.nodes if n != "knee_r"} == {"QUICK STOP ACTIVE"}
@@ -137,7 +143,7 @@ def test_a_reboot_longer_than_the_heartbeat_timeout_is_a_loss_then_a_boot_up(cfg
     """Silent 500 ms: lost after the consumer time 300 ms (reported within 300 ms + one heartbeat period 100 ms + T
     of the outage's start), then the boot-up, and with recover it is set up again."""
     out, _ = drill_run(with_on_reboot(cfg, "recover"), 60, 0.2, 0.5)
-    assert kinds(out) == [
+    assert drive_kinds(out) == [
         ("knee_r", "lost", "stop_node"),
         ("knee_r", "boot-up", "recover"),
         ("knee_r", "recovered", "continue"),
@@ -423,7 +429,7 @@ def test_a_drive_enabled_over_its_pdos_is_walked_up_again_over_them(tmp_path: Pa
         plan = Plan(cycles=40, drills=[(0.2, "hip_l reboots", lambda: bench["hip_l"].reboot(0.05))])
         out = operate(cfg, bus, plan)
         history = [n for n, _ in bench["hip_l"].power.history] if bench["hip_l"].power else []
-    assert kinds(out) == [("hip_l", "boot-up", "recover"), ("hip_l", "recovered", "continue")]
+    assert drive_kinds(out) == [("hip_l", "boot-up", "recover"), ("hip_l", "recovered", "continue")]
     hip_l = out.nodes["hip_l"]
     assert hip_l.cia402_over == "PDO" and hip_l.state == OPERATION_ENABLED
     assert history[:4] == [1, 2, 3, 4]  # the rebooted drive's own machine: initialised, then up over the RxPDO
@@ -447,7 +453,7 @@ def test_a_failed_set_up_again_follows_on_loss(cfg: rt.RuntimeConfig) -> None:
             bench["knee_r"].reboot(0.05)
 
         out = operate(cfg, bus, Plan(cycles=40, drills=[(0.2, "knee_r reboots", reboot_and_refuse)]))
-    assert kinds(out) == [("knee_r", "boot-up", "recover"), ("knee_r", "recovery-failed", "stop_node")]
+    assert drive_kinds(out) == [("knee_r", "boot-up", "recover"), ("knee_r", "recovery-failed", "stop_node")]
     failed = next(e for _, e in out.events if e.kind == "recovery-failed")
     assert "SDO abort 0x06010002 (attempt to write a read only object)" in failed.text
     knee = out.nodes["knee_r"]
