@@ -820,12 +820,7 @@ def _add_flows(f: Fields, spec: dict[str, Any], periods: dict[str, int], ftt_ids
 
 # Fields and features the sweep draws but CI's sample holds back while the analysis is being mended: each entry
 # names the defect it shows (the seam's reproduction). Remove an entry when its fix is merged.
-HELD: dict[str, dict[str, str]] = {  # per protocol, features of known defects not yet fixed, each with why
-    "canopen": {
-        "buses[].canopen.master_jitter": "seam 13 (tests/test_seams_master_jitter.py): a flow into the master's SYNC "
-        "task waits one period for its next start, not the period plus master_jitter",
-    },
-}
+HELD: dict[str, dict[str, str]] = {}  # per protocol, features of known defects not yet fixed, each with why
 
 
 @dataclass

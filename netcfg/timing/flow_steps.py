@@ -64,15 +64,31 @@ def clock_tolerance(m: model.Model) -> int:
     return max((b.clock_tolerance_ppm for b in m.buses.values() if b.is_can), default=clocks.DEFAULT_TOLERANCE_PPM)
 
 
-def sampling(consumer_period: int | None, refresh: int | None, ppm: int) -> int:
-    """Worst sampling delay of a free-running consumer: up to one of its periods, and never more than the
-    input's renewal period (a slower consumer always reads data renewed within that period: its age counts).
-    Both periods run on a node's own clock, so in real time they may be `ppm` longer."""
-    candidates = [p for p in (consumer_period, refresh) if p]
-    if not candidates:
+def sampling(consumer_period: int | None, refresh: int | None, ppm: int, spread: int = 0) -> int:
+    """Worst sampling delay of a free-running consumer: up to one of its periods (and the `spread` of its starts
+    about their instants: two starts may be a period and that spread apart), and never more than the input's
+    renewal period (a slower consumer always reads data renewed within that period: its age counts). Both
+    periods run on a node's own clock, so in real time they may be `ppm` longer."""
+    waits = [clocks.longest_real(p, ppm) + extra for p, extra in ((consumer_period, spread), (refresh, 0)) if p]
+    return min(waits, default=0)
+
+
+def start_spread(m: model.Model, task: model.Task, chained: dict[str, Delivery]) -> int | None:
+    """How late after its nominal instant a task that runs at its period may start: a CANopen SYNC task of the
+    SYNC producer within the master's jitter (its wake-up latency), one of a drive at the SYNC frame's reception,
+    which that jitter and the frame's queueing move; 0 for a task on its own clock; None when SYNC's delivery is
+    unbounded."""
+    bus = m.buses[task.sync_bus] if task.sync_bus is not None else None
+    co = bus.canopen if bus is not None else None
+    if bus is None or co is None:
         return 0
-    wait = min(candidates)
-    return clocks.longest_real(wait, ppm)
+    if task.node == co.sync_producer:
+        return co.master_jitter_ns
+    sync = next((x.name for x in bus.messages if x.implicit == "SYNC"), None)
+    delivery = chained.get(sync) if sync is not None else None
+    if delivery is None or delivery.worst_ns is None:
+        return None
+    return co.master_jitter_ns + delivery.worst_ns - delivery.best_ns
 
 
 def sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> bool:

@@ -45,6 +45,7 @@ from netcfg.timing.flow_steps import (
     sending_tasks,
     sent_by_producer,
     start_delay,
+    start_spread,
     task_period,
     task_response,
 )
@@ -154,7 +155,8 @@ def unsynchronised(
                 event = task.on_message is not None and starter is None  # started by the data itself
                 if i and not event and not last:
                     period = rates.sending_runs(task, flow.steps[i + 1], period)
-                wait = _read_wait(event, period, refresh, heads, ppm) if i else 0
+                spread = start_spread(m, task, chained) if starter is None and not event else 0
+                wait = _read_wait(event, period, refresh, heads, ppm, spread) if i else 0
                 if event and not heads and _may_start_first(rates, task, inputs, item_lo, item_hi, after):
                     # it takes the other items' freshest data as its message starts it: this stamp's may come
                     # later, and then it takes the one before, each stamp reaching them within their latest
@@ -263,20 +265,31 @@ def _outside_starter(m: model.Model, task: model.Task, prev: model.FlowStep | No
 
 
 def _read_wait(
-    event: bool, own: int | None, refresh: int | None, heads: list[tuple[int | None, int | None]], ppm: int
+    event: bool,
+    own: int | None,
+    refresh: int | None,
+    heads: list[tuple[int | None, int | None]],
+    ppm: int,
+    spread: int | None = 0,
 ) -> int | None:
-    """How long data waits for a reader that samples every `own`, or at once on an `event`. A join (`heads`: per
-    stream it reads, the longest wait for the other streams' data at least as new, and how often that stream is
-    renewed, None: no faster than `refresh`) takes the oldest of its streams' data, so it also waits for the rest;
-    but it never takes a stream's data older than one renewal, whatever it waits for."""
+    """How long data waits for a reader that samples every `own`, its starts `spread` about their instants (None:
+    unbounded), or at once on an `event`. A join (`heads`: per stream it reads, the longest wait for the other
+    streams' data at least as new, and how often that stream is renewed, None: no faster than `refresh`) takes the
+    oldest of its streams' data, so it also waits for the rest; but it never takes a stream's data older than one
+    renewal, whatever it waits for."""
     if not heads:
         if not event and own is None and not refresh:  # neither it nor its input at a known rate
             return None
-        return 0 if event else sampling(own, refresh, ppm)
+        if not event and spread is None:  # it samples at instants no bound holds: only the input's renewal does
+            return clocks.longest_real(refresh, ppm) if refresh else None
+        return 0 if event else sampling(own, refresh, ppm, spread or 0)
     waits = []
     for rest, renewal in heads:
         cap = renewal if renewal is not None else clocks.longest_real(refresh, ppm) if refresh else None
-        wait = None if event or not own or rest is None else rest + clocks.longest_real(own, ppm)
+        wait = (
+            None if event or not own or rest is None or spread is None
+            else rest + clocks.longest_real(own, ppm) + spread
+        )
         waits.append(cap if wait is None else wait if cap is None else min(wait, cap))
     return _latest(waits)
 
