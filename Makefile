@@ -56,6 +56,7 @@ bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_build.py
 	$(BIN)/python benchmarks/bench_sim.py
 	$(BIN)/python benchmarks/bench_lsp.py  # warm re-checks inside the language server
+	$(BIN)/python benchmarks/bench_master.py  # the live master's SYNC lateness, idle and with every core busy
 	$(BIN)/python benchmarks/soundness.py --specs 2500
 	NETCFG_CLOSURE_SPECS=300 $(BIN)/python -m pytest -q tests/test_closure_random.py  # the closure suite's long run
 
