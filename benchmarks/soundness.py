@@ -232,6 +232,10 @@ def can_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
     fd = f(st.sampled_from(["can", "can", "can", "can-fd"])) == "can-fd"
     bus: dict[str, Any] = {"name": "can0", "protocol": "can-fd" if fd else "can",
                            "bitrate": f(st.sampled_from(["125 kbit/s", "250 kbit/s", "500 kbit/s", "1 Mbit/s"]))}
+    # the link said outright: raw CAN over the CAN FD link (the can-fd protocol), or the default's own name
+    f.opt(bus, "buses[].link", st.just("can-fd" if fd else "can"), 0.2)
+    if bus.get("link") == "can-fd":
+        bus["protocol"] = "can"
     if fd:
         f.opt(bus, "buses[].data_bitrate", st.sampled_from(["2 Mbit/s", "4 Mbit/s", "5 Mbit/s", "8 Mbit/s"]), 1.0)
     f.opt(bus, "buses[].id_bits", st.sampled_from([11, 29]), 0.2)
@@ -412,6 +416,7 @@ def ftt_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
         messages.append(msg)
     bus: dict[str, Any] = {"name": "bus", "protocol": "ftt-can",
                            "bitrate": f(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])), "ftt": ftt}
+    f.opt(bus, "buses[].link", st.just("can"), 0.1)
     spec: dict[str, Any] = {
         "system": "random_ftt",
         "buses": [bus],
@@ -484,6 +489,7 @@ def ethernet_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[s
         "nodes": [{"name": h, "ip": f"10.0.0.{i + 1}", "buses": ["lan"]} for i, h in enumerate(hosts)],
         "messages": messages,
     }
+    f.opt(spec["buses"][0], "buses[].link", st.just("ethernet"), 0.1)
     for node in spec["nodes"]:
         _node_delays(f, node)
         f.opt(node, "nodes[].nic_queue", QUEUE_DEPTH, 0.2)
@@ -529,6 +535,7 @@ def ethercat_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[s
         slaves.append(slave)
     sec["slaves"] = slaves
     bus: dict[str, Any] = {"name": "ecat", "protocol": "ethercat", "ethercat": sec}
+    f.opt(bus, "buses[].link", st.just("ethercat"), 0.1)
     f.opt(bus, "buses[].bitrate", st.sampled_from(["100 Mbit/s", "1 Gbit/s"]), 0.3)
     nodes = [{"name": "master", "role": "master", "buses": ["ecat"]}]
     nodes += [{"name": s["node"], "buses": ["ecat"]} for s in slaves]
@@ -559,6 +566,7 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
     bus: dict[str, Any] = {"name": "can0", "protocol": "canopen",
                            "bitrate": f(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
                            "canopen": canopen}
+    f.opt(bus, "buses[].link", st.just("can"), 0.1)
     master: dict[str, Any] = {"name": "master", "role": "master", "node_id": 127, "buses": ["can0"],
                               "tx_queue": _tx_queue(f)}
     _node_delays(f, master)

@@ -19,13 +19,22 @@ from netcfg.protocols.udp import UDP
 if TYPE_CHECKING:
     from netcfg import model
 
-__all__ = ["PROTOCOLS", "Protocol", "of", "release_offsets"]
+__all__ = ["PROTOCOLS", "Protocol", "of", "over", "release_offsets"]
 
 PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (CAN, CAN_FD_RAW, CANOPEN, FTT, UDP, ETHERCAT_PROTOCOL)}
 
 
 def of(bus: model.Bus) -> Protocol:
     return PROTOCOLS[bus.protocol]
+
+
+def over(protocol: str, link: str | None) -> Protocol | str:
+    """The protocol a spec's bus names (`protocol:`, and `link:` where it differs from the protocol's own), or why
+    netcfg does not model that protocol over that link."""
+    from netcfg.links import LINKS
+
+    named = PROTOCOLS[protocol]
+    return named if link is None else named.over(LINKS[link])
 
 
 def release_offsets(m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]:

@@ -25,6 +25,12 @@ class Protocol:
         self.name = name  # as the spec's `protocol:` says it
         self.link = link  # the link that name stands for
 
+    def over(self, link: Link) -> Protocol | str:
+        """The protocol as it runs over `link` (a spec's `link:`), or why netcfg does not model it there."""
+        if link is self.link:
+            return self
+        return f"{self.name} runs on {self.link.name} here; netcfg does not model it over {link.name}"
+
     def rules(self) -> type[BusRules]:
         """The resolver's hooks for a bus of this protocol: the link's rules unless the protocol adds its own."""
         return self.link.rules()

@@ -114,13 +114,13 @@ class _Actuator:
             r.err("actuator-bus", f"actuator '{n.name}' speaks its profile's protocol on one bus; it lists "
                   f"{len(n.buses)}", (*self.path, "buses"))
             return
-        protocol = PROTOCOLS[sbus.protocol]
+        protocol = r.bus_protocol(sbus)
         needs = LINKS[self.plain["link"]]
         if not protocol.carries_actuators or (needs.data_phase and not protocol.link.data_phase):
             fit = [name for name, p in PROTOCOLS.items() if p.carries_actuators
                    and (p.link.data_phase or not needs.data_phase)]
             r.err("actuator-link", f"'{self.profile.name}' speaks its own protocol over {needs.name} frames; bus "
-                  f"'{sbus.name}' is {sbus.protocol}: put the actuator on a bus of protocol {' or '.join(fit)}",
+                  f"'{sbus.name}' is {protocol.name}: put the actuator on a bus of protocol {' or '.join(fit)}",
                   (*self.path, "device"))
             return
         bus = r.model.buses[sbus.name]

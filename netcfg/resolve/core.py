@@ -9,11 +9,11 @@ import functools
 import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path as FsPath
-from typing import Any
+from typing import Any, cast
 
 from netcfg import model
 from netcfg.diagnostics import Collector
-from netcfg.protocols import PROTOCOLS
+from netcfg.protocols import PROTOCOLS, Protocol, over
 from netcfg.resolve.signals import last_byte, layout_signals
 from netcfg.rules import BusRules
 from netcfg.spec import schema
@@ -57,6 +57,12 @@ class Resolver:
 
     def protocol(self, name: str) -> BusRules:
         return self.protocols[name]
+
+    def bus_protocol(self, b: schema.Bus) -> Protocol:
+        """The protocol a spec's bus runs: its `protocol:` over its `link:` (resolve_buses reports a pair netcfg
+        does not model, and the named protocol stands in for it meanwhile)."""
+        chosen = over(b.protocol, b.link)
+        return chosen if isinstance(chosen, Protocol) else PROTOCOLS[b.protocol]
 
     # -- helpers -------------------------------------------------------------------------------------------
     def err(self, code: str, message: str, path: Path) -> None:
@@ -151,19 +157,23 @@ class Resolver:
     def resolve_buses(self) -> None:
         for i, b in enumerate(self.spec.buses):
             path: Path = ("buses", i)
-            for proto, rules in self.protocols.items():
+            for name, rules in self.protocols.items():
                 key = rules.section
                 if key is not None and getattr(b, key) is not None and self.protocols[b.protocol] is not rules:
                     self.err(
                         "wrong-section",
-                        f"bus '{b.name}' is {b.protocol}; '{key}:' belongs to {proto} buses",
+                        f"bus '{b.name}' is {b.protocol}; '{key}:' belongs to {name} buses",
                         (*path, key),
                     )
-            link = PROTOCOLS[b.protocol].link
+            chosen = over(b.protocol, b.link)
+            if isinstance(chosen, str):
+                self.err("link", chosen, (*path, "link"))
+            proto = self.bus_protocol(b)
+            link = proto.link
             bus = model.Bus(
                 description=b.description,
                 name=b.name,
-                protocol=b.protocol,
+                protocol=cast(model.Protocol, proto.name),  # a name of PROTOCOLS, which model.Protocol lists
                 link=link.name,
                 arbitrates=link.arbitrates,
                 bitrate=b.bitrate,
@@ -199,13 +209,14 @@ class Resolver:
                     "effect (flows take the largest of the CAN buses'): remove it",
                     (*path, "clock_tolerance"),
                 )
-            if b.data_bitrate is not None and not link.data_phase:
+            if b.data_bitrate is not None and not link.data_phase and not isinstance(chosen, str):
                 self.err(
                     "wrong-section",
-                    f"'data_bitrate' is the CAN FD data phase; bus '{b.name}' is {b.protocol}",
+                    f"'data_bitrate' is the CAN FD data phase; bus '{b.name}' is {bus.protocol} on {link.name}: "
+                    "remove it, or run the bus on CAN FD (protocol: can-fd, or link: can-fd)",
                     (*path, "data_bitrate"),
                 )
-            self.protocol(b.protocol).resolve_bus(b, bus, path)
+            self.protocol(proto.name).resolve_bus(b, bus, path)
             self.model.buses[b.name] = bus
 
     def task_refs(self) -> list[str]:
@@ -277,7 +288,7 @@ class Resolver:
                 bus.messages.append(msg)
 
     def resolve_message(self, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path) -> model.Message | None:
-        rules = self.protocol(sbus.protocol)
+        rules = self.protocol(bus.protocol)
         ec = bus.ftt.ec_ns if bus.ftt else None
         if not rules.carries_messages(bus):
             return None  # the bus error is reported already

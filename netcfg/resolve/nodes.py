@@ -6,7 +6,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from netcfg import cia301, model
-from netcfg.protocols import PROTOCOLS
 from netcfg.protocols.canopen import resolve as canopen
 from netcfg.resolve.actuators import is_actuator_device
 from netcfg.spec import schema
@@ -32,7 +31,9 @@ def resolve_nodes(r: Resolver) -> None:
                 )
         if len(set(n.buses)) != len(n.buses):
             r.err("duplicate-name", f"node '{n.name}' lists the same bus twice", (*path, "buses"))
-        on_canopen = any(r.protocol(r.spec_buses[b].protocol).device_nodes for b in n.buses if b in r.spec_buses)
+        on_canopen = any(
+            r.protocol(r.bus_protocol(r.spec_buses[b]).name).device_nodes for b in n.buses if b in r.spec_buses
+        )
         if n.node_id is not None:
             if on_canopen and n.node_id not in cia301.NODE_IDS:
                 r.err("node-id", f"CANopen node ids are 1..127; '{n.name}' has {n.node_id}", (*path, "node_id"))
@@ -121,7 +122,7 @@ def resolve_nodes(r: Resolver) -> None:
             scheduling=n.scheduling,
             tx_queue=_tx_queue(n.tx_queue),
         )
-        on_can = any(sb.name in n.buses and PROTOCOLS[sb.protocol].link.arbitrates for sb in r.spec.buses)
+        on_can = any(sb.name in n.buses and r.bus_protocol(sb).link.arbitrates for sb in r.spec.buses)
         if n.tx_queue.policy == "fifo" and not on_can:
             r.warn(
                 "wrong-section",

@@ -137,6 +137,12 @@ class ErrorModel(SpecModel):
 class Bus(SpecModel):
     name: Name
     protocol: Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat"]
+    link: Literal["can", "can-fd", "ethernet", "ethercat"] | None = Field(
+        None,
+        description="the physical bus the protocol runs over, where it differs from the protocol's own (can, can-fd, "
+        "ethernet, ethercat; default: can for can, canopen and ftt-can, can-fd for can-fd, ethernet for ethernet-udp, "
+        "ethercat for ethercat). `protocol: can` with `link: can-fd` is the can-fd protocol",
+    )
     bitrate: BitRateField = Field(description="bit rate, or link speed for Ethernet; on CAN FD the arbitration rate")
     data_bitrate: BitRateField | None = Field(
         None, description="CAN FD: the data-phase bit rate of frames sent with bit-rate switch (brs)"

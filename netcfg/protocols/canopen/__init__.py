@@ -12,11 +12,21 @@ if TYPE_CHECKING:
     from netcfg import model
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
+    from netcfg.links.base import Link
     from netcfg.rules import BusRules
     from netcfg.timing.load import FrameTiming
 
 
 class Canopen(Protocol):
+    def over(self, link: Link) -> Protocol | str:
+        if link is self.link:
+            return self
+        return (
+            f"CANopen over {link.name} is not modelled: CANopen FD (CiA 1301) has PDOs of up to 64 bytes and USDO "
+            "in place of SDO, while netcfg's CANopen (its PDO checks, EDS/DCF and live master) is CiA 301's on "
+            "classical CAN; write link: can"
+        )
+
     def rules(self) -> type[BusRules]:
         from netcfg.protocols.canopen.resolve import CanopenRules
 

@@ -13,11 +13,20 @@ if TYPE_CHECKING:
     from netcfg import model
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
+    from netcfg.links.base import Link
     from netcfg.rules import BusRules
     from netcfg.timing.load import FrameTiming
 
 
 class Ftt(Protocol):
+    def over(self, link: Link) -> Protocol | str:
+        if link is self.link:
+            return self
+        return (
+            f"FTT-CAN over {link.name} is not modelled: the elementary cycle's trigger message and windows are "
+            "analysed and simulated for classical frames; write link: can"
+        )
+
     def rules(self) -> type[BusRules]:
         from netcfg.protocols.ftt.resolve import FttRules
 

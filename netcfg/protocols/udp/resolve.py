@@ -48,7 +48,7 @@ class UdpRules(BusRules):
 
     def resolve_nic_queues(self) -> None:
         """A node's nic_queue is its NIC's on every Ethernet bus it is on; elsewhere it means nothing."""
-        ethernet = {b.name for b in self.r.spec.buses if b.protocol == self.name}
+        ethernet = {b.name for b in self.r.model.buses.values() if b.protocol == self.name}
         for i, n in enumerate(self.r.spec.nodes):
             if n.nic_queue is None or n.name not in self.r.model.nodes:
                 continue
