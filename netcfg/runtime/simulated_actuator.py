@@ -42,7 +42,9 @@ class SimulatedActuator:
         self.killed = False
         self.faulted = False
         self.answered = 0
-        self._host = [m for m in self.codec.messages.values() if m.sender == "host"]
+        # the most specific first: a fixed frame (Damiao's enable, FF .. FC) before the command on its identifier
+        self._host = sorted((m for m in self.codec.messages.values() if m.sender == "host"),
+                            key=lambda m: m.fixed is None)
         self._values: dict[str, float] = {}  # the latest commanded value of each field name
         self._states: dict[str, str] = {}  # state field -> the value name it reports
         # the delay range (s) each host message is answered within: the analysis' where the spec commands it
@@ -55,7 +57,7 @@ class SimulatedActuator:
             if task is not None:
                 self._delay_s[c.command] = (task.bcet_ns / 1e9, task.wcet_ns / 1e9)
         self.cyclic = [(pm, cfg.message(m).period_ns) for pm, m in node.actuator.cyclic]
-        self._actions = {a["message"]: a for a in (self.profile.get("enable"), self.profile.get("safe_stop")) if a}
+        self._actions = [a for a in (self.profile.get("enable"), self.profile.get("safe_stop")) if a]
         self.bus: can.BusABC | None = None
         self.scheduler: ResponseScheduler | None = None
 
@@ -98,10 +100,10 @@ class SimulatedActuator:
     def _take(self, m: MessageCodec, data: bytes) -> None:
         if not m.is_remote:
             self._values.update(m.decode(0, data, si=False).values)
-        action = self._actions.get(m.name)
-        if action is not None and all(self._values.get(k) == _raw_or_name(m, k, v) for k, v in
-                                      action["values"].items()):
-            self._states.update(action["state"])
+        for action in self._actions:  # enable and safe stop may be one message with other values (ODrive's)
+            if action["message"] == m.name and all(self._values.get(k) == _raw_or_name(m, k, v)
+                                                   for k, v in action["values"].items()):
+                self._states.update(action["state"])
         if m.reply is None or m.name not in self._delay_s or self.scheduler is None:
             return
         lo, hi = self._delay_s[m.name]
