@@ -7,9 +7,11 @@ time on a shared host, so a timing figure is asserted only within a stated slack
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import math
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -169,10 +171,8 @@ class _Mock:
     def _run(self) -> None:
         asyncio.set_event_loop(self.loop)
         self.task = self.loop.create_task(self.mock.main())
-        try:
+        with contextlib.suppress(asyncio.CancelledError):  # cancelled by stop()
             self.loop.run_until_complete(self.task)
-        except (asyncio.CancelledError, Exception):  # cancelled by stop()
-            pass
 
     def stop(self) -> None:
         if self.task is not None:
@@ -180,6 +180,24 @@ class _Mock:
         self.thread.join(5)
         self.mock.notifier.stop()
         self.bus.shutdown()
+
+
+def _remote_request(channel: str) -> Any:
+    """Send ODrive's Get_Error request (request_error: a remote frame on 0x003) and decode the first answer."""
+    from netcfg.devices.actuator_profile import builtin_actuator_profile
+    from netcfg.runtime.actuators import ActuatorCodec
+
+    codec = ActuatorCodec(builtin_actuator_profile("odrive-cansimple").plain, node_id=0)
+    frame = codec.encode("request_error")
+    assert frame.is_remote and frame.arbitration_id == 0x003 and frame.data == b""
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        bus.send(can.Message(arbitration_id=frame.arbitration_id, is_extended_id=False, is_remote_frame=True, dlc=8))
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            msg = bus.recv(timeout=0.5)
+            if msg is not None and not msg.is_remote_frame and msg.arbitration_id == 0x003:
+                return codec.decode(msg.arbitration_id, False, bytes(msg.data))
+    return None
 
 
 def test_run_against_odrive_cans_own_mock(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -201,8 +219,13 @@ def test_run_against_odrive_cans_own_mock(tmp_path: Path, capsys: pytest.Capture
                      "axis0.set_input_vel.input_vel=2", "--log", str(log), "--format", "json"])
         model = mock.mock.odrive
         held = {"velocity": model.velocity, "setpoint": model.model.setpoint, "state": str(model.axis_state)}
+        rtr = _remote_request(channel)
     finally:
         mock.stop()
+    # a remote request (RTR, no data, DLC 8) netcfg's codec encodes is answered by the mock with its Get_Error, which
+    # netcfg decodes: no active error, no disarm reason (the mock answers every request with zeros)
+    assert rtr is not None and rtr.message == "get_error"
+    assert rtr.values == {"active_errors": 0, "disarm_reason": 0} and rtr.errors == ()
     doc = json.loads(capsys.readouterr().out)
     assert code == 0 and doc["ok"], doc
     a = doc["actuators"]["axis0"]

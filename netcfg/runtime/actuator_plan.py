@@ -69,6 +69,14 @@ class ActuatorPlan:
         return None if action is None else self.codec.message(action["message"]).reply
 
 
+def loss_timeout_ns(heartbeat_timeout_ns: int | None, expected_periods_ns: list[int]) -> int | None:
+    """How long an actuator may send nothing before the master reports it lost: its node's heartbeat_timeout, else
+    LOSS_MULTIPLIER periods of the slowest message it sends (replies and cyclic ones); None when it sends none."""
+    if heartbeat_timeout_ns:
+        return heartbeat_timeout_ns
+    return LOSS_MULTIPLIER * max(expected_periods_ns) if expected_periods_ns else None
+
+
 def actuator_buses(cfg: RuntimeConfig) -> list[str]:
     """The buses that carry actuator profile nodes, in the configuration's order."""
     with_actuators = {b for n in cfg.nodes if n.actuator is not None for b in n.buses}
@@ -134,7 +142,7 @@ def plan_actuators(cfg: RuntimeConfig, bus: str, values: Mapping[tuple[str, str]
                                         vals, frame))
         cyclic = tuple((pm, cfg.message(m)) for pm, m in node.actuator.cyclic)
         expected += [m.period_ns for _, m in cyclic if m.period_ns]
-        timeout = node.heartbeat_timeout_ns or (LOSS_MULTIPLIER * max(expected) if expected else None)
+        timeout = loss_timeout_ns(node.heartbeat_timeout_ns, expected)
         profile = node.actuator.profile
         plans.append(ActuatorPlan(node, codec, tuple(commands), cyclic, timeout, profile.get("enable"),
                                   profile.get("safe_stop")))
