@@ -255,3 +255,31 @@ def test_run_against_odrive_cans_own_mock(tmp_path: Path, capsys: pytest.Capture
             assert ours.values[name.lower()] == pytest.approx(value, rel=1e-7, abs=1e-12), (name, frame)
         compared += 1
     assert compared >= 15
+
+
+def test_verify_measures_a_reply_from_its_command(tmp_path: Path) -> None:
+    """A hand-made log of the arm's shoulder: commands at 0, 20 and 40 ms, answered 300 us, 300 us and 5,000 us after
+    (the log's own times). verify measures each feedback from the command frame before it and holds it against the
+    feedback's analysed worst case (runtime.json's wcrt_ns, which holds the profile's 0..500 us): 300 us is inside,
+    5,000 us is late by 5,000 us less that bound."""
+    from netcfg.check import analyse_spec
+
+    spec = arm(tmp_path)
+    model, report = analyse_spec(spec)
+    assert model is not None and report["ok"]
+    wcrt_us = next(m for b in report["buses"] for m in b["messages"] if m["name"] == "shoulder_feedback")["wcrt_us"]
+    assert 300 < wcrt_us < 5_000
+    log = tmp_path / "hand.log"
+    command, feedback = "001#7FFF7FF000000000", "011#117FFF7FF7FF0000"  # position 0, ...: the codec's zero command
+    lines = []
+    for k, answer_us in enumerate((300, 300, 5_000)):
+        t = 1.0 + 0.020 * k
+        lines += [f"({t:.6f}) can0 {command}", f"({t + answer_us / 1e6:.6f}) can0 {feedback}"]
+    log.write_text("\n".join(lines) + "\n")
+    got = json.loads(cli("verify", str(spec), str(log), "--format", "json").stdout)
+    fb = next(m for m in got["messages"] if m["name"] == "shoulder_feedback")
+    assert fb["response_from"] == "command"
+    assert (fb["response_us"]["min"], fb["response_us"]["max"]) == (300, 5_000)
+    late = [v for v in got["violations"] if v["kind"] == "late"]
+    assert [v["message"] for v in late] == ["shoulder_feedback"]
+    assert f"5000 us after its command; the analysed worst case is {wcrt_us:.0f} us" in late[0]["detail"]

@@ -77,6 +77,13 @@ def loss_timeout_ns(heartbeat_timeout_ns: int | None, expected_periods_ns: list[
     return LOSS_MULTIPLIER * max(expected_periods_ns) if expected_periods_ns else None
 
 
+def reply_commands(cfg: RuntimeConfig) -> dict[str, str]:
+    """Each actuator reply's runtime.json message -> the command message it answers (netcfg.verify measures the
+    reply's response from its command's frame)."""
+    return {c.reply_message: c.message for n in cfg.nodes if n.actuator is not None for c in n.actuator.commands
+            if c.reply_message is not None}
+
+
 def actuator_buses(cfg: RuntimeConfig) -> list[str]:
     """The buses that carry actuator profile nodes, in the configuration's order."""
     with_actuators = {b for n in cfg.nodes if n.actuator is not None for b in n.buses}
