@@ -14,7 +14,7 @@ Fault drills (README "Faults the live master survives"): --kill, --emcy, --reset
 simulated drives, --stall on the master's loop, --bus-off on the master's controller (netcfg's bus wrapper).
 
 Exit codes: 0 every started node delivered every cycle, none was lost, rebooted or sent an EMCY, no SYNC was missed
-and the bus never went off; 1 otherwise, or the spec
+and the bus never went off (an actuator bus: no actuator was lost or reported an error); 1 otherwise, or the spec
 or runtime.json has errors, or the set-up failed; 2 usage or I/O (bad option, a bus that cannot be opened).
 """
 

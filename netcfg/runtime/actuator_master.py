@@ -42,6 +42,7 @@ from netcfg.runtime.clock import Clock, SystemClock
 RUNNING, LOST, STOPPED = "RUNNING", "LOST", "STOPPED"
 REMOTE_DLC = 8  # a profile's remote requests ask for its 8-byte answer
 SAFE_STOP_WAIT_S = 0.5  # how long the master waits for the safe stop's replies at the end
+ENABLE_WAIT_NS = 500_000_000  # the wait for an enable's reply of an actuator with no loss timeout
 
 
 @dataclass
@@ -100,13 +101,14 @@ class ActuatorRun:
     events: list[ActuatorEvent] = field(default_factory=list)
     drills: list[tuple[float, str]] = field(default_factory=list)
     cycles: int = 0
-    ended_by: str = "cycles"  # cycles | stop_all:<node> | stop() | enable
+    ended_by: str = "cycles"  # cycles | stop_all:<node> | stop() | signal SIGINT ...
     unknown_frames: int = 0
 
     @property
     def ok(self) -> bool:
-        """Every actuator ran to the end, never lost, never reporting an error, every reply within its bound."""
-        return self.cycles > 0 and self.ended_by in ("cycles", "stop()") and not any(
+        """The cycle ran (to its end, or until stopped from outside: stop(), Ctrl-C), no actuator was lost or
+        reported an error; late replies are counted, not failures (a host's latency makes them)."""
+        return self.cycles > 0 and not self.ended_by.startswith("stop_all") and not any(
             e.kind in ("lost", "error") for e in self.events
         )
 
@@ -186,10 +188,9 @@ class ActuatorMaster:
             if reply is None:
                 out.enabled = "sent"
             else:
-                timeout_s = (p.loss_timeout_ns or 500_000_000) / 1e9
+                timeout_s = (p.loss_timeout_ns or ENABLE_WAIT_NS) / 1e9
                 waits[p.name] = (reply, self.clock.now() + timeout_s)
         while waits:
-            deadline = max(d for _, d in waits.values())
             msg = self.bus.recv(timeout=max(0.0, min(d for _, d in waits.values()) - self.clock.now()))
             if msg is not None:
                 got = self._decode(msg)
@@ -201,8 +202,6 @@ class ActuatorMaster:
                 self.result.actuators[name].enabled = "no answer"
                 del waits[name]
                 self._lost(name, "no answer to its enable command")
-            if now > deadline + 1.0:
-                break
         return self._stop_reason is None
 
     def _cycle(self, plan: ActuatorRunPlan) -> None:
