@@ -283,3 +283,31 @@ def test_verify_measures_a_reply_from_its_command(tmp_path: Path) -> None:
     late = [v for v in got["violations"] if v["kind"] == "late"]
     assert [v["message"] for v in late] == ["shoulder_feedback"]
     assert f"5000 us after its command; the analysed worst case is {wcrt_us:.0f} us" in late[0]["detail"]
+
+
+def test_a_simulated_odrive_answers_a_remote_request(tmp_path: Path) -> None:
+    """ODrive CAN Simple: a remote frame on node_id << 5 | 0x03 asks for Get_Error, which the axis sends on the same
+    identifier (protocol page); the simulated axis answers it, with no error set, and with the first flag of
+    active_errors and disarm_reason (bit 0, INITIALIZING in the profile's table) once it is faulted."""
+    from conftest import runtime_config_of
+
+    from netcfg.runtime.simulated_actuator import ActuatorBench
+
+    spec = {**ODRIVE_SPEC, "nodes": [ODRIVE_SPEC["nodes"][0], {**ODRIVE_SPEC["nodes"][1], "node_id": 3}]}
+    cfg = runtime_config_of(tmp_path / "odrive.yaml", spec)
+    channel = f"odrive-sim-{id(tmp_path)}"
+    codec = cfg.node("axis0").actuator.codec()  # type: ignore[union-attr]
+    with ActuatorBench(cfg, "can0", channel=channel) as bench, can.Bus(interface="virtual", channel=channel) as bus:
+        answers = []
+        for fault in (False, True):
+            if fault:
+                bench["axis0"].fault()
+            bus.send(can.Message(arbitration_id=3 << 5 | 0x03, is_extended_id=False, is_remote_frame=True, dlc=8))
+            deadline = time.monotonic() + 2.0
+            while time.monotonic() < deadline:
+                msg = bus.recv(timeout=0.2)
+                got = None if msg is None else codec.decode(msg.arbitration_id, msg.is_extended_id, bytes(msg.data))
+                if got is not None and got.message == "get_error":
+                    answers.append(got)
+                    break
+    assert [a.errors for a in answers] == [(), ("INITIALIZING", "INITIALIZING")]  # active_errors, disarm_reason bit 0
