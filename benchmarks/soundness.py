@@ -767,6 +767,9 @@ def _add_actuators(f: Fields, spec: dict[str, Any], fd: bool) -> None:
             f.opt(setup, "nodes[].actuator.cyclic", st.just([cyclic]), 0.6)
         if master is None or f.chance(0.2):
             f.opt(setup, "nodes[].actuator.commanded_by", st.sampled_from(hosts), 1.0)
+        # what `netcfg run` does when the actuator goes silent or reports an error (runtime.json carries both)
+        f.opt(node, "nodes[].on_loss", st.sampled_from(["stop_all", "stop_node", "continue"]), 0.2)
+        f.opt(node, "nodes[].on_emcy", st.sampled_from(["stop_all", "stop_node", "continue"]), 0.2)
         if setup:
             node["actuator"] = setup
         spec["nodes"].append(node)

@@ -156,3 +156,34 @@ def test_runtime_codec_imports_without_the_compiler() -> None:
             "'netcfg.spec.schema', 'netcfg.devices'} & set(sys.modules); print(sorted(bad))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+ACTIONS = HEAD + """  go: {from: host, id: node_id, size: 1, fields: {mode: {start_bit: 0, bits: 8,
+                                                              choices: {0: LOW, 1: HIGH}}}}
+  st: {from: device, id: 0x40 + node_id, size: 1, fields: {s: {start_bit: 0, bits: 8, role: state,
+                                                               choices: {0: IDLE, 1: RUN}}}}
+"""
+
+
+@pytest.mark.parametrize(
+    ("top", "expected"),
+    [
+        ("enable: {message: st}\n", r"11:\d+ profile-action enable sends 'st', which is not a message the host sends"),
+        ("enable: {message: go}\n", r"11:\d+ profile-action enable: give 'go' the value of mode under 'values:'"),
+        ("safe_stop: {message: go, values: {mode: HALF}}\n", r"11:\d+ profile-action mode has no value named 'HALF'"),
+        ("safe_stop: {message: go, values: {mode: 0, gear: 1}}\n", r"11:\d+ profile-action 'go' has no field 'gear'"),
+        ("enable: {message: go, values: {mode: HIGH}, state: {s: FAST}}\n",
+         r"11:\d+ profile-action enable state: s has no value named 'FAST'"),
+        ("enable: {message: go, values: {mode: HIGH}, state: {t: RUN}}\n",
+         r"11:\d+ profile-action enable state: 't' is not a state field of a device message"),
+    ],
+)
+def test_enable_and_safe_stop_are_host_messages_with_every_value(tmp_path: Path, top: str, expected: str) -> None:
+    """`enable:` / `safe_stop:` (what `netcfg run` sends before the cycle and to stop) name a host message and give
+    each of its fields a value (a number or one of its value names); `state:` names a device state field's value."""
+    problems = _problems(tmp_path, ACTIONS + top)
+    assert any(re.search(expected, p) for p in problems), problems
+    good = parse_actuator_profile(ACTIONS + "enable: {message: go, values: {mode: HIGH}, state: {s: RUN}}\n"
+                                  "safe_stop: {message: go, values: {mode: 0}}\n", "x.yaml").plain
+    assert good["enable"] == {"message": "go", "values": {"mode": "HIGH"}, "state": {"s": "RUN"}}
+    assert good["safe_stop"] == {"message": "go", "values": {"mode": 0}, "state": {}}

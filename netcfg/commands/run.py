@@ -1,7 +1,9 @@
-"""`netcfg run`: the live CANopen master on any python-can interface, or on netcfg's simulated drives.
+"""`netcfg run`: the live master on any python-can interface, or on netcfg's simulated drives: a CANopen bus, or a
+bus of actuators that speak their own protocols (netcfg.run_actuators, netcfg.runtime.actuator_master).
 
     netcfg run build/allex2/runtime.json --interface virtual --simulated-drives --cycles 100
     netcfg run specs/allex2.yaml --interface socketcan --channel can0 --duration 8s --log gait.log
+    netcfg run examples/arm_damiao.yaml --simulated-drives --cycles 200 --set wrist.mit_command.kd=1
 
 A spec is compiled in memory first; a runtime.json is read as a master reads it (netcfg.runtime.load). The work is
 netcfg.runtime.operate's: set-up, CiA 402 to OPERATION ENABLED, the SYNC cycle with heartbeat and EMCY supervision,
@@ -12,7 +14,7 @@ Fault drills (README "Faults the live master survives"): --kill, --emcy, --reset
 simulated drives, --stall on the master's loop, --bus-off on the master's controller (netcfg's bus wrapper).
 
 Exit codes: 0 every started node delivered every cycle, none was lost, rebooted or sent an EMCY, no SYNC was missed
-and the bus never went off; 1 otherwise, or the spec
+and the bus never went off (an actuator bus: no actuator was lost or reported an error); 1 otherwise, or the spec
 or runtime.json has errors, or the set-up failed; 2 usage or I/O (bad option, a bus that cannot be opened).
 """
 
@@ -43,7 +45,8 @@ DEFAULT_ABORT = 0x08000020  # CiA 301: "data cannot be transferred or stored to 
 
 def add_parser(sub: Subcommands) -> None:
     p = sub.add_parser(
-        NAME, help="the live CANopen master: set up, CiA 402 enable, SYNC cycle, supervise, stop safely"
+        NAME, help="the live master: CANopen (set up, CiA 402 enable, SYNC cycle) or an actuator bus (enable, "
+        "command cycle, replies); supervise, stop safely"
     )
     p.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
     p.add_argument("--interface", default=None, help="python-can interface: socketcan, pcan, kvaser, virtual, ...")
@@ -53,7 +56,8 @@ def add_parser(sub: Subcommands) -> None:
         action="store_true",
         help="bring up netcfg's simulated drives on the (virtual) bus: the quick start, no hardware",
     )
-    p.add_argument("--bus", default=None, help="which CANopen bus of the configuration (default: its only one)")
+    p.add_argument("--bus", default=None, help="which CANopen or actuator bus of the configuration (default: its "
+                   "only CANopen bus, else its only actuator bus)")
     length = p.add_mutually_exclusive_group()
     length.add_argument("--cycles", type=int, help="SYNC cycles to run (default: until Ctrl-C)")
     length.add_argument("--duration", help="how long to cycle, e.g. 8s or 500 ms (whole SYNC periods)")
@@ -69,6 +73,10 @@ def add_parser(sub: Subcommands) -> None:
         ("--stall", "T..T2", "the master's own loop pauses from T to T2 (no SYNC, no RxPDO), as a host that is "
          "held up"),
         ("--bus-off", "T..T2", "the master's CAN controller is bus-off from T to T2 (played by netcfg's bus wrapper)"),
+        ("--fault", "NODE@T", "simulated actuators: from T, NODE reports an error in every frame (its profile's "
+         "error fields)"),
+        ("--set", "NODE.COMMAND.FIELD=VALUE", "actuator bus: a command field's value, in the profile's units "
+         "(default 0, or its range's bound nearest 0)"),
     )
     for flag, metavar, text in drills:
         p.add_argument(flag, action="append", default=[], metavar=metavar, help=text)
@@ -195,6 +203,7 @@ def run_command(args: argparse.Namespace) -> int:
         emcys = [_drill(e, "emcy") for e in args.emcy]
         resets = [_reset_drill(r) for r in args.reset]
         aborts = [_abort_drill(a) for a in args.sdo_abort]
+        faults = [_drill(f, "fault") for f in args.fault]
         for s in args.stall:
             _span(s, "stall")  # checked here, used by _run_master
         for s in args.bus_off:
@@ -206,9 +215,9 @@ def run_command(args: argparse.Namespace) -> int:
     if args.cycles is not None and args.cycles < 1:
         print("netcfg: --cycles must be 1 or more", file=sys.stderr)
         return 2
-    if (kills or emcys or resets or aborts) and not args.simulated_drives:
+    if (kills or emcys or resets or aborts or faults) and not args.simulated_drives:
         print(
-            "netcfg: --kill, --emcy, --reset and --sdo-abort act on simulated drives; add --simulated-drives",
+            "netcfg: --kill, --emcy, --reset, --sdo-abort and --fault act on simulated drives; add --simulated-drives",
             file=sys.stderr,
         )
         return 2
@@ -235,12 +244,54 @@ def run_command(args: argparse.Namespace) -> int:
         with _config(args.source) as cfg:
             if cfg is None:
                 return 1
+            actuators = _actuator_bus(args, cfg)
+            if actuators is not None:
+                return _run_actuators(args, cfg, actuators, kills, faults, [emcys, resets, aborts], duration_s)
+            if faults or args.set:
+                print("netcfg: --fault and --set act on an actuator bus; this run drives a CANopen bus",
+                      file=sys.stderr)
+                return 2
             return _run_master(args, cfg, kills, emcys, resets, aborts, duration_s)
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
     except json.JSONDecodeError as exc:
         return not_json(args.source, exc)
+
+
+def _actuator_bus(args: argparse.Namespace, cfg: Any) -> str | None:
+    """The actuator bus this run drives: the one --bus names, or the only one when the configuration has no CANopen
+    bus to default to; None: a CANopen run."""
+    from netcfg.runtime.actuator_plan import actuator_bus
+    from netcfg.runtime.canopen_master import canopen_bus
+
+    try:
+        canopen_bus(cfg, args.bus)
+        return None
+    except (ValueError, KeyError):
+        pass
+    try:
+        return actuator_bus(cfg, args.bus)
+    except ValueError:
+        return None  # neither: the CANopen run says why
+
+
+def _run_actuators(args: argparse.Namespace, cfg: Any, bus_name: str, kills: list[tuple[str, float, int]],
+                   faults: list[tuple[str, float, int]], canopen_drills: list[list[Any]],
+                   duration_s: float | None) -> int:
+    from netcfg.run_actuators import run_actuator_bus
+
+    if any(canopen_drills) or args.stall or args.bus_off or args.samples or args.allow_missing:
+        print("netcfg: --emcy, --reset, --sdo-abort, --stall, --bus-off, --samples and --allow-missing act on a "
+              f"CANopen run; bus '{bus_name}' is an actuator bus (its drills: --kill, --fault)", file=sys.stderr)
+        return 2
+    interface = args.interface or "virtual"
+    channel = args.channel or (f"netcfg-run-{os.getpid()}" if interface == "virtual" else None)
+    return run_actuator_bus(
+        cfg, bus_name, interface=interface, channel=channel, simulated=args.simulated_drives, cycles=args.cycles,
+        duration_s=duration_s, settings=args.set, kills=[(n, t) for n, t, _ in kills],
+        faults=[(n, t) for n, t, _ in faults], log=args.log, stop_on_signals=_stop_on_signals, fmt=args.format,
+    )
 
 
 def _run_master(

@@ -30,7 +30,11 @@ CAN_LINKS = tuple(name for name, link in LINKS.items() if link.arbitrates)  # an
 CAN_FD_SIZES = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 _NAME = re.compile(r"^[a-z_][a-z0-9_]*$")
 
-TOP_KEYS = ("profile", "format", "vendor", "product", "source", "link", "parameters", "messages", "notes")
+TOP_KEYS = ("profile", "format", "vendor", "product", "source", "link", "parameters", "messages", "notes", "enable",
+            "safe_stop")
+# what a live master sends an actuator before its cycle (enable) and to bring it to rest (safe_stop): a host message
+# of the profile with its fields' values, and the value names the device's state fields report after it
+ACTION_KEYS = ("message", "values", "state", "doc")
 SOURCE_KEYS = ("document", "version", "url", "sections")
 PARAM_KEYS = ("default", "min", "max", "unit", "doc")
 MESSAGE_KEYS = ("from", "id", "extended", "size", "fd", "pad", "data", "remote", "fields", "reply", "cyclic", "doc")
@@ -200,10 +204,61 @@ class _Checker:
         notes = top.get("notes") or []
         if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
             self.err("profile-type", "notes must be a list of sentences", ("notes",))
-        return {
+        out = {
             "name": name, "format": FORMAT, "vendor": top.get("vendor", ""), "product": top.get("product", ""),
             "source": source or {}, "link": link, "parameters": params, "messages": out_messages, "notes": notes,
         }
+        for key in ("enable", "safe_stop"):
+            if key in top:
+                out[key] = self.action(key, top[key], out_messages)
+        return out
+
+    def action(self, key: str, data: Any, messages: list[dict[str, Any]]) -> dict[str, Any] | None:
+        """`enable:` / `safe_stop:`: {message: a host message, values: {field: number or value name}}, every field
+        of the message that is not a constant given."""
+        body = self.mapping(data, (key,), key)
+        if body is None:
+            return None
+        self.keys(body, ACTION_KEYS, (key,), key)
+        host = {m["name"]: m for m in messages if m["from"] == "host"}
+        name = body.get("message")
+        if name not in host:
+            self.err("profile-action", f"{key} sends '{name}', which is not a message the host sends"
+                     f"{did_you_mean(str(name), host)}", (key, "message") if "message" in body else (key,))
+            return None
+        values = self.mapping(body.get("values", {}), (key, "values"), f"{key} values") or {}
+        fields = {f["name"]: f for f in host[name].get("fields") or () if f.get("encoding") != "const"}
+        for fname, value in values.items():
+            where = (key, "values", fname)
+            if fname not in fields:
+                self.err("profile-action", f"'{name}' has no field '{fname}'{did_you_mean(str(fname), fields)}",
+                         where, key=True)
+            elif isinstance(value, str):
+                names = [n for _, n in fields[fname].get("choices") or ()]
+                if value not in names:
+                    self.err("profile-action", f"{fname} has no value named {value!r}{did_you_mean(value, names)}",
+                             where)
+            else:
+                self.number(value, where, f"{key} value {fname}")
+        missing = [f for f in fields if f not in values]
+        if missing:
+            self.err("profile-action", f"{key}: give '{name}' the value of {', '.join(missing)} under 'values:'",
+                     (key,))
+            return None
+        states: dict[str, set[str]] = {}  # every state field the device sends -> its value names
+        for m in messages:
+            for f in m.get("fields") or () if m["from"] == "device" else ():
+                if f.get("role") == "state":
+                    states.setdefault(f["name"], set()).update(n for _, n in f.get("choices") or ())
+        state = self.mapping(body.get("state", {}), (key, "state"), f"{key} state") or {}
+        for fname, value in state.items():
+            if fname not in states:
+                self.err("profile-action", f"{key} state: '{fname}' is not a state field of a device message"
+                         f"{did_you_mean(str(fname), states)}", (key, "state", fname), key=True)
+            elif value not in states[fname]:
+                self.err("profile-action", f"{key} state: {fname} has no value named {value!r}"
+                         f"{did_you_mean(str(value), states[fname])}", (key, "state", fname))
+        return {"message": name, "values": dict(values), "state": dict(state)}
 
     def parameters(self, data: Any) -> dict[str, dict[str, Any]]:
         out: dict[str, dict[str, Any]] = {}

@@ -13,6 +13,7 @@ from typing import Any
 from netcfg.emit.report_plots import DPI, FTT_WIDTH_IN, SYNC_HEIGHT_IN, SYNC_WIDTH_IN, draw, shown_ecs, warm_up
 from netcfg.model import Bus, Described, Model, Node
 from netcfg.report_text import errors_text, master_loop_text, num, rate
+from netcfg.runtime.actuator_plan import loss_timeout_ns
 from netcfg.templating import render
 
 # the emitter, and what report_html and the tests read of the plots through it
@@ -141,7 +142,13 @@ def _nodes_table(model: Model) -> dict[str, Any]:
 
 
 def _supervision(model: Model, node: Node) -> str:
-    """What the live master does when a CANopen slave is lost, sends an EMCY or reboots (spec: on_loss, ...)."""
+    """What the live master does when a CANopen slave is lost, sends an EMCY or reboots, or an actuator stops
+    answering or reports an error (spec: on_loss, ...)."""
+    if node.actuator is not None:
+        periods = [m.period_ns for m in model.messages.values() if m.producer == node.name and m.period_ns]
+        timeout = loss_timeout_ns(node.heartbeat_timeout_ns, periods)
+        heard = f"lost after {timeout / 1e6:g} ms silent: {node.on_loss}" if timeout else "nothing to supervise"
+        return f"{heard}; error flags: {node.on_emcy}"
     if node.role == "master" or node.node_id is None or not any(model.buses[b].canopen for b in node.buses):
         return "-"
     if node.heartbeat_timeout_ns:

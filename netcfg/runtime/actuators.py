@@ -279,6 +279,8 @@ class MessageCodec:
     def matches(self, arbitration_id: int, is_extended: bool, data: bytes) -> bool:
         if self.extended != "auto" and bool(self.extended) != is_extended:
             return False
+        if self.is_remote:  # a remote request has no payload: its identifier is all there is
+            return arbitration_id & self.id_mask == self.base_id
         if arbitration_id & self.id_mask != self.base_id or len(data) < self.size:
             return False
         if self.fixed is not None:

@@ -355,11 +355,14 @@ class Node(SpecModel):
     )
     on_loss: Literal["stop_all", "stop_node", "continue"] = Field(
         "stop_all",
-        description="`netcfg run`: what the master does when this node's heartbeat stops: bring every drive to its "
-        "safe state and end the run, stop only this node, or report it and carry on",
+        description="`netcfg run`: what the master does when this node's heartbeat stops (an actuator: when it has "
+        "sent nothing for 3 periods of its slowest message): bring every drive to its safe state and end the run, "
+        "stop only this node, or report it and carry on (an actuator: hold, commanded as before)",
     )
     on_emcy: Literal["stop_all", "stop_node", "continue"] = Field(
-        "stop_all", description="`netcfg run`: what the master does when this node sends an emergency (EMCY)"
+        "stop_all",
+        description="`netcfg run`: what the master does when this node sends an emergency (EMCY), or an actuator's "
+        "frame reports an error (its profile's error fields, or an error value of a state field)",
     )
     on_reboot: Literal["recover", "stop_node", "stop_all"] = Field(
         "stop_node",

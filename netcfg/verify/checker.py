@@ -15,7 +15,7 @@ What is a violation (each names the message, the log time and by how much):
 - `late`: a response the log can measure exceeds the analysed worst case. On a CANopen bus a synchronous TPDO's
   response is measured from the SYNC before it (the analysis' reference for it, netcfg.timing.canopen_sync), on
   FTT-CAN a synchronous message's from the start of its elementary cycle (the trigger message's end less its
-  shortest transmission time).
+  shortest transmission time), an actuator's reply from its command's frame before it (netcfg.runtime.actuator_plan).
 - `early`: a sporadic message came sooner after the previous one than its minimum inter-arrival time allows (less
   the jitter the analysis grants it): the analysed load assumed no more.
 - `unknown_id`: an identifier the configuration does not have (one per identifier, with its count); CANopen service
@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from netcfg.cia301 import sync_every
 from netcfg.runtime import Bus, Message, RuntimeConfig
+from netcfg.runtime.actuator_plan import reply_commands
 from netcfg.timing.can_errors import first_breach
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_MAX_PAYLOAD, frame_bits
 from netcfg.timing.load import exact_rate, frame_timing, rate_hz
@@ -113,11 +114,20 @@ class Checker:
             b = [x.name for x in self.buses].index(m.bus)
             self.states.append(self._state(m, b))
             keys.append(_key(b, m.id, m.extended))
+        # an actuator's reply answers its command: its response is measured from the command's frame before it,
+        # the reference keyed past the buses' own (its command's state index + the number of buses)
+        by_name, answers = {st.msg.name: i for i, st in enumerate(self.states)}, reply_commands(cfg)
+        self._ref_state: dict[int, int] = {}
+        for st in self.states:
+            cmd = by_name.get(answers.get(st.msg.name, ""))
+            if cmd is not None and self.states[cmd].bus == st.bus:
+                st.response_ref, st.ref_key = "command", len(self.buses) + cmd
+                self._ref_state[st.ref_key] = cmd
+                st.responses.edges = np.linspace(0.0, 2.0 * (st.wcrt_us or 1.0), HIST_BINS + 1)
         order = np.argsort(np.array(keys, np.int64), kind="stable")
         self._keys = np.array(keys, np.int64)[order]
         self._key_state = order
         # per bus the message a response is measured from: CANopen's SYNC, FTT-CAN's trigger message
-        self._ref_state: dict[int, int] = {}
         for b, bus_ in enumerate(self.buses):
             ref_id = bus_.canopen.sync_id if bus_.canopen else bus_.ftt.tm_id if bus_.ftt else None
             for i, st in enumerate(self.states):
@@ -345,11 +355,12 @@ class Checker:
     ) -> None:
         m = st.msg
         refs = None  # the frames its responses are measured from: SYNC (TM), the last before this batch first
-        if st.response_ref is not None and st.bus in self._ref_state:
-            syncs = ref_times.get(st.bus, np.empty(0, np.int64))
-            last = self._last_ref.get(st.bus)
+        key = st.bus if st.ref_key is None else st.ref_key
+        if st.response_ref is not None and key in self._ref_state:
+            syncs = ref_times.get(key, np.empty(0, np.int64))
+            last = self._last_ref.get(key)
             refs = np.concatenate([[last], syncs]) if last is not None else syncs
-        st.take(t, length, data, odd, refs, self._ref_offset[st.bus], self._violation)
+        st.take(t, length, data, odd, refs, self._ref_offset.get(key, 0), self._violation)
         if m.implicit == "heartbeat" and st.bus in self.services and not m.extended:
             for k in np.flatnonzero(length > 0):  # the NMT state each heartbeat carries
                 self.services[st.bus].note(m.id, int(t[k]), data[k])

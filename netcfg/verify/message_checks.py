@@ -62,7 +62,8 @@ class MessageState:
     min_gap_us: float | None  # sporadic: the least admissible interval
     slack_us: float  # analysed jitter + worst-case response - best transmission time
     wcrt_us: float | None
-    response_ref: str | None  # "sync": response measured from the last SYNC of the bus
+    response_ref: str | None  # "sync": response measured from the last SYNC of the bus; "tm"; "command" (a reply)
+    ref_key: int | None = None  # the reference's key in the checker (None: the bus's own, SYNC or TM)
     ref_delay_us: float = 0.0  # a synchronous TPDO is queued its drive's tx_delay after the SYNC: its bound's start
     count: int = 0
     last_t: int | None = None
@@ -136,7 +137,7 @@ class MessageState:
                             "late",
                             st,
                             int(when[k]),
-                            f"{resp[k]:.0f} us after {st.response_ref.upper()}; the analysed worst case is "
+                            f"{resp[k]:.0f} us after {_reference(st.response_ref)}; the analysed worst case is "
                             f"{bound:.0f} us{after if st.ref_delay_us else ''}, {resp[k] - bound:.0f} us late",
                         )
         if m.signals and not wrong.all():
@@ -329,6 +330,11 @@ def _excess(sig: Any, v: float) -> float:
 
 def _number(x: float | None) -> str:
     return "-" if x is None else f"{x:g}"
+
+
+def _reference(ref: str) -> str:
+    """What a response is measured from, in words: SYNC, TM, or a reply's command."""
+    return "its command" if ref == "command" else ref.upper()
 
 
 def id_text(can_id: int, extended: bool) -> str:
