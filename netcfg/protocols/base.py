@@ -4,6 +4,7 @@ that adds nothing to its link: raw frames, arbitrating by identifier, released a
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.base import Link
@@ -13,7 +14,33 @@ if TYPE_CHECKING:
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
+    from netcfg.timing.ftt import SrtEntry
     from netcfg.timing.load import FrameTiming
+
+
+@dataclass(frozen=True)
+class OwnFrame:
+    """A frame the protocol itself sends on a bus besides the spec's messages (FTT-CAN's trigger message): the DBC
+    lists it, and every node that hears it gets a C header."""
+
+    name: str
+    id: int
+    extended: bool
+    size: int
+    sender: str
+    receivers: tuple[str, ...]
+    period_ns: int
+    field: str  # the one unsigned field spanning its payload
+    comment: str
+
+
+@dataclass(frozen=True)
+class Unsaid:
+    """Something of a bus's timing its DBC cannot say; bounds_kept: check of the DBC still gives every message the
+    spec's bound (what is lost is judged beside the bounds)."""
+
+    what: str
+    bounds_kept: bool
 
 
 class Protocol:
@@ -66,6 +93,25 @@ class Protocol:
                 f"drop the offset, or give the task '{senders[0]}' the offset instead",
             )
         return None
+
+    # -- what the artifacts and the run-time side ask of a bus of this protocol
+    def own_frames(self, bus: model.Bus) -> tuple[OwnFrame, ...]:
+        """The frames the protocol sends on the bus besides the spec's messages."""
+        return ()
+
+    def scheduled(self, bus: model.Bus) -> dict[str, SrtEntry]:
+        """The schedule's entry (FTT id, period and init in cycles) of each message and trigger the protocol
+        schedules, by name, as the analysis built it; {}: the protocol schedules nothing (the C headers ask)."""
+        return {}
+
+    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+        """What of the bus's timing under this protocol a DBC cannot say (netcfg.emit.dbc.unsaid)."""
+        return ()
+
+    def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
+        """runtime.json's keys of the protocol's own on the bus's entry (netcfg.emit.runtime_json), e.g. FTT-CAN's
+        `ftt` (its schedule); {}: none (every bus has `ftt: null`)."""
+        return {}
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)
     def overhead(self, bus: model.Bus) -> tuple[int, int] | None:

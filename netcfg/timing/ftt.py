@@ -142,10 +142,10 @@ def tm_time_ns(tm_size: int, extended: bool, bitrate: int) -> int:
     return frame_bits(tm_size, extended).ns(bitrate)
 
 
-def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
-    """The Synchronous Requirements Table: every synchronous message and trigger, by FTT id."""
-    assert bus.ftt is not None
-    ec = bus.ftt.ec_ns
+def srt(bus: model.Bus, ftt: model.FttBus, triggers: list[model.Trigger]) -> list[SrtEntry]:
+    """The Synchronous Requirements Table: every synchronous message and trigger, by FTT id (`ftt`: the bus's
+    section)."""
+    ec = ftt.ec_ns
     out = []
     for m in bus.messages:
         if m.window != "sync" or m.ftt_id is None or m.period_ns is None:
@@ -229,24 +229,27 @@ def tm_delay(errors: ErrorModel | None, tm_ns: int) -> int:
 
 
 def _slot(
-    k: int, msgs: list[SrtEntry], trigs: list[SrtEntry], ec: int, tm: int, bus: model.Bus, errors: ErrorModel | None
+    k: int, msgs: list[SrtEntry], trigs: list[SrtEntry], ec: int, tm: int, sync_first: bool, errors: ErrorModel | None
 ) -> EcSlot:
     sync = sum(e.c_ns for e in msgs)
     due = sorted(e.ftt_id for e in (*msgs, *trigs))
-    assert bus.ftt is not None
-    extra = window_allowance(errors, [e.c_ns for e in msgs], tm, bus.ftt.sync_first)
+    extra = window_allowance(errors, [e.c_ns for e in msgs], tm, sync_first)
     return EcSlot(
         k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync - extra, extra
     )
 
 
 def build_schedule(
-    bus: model.Bus, entries: list[SrtEntry], fastest: bool = False, errors: ErrorModel | None = None
+    bus: model.Bus,
+    ftt: model.FttBus,
+    entries: list[SrtEntry],
+    fastest: bool = False,
+    errors: ErrorModel | None = None,
 ) -> Schedule:
-    """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs); `errors`: the bus's error model."""
-    assert bus.ftt is not None
-    ec = bus.ftt.ec_ns
-    tm = tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
+    """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs); `ftt`: the bus's section, `errors`:
+    its error model."""
+    ec = ftt.ec_ns
+    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     periods = [e.fastest_period_ec if fastest else e.period_ec for e in entries]
     macro = macro_cycle(periods)
     if macro > MAX_MACRO_CYCLE:
@@ -257,19 +260,20 @@ def build_schedule(
     for k in range(macro):
         msgs = [e for e in by_can_id if e.due(k, e.fastest_period_ec if fastest else None)]
         trigs = [e for e in entries if e.kind == "trigger" and e.due(k, e.fastest_period_ec if fastest else None)]
-        slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first, tm_delay(errors, tm))
+        slots.append(_slot(k, msgs, trigs, ec, tm, ftt.sync_first, errors))
+    return Schedule(ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm))
 
 
-def envelope_schedule(bus: model.Bus, entries: list[SrtEntry], errors: ErrorModel | None = None) -> Schedule:
+def envelope_schedule(
+    bus: model.Bus, ftt: model.FttBus, entries: list[SrtEntry], errors: ErrorModel | None = None
+) -> Schedule:
     """Every message that may be due in an EC at some admissible periods: each message of a period_range may run
     at any period of it (the master keeps its init EC), so EC k may carry it if some admissible period divides
     k - init. Its slots bound the synchronous window (LSW check) and the asynchronous supply of any EC whatever
     periods the master picks; without ranges it is the nominal schedule. When the pattern's length exceeds
     MAX_MACRO_CYCLE, a message with a range is taken as due in every EC (sound, more pessimistic)."""
-    assert bus.ftt is not None
-    ec = bus.ftt.ec_ns
-    tm = tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
+    ec = ftt.ec_ns
+    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     lengths = [lcm(*e.admissible_periods) for e in entries]
     horizon = macro_cycle(lengths)
     coarse = horizon > MAX_MACRO_CYCLE
@@ -291,8 +295,8 @@ def envelope_schedule(bus: model.Bus, entries: list[SrtEntry], errors: ErrorMode
     for k in range(horizon):
         msgs = [e for e in by_can_id if may_be_due(e, k)]
         trigs = [e for e in entries if e.kind == "trigger" and may_be_due(e, k)]
-        slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first, tm_delay(errors, tm))
+        slots.append(_slot(k, msgs, trigs, ec, tm, ftt.sync_first, errors))
+    return Schedule(ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm))
 
 
 def ec_schedule_mask(slot: EcSlot) -> int:

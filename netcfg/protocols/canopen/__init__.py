@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.can import CLASSICAL_CAN
-from netcfg.protocols.base import Protocol
+from netcfg.protocols.base import Protocol, Unsaid
 
 if TYPE_CHECKING:
     from netcfg import model
@@ -27,6 +27,15 @@ class Canopen(Protocol):
 
     def identifiers_fixed(self, bus: model.Bus) -> str | None:
         return "CiA 301 COB-IDs, the predefined connection set its devices expect"
+
+    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+        return (
+            Unsaid(
+                "the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the DBC bounds each "
+                "frame as check of the spec does, but does not judge the cycle",
+                True,
+            ),
+        )
 
     def extend(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], diags: Collector, acc: Analysis

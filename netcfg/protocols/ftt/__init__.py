@@ -7,13 +7,14 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.can import CLASSICAL_CAN
-from netcfg.protocols.base import Protocol
+from netcfg.protocols.base import OwnFrame, Protocol, Unsaid
 
 if TYPE_CHECKING:
     from netcfg import model
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
+    from netcfg.timing.ftt import SrtEntry
     from netcfg.timing.load import FrameTiming
 
 
@@ -68,6 +69,42 @@ class Ftt(Protocol):
         from netcfg.protocols.ftt.analysis import check_tx_queues
 
         check_tx_queues(m, bus, rows, diags)
+
+    def own_frames(self, bus: model.Bus) -> tuple[OwnFrame, ...]:
+        assert bus.ftt is not None  # an FTT-CAN bus: the resolver filled its section
+        master = bus.ftt.master
+        return (
+            OwnFrame(  # the trigger message, at every EC start; its payload is the EC-schedule
+                name=f"{bus.name}_TM",
+                id=bus.ftt.tm_id,
+                extended=bus.id_bits == 29,
+                size=bus.ftt.tm_size,
+                sender=master,
+                receivers=tuple(sorted(n for n in bus.nodes if n != master)),
+                period_ns=bus.ftt.ec_ns,
+                field="ec_schedule",  # bit i (little-endian over the tm_size bytes) announces FTT id i
+                comment="FTT-CAN trigger message: bit i of ec_schedule = FTT id i due in this elementary cycle",
+            ),
+        )
+
+    def scheduled(self, bus: model.Bus) -> dict[str, SrtEntry]:
+        sched = bus.ftt_schedule
+        assert sched is not None  # the analysis built it
+        return {e.name: e for e in sched.entries}
+
+    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+        return (
+            Unsaid(
+                "the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames as free-running "
+                "CAN, trigger message included, so its bounds are not the bus's",
+                False,
+            ),
+        )
+
+    def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
+        from netcfg.protocols.ftt.runtime_section import runtime_section
+
+        return {"ftt": runtime_section(bus)}
 
     def check_overload(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], worst: float, diags: Collector
