@@ -138,6 +138,10 @@ class Message:
         return self.protocol in CAN_PROTOCOLS
 
     @property
+    def is_udp(self) -> bool:
+        return self.protocol in UDP_PROTOCOLS
+
+    @property
     def min_gap_ns(self) -> int:
         """How close two sends of it may come: a sporadic message's minimum inter-arrival time (a send that a task
         raises sooner is skipped), 0 for the others."""
@@ -192,7 +196,7 @@ class Message:
 
     def encode_udp(self, **values: Number | str | bytes) -> bytes:
         """The UDP datagram's payload: the 1-byte message id, then the data (seed 001, Table 6.1)."""
-        if self.protocol != "ethernet-udp":
+        if not self.is_udp:
             raise TypeError(f"message '{self.name}' travels on {self.protocol} bus '{self.bus}'; use to_can()")
         return bytes([self.id]) + self.encode(**values)
 
