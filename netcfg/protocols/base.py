@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 from netcfg.links.base import Link
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
@@ -112,6 +112,17 @@ class Protocol:
         """runtime.json's keys of the protocol's own on the bus's entry (netcfg.emit.runtime_json), e.g. FTT-CAN's
         `ftt` (its schedule); {}: none (every bus has `ftt: null`)."""
         return {}
+
+    # -- what netcfg.verify expects of a recorded log of a bus of this protocol (runtime.json's bus)
+    def log_frames(self, bus: runtime.Bus) -> tuple[runtime.Message, ...]:
+        """The frames the protocol sends besides runtime.json's messages, as messages the log is checked for."""
+        return ()
+
+    def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
+        """(identifier, us): the frame a response on the bus is measured from (CANopen's SYNC, FTT-CAN's trigger
+        message), and what is added back to its logged end to reach the analysis' reference; None: each frame's
+        response is its own."""
+        return None
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)
     def overhead(self, bus: model.Bus) -> tuple[int, int] | None:

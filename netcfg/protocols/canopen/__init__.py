@@ -9,7 +9,7 @@ from netcfg.links.can import CLASSICAL_CAN
 from netcfg.protocols.base import Protocol, Unsaid
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
@@ -36,6 +36,10 @@ class Canopen(Protocol):
                 True,
             ),
         )
+
+    def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
+        # a synchronous TPDO's response counts from the SYNC before it (netcfg.timing.canopen_sync)
+        return None if bus.canopen is None else (bus.canopen.sync_id, 0)
 
     def extend(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], diags: Collector, acc: Analysis

@@ -10,7 +10,7 @@ from netcfg.links.can import CLASSICAL_CAN
 from netcfg.protocols.base import OwnFrame, Protocol, Unsaid
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
@@ -105,6 +105,16 @@ class Ftt(Protocol):
         from netcfg.protocols.ftt.runtime_section import runtime_section
 
         return {"ftt": runtime_section(bus)}
+
+    def log_frames(self, bus: runtime.Bus) -> tuple[runtime.Message, ...]:
+        from netcfg.protocols.ftt.log import trigger_message
+
+        return (trigger_message(bus),)
+
+    def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
+        from netcfg.protocols.ftt.log import response_reference
+
+        return response_reference(bus)
 
     def check_overload(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], worst: float, diags: Collector
