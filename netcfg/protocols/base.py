@@ -4,6 +4,7 @@ that adds nothing to its link: raw frames, arbitrating by identifier, released a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -14,6 +15,9 @@ if TYPE_CHECKING:
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.run import SimRun
+    from netcfg.sim.whole_run import WholeRunScenario
     from netcfg.timing.ftt import SrtEntry
     from netcfg.timing.load import FrameTiming
 
@@ -122,6 +126,33 @@ class Protocol:
         """(identifier, us): the frame a response on the bus is measured from (CANopen's SYNC, FTT-CAN's trigger
         message), and what is added back to its logged end to reach the analysis' reference; None: each frame's
         response is its own."""
+        return None
+
+    # -- what the simulator asks of a bus of this protocol (runtime.json's bus): its drivers read runtime.json and see
+    #    the run through netcfg.sim.run.SimRun, never the scenario
+    def sim_master(self, bus: runtime.Bus) -> str | None:
+        """The node whose cycle a synchronised run starts at 0, on a clock that does not drift (FTT-CAN's master,
+        CANopen's SYNC producer); None: the protocol has none."""
+        return None
+
+    def sim_events(self, bus: runtime.Bus) -> tuple[tuple[str, int], ...]:
+        """(what, period in ns) of the events the protocol's driver makes on the bus (an FTT-CAN elementary cycle, a
+        SYNC), for the estimate of a run's work (netcfg.sim.limits)."""
+        return ()
+
+    def sim_gated(self, msg: runtime.Message) -> bool:
+        """A synchronised run holds the message's frames until the driver's gate lets them go (FTT-CAN's
+        asynchronous window, netcfg.sim.can_bus's gate)."""
+        return False
+
+    def sim_driver(self, sc: SimRun, bus: runtime.Bus, can: CanBus) -> object | None:
+        """The bus's driver in a synchronised run (FTT-CAN's master, CANopen's master cycle), built once its
+        messages' sources are on `can`; None: the bus's frames run free."""
+        return None
+
+    def sim_whole_run(self, sc: WholeRunScenario) -> Callable[[], None] | None:
+        """The run computed whole, as arrays, where the protocol's whole-run path covers it (called instead of the
+        event path; netcfg.sim.whole_run.Undecided sends it back there); None: not covered."""
         return None
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)

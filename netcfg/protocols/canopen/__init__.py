@@ -13,6 +13,8 @@ if TYPE_CHECKING:
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.run import SimRun
     from netcfg.timing.load import FrameTiming
 
 
@@ -40,6 +42,19 @@ class Canopen(Protocol):
     def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
         # a synchronous TPDO's response counts from the SYNC before it (netcfg.timing.canopen_sync)
         return None if bus.canopen is None else (bus.canopen.sync_id, 0)
+
+    def sim_master(self, bus: runtime.Bus) -> str | None:
+        return None if bus.canopen is None else bus.canopen.sync_producer
+
+    def sim_events(self, bus: runtime.Bus) -> tuple[tuple[str, int], ...]:
+        return () if bus.canopen is None else ((f"SYNC of bus '{bus.name}'", bus.canopen.sync_period_ns),)
+
+    def sim_driver(self, sc: SimRun, bus: runtime.Bus, can: CanBus) -> object | None:
+        if bus.canopen is None:
+            return None
+        from netcfg.sim.canopen import CanopenMaster
+
+        return CanopenMaster(sc, bus, can)
 
     def extend(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], diags: Collector, acc: Analysis

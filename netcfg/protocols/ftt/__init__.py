@@ -4,6 +4,7 @@ bounds of the link's arbitration analysis, which stays in the report as their pl
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.can import CLASSICAL_CAN
@@ -14,6 +15,9 @@ if TYPE_CHECKING:
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.run import SimRun
+    from netcfg.sim.whole_run import WholeRunScenario
     from netcfg.timing.ftt import SrtEntry
     from netcfg.timing.load import FrameTiming
 
@@ -115,6 +119,28 @@ class Ftt(Protocol):
         from netcfg.protocols.ftt.log import response_reference
 
         return response_reference(bus)
+
+    def sim_master(self, bus: runtime.Bus) -> str | None:
+        return None if bus.ftt is None else bus.ftt.master
+
+    def sim_events(self, bus: runtime.Bus) -> tuple[tuple[str, int], ...]:
+        return () if bus.ftt is None else ((f"elementary cycle of bus '{bus.name}'", bus.ftt.ec_ns),)
+
+    def sim_gated(self, msg: runtime.Message) -> bool:
+        return msg.window != "sync"  # the master sends the synchronous ones in their window
+
+    def sim_driver(self, sc: SimRun, bus: runtime.Bus, can: CanBus) -> object | None:
+        from netcfg.protocols.ftt.sim import FttMaster
+
+        return FttMaster(sc, bus, can)
+
+    def sim_whole_run(self, sc: WholeRunScenario) -> Callable[[], None] | None:
+        from functools import partial
+
+        from netcfg.protocols.ftt import sim_whole_run  # only here: its classes cost every run's start
+
+        plan = sim_whole_run.plan(sc)
+        return None if plan is None else partial(sim_whole_run.run, sc, plan)
 
     def check_overload(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], worst: float, diags: Collector
