@@ -165,20 +165,15 @@ def build_schedule(
 ) -> Schedule:
     """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs); `ftt`: the bus's section, `errors`:
     its error model."""
-    ec = ftt.ec_ns
-    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     periods = [e.fastest_period_ec if fastest else e.period_ec for e in entries]
     macro = macro_cycle(periods)
     if macro > MAX_MACRO_CYCLE:
         raise MacroCycleTooLong(macro)
-    messages = (e for e in entries if e.kind == "message")
-    by_can_id = sorted(messages, key=lambda e: arbitration_key(e.can_id or 0, e.extended))
-    slots = []
-    for k in range(macro):
-        msgs = [e for e in by_can_id if e.due(k, e.fastest_period_ec if fastest else None)]
-        trigs = [e for e in entries if e.kind == "trigger" and e.due(k, e.fastest_period_ec if fastest else None)]
-        slots.append(_slot(k, msgs, trigs, ec, tm, ftt.sync_first, errors))
-    return Schedule(ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm))
+
+    def due(e: SrtEntry, k: int) -> bool:
+        return e.due(k, e.fastest_period_ec if fastest else None)
+
+    return _schedule(bus, ftt, entries, macro, due, errors)
 
 
 def envelope_schedule(
@@ -189,8 +184,6 @@ def envelope_schedule(
     k - init. Its slots bound the synchronous window (LSW check) and the asynchronous supply of any EC whatever
     periods the master picks; without ranges it is the nominal schedule. When the pattern's length exceeds
     MAX_MACRO_CYCLE, a message with a range is taken as due in every EC (sound, more pessimistic)."""
-    ec = ftt.ec_ns
-    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     lengths = [lcm(*e.admissible_periods) for e in entries]
     horizon = macro_cycle(lengths)
     coarse = horizon > MAX_MACRO_CYCLE
@@ -205,13 +198,28 @@ def envelope_schedule(
             return True
         return any((k - e.init_ec) % p == 0 for p in periods)
 
+    return _schedule(bus, ftt, entries, horizon, may_be_due, errors)
+
+
+def _schedule(
+    bus: model.Bus,
+    ftt: model.FttBus,
+    entries: list[SrtEntry],
+    ecs: int,
+    due: Callable[[SrtEntry, int], bool],
+    errors: ErrorModel | None,
+) -> Schedule:
+    """The schedule of `ecs` ECs, EC k carrying what is `due` in it: the synchronous messages in identifier order
+    (CAN arbitration), the triggers by FTT id."""
+    ec = ftt.ec_ns
+    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     by_can_id = sorted(
         (e for e in entries if e.kind == "message"), key=lambda e: arbitration_key(e.can_id or 0, e.extended)
     )
     slots = []
-    for k in range(horizon):
-        msgs = [e for e in by_can_id if may_be_due(e, k)]
-        trigs = [e for e in entries if e.kind == "trigger" and may_be_due(e, k)]
+    for k in range(ecs):
+        msgs = [e for e in by_can_id if due(e, k)]
+        trigs = [e for e in entries if e.kind == "trigger" and due(e, k)]
         slots.append(_slot(k, msgs, trigs, ec, tm, ftt.sync_first, errors))
     return Schedule(ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm))
 
