@@ -1,6 +1,8 @@
 """What a protocol over a link owns, as one object every command asks: its resolution rules, its analysis of a bus,
-what that analysis assumes, and what the bus can do under it (offsets, identifier tuning). The default is a protocol
-that adds nothing to its link: raw frames, arbitrating by identifier, released at their offsets."""
+what that analysis assumes, and what the bus can do under it (offsets, identifier tuning); what the artifacts take of
+it (its own frames, its schedule, what a DBC cannot say, its runtime.json section), what verify expects of a log of
+it, and its part of a simulation (its driver, gate, master, events, whole run). The default is a protocol that adds
+nothing to its link: raw frames, arbitrating by identifier, released at their offsets, run free in the simulator."""
 
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ if TYPE_CHECKING:
     from netcfg.sim.can_bus import CanBus
     from netcfg.sim.run import SimRun
     from netcfg.sim.whole_run import WholeRunScenario
-    from netcfg.timing.ftt import SrtEntry
+    from netcfg.timing.ftt_schedule import SrtEntry
     from netcfg.timing.load import FrameTiming
 
 

@@ -1,6 +1,8 @@
 """FTT-CAN over a CAN link (seed 002): a master's trigger message opens every elementary cycle, whose synchronous
 window it schedules and whose asynchronous window arbitrates as CAN. The windows' analysis replaces the messages'
-bounds of the link's arbitration analysis, which stays in the report as their plain-CAN figure."""
+bounds of the link's arbitration analysis, which stays in the report as their plain-CAN figure. Beside the analysis:
+the SRT tables (srt.py), runtime.json's section (runtime_section.py), the trigger message a log holds (log.py) and
+the simulator's master and whole run (sim.py, sim_whole_run.py), which read runtime.json alone."""
 
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ if TYPE_CHECKING:
     from netcfg.sim.can_bus import CanBus
     from netcfg.sim.run import SimRun
     from netcfg.sim.whole_run import WholeRunScenario
-    from netcfg.timing.ftt import SrtEntry
+    from netcfg.timing.ftt_schedule import SrtEntry
     from netcfg.timing.load import FrameTiming
 
 
