@@ -10,11 +10,10 @@ from fractions import Fraction
 from typing import TYPE_CHECKING, Any, Literal
 
 from netcfg.devices import DeviceProfile
-from netcfg.timing.ethernet import QUEUE_FRAMES
-from netcfg.timing.frames import canfd_padded_size
+from netcfg.timing.frames import QUEUE_FRAMES, canfd_padded_size
 
 if TYPE_CHECKING:
-    from netcfg.timing.ftt import Schedule
+    from netcfg.timing.ftt_schedule import Schedule
 from netcfg.runtime.config import FlowStep, TxQueue  # the same records in runtime.json: defined once, there
 from netcfg.spec.source import Path, SourceMap
 

@@ -37,6 +37,11 @@ class BusRules:
     def resolve_items(self) -> None:
         """What the protocol adds once every message is resolved (implicit messages, triggers, topology)."""
 
+    def cycle_ns(self, b: schema.Bus) -> int | None:
+        """The length the spec gives the protocol's cycle, in which the bus's times may be counted ('2 ec': FTT-CAN's
+        elementary cycle); None: the protocol has none, or the spec gives it no length in time units."""
+        return None
+
     def check_identifiers(self, bus: model.Bus) -> None:
         """Identifiers on the bus are unique and none is reserved by the protocol."""
 

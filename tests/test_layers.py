@@ -1,5 +1,5 @@
-"""The structure the code keeps: layers and their contracts, no import cycle, no protocol decided by its name outside
-its layer, no module past 600 lines.
+"""The structure the code keeps: layers and their contracts, no import cycle, no protocol decided by its name or by
+its flags (an FTT-CAN section's presence, `is_fd`) outside its layer, no module past 600 lines.
 
 The layer contracts themselves are import-linter's (`[tool.importlinter]` in pyproject.toml), run by `make test` and
 here; the rest reads the sources with `ast` and import-linter's own import graph (grimp).
@@ -45,6 +45,15 @@ def test_no_import_cycle() -> None:
     assert cycles == []
 
 
+def test_the_model_and_the_timing_core_form_no_cycle_even_by_annotations() -> None:
+    """The model names the timing core's records (the FTT-CAN schedule it keeps) and the timing core reads the model:
+    the records live in leaves (timing/ftt_schedule.py, timing/frames.py), so not even type-only imports cycle."""
+    graph = grimp.build_graph("netcfg", exclude_type_checking_imports=False, cache_dir=None)
+    core = {m for m in graph.modules if m == "netcfg.model" or m.startswith("netcfg.timing")}
+    g = nx.DiGraph((m, d) for m in core for d in graph.find_modules_directly_imported_by(m) if d in core)
+    assert [sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1] == []
+
+
 def _is_name(node: ast.expr) -> bool:
     from netcfg.spec import schema
 
@@ -78,6 +87,66 @@ def test_no_command_decides_by_a_protocol_name() -> None:
             if isinstance(node, ast.Compare) and _compares_a_protocol_name(node):
                 found.append(f"{rel}:{node.lineno}: {ast.unparse(node)}")
     assert found == []
+
+
+# Where a frame's own CAN FD flag (`.is_fd`) is read: python-can's and cantools' messages, and an actuator profile's
+# frames, which take python-can's names. Everywhere else a bus's CAN FD data phase is its link's (Link.data_phase).
+FRAME_FLAGS = {
+    "netcfg/verify/frames.py": "python-can's Message, read from a log",
+    "netcfg/sim/pybus.py": "python-can's Message, sent on the simulated bus",
+    "netcfg/importers/dbc.py": "cantools' Message, read from a DBC file",
+    "netcfg/importers/dbc_text.py": "cantools' Message, read from a DBC file",
+    "netcfg/runtime/actuators.py": "an actuator profile's frame (MessageCodec, ActuatorFrame)",
+    "netcfg/resolve/actuators.py": "an actuator profile's frame (netcfg.runtime.actuators.MessageCodec)",
+    "netcfg/runtime/actuator_master.py": "an actuator profile's frame (ActuatorFrame), sent as python-can's Message",
+    "netcfg/runtime/simulated_actuator.py": "an actuator profile's frame (ActuatorFrame), sent as python-can's Message",
+}
+LAYERS = ("netcfg/links/", "netcfg/protocols/")
+
+
+def _receiver(node: ast.Attribute) -> str:
+    return ast.unparse(node.value).lower()
+
+
+def _decides_by_a_flag(rel: str, node: ast.AST) -> bool:
+    """`bus.ftt is None`, `b.ftt is not None` (a bus's FTT-CAN section: its protocol's question), and `x.is_fd` read
+    anywhere but on a frame of python-can, cantools or an actuator profile (FRAME_FLAGS), never on a bus or a link."""
+    if isinstance(node, ast.Compare) and all(isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops):
+        return any(isinstance(p, ast.Attribute) and p.attr == "ftt" for p in (node.left, *node.comparators))
+    if isinstance(node, ast.Attribute) and node.attr == "is_fd" and isinstance(node.ctx, ast.Load):
+        return rel not in FRAME_FLAGS or any(w in _receiver(node) for w in ("bus", "link", "proto"))
+    return False
+
+
+def test_no_command_decides_by_a_protocol_flag() -> None:
+    """What an FTT-CAN section or a CAN FD flag would decide outside the layers is a question for the bus's protocol
+    (Protocol.own_frames, scheduled, runtime_section, sim_driver, log_frames, ...) or its link (Link.data_phase)."""
+    found = []
+    for path in _sources():
+        rel = path.relative_to(ROOT).as_posix()
+        if rel.startswith(LAYERS):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if _decides_by_a_flag(rel, node):
+                found.append(f"{rel}:{getattr(node, 'lineno', 0)}: {ast.unparse(node)}")
+    assert found == []
+
+
+@pytest.mark.parametrize(
+    ("rel", "code", "decides"),
+    [
+        ("netcfg/emit/x.py", "bus.ftt is not None", True),
+        ("netcfg/sim/x.py", "b.ftt is None", True),
+        ("netcfg/emit/x.py", "bus.ftt == other", False),  # not a presence test (and no such code exists)
+        ("netcfg/emit/x.py", "link.is_fd", True),
+        ("netcfg/verify/frames.py", "msg.is_fd", False),  # python-can's frame flag
+        ("netcfg/verify/frames.py", "bus.is_fd", True),
+        ("netcfg/emit/x.py", "can.Message(is_fd=True)", False),  # a keyword given to python-can, not a decision
+    ],
+)
+def test_the_flag_check_tells_a_decision_from_a_frame_flag(rel: str, code: str, decides: bool) -> None:
+    tree = ast.parse(code)
+    assert any(_decides_by_a_flag(rel, n) for n in ast.walk(tree)) is decides
 
 
 @pytest.mark.parametrize("path", _sources(), ids=lambda p: p.relative_to(PACKAGE).as_posix())

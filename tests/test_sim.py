@@ -185,7 +185,7 @@ def test_cambada_backup_master_takes_over() -> None:
     bus = sc.can["lowlevel"]
     tm = bus.by_name["lowlevel_TM"].index
     into_ec = [end % 5_000_000 for m, end in zip(bus.record.msg, bus.record.end) if m == tm]
-    from netcfg.sim.ftt import FttMaster
+    from netcfg.protocols.ftt.sim import FttMaster
 
     late = 420_000 + next(d for d in sc.protocols.values() if isinstance(d, FttMaster)).tm_timeout_ns
     assert late == 1_260_000

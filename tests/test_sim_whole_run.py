@@ -1,4 +1,4 @@
-"""The whole-run paths (netcfg.sim.whole_run for Ethernet, netcfg.sim.ftt_whole_run for FTT-CAN) give, for the
+"""The whole-run paths (netcfg.sim.whole_run for Ethernet, netcfg.protocols.ftt.sim_whole_run for FTT-CAN) give, for the
 same seed, exactly what the event path gives, on every system they cover: every frame's release and delivery,
 every flow sample, the counters, the per-link and per-receiver reports and the task runs. The event path is the
 reference (SimOptions(whole_run=False)); nothing here is a recorded figure, both paths run afresh on each case.
@@ -18,8 +18,9 @@ from conftest import ROOT, load_spec, runtime_config_of
 from hypothesis import HealthCheck, given, settings
 
 import netcfg.runtime as rt
+from netcfg.protocols.ftt import sim_whole_run as ftt_whole_run
 from netcfg.runtime.config import FlowStep
-from netcfg.sim import flows, ftt_whole_run, whole_run
+from netcfg.sim import flows, whole_run
 from netcfg.sim.can_trace import trace_frames
 from netcfg.sim.ethernet import CHUNK_NS
 from netcfg.sim.faults import Fault
@@ -191,7 +192,7 @@ def test_what_the_whole_run_does_not_cover_runs_event_by_event() -> None:
 def test_cambada_identical_both_ways(options: dict[str, Any]) -> None:
     """CAMBADA (seed 002): FTT-CAN with triggered tasks, a message-activated task, asynchronous periodic and
     sporadic traffic, and flows whose steps hold several items (three wheels' tasks and encoders, the pose's two
-    messages), computed whole by netcfg.sim.ftt_whole_run."""
+    messages), computed whole by netcfg.protocols.ftt.sim_whole_run."""
     cfg = generated("cambada")
     opts = SimOptions(**{"duration_ns": 2000 * MS, **options})
     assert ftt_whole_run.plan(Scenario(cfg, opts)) is not None

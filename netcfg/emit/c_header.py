@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
-from netcfg import links, model
+from netcfg import links, model, protocols
 from netcfg.runtime import codec, raw_signal_name
 from netcfg.templating import environment, render
 from netcfg.timing.frames import canfd_dlc
@@ -364,12 +364,10 @@ def _ip_u32(ip: str | None) -> int | None:
 
 
 def _ftt_entries(m: model.Model, bus: model.Bus) -> dict[str, FttView]:
-    """Period and init time in ECs, as the SRT has them (netcfg.timing.ftt computes them, not us)."""
-    if bus.ftt is None:
-        return {}
-    sched = bus.ftt_schedule
-    assert sched is not None  # the analysis built it
-    return {e.name: FttView(e.ftt_id, e.period_ec, e.fastest_period_ec, e.init_ec) for e in sched.entries}
+    """Period and init time in ECs of what the bus's protocol schedules, as the SRT has them (the analysis computes
+    them, not us; Protocol.scheduled)."""
+    entries = protocols.of(bus).scheduled(bus)
+    return {name: FttView(e.ftt_id, e.period_ec, e.fastest_period_ec, e.init_ec) for name, e in entries.items()}
 
 
 def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[str, FttView]) -> MessageView:
@@ -400,7 +398,7 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
         offset_ns=msg.offset_ns,
         deadline_ns=msg.deadline_ns,
         window=msg.window,
-        ftt=ftt_views.get(msg.name) if bus.ftt is not None and msg.window == "sync" else None,
+        ftt=ftt_views.get(msg.name) if msg.window == "sync" else None,  # a scheduled message's entry
         udp=msg.udp_ports,
         pdo=pdo,
         implicit=msg.implicit,
@@ -457,8 +455,9 @@ def node_view(
             if t.bus == bus.name and tasks:
                 others = tuple(r for r in t.tasks if r not in tasks)
                 triggers.append(TriggerView(t.name, t.bus, ftt_views[t.name], tasks, others, _description(t)))
-    on_ftt = any(b.ftt is not None for b in buses)
-    if not messages and not on_ftt:
+    # a node that hears a frame of its buses' protocols (FTT-CAN's trigger message) has a header even without messages
+    hears = any(protocols.of(b).own_frames(b) for b in buses)
+    if not messages and not hears:
         return None
     return NodeView(
         system=m.system,

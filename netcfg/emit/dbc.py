@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Mapping
-from typing import Any, NamedTuple
+from typing import Any
 
 import cantools.database.can as cdb
 from cantools.database.can.formats.dbc import DbcSpecifics, dump_string
@@ -45,7 +45,8 @@ from cantools.database.can.internal_database import InternalDatabase
 from cantools.database.conversion import BaseConversion
 from cantools.database.namedsignalvalue import NamedSignalValue
 
-from netcfg import links, model
+from netcfg import links, model, protocols
+from netcfg.protocols.base import Unsaid
 from netcfg.runtime import raw_signal_name
 from netcfg.runtime.codec import Field
 from netcfg.templating import field_of
@@ -101,14 +102,6 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     return files
 
 
-class Unsaid(NamedTuple):
-    """Something of a bus's timing its DBC cannot say; bounds_kept: check of the DBC still gives every message the
-    spec's bound (what is lost is judged beside the bounds)."""
-
-    what: str
-    bounds_kept: bool
-
-
 def unsaid(m: model.Model) -> dict[str, list[Unsaid]]:
     """Per DBC file, what of its bus's timing a DBC cannot say, so that `netcfg check` of that file does not judge
     it (everything else it says: frames, periods, offsets, release jitter, deadlines, bit rates, and in netcfg's
@@ -117,13 +110,7 @@ def unsaid(m: model.Model) -> dict[str, list[Unsaid]]:
     for bus in m.buses.values():
         if not links.of(bus).arbitrates:
             continue
-        lost = []
-        if bus.ftt is not None:
-            lost.append(Unsaid("the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames "
-                               "as free-running CAN, trigger message included, so its bounds are not the bus's", False))
-        if bus.canopen is not None:
-            lost.append(Unsaid("the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the "
-                               "DBC bounds each frame as check of the spec does, but does not judge the cycle", True))
+        lost = list(protocols.of(bus).dbc_unsaid(bus))
         if lost:
             out[f"dbc/{bus.name}.dbc"] = lost
     return out
@@ -193,9 +180,7 @@ def database(
     """The bus as a cantools database; `jitter`: each message's release jitter as analysed (release_jitter),
     else the spec's own."""
     messages = [_message(m, msg, (jitter or {}).get(msg.name, msg.jitter_ns)) for msg in bus.messages]
-    tm = _trigger_message(m, bus)
-    if tm is not None:
-        messages.append(tm)
+    messages += _own_frames(m, bus)
     messages.sort(key=lambda x: (x.is_extended_frame, x.frame_id, x.name))
     nodes = [_node(m.nodes[name]) for name in bus.nodes] if with_nodes else []
     # DBName (Vector's database attribute) carries the bus name; cantools writes Baudrate itself from the Bus
@@ -396,24 +381,25 @@ def _message_comment(m: model.Model, msg: model.Message) -> str | None:
     return sanitise("; ".join(parts)) if parts else None
 
 
-def _trigger_message(m: model.Model, bus: model.Bus) -> cdb.Message | None:
-    """FTT-CAN's trigger message: the master sends it at every EC start; its payload is the EC-schedule, bit i
-    (little-endian over the tm_size bytes) announcing FTT id i."""
-    if bus.ftt is None:
-        return None
-    name = f"{bus.name}_TM"
-    if name in m.messages or any(x.name == name for x in bus.messages):
-        return None  # the name is taken by a spec message; leave the frame out rather than rename it
-    f = Field("ec_schedule", 0, 8 * bus.ftt.tm_size)
-    return cdb.Message(
-        frame_id=bus.ftt.tm_id,
-        name=name,
-        length=bus.ftt.tm_size,
-        signals=[_signal(f, None, sorted(n for n in bus.nodes if n != bus.ftt.master), None)],
-        comment="FTT-CAN trigger message: bit i of ec_schedule = FTT id i due in this elementary cycle",
-        senders=[bus.ftt.master],
-        cycle_time=_cycle_ms(bus.ftt.ec_ns),
-        is_extended_frame=bus.id_bits == 29,
-        bus_name=bus.name,
-        sort_signals=None,
-    )
+def _own_frames(m: model.Model, bus: model.Bus) -> list[cdb.Message]:
+    """The frames the bus's protocol sends besides the spec's messages (FTT-CAN's trigger message,
+    Protocol.own_frames), each with one unsigned field spanning its payload."""
+    out = []
+    for f in protocols.of(bus).own_frames(bus):
+        if f.name in m.messages or any(x.name == f.name for x in bus.messages):
+            continue  # the name is taken by a spec message; leave the frame out rather than rename it
+        out.append(
+            cdb.Message(
+                frame_id=f.id,
+                name=f.name,
+                length=f.size,
+                signals=[_signal(Field(f.field, 0, 8 * f.size), None, list(f.receivers), None)],
+                comment=f.comment,
+                senders=[f.sender],
+                cycle_time=_cycle_ms(f.period_ns),
+                is_extended_frame=f.extended,
+                bus_name=bus.name,
+                sort_signals=None,
+            )
+        )
+    return out

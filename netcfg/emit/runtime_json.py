@@ -4,7 +4,8 @@ Convention: every time is an integer number of nanoseconds in a key ending in "_
 compiler); floats appear only for signal scale/offset/min/max and cable lengths. An exact Ethernet rate is a
 [numerator, denominator] pair, because 15 kHz has no exact period in ns. Lists keep the spec's order (buses,
 nodes, messages per bus with the implicit SYNC/heartbeats where the resolver put them), so the file is
-byte-identical across builds. The FTT-CAN schedule comes from netcfg.timing.ftt, never recomputed here.
+byte-identical across builds. A protocol's own section (FTT-CAN's schedule, an EtherCAT segment) is its layer's
+(Protocol.runtime_section), never recomputed here.
 
 CANopen facts a live master needs come from where the other artifacts take them, so they cannot disagree: the
 file names from netcfg.protocols.canopen.dcf, the PDO COB-ID values from netcfg.cia301 (as the DCFs), the identity and
@@ -18,12 +19,11 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
-from netcfg import cia301, jsontext, links, model
+from netcfg import cia301, jsontext, links, model, protocols
 from netcfg.protocols.canopen import dcf as canopen_dcf
-from netcfg.protocols.ethercat.runtime_section import runtime_section
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
-from netcfg.timing import flows, ftt
+from netcfg.timing import flows
 from netcfg.timing.clocks import DEFAULT_TOLERANCE_PPM
 
 FORMAT = "netcfg-runtime"
@@ -90,21 +90,21 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
     errors = {"errors": {"burst": b.errors.burst, "interval_ns": b.errors.interval_ns}} if b.errors else {}
     # the senders' clock tolerance only where the spec changes the default, for the same reason
     tolerance = {"clock_tolerance_ppm": b.clock_tolerance_ppm} if b.clock_tolerance_ppm != DEFAULT_TOLERANCE_PPM else {}
-    # an EtherCAT segment's section only on EtherCAT buses: files of the other protocols stay as they were
-    ethercat = {"ethercat": runtime_section(b.ethercat)} if b.ethercat is not None else {}
     return {
         **fd,
         **errors,
         **tolerance,
-        **ethercat,
         "name": b.name,
         "protocol": b.protocol,
         "bitrate": b.bitrate,
         "id_bits": b.id_bits,
         "nodes": list(b.nodes),
         "canopen": canopen,
-        "ftt": _ftt(m, b),
+        "ftt": None,  # every bus has the key; an FTT-CAN bus's protocol fills it in
         "ethernet": _ethernet(m, b) if links.of(b).switched else None,
+        # the protocol's own section (FTT-CAN's schedule, an EtherCAT segment's), only on its buses: files of the
+        # other protocols stay as they were
+        **protocols.of(b).runtime_section(b),
     }
 
 
@@ -119,48 +119,6 @@ def _canopen(co: model.CanopenBus | None) -> dict[str, Any] | None:
         "sync_id": co.sync_id,
         "master_jitter_ns": co.master_jitter_ns,
         "sync_overflow": co.sync_overflow,
-    }
-
-
-def _ftt(m: model.Model, b: model.Bus) -> dict[str, Any] | None:
-    if b.ftt is None:
-        return None
-    sched = b.ftt_schedule
-    assert sched is not None  # the analysis built it; a spec whose macro-cycle is too long never gets here
-    return {
-        "ec_ns": b.ftt.ec_ns,
-        "tm_size": b.ftt.tm_size,
-        "tm_id": b.ftt.tm_id,
-        "tm_ns": sched.tm_ns,
-        "lsw_ns": sched.lsw_ns,  # the default (EC - TM) filled in, as the analysis used it
-        "master": b.ftt.master,
-        "macro_cycle_ec": sched.macro_cycle,
-        "windows": "sync-first" if sched.sync_first else "async-first",
-        "srt": [
-            {
-                "ftt_id": e.ftt_id,
-                "name": e.name,
-                "kind": e.kind,
-                "targets": list(e.targets),
-                "period_ec": e.period_ec,
-                "fastest_period_ec": e.fastest_period_ec,
-                "init_ec": e.init_ec,
-            }
-            for e in sched.entries
-        ],
-        "schedule": [
-            {
-                "ec": s.index,
-                "ids": list(s.ids),
-                "messages": list(s.messages),
-                "triggers": list(s.triggers),
-                "mask": ftt.ec_schedule_mask(s),
-                "sync_ns": s.sync_ns,
-                "async_ns": s.async_ns,
-                **({"allowance_ns": s.allowance_ns} if s.allowance_ns else {}),
-            }
-            for s in sched.slots
-        ],
     }
 
 

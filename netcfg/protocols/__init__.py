@@ -17,14 +17,15 @@ from netcfg.protocols.raw import CAN, CAN_FD_RAW
 from netcfg.protocols.udp import UDP
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
 
 __all__ = ["PROTOCOLS", "Protocol", "of", "over", "release_offsets"]
 
 PROTOCOLS: dict[str, Protocol] = {p.name: p for p in (CAN, CAN_FD_RAW, CANOPEN, FTT, UDP, ETHERCAT_PROTOCOL)}
 
 
-def of(bus: model.Bus) -> Protocol:
+def of(bus: model.Bus | runtime.Bus) -> Protocol:
+    """The protocol of a bus of the model or of runtime.json (the simulator's and verify's view)."""
     return PROTOCOLS[bus.protocol]
 
 

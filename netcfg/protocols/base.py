@@ -1,19 +1,52 @@
 """What a protocol over a link owns, as one object every command asks: its resolution rules, its analysis of a bus,
-what that analysis assumes, and what the bus can do under it (offsets, identifier tuning). The default is a protocol
-that adds nothing to its link: raw frames, arbitrating by identifier, released at their offsets."""
+what that analysis assumes, and what the bus can do under it (offsets, identifier tuning); what the artifacts take of
+it (its own frames, its schedule, what a DBC cannot say, its runtime.json section), what verify expects of a log of
+it, and its part of a simulation (its driver, gate, master, events, whole run). The default is a protocol that adds
+nothing to its link: raw frames, arbitrating by identifier, released at their offsets, run free in the simulator."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.base import Link
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.run import SimRun
+    from netcfg.sim.whole_run import WholeRunScenario
+    from netcfg.timing.ftt_schedule import SrtEntry
     from netcfg.timing.load import FrameTiming
+
+
+@dataclass(frozen=True)
+class OwnFrame:
+    """A frame the protocol itself sends on a bus besides the spec's messages (FTT-CAN's trigger message): the DBC
+    lists it, and every node that hears it gets a C header."""
+
+    name: str
+    id: int
+    extended: bool
+    size: int
+    sender: str
+    receivers: tuple[str, ...]
+    period_ns: int
+    field: str  # the one unsigned field spanning its payload
+    comment: str
+
+
+@dataclass(frozen=True)
+class Unsaid:
+    """Something of a bus's timing its DBC cannot say; bounds_kept: check of the DBC still gives every message the
+    spec's bound (what is lost is judged beside the bounds)."""
+
+    what: str
+    bounds_kept: bool
 
 
 class Protocol:
@@ -71,6 +104,63 @@ class Protocol:
                 "releases it",
                 f"drop the offset, or give the task '{senders[0]}' the offset instead",
             )
+        return None
+
+    # -- what the artifacts and the run-time side ask of a bus of this protocol
+    def own_frames(self, bus: model.Bus) -> tuple[OwnFrame, ...]:
+        """The frames the protocol sends on the bus besides the spec's messages."""
+        return ()
+
+    def scheduled(self, bus: model.Bus) -> dict[str, SrtEntry]:
+        """The schedule's entry (FTT id, period and init in cycles) of each message and trigger the protocol
+        schedules, by name, as the analysis built it; {}: the protocol schedules nothing (the C headers ask)."""
+        return {}
+
+    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+        """What of the bus's timing under this protocol a DBC cannot say (netcfg.emit.dbc.unsaid)."""
+        return ()
+
+    def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
+        """runtime.json's keys of the protocol's own on the bus's entry (netcfg.emit.runtime_json), e.g. FTT-CAN's
+        `ftt` (its schedule); {}: none (every bus has `ftt: null`)."""
+        return {}
+
+    # -- what netcfg.verify expects of a recorded log of a bus of this protocol (runtime.json's bus)
+    def log_frames(self, bus: runtime.Bus) -> tuple[runtime.Message, ...]:
+        """The frames the protocol sends besides runtime.json's messages, as messages the log is checked for."""
+        return ()
+
+    def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
+        """(identifier, us): the frame a response on the bus is measured from (CANopen's SYNC, FTT-CAN's trigger
+        message), and what is added back to its logged end to reach the analysis' reference; None: each frame's
+        response is its own."""
+        return None
+
+    # -- what the simulator asks of a bus of this protocol (runtime.json's bus): its drivers read runtime.json and see
+    #    the run through netcfg.sim.run.SimRun, never the scenario
+    def sim_master(self, bus: runtime.Bus) -> str | None:
+        """The node whose cycle a synchronised run starts at 0, on a clock that does not drift (FTT-CAN's master,
+        CANopen's SYNC producer); None: the protocol has none."""
+        return None
+
+    def sim_events(self, bus: runtime.Bus) -> tuple[tuple[str, int], ...]:
+        """(what, period in ns) of the events the protocol's driver makes on the bus (an FTT-CAN elementary cycle, a
+        SYNC), for the estimate of a run's work (netcfg.sim.limits)."""
+        return ()
+
+    def sim_gated(self, msg: runtime.Message) -> bool:
+        """A synchronised run holds the message's frames until the driver's gate lets them go (FTT-CAN's
+        asynchronous window, netcfg.sim.can_bus's gate)."""
+        return False
+
+    def sim_driver(self, sc: SimRun, bus: runtime.Bus, can: CanBus) -> object | None:
+        """The bus's driver in a synchronised run (FTT-CAN's master, CANopen's master cycle), built once its
+        messages' sources are on `can`; None: the bus's frames run free."""
+        return None
+
+    def sim_whole_run(self, sc: WholeRunScenario) -> Callable[[], None] | None:
+        """The run computed whole, as arrays, where the protocol's whole-run path covers it (called instead of the
+        event path; netcfg.sim.whole_run.Undecided sends it back there); None: not covered."""
         return None
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)

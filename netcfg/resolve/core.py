@@ -192,8 +192,7 @@ class Resolver:
                         (*path, "errors"),
                     )
                 else:
-                    ec_ns = b.ftt.ec.to_ns(None) if b.ftt is not None else None
-                    interval = b.errors.interval.to_ns(ec_ns)
+                    interval = b.errors.interval.to_ns(self.protocol(b.protocol).cycle_ns(b))
                     if interval is None or interval <= 0:
                         self.err(
                             "errors",
@@ -289,7 +288,7 @@ class Resolver:
 
     def resolve_message(self, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path) -> model.Message | None:
         rules = self.protocol(bus.protocol)
-        ec = bus.ftt.ec_ns if bus.ftt else None
+        ec = rules.cycle_ns(sbus)
         if not rules.carries_messages(bus):
             return None  # the bus error is reported already
         # --- what is sent: size, signals, PDO map

@@ -26,6 +26,20 @@ UDP_PROTOCOLS = ("ethernet-udp",)  # datagrams through switched Ethernet
 FD_PADDING = 0x00  # pads a CAN FD payload to its frame length, as netcfg.timing.frames.CANFD_PADDING (tested)
 
 
+class _Carried:
+    """How a bus's or a message's frames travel, from the protocol runtime.json names (the table above)."""
+
+    protocol: str
+
+    @property
+    def is_can(self) -> bool:
+        return self.protocol in CAN_PROTOCOLS
+
+    @property
+    def is_udp(self) -> bool:
+        return self.protocol in UDP_PROTOCOLS
+
+
 class UnknownNameError(KeyError):
     """A name that the config does not have; the message lists close matches."""
 
@@ -94,7 +108,7 @@ class UdpPorts:
 
 
 @dataclass(frozen=True)
-class Message:
+class Message(_Carried):
     name: str
     bus: str
     protocol: str  # the bus's protocol: decides between CAN frames and UDP datagrams
@@ -132,10 +146,6 @@ class Message:
         if not fields and self.size > 0:
             fields = (Field(raw_signal_name(self.name), 0, 8 * self.size),)
         object.__setattr__(self, "fields", fields)
-
-    @property
-    def is_can(self) -> bool:
-        return self.protocol in CAN_PROTOCOLS
 
     @property
     def min_gap_ns(self) -> int:
@@ -192,7 +202,7 @@ class Message:
 
     def encode_udp(self, **values: Number | str | bytes) -> bytes:
         """The UDP datagram's payload: the 1-byte message id, then the data (seed 001, Table 6.1)."""
-        if self.protocol != "ethernet-udp":
+        if not self.is_udp:
             raise TypeError(f"message '{self.name}' travels on {self.protocol} bus '{self.bus}'; use to_can()")
         return bytes([self.id]) + self.encode(**values)
 
@@ -390,7 +400,7 @@ class EthernetParams:
 
 
 @dataclass(frozen=True)
-class Bus:
+class Bus(_Carried):
     name: str
     protocol: str  # "can" | "can-fd" | "canopen" | "ftt-can" | "ethernet-udp"
     bitrate: int
@@ -404,14 +414,6 @@ class Bus:
     clock_tolerance_ppm: int = DEFAULT_CLOCK_TOLERANCE_PPM  # senders' clocks within +-this, as analysed
     # EtherCAT: the segment's section as runtime.json has it (netcfg.runtime.schema.ETHERCAT), for a SOEM master
     ethercat: Mapping[str, Any] | None = None
-
-    @property
-    def is_can(self) -> bool:
-        return self.protocol in CAN_PROTOCOLS
-
-    @property
-    def is_udp(self) -> bool:
-        return self.protocol in UDP_PROTOCOLS
 
 
 @dataclass(frozen=True)

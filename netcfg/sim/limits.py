@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from fractions import Fraction
 
-from netcfg import runtime
+from netcfg import protocols, runtime
 from netcfg.sim.faults import Fault
 from netcfg.spec.units import format_ns
 from netcfg.timing.frames import frame_bits
@@ -38,9 +38,8 @@ def events_per_second(cfg: runtime.RuntimeConfig) -> dict[str, Fraction]:
     for b in cfg.buses:
         if b.canopen is not None:
             sync_rate[b.name] = Fraction(second, b.canopen.sync_period_ns)
-            rates[f"SYNC of bus '{b.name}'"] = sync_rate[b.name]
-        if b.ftt is not None:
-            rates[f"elementary cycle of bus '{b.name}'"] = Fraction(second, b.ftt.ec_ns)
+        for what, period_ns in protocols.of(b).sim_events(b):  # a SYNC, an FTT-CAN elementary cycle
+            rates[what] = Fraction(second, period_ns)
     for n in cfg.nodes:
         for t in n.tasks:
             if t.period_ns:

@@ -6,7 +6,7 @@ for a real master too. What runs:
 * every node has its own clock (random phase, drift drawn within +-drift_ppm), so free-running activities slide;
 * CAN buses arbitrate frame by frame (netcfg.sim.can_bus); free-running messages (periodic at their period,
   sporadic at their minimum inter-arrival time, the worst case the analysis assumes) come as release streams;
-* FTT-CAN buses get their master (netcfg.sim.ftt), CANopen buses their master cycle and drives
+* FTT-CAN buses get their master (netcfg.protocols.ftt.sim), CANopen buses their master cycle and drives
   (netcfg.sim.canopen), Ethernet buses their switches (netcfg.sim.ethernet); with mode "unsync" every CAN bus
   runs as plain, unsynchronised CAN instead, from the same configuration;
 * tasks that flows mention run when they are activated (period, trigger, SYNC or message), for a time drawn
@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from netcfg import protocols
 from netcfg.runtime import Bus, Flow, Message, RuntimeConfig, Task
 from netcfg.sim import whole_run
 from netcfg.sim.can_bus import CanBus
@@ -63,8 +64,8 @@ class SimOptions:
     # on_message task for that message, if any)
     eth_queue_frames: int | None = None
     eth_processing_ns: Mapping[str, tuple[int, int]] | None = None
-    # compute the run's streams at once where netcfg.sim.whole_run (Ethernet) or netcfg.sim.ftt_whole_run (FTT-CAN)
-    # covers it (the same results as event by event);
+    # compute the run's streams at once where netcfg.sim.whole_run (Ethernet) or a protocol's own (FTT-CAN's,
+    # netcfg.protocols.ftt.sim_whole_run) covers it (the same results as event by event);
     # a run that meets a tie only the order of events decides starts again event by event, at worst twice the work
     whole_run: bool = True
 
@@ -112,7 +113,7 @@ class Scenario:
         # message would stay silent for most runs), a drift within +-drift_ppm
         self.clock: dict[str, NodeClock] = {}
         # time is the masters' time: an FTT-CAN master or a CANopen SYNC producer starts at 0 and does not drift
-        masters = {b.ftt.master for b in cfg.buses if b.ftt} | {b.canopen.sync_producer for b in cfg.buses if b.canopen}
+        masters = {who for b in cfg.buses if (who := protocols.of(b).sim_master(b)) is not None}
         for node in cfg.nodes:
             periods = [m.interval_ns or 0 for m in cfg.messages if m.producer == node.name]
             periods += [t.period_ns or 0 for t in node.tasks]
@@ -316,24 +317,17 @@ class Scenario:
     def _build_can(self, bus: Bus) -> None:
         can = CanBus(self.sim, bus.name, bus.bitrate, self.opts.stuffing, self.opts.trace, bus.data_bitrate)
         self.can[bus.name] = can
-        sync = self.synchronised
-        ftt = bus.ftt if sync else None  # the FTT-CAN master's schedule, on an FTT-CAN bus
+        # the bus's protocol drives it in a synchronised run (FTT-CAN's master, CANopen's master cycle); unsynchronised,
+        # every CAN bus runs free
+        proto = protocols.of(bus) if self.synchronised else None
         for m in self.cfg.messages_on(bus.name):
-            gated = ftt is not None and m.window != "sync"
+            gated = proto is not None and proto.sim_gated(m)
             src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs, m.fields)
             self.msg_source[m.name] = (can, src)
         for node in self.cfg.nodes:
             if node.tx_queue.fifo and bus.name in node.buses:
                 can.fifo_queue(node.name, node.tx_queue.depth, node.tx_queue.on_full == "drop")
-        driver: object | None = None
-        if ftt is not None:
-            from netcfg.sim.ftt import FttMaster
-
-            driver = FttMaster(self, bus, can)
-        elif bus.canopen is not None and sync:
-            from netcfg.sim.canopen import CanopenMaster
-
-            driver = CanopenMaster(self, bus, can)
+        driver = None if proto is None else proto.sim_driver(self, bus, can)
         if driver is not None:
             self.protocols[bus.name] = driver
         owned: set[str] = getattr(driver, "owned", set())
@@ -451,12 +445,10 @@ class Scenario:
                 if order is not None:
                     whole_run.run(self, order)
                     return
-                if any(b.ftt for b in self.cfg.buses):  # imported only then: its classes cost every run's start
-                    from netcfg.sim import ftt_whole_run
-
-                    ftt = ftt_whole_run.plan(self)
-                    if ftt is not None:
-                        ftt_whole_run.run(self, ftt)
+                for bus in self.cfg.buses:  # a protocol's own whole run (FTT-CAN's: one bus run as FTT-CAN)
+                    whole = protocols.of(bus).sim_whole_run(self)
+                    if whole is not None:
+                        whole()
                         return
             except whole_run.Undecided:  # rare: a tie only the order of events decides; the event path from 0
                 self._build()

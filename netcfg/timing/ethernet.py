@@ -35,7 +35,7 @@ from itertools import pairwise
 from typing import TYPE_CHECKING
 
 from netcfg.timing import load
-from netcfg.timing.frames import udp_frame_bytes, udp_frame_ns
+from netcfg.timing.frames import QUEUE_FRAMES, udp_frame_bytes, udp_frame_ns
 
 if TYPE_CHECKING:
     import networkx as nx
@@ -43,11 +43,6 @@ if TYPE_CHECKING:
     from netcfg import model
 
 PROPAGATION_M_PER_S = 0.7 * 299_792_458  # velocity factor 0.7 (seed 001: 0.4-0.7, 2.1e8 m/s)
-# Frames a NIC's or switch port's transmit queue holds, counting the one being sent, when the spec does not say
-# (nodes' nic_queue, switches' and ports' queue); the simulator drops a frame that finds its queue full. An
-# assumption, not a datasheet figure: small unmanaged switches share a packet memory of a few tens of kilobytes
-# among their ports, and 64 frames per port is of that order for minimum-size frames.
-QUEUE_FRAMES = 64
 Link = tuple[str, str]
 Flow = tuple[int, int | None, int]  # (frame time C, period T or None for at most one frame, arrival jitter J)
 

@@ -472,6 +472,13 @@ UDP_OVERHEAD = ETH_OVERHEAD + IPV4_HEADER + UDP_HEADER  # Novhd = 66
 MAX_UDP_PAYLOAD = 1500 - IPV4_HEADER - UDP_HEADER  # 1472 without IP fragmentation
 
 
+# Frames a NIC's or switch port's transmit queue holds, counting the one being sent, when the spec does not say
+# (nodes' nic_queue, switches' and ports' queue); the simulator drops a frame that finds its queue full. An
+# assumption, not a datasheet figure: small unmanaged switches share a packet memory of a few tens of kilobytes
+# among their ports, and 64 frames per port is of that order for minimum-size frames.
+QUEUE_FRAMES = 64
+
+
 def udp_frame_bytes(payload: int) -> int:
     """Bytes on the wire for one UDP datagram of `payload` bytes: Ndata + Novhd + Npad (84..1538)."""
     pad = max(0, ETH_MIN_DATA - (IPV4_HEADER + UDP_HEADER + payload))

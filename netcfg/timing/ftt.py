@@ -38,91 +38,8 @@ from netcfg import model
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
 from netcfg.timing.frames import arbitration_key, frame_bits
+from netcfg.timing.ftt_schedule import EcSlot, Schedule, SrtEntry
 from netcfg.timing.load import frame_timing
-
-
-@dataclass(frozen=True)
-class SrtEntry:
-    ftt_id: int
-    name: str
-    kind: str  # "message" | "trigger"
-    producer: str | None
-    targets: tuple[str, ...]  # consumers of a message, node.task activated by a trigger
-    size: int
-    can_id: int | None
-    extended: bool
-    c_bits: int
-    c_ns: int
-    period_ec: int
-    fastest_period_ec: int
-    init_ec: int  # first EC in which it is due (Table 2's "init time")
-    deadline_ns: int | None
-    slowest_period_ec: int = 0  # period_range's slowest period; 0: the nominal period (no range)
-
-    def due(self, ec: int, period: int | None = None) -> bool:
-        p = period or self.period_ec
-        return (ec - self.init_ec) % p == 0
-
-    @property
-    def admissible_periods(self) -> range:
-        """Every period the master may give it: the whole period_range, in ECs."""
-        return range(self.fastest_period_ec, max(self.slowest_period_ec, self.period_ec) + 1)
-
-
-@dataclass(frozen=True)
-class EcSlot:
-    index: int
-    messages: tuple[str, ...]  # synchronous messages in window order (CAN arbitration: lowest id first)
-    triggers: tuple[str, ...]
-    ids: tuple[int, ...]  # FTT ids announced by the TM
-    sync_ns: int  # synchronous window length (worst-case frames)
-    async_ns: int  # what is left for the asynchronous window
-    allowance_ns: int = 0  # the synchronous window's bit-error allowance (0 on an error-free bus)
-
-
-@dataclass(frozen=True)
-class Schedule:
-    ec_ns: int
-    tm_ns: int
-    lsw_ns: int
-    entries: tuple[SrtEntry, ...]
-    slots: tuple[EcSlot, ...]  # one per EC of the macro-cycle
-    sync_first: bool = False  # the synchronous window right after the TM, the asynchronous one closing the EC
-    tm_delay_ns: int = 0  # how much later than tm_ns the TM may end, sent again after bit errors
-
-    @property
-    def macro_cycle(self) -> int:
-        return len(self.slots)
-
-    def window_start(self, ec: int) -> int:
-        """Start of EC ec's synchronous window, from the EC start."""
-        if self.sync_first:
-            return self.tm_ns
-        slot = self.slots[ec % self.macro_cycle]
-        return self.ec_ns - slot.sync_ns - slot.allowance_ns
-
-    def window_delay(self, ec: int) -> int:
-        """How much later than window_start EC ec's synchronous frames may be queued: a TM resent after bit errors
-        that ends after the window's start holds them back until it ends (netcfg.sim.ftt queues them then)."""
-        return max(0, self.tm_ns + self.tm_delay_ns - self.window_start(ec))
-
-    def async_start(self, ec: int) -> int:
-        """Start of EC ec's asynchronous window, from the EC start: after the TM, or after the synchronous window."""
-        slot = self.slots[ec % self.macro_cycle]
-        return self.tm_ns + (slot.sync_ns + slot.allowance_ns if self.sync_first else 0)
-
-    def completion(self, name: str, ec: int, frame_ns: dict[str, tuple[int, int]]) -> tuple[int, int]:
-        """(best, worst) end of message `name`'s frame in EC ec, from the EC start. frame_ns gives each
-        message's (nominal, worst-case) frame time; the window's frames go out in identifier order."""
-        slot = self.slots[ec % self.macro_cycle]
-        best = worst = self.window_start(ec)
-        for other in slot.messages:
-            best += frame_ns[other][0]
-            worst += frame_ns[other][1]
-            if other == name:
-                return best, worst
-        raise KeyError(name)
-
 
 MAX_MACRO_CYCLE = 20_000  # ECs: beyond this the periods are not harmonic enough for a static table
 
@@ -142,10 +59,10 @@ def tm_time_ns(tm_size: int, extended: bool, bitrate: int) -> int:
     return frame_bits(tm_size, extended).ns(bitrate)
 
 
-def srt(bus: model.Bus, triggers: list[model.Trigger]) -> list[SrtEntry]:
-    """The Synchronous Requirements Table: every synchronous message and trigger, by FTT id."""
-    assert bus.ftt is not None
-    ec = bus.ftt.ec_ns
+def srt(bus: model.Bus, ftt: model.FttBus, triggers: list[model.Trigger]) -> list[SrtEntry]:
+    """The Synchronous Requirements Table: every synchronous message and trigger, by FTT id (`ftt`: the bus's
+    section)."""
+    ec = ftt.ec_ns
     out = []
     for m in bus.messages:
         if m.window != "sync" or m.ftt_id is None or m.period_ns is None:
@@ -229,47 +146,44 @@ def tm_delay(errors: ErrorModel | None, tm_ns: int) -> int:
 
 
 def _slot(
-    k: int, msgs: list[SrtEntry], trigs: list[SrtEntry], ec: int, tm: int, bus: model.Bus, errors: ErrorModel | None
+    k: int, msgs: list[SrtEntry], trigs: list[SrtEntry], ec: int, tm: int, sync_first: bool, errors: ErrorModel | None
 ) -> EcSlot:
     sync = sum(e.c_ns for e in msgs)
     due = sorted(e.ftt_id for e in (*msgs, *trigs))
-    assert bus.ftt is not None
-    extra = window_allowance(errors, [e.c_ns for e in msgs], tm, bus.ftt.sync_first)
+    extra = window_allowance(errors, [e.c_ns for e in msgs], tm, sync_first)
     return EcSlot(
         k, tuple(e.name for e in msgs), tuple(e.name for e in trigs), tuple(due), sync, ec - tm - sync - extra, extra
     )
 
 
 def build_schedule(
-    bus: model.Bus, entries: list[SrtEntry], fastest: bool = False, errors: ErrorModel | None = None
+    bus: model.Bus,
+    ftt: model.FttBus,
+    entries: list[SrtEntry],
+    fastest: bool = False,
+    errors: ErrorModel | None = None,
 ) -> Schedule:
-    """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs); `errors`: the bus's error model."""
-    assert bus.ftt is not None
-    ec = bus.ftt.ec_ns
-    tm = tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
+    """The EC-schedules of one macro-cycle (the LCM of the periods, in ECs); `ftt`: the bus's section, `errors`:
+    its error model."""
     periods = [e.fastest_period_ec if fastest else e.period_ec for e in entries]
     macro = macro_cycle(periods)
     if macro > MAX_MACRO_CYCLE:
         raise MacroCycleTooLong(macro)
-    messages = (e for e in entries if e.kind == "message")
-    by_can_id = sorted(messages, key=lambda e: arbitration_key(e.can_id or 0, e.extended))
-    slots = []
-    for k in range(macro):
-        msgs = [e for e in by_can_id if e.due(k, e.fastest_period_ec if fastest else None)]
-        trigs = [e for e in entries if e.kind == "trigger" and e.due(k, e.fastest_period_ec if fastest else None)]
-        slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first, tm_delay(errors, tm))
+
+    def due(e: SrtEntry, k: int) -> bool:
+        return e.due(k, e.fastest_period_ec if fastest else None)
+
+    return _schedule(bus, ftt, entries, macro, due, errors)
 
 
-def envelope_schedule(bus: model.Bus, entries: list[SrtEntry], errors: ErrorModel | None = None) -> Schedule:
+def envelope_schedule(
+    bus: model.Bus, ftt: model.FttBus, entries: list[SrtEntry], errors: ErrorModel | None = None
+) -> Schedule:
     """Every message that may be due in an EC at some admissible periods: each message of a period_range may run
     at any period of it (the master keeps its init EC), so EC k may carry it if some admissible period divides
     k - init. Its slots bound the synchronous window (LSW check) and the asynchronous supply of any EC whatever
     periods the master picks; without ranges it is the nominal schedule. When the pattern's length exceeds
     MAX_MACRO_CYCLE, a message with a range is taken as due in every EC (sound, more pessimistic)."""
-    assert bus.ftt is not None
-    ec = bus.ftt.ec_ns
-    tm = tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     lengths = [lcm(*e.admissible_periods) for e in entries]
     horizon = macro_cycle(lengths)
     coarse = horizon > MAX_MACRO_CYCLE
@@ -284,15 +198,30 @@ def envelope_schedule(bus: model.Bus, entries: list[SrtEntry], errors: ErrorMode
             return True
         return any((k - e.init_ec) % p == 0 for p in periods)
 
+    return _schedule(bus, ftt, entries, horizon, may_be_due, errors)
+
+
+def _schedule(
+    bus: model.Bus,
+    ftt: model.FttBus,
+    entries: list[SrtEntry],
+    ecs: int,
+    due: Callable[[SrtEntry, int], bool],
+    errors: ErrorModel | None,
+) -> Schedule:
+    """The schedule of `ecs` ECs, EC k carrying what is `due` in it: the synchronous messages in identifier order
+    (CAN arbitration), the triggers by FTT id."""
+    ec = ftt.ec_ns
+    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate)
     by_can_id = sorted(
         (e for e in entries if e.kind == "message"), key=lambda e: arbitration_key(e.can_id or 0, e.extended)
     )
     slots = []
-    for k in range(horizon):
-        msgs = [e for e in by_can_id if may_be_due(e, k)]
-        trigs = [e for e in entries if e.kind == "trigger" and may_be_due(e, k)]
-        slots.append(_slot(k, msgs, trigs, ec, tm, bus, errors))
-    return Schedule(ec, tm, bus.ftt.lsw_ns, tuple(entries), tuple(slots), bus.ftt.sync_first, tm_delay(errors, tm))
+    for k in range(ecs):
+        msgs = [e for e in by_can_id if due(e, k)]
+        trigs = [e for e in entries if e.kind == "trigger" and due(e, k)]
+        slots.append(_slot(k, msgs, trigs, ec, tm, ftt.sync_first, errors))
+    return Schedule(ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm))
 
 
 def ec_schedule_mask(slot: EcSlot) -> int:

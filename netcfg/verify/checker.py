@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from netcfg import protocols
 from netcfg.cia301 import sync_every
 from netcfg.runtime import Bus, Message, RuntimeConfig
 from netcfg.runtime.actuator_plan import reply_commands
@@ -107,8 +108,8 @@ class Checker:
         self._channel_bus: list[int] = []
         self.states: list[MessageState] = []
         keys: list[int] = []
-        trigger_messages = [_trigger_message(b) for b in self.buses if b.ftt is not None]
-        for m in [*cfg.messages, *trigger_messages]:
+        own_frames = [f for b in self.buses for f in protocols.of(b).log_frames(b)]
+        for m in [*cfg.messages, *own_frames]:
             if not m.is_can:
                 continue
             b = [x.name for x in self.buses].index(m.bus)
@@ -127,19 +128,15 @@ class Checker:
         order = np.argsort(np.array(keys, np.int64), kind="stable")
         self._keys = np.array(keys, np.int64)[order]
         self._key_state = order
-        # per bus the message a response is measured from: CANopen's SYNC, FTT-CAN's trigger message
+        # per bus the message a response is measured from (CANopen's SYNC, FTT-CAN's trigger message), and what is
+        # added back to its logged end to reach the analysis' reference (Protocol.response_reference)
+        self._ref_offset: dict[int, int] = {}
         for b, bus_ in enumerate(self.buses):
-            ref_id = bus_.canopen.sync_id if bus_.canopen else bus_.ftt.tm_id if bus_.ftt else None
+            ref_id, self._ref_offset[b] = protocols.of(bus_).response_reference(bus_) or (None, 0)
             for i, st in enumerate(self.states):
                 if st.bus == b and st.msg.id == ref_id and not st.msg.extended:
                     self._ref_state[b] = i
         self._last_ref: dict[int, int] = {}
-        # a log stamps a frame's end; FTT-CAN's analysis counts from the EC's start, where the trigger message
-        # starts: its shortest transmission (no stuff bits) is added back, so a reported late frame is surely late
-        self._ref_offset = {
-            b: frame_bits(bus_.ftt.tm_size, False, stuffing="nominal").ns(bus_.bitrate) // 1000 if bus_.ftt else 0
-            for b, bus_ in enumerate(self.buses)
-        }
         self.frames = 0
         self.unjudged = 0  # frames of a master's set-up and shut-down (note_services)
         self.error_frames = 0
@@ -552,36 +549,6 @@ class Checker:
             "synchronous_pdos": in_window,
             **self.services[b].report(),
         }
-
-
-def _trigger_message(bus: Bus) -> Message:
-    """FTT-CAN's trigger message as a message of the bus: sent by the master once per elementary cycle."""
-    ftt = bus.ftt
-    assert ftt is not None
-    return Message(
-        name=f"{bus.name}_TM",
-        bus=bus.name,
-        protocol=bus.protocol,
-        producer=ftt.master,
-        consumers=(),
-        id=ftt.tm_id,
-        extended=False,
-        size=ftt.tm_size,
-        kind="periodic",
-        period_ns=ftt.ec_ns,
-        interval_ns=ftt.ec_ns,
-        offset_ns=0,
-        deadline_ns=None,
-        jitter_ns=0,
-        rate_hz=None,
-        window=None,
-        ftt_id=None,
-        udp=None,
-        pdo=None,
-        signals=(),
-        implicit="TM",
-        wcrt_ns=None,
-    )
 
 
 def _keep(found: list[dict[str, Any]], kind: str, st: MessageState | None, t: int, detail: str) -> None:

@@ -6,14 +6,16 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.can import CLASSICAL_CAN
-from netcfg.protocols.base import Protocol
+from netcfg.protocols.base import Protocol, Unsaid
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.links.base import Link
     from netcfg.rules import BusRules
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.run import SimRun
     from netcfg.timing.load import FrameTiming
 
 
@@ -37,6 +39,32 @@ class Canopen(Protocol):
 
     def identifiers_fixed(self, bus: model.Bus) -> str | None:
         return "CiA 301 COB-IDs, the predefined connection set its devices expect"
+
+    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+        return (
+            Unsaid(
+                "the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the DBC bounds each "
+                "frame as check of the spec does, but does not judge the cycle",
+                True,
+            ),
+        )
+
+    def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
+        # a synchronous TPDO's response counts from the SYNC before it (netcfg.timing.canopen_sync)
+        return None if bus.canopen is None else (bus.canopen.sync_id, 0)
+
+    def sim_master(self, bus: runtime.Bus) -> str | None:
+        return None if bus.canopen is None else bus.canopen.sync_producer
+
+    def sim_events(self, bus: runtime.Bus) -> tuple[tuple[str, int], ...]:
+        return () if bus.canopen is None else ((f"SYNC of bus '{bus.name}'", bus.canopen.sync_period_ns),)
+
+    def sim_driver(self, sc: SimRun, bus: runtime.Bus, can: CanBus) -> object | None:
+        if bus.canopen is None:
+            return None
+        from netcfg.sim.canopen import CanopenMaster
+
+        return CanopenMaster(sc, bus, can)
 
     def extend(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], diags: Collector, acc: Analysis

@@ -31,5 +31,10 @@ class EtherCatProtocol(Protocol):
 
         return list(ASSUMES)
 
+    def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
+        from netcfg.protocols.ethercat.runtime_section import runtime_section
+
+        return {"ethercat": runtime_section(bus.ethercat)}
+
 
 ETHERCAT_PROTOCOL = EtherCatProtocol("ethercat", ETHERCAT)

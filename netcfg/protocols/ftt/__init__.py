@@ -1,20 +1,27 @@
 """FTT-CAN over a CAN link (seed 002): a master's trigger message opens every elementary cycle, whose synchronous
 window it schedules and whose asynchronous window arbitrates as CAN. The windows' analysis replaces the messages'
-bounds of the link's arbitration analysis, which stays in the report as their plain-CAN figure."""
+bounds of the link's arbitration analysis, which stays in the report as their plain-CAN figure. Beside the analysis:
+the SRT tables (srt.py), runtime.json's section (runtime_section.py), the trigger message a log holds (log.py) and
+the simulator's master and whole run (sim.py, sim_whole_run.py), which read runtime.json alone."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.can import CLASSICAL_CAN
-from netcfg.protocols.base import Protocol
+from netcfg.protocols.base import OwnFrame, Protocol, Unsaid
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.links.base import Link
     from netcfg.rules import BusRules
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.run import SimRun
+    from netcfg.sim.whole_run import WholeRunScenario
+    from netcfg.timing.ftt_schedule import SrtEntry
     from netcfg.timing.load import FrameTiming
 
 
@@ -77,6 +84,74 @@ class Ftt(Protocol):
         from netcfg.protocols.ftt.analysis import check_tx_queues
 
         check_tx_queues(m, bus, rows, diags)
+
+    def own_frames(self, bus: model.Bus) -> tuple[OwnFrame, ...]:
+        assert bus.ftt is not None  # an FTT-CAN bus: the resolver filled its section
+        master = bus.ftt.master
+        return (
+            OwnFrame(  # the trigger message, at every EC start; its payload is the EC-schedule
+                name=f"{bus.name}_TM",
+                id=bus.ftt.tm_id,
+                extended=bus.id_bits == 29,
+                size=bus.ftt.tm_size,
+                sender=master,
+                receivers=tuple(sorted(n for n in bus.nodes if n != master)),
+                period_ns=bus.ftt.ec_ns,
+                field="ec_schedule",  # bit i (little-endian over the tm_size bytes) announces FTT id i
+                comment="FTT-CAN trigger message: bit i of ec_schedule = FTT id i due in this elementary cycle",
+            ),
+        )
+
+    def scheduled(self, bus: model.Bus) -> dict[str, SrtEntry]:
+        sched = bus.ftt_schedule
+        assert sched is not None  # the analysis built it
+        return {e.name: e for e in sched.entries}
+
+    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+        return (
+            Unsaid(
+                "the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames as free-running "
+                "CAN, trigger message included, so its bounds are not the bus's",
+                False,
+            ),
+        )
+
+    def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
+        from netcfg.protocols.ftt.runtime_section import runtime_section
+
+        return {"ftt": runtime_section(bus)}
+
+    def log_frames(self, bus: runtime.Bus) -> tuple[runtime.Message, ...]:
+        from netcfg.protocols.ftt.log import trigger_message
+
+        return (trigger_message(bus),)
+
+    def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
+        from netcfg.protocols.ftt.log import response_reference
+
+        return response_reference(bus)
+
+    def sim_master(self, bus: runtime.Bus) -> str | None:
+        return None if bus.ftt is None else bus.ftt.master
+
+    def sim_events(self, bus: runtime.Bus) -> tuple[tuple[str, int], ...]:
+        return () if bus.ftt is None else ((f"elementary cycle of bus '{bus.name}'", bus.ftt.ec_ns),)
+
+    def sim_gated(self, msg: runtime.Message) -> bool:
+        return msg.window != "sync"  # the master sends the synchronous ones in their window
+
+    def sim_driver(self, sc: SimRun, bus: runtime.Bus, can: CanBus) -> object | None:
+        from netcfg.protocols.ftt.sim import FttMaster
+
+        return FttMaster(sc, bus, can)
+
+    def sim_whole_run(self, sc: WholeRunScenario) -> Callable[[], None] | None:
+        from functools import partial
+
+        from netcfg.protocols.ftt import sim_whole_run  # only here: its classes cost every run's start
+
+        plan = sim_whole_run.plan(sc)
+        return None if plan is None else partial(sim_whole_run.run, sc, plan)
 
     def check_overload(
         self, m: model.Model, bus: model.Bus, timings: dict[str, FrameTiming], worst: float, diags: Collector

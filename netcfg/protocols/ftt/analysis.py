@@ -57,12 +57,12 @@ def analyze_ftt(
 ) -> dict[str, Any]:
     assert bus.ftt is not None
     triggers = [t for t in m.triggers.values() if t.bus == bus.name]
-    entries = ftt.srt(bus, triggers)
+    entries = ftt.srt(bus, bus.ftt, triggers)
     try:
         errors = error_model(bus)
-        sched = ftt.build_schedule(bus, entries, errors=errors)
-        fastest = ftt.build_schedule(bus, entries, fastest=True, errors=errors)
-        envelope = ftt.envelope_schedule(bus, entries, errors)
+        sched = ftt.build_schedule(bus, bus.ftt, entries, errors=errors)
+        fastest = ftt.build_schedule(bus, bus.ftt, entries, fastest=True, errors=errors)
+        envelope = ftt.envelope_schedule(bus, bus.ftt, entries, errors)
     except ftt.MacroCycleTooLong as exc:
         periods = sorted({e.period_ec for e in entries} | {e.fastest_period_ec for e in entries})
         diags.add(

@@ -28,6 +28,9 @@ class FttRules(CanRules):
         super().resolve_bus(b, bus, path)
         self.resolve_ftt(b, bus, path)
 
+    def cycle_ns(self, b: schema.Bus) -> int | None:
+        return b.ftt.ec.to_ns(None) if b.ftt is not None else None
+
     def resolve_ftt(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
         if b.ftt is None:
             self.r.err("missing-section", f"FTT-CAN bus '{b.name}' needs 'ftt: {{ec: 5 ms, tm_size: 5}}'", path)

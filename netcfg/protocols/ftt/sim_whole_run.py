@@ -1,4 +1,5 @@
-"""An FTT-CAN bus's whole run at once (netcfg.sim.whole_run does the same for switched Ethernet).
+"""An FTT-CAN bus's whole run at once (netcfg.sim.whole_run does the same for switched Ethernet); the scenario runs
+it through Ftt.sim_whole_run.
 
 Event by event, every elementary cycle costs a dozen Python events: the EC start, the trigger message (TM), the
 tasks it triggers, the synchronous window and each of its frames. On a bus whose windows keep their traffic
@@ -39,9 +40,9 @@ from netcfg.sim.flows import AFTER, AFTER_OWN, BEFORE, BEFORE_OWN, EMPTY, Stream
 from netcfg.sim.whole_run import WholeRunScenario, clock_activations, exec_times
 
 if TYPE_CHECKING:
+    from netcfg.protocols.ftt.sim import FttMaster
     from netcfg.runtime import Task
     from netcfg.sim.can_bus import CanBus, Listener
-    from netcfg.sim.ftt import FttMaster
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,7 @@ class Plan:
 
 def plan(sc: WholeRunScenario) -> Plan | None:
     """What the whole run needs, worked out once; None if the run is not covered."""
-    from netcfg.sim.ftt import FttMaster
+    from netcfg.protocols.ftt.sim import FttMaster
 
     opts, cfg = sc.opts, sc.cfg
     if opts.faults or opts.stuffing == "exact" or not sc.synchronised:

@@ -9,6 +9,9 @@ arbitrate normally but may start only if they end before that window (netcfg.sim
 The master may fail (a `master-fail` fault). A backup master that misses the TM for longer than a timeout sends
 it itself, late, and keeps the EC grid from then on (the CAMBADA robots replicate the master). An EC whose TM is
 lost has no synchronous traffic and starts no triggered task; what should have been sent is counted as lost.
+
+The scenario builds it through the bus's protocol (Ftt.sim_driver) and it sees the run only through
+netcfg.sim.run.SimRun; like every simulator driver it reads runtime.json, never the model.
 """
 
 from __future__ import annotations
