@@ -15,6 +15,11 @@ def render_cycle(bus: dict[str, Any], table: Any, num: Any) -> list[str]:
         f"{num(c['mailbox_room_us'])} us left for mailbox traffic"
         + ("" if c["ok"] else " (NO: the cycle is too short)"),
     ]
+    if c.get("sync0_margin_us") is not None:
+        out.append(
+            f"  SYNC0 after the frame has passed with {num(c['sync0_margin_us'])} us to spare at the tightest slave "
+            f"(distributed clocks' precision {num(c['dc_precision_us'])} us taken off)"
+        )
     rows = [
         [
             str(s["position"]),
@@ -24,11 +29,12 @@ def render_cycle(bus: dict[str, Any], table: Any, num: Any) -> list[str]:
             str(s["in_bytes"]),
             num(s["frame_passed_us"]),
             num(s["sync0_shift_us"]),
+            "-" if s.get("sync0_margin_us") is None else num(s["sync0_margin_us"]),
             s["assign_activate"],
             num(s["ok"], false="NO"),
         ]
         for s in bus["slaves"]
     ]
-    head = ["pos", "slave", "device", "out B", "in B", "frame passed/us", "SYNC0/us", "DC", "ok"]
-    out.extend(table(head, rows, "rllrrrrrl"))
+    head = ["pos", "slave", "device", "out B", "in B", "frame passed/us", "SYNC0/us", "margin/us", "DC", "ok"]
+    out.extend(table(head, rows, "rllrrrrrrl"))
     return out
