@@ -91,7 +91,7 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
     # the senders' clock tolerance only where the spec changes the default, for the same reason
     tolerance = {"clock_tolerance_ppm": b.clock_tolerance_ppm} if b.clock_tolerance_ppm != DEFAULT_TOLERANCE_PPM else {}
     # an EtherCAT segment's section only on EtherCAT buses: files of the other protocols stay as they were
-    ethercat = {"ethercat": runtime_section(b.ethercat)} if b.ethercat is not None else {}
+    ethercat = {"ethercat": runtime_section(b, b.ethercat)} if b.ethercat is not None else {}
     return {
         **fd,
         **errors,

@@ -24,7 +24,8 @@ MAX_FRAME_ERROR_RATE = 1 / 9
 def events_per_second(cfg: runtime.RuntimeConfig) -> dict[str, Fraction]:
     """What generates simulation events, and how many per simulated second: every periodic or sporadic message
     (at its period or minimum inter-arrival), every task job (at its period, or at the rate of what activates it),
-    every SYNC and FTT-CAN elementary cycle. A sporadic source counts at its fastest rate: an upper bound."""
+    every SYNC, FTT-CAN elementary cycle and EtherCAT cycle. A sporadic source counts at its fastest rate: an upper
+    bound."""
     second = 10**9
     rates: dict[str, Fraction] = {}
     msg_rate: dict[str, Fraction] = {}
@@ -41,6 +42,8 @@ def events_per_second(cfg: runtime.RuntimeConfig) -> dict[str, Fraction]:
             rates[f"SYNC of bus '{b.name}'"] = sync_rate[b.name]
         if b.ftt is not None:
             rates[f"elementary cycle of bus '{b.name}'"] = Fraction(second, b.ftt.ec_ns)
+        if b.ethercat is not None:
+            rates[f"EtherCAT cycle of bus '{b.name}'"] = Fraction(second, b.ethercat["cycle_ns"])
     for n in cfg.nodes:
         for t in n.tasks:
             if t.period_ns:
