@@ -144,6 +144,8 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
                 "device": s.device,
                 "out_bytes": s.out_bytes,
                 "in_bytes": s.in_bytes,
+                "forwarding_us": us(s.forwarding_ns),
+                "cable_m": s.cable_m,
                 "frame_passed_us": us(passed),
                 "sync0_shift_us": us(shift),
                 "sync0_margin_us": us(margin) if s.assign_activate else None,
