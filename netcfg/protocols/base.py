@@ -16,6 +16,10 @@ if TYPE_CHECKING:
     from netcfg.timing.load import FrameTiming
 
 
+# side -> interface -> (the PDO, the entry's name, bits, signed): Protocol.joint_entries
+JointEntries = dict[str, dict[str, tuple[str, str, int, bool]]]
+
+
 class Protocol:
     # a node speaking an actuator's own protocol (netcfg.devices.actuator_profile) may sit on a bus of it: only where
     # the protocol adds nothing to the link's frames (no SYNC, no schedule, no identifier scheme of its own)
@@ -65,6 +69,12 @@ class Protocol:
                 "releases it",
                 f"drop the offset, or give the task '{senders[0]}' the offset instead",
             )
+        return None
+
+    def joint_entries(self, bus: model.Bus, node: str, axis: int) -> JointEntries | None:
+        """For a protocol whose drives' process data is no message (EtherCAT's image): what of node's axis carries
+        each joint interface, by side ("command", "state") and interface ("position", ...), as (PDO, entry name,
+        bits, signed); None: a joint on the bus names its messages' signals."""
         return None
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.ethercat import ETHERCAT
-from netcfg.protocols.base import Protocol
+from netcfg.protocols.base import JointEntries, Protocol
 
 if TYPE_CHECKING:
     from netcfg import model
@@ -25,6 +25,11 @@ class EtherCatProtocol(Protocol):
         from netcfg.protocols.ethercat.analysis import analyze_segment
 
         return analyze_segment(m, bus, diags)
+
+    def joint_entries(self, bus: model.Bus, node: str, axis: int) -> JointEntries | None:
+        from netcfg.protocols.ethercat.joints import joint_entries
+
+        return joint_entries(bus, node, axis)
 
     def assumptions(self, bus: model.Bus, fifo_nodes: tuple[str, ...]) -> list[str]:
         from netcfg.protocols.ethercat.analysis import ASSUMES
