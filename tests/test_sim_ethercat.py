@@ -113,6 +113,13 @@ def test_a_lost_frame_and_a_lost_slave(tmp_path: Path) -> None:
     assert doc["violations"] == []  # the analysis assumes no loss: findings, not violations of its bounds
 
 
+def test_a_crashed_master_sends_no_more_cycles(tmp_path: Path) -> None:
+    doc = simulate(two_axes(tmp_path), "crash:pc@250ms")
+    rep = segment(doc)
+    assert rep["cycles"] == 250 and rep["wkc_mismatches"] == 0  # cycles 0..249 start before 250 ms
+    assert any("the master 'pc' crashed" in f for f in doc["findings"])
+
+
 def test_figures_beyond_the_bounds_are_violations(tmp_path: Path) -> None:
     def tighter(section: dict[str, Any]) -> None:  # bounds below what the cycle takes
         section["latency_ns"] = WIRE_NS

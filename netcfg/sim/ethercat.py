@@ -23,7 +23,7 @@ modes lock it, so cycle n starts at n * cycle. Per cycle:
 - the working counter of each frame: +2 from every slave whose outputs it writes and +1 from every slave whose
   inputs it reads (ETG.1000.4's LRW); a lost frame (`--fault lose:BUS@t`) comes back with none, and a crashed
   slave (`crash:NODE@t`) breaks the line there: its neighbour closes the port and loops the frame back, without
-  the slaves behind it.
+  the slaves behind it; a crashed master sends no more cycles.
 
 What is held against the analysis: the frame back at the master within `latency_ns`, its passing each slave within
 that slave's `frame_passed_ns`, and, where the analysis found the shift long enough, every SYNC0 after the frame
@@ -93,6 +93,7 @@ class EthercatSegment:
         self.lose_at: list[int] = []  # lose:BUS@t: the first cycle sent at or after t loses its frame
         self.result: dict[str, Any] | None = None
         self._acc = _Tally(len(self.slaves))
+        self._master_stopped = False
 
     # -- faults -----------------------------------------------------------------------------------------
     def lose_cycle_at(self, at_ns: int) -> None:
@@ -103,7 +104,9 @@ class EthercatSegment:
         """Every cycle of the run, as arrays of cycles x slaves, a window of CHUNK cycles at a time."""
         ec, sc = self.ec, self.sc
         cycle = int(ec["cycle_ns"])
-        n = max(0, -(-sc.opts.duration_ns // cycle))
+        until = min(sc.opts.duration_ns, sc.crash_at.get(ec.get("master") or "", NEVER))  # a crashed master sends none
+        n = max(0, -(-until // cycle))
+        self._master_stopped = until < sc.opts.duration_ns
         name = self.bus.name
         frames = list(ec.get("frames") or [{"data_bytes": ec["out_bytes"] + ec["in_bytes"], "wire_bytes": 0}])
         self._wire = sum(int(f["wire_bytes"]) for f in frames) * 8e9 / self.bus.bitrate
@@ -197,6 +200,8 @@ class EthercatSegment:
                     f"the cycle's frames came back up to {worst / 1000:g} us after the cycle started, analysed "
                     f"{bound / 1000:g} us"
                 )
+        if self._master_stopped:
+            findings.append(f"the master '{ec['master']}' crashed: no cycle after {n} cycles")
         if acc.lost or acc.mismatched:
             first = acc.mismatches[0] if acc.mismatches else None
             findings.append(
