@@ -155,4 +155,4 @@ def test_the_command(tmp_path: Path) -> None:
     assert "1 frames lost, 1 working-counter mismatches (expected 6)" in done.stdout
     assert "working counter 0: frame lost" in done.stdout
     bad = cli("simulate", str(tmp_path / "spec.yaml"), "--fault", "lose:ecatx@50ms")
-    assert bad.returncode == 2 and "EtherCAT bus named 'ecatx'" in bad.stderr
+    assert bad.returncode == 2 and "message named 'ecatx', nor an EtherCAT bus" in bad.stderr

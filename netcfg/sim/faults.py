@@ -137,7 +137,7 @@ class Fault:
             if self.target not in sc.msg_source:
                 hint = _hint(self.target, [*sc.msg_source, *sc.eth_owner])
                 raise FaultError(
-                    f"fault 'lose': no CAN or Ethernet message or EtherCAT bus named '{self.target}'{hint}"
+                    f"fault 'lose': no CAN or Ethernet message named '{self.target}', nor an EtherCAT bus{hint}"
                 )
             bus, src = sc.msg_source[self.target]
             bus.lose.setdefault(src, []).append(self.at_ns)
