@@ -256,6 +256,9 @@ class JointSignal:
     offset: float = 0.0  # the joint value at device value 0 (position: the joint's zero)
     lowest: float = 0.0
     highest: float = 0.0
+    # a carrier that is no message but a bus's process data (an EtherCAT slave's PDO entry): its bus; message and
+    # signal are then the PDO (0x1600) and the entry's name
+    bus: str | None = None
 
 
 @dataclass(frozen=True)

@@ -47,6 +47,8 @@ CASES: list[tuple[str, str, dict[str, Any]]] = [
         "duration_ns": 300 * MS, "seed": 11, "faults": ("babble:axis03@100ms..150ms",)}),
     ("ntua_sahr lose", "ntua_sahr", {
         "duration_ns": 100 * MS, "seed": 12, "faults": ("lose:hip_pwm@20ms", "crash:pc@80ms")}),
+    ("allex2_ethercat faults", "allex2_ethercat", {
+        "duration_ns": 1000 * MS, "seed": 13, "faults": ("lose:ecat0@100ms", "crash:knee_r@600ms")}),
     ("arm_canfd exact trace", "arm_canfd", {"duration_ns": 500 * MS, "seed": 10, "stuffing": "exact", "trace": True}),
 ]
 

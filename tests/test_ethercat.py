@@ -3,6 +3,7 @@ checks with their places, and the cycle model against Beckhoff's published figur
 
 from __future__ import annotations
 
+import math
 import shutil
 from pathlib import Path
 from typing import Any
@@ -280,8 +281,10 @@ def test_outputs(tmp_path: Path) -> None:
     files = emit_all(model, report)
     slave = yaml.safe_load(files["ethercat/ecat0/hip_l.yaml"])
     assert (slave["vendor_id"], slave["assign_activate"]) == (0xFB, 0x0300)
+    # the joint's factor: 2,000 counts a motor revolution, a gear of 100, per radian (tests/test_ethercat_ros2.py)
     assert slave["rpdo"][0]["channels"][1] == {"index": 0x607A, "sub_index": 0, "type": "int32",
-                                               "command_interface": "position", "default": 0}
+                                               "command_interface": "position", "default": 0,
+                                               "factor": pytest.approx(2000 * 100 / (2 * math.pi))}
     assert [c.get("state_interface") for c in slave["tpdo"][0]["channels"]] == ["status_word", "position", "velocity"]
     assert slave["sm"][2] == {"index": 2, "type": "output", "pdo": "rpdo", "watchdog": "disable"}
     assert sum(1 for x in slave["sdo"] if x["index"] == 0x1C13) == 4

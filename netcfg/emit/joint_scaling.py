@@ -28,7 +28,7 @@ def scaling(j: Joint) -> tuple[tuple[str, float], ...]:
 def joint_bus(m: Model, j: Joint) -> Bus | None:
     """The bus a joint's drive is driven over: the one its command or state messages travel."""
     for carrier in (*j.command.values(), *j.state.values()):
-        return m.buses[m.messages[carrier.message].bus]
+        return m.buses[carrier.bus or m.messages[carrier.message].bus]
     return None
 
 

@@ -25,6 +25,7 @@ PROTOCOLS = {
     "canopen": "CANopen",
     "ftt-can": "FTT-CAN",
     "ethernet-udp": "switched Ethernet, UDP",
+    "ethercat": "EtherCAT",
 }
 
 
@@ -211,6 +212,7 @@ def _bus_view(model: Model, b: dict[str, Any]) -> dict[str, Any]:
         "ftt": _ftt_view(model, b) if ftt else None,
         "sync": _sync_view(model, bus, b) if "sync" in b else None,
         "links": _links_view(b) if "links" in b else None,
+        "cycle": _cycle_view(b) if "cycle" in b else None,
         "tx_queues": _tx_queues_view(b),
     }
     return view
@@ -410,6 +412,15 @@ def _sync_view(model: Model, bus: Bus, b: dict[str, Any]) -> dict[str, Any]:
         "cycles_cut": s["cycles_analysed"] > len(s["cycles"]),
         "png": f"report/{b['name']}_sync_cycle.png" if s["cycles"] else None,
     }
+
+
+def _cycle_view(b: dict[str, Any]) -> dict[str, Any]:
+    """An EtherCAT segment's cycle: its protocol's view, its slaves as a table."""
+    from netcfg.protocols.ethercat.report import cycle_view
+
+    view = cycle_view(b, num)
+    head, align, rows = view["slaves"]
+    return {**view, "slaves": _table(head, align, rows)}
 
 
 def _links_view(b: dict[str, Any]) -> dict[str, Any]:

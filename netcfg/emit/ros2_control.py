@@ -26,8 +26,14 @@ Names as the consumers publish them:
   `forward_command_controller/ForwardCommandController` with `joints` and `interface_name`; the controller
   manager's `update_rate` in Hz (an integer).
 
+- EtherCAT: ICube's ethercat_driver_ros2, `ethercat_driver/EthercatDriver` with the hardware parameters `master_id`
+  and `control_frequency` (Hz), and in each joint an `<ec_module name>` with the plugin
+  `ethercat_generic_plugins/EcCiA402Drive` and the parameters `alias`, `position` (the slave's place on the line),
+  `mode_of_operation` (CiA 402: 8 position, 9 velocity, 10 torque) and `slave_config`, the slave's YAML build writes
+  (ethercat/<bus>/<node>.yaml), as the driver's example configurations (*.ros2_control.xacro) write them.
+
 Other protocols are an entry in HARDWARE: which buses it drives and a function from the bus to its `<hardware>` block. A
-bus without one (EtherCAT, an actuator bus) gets no block: its joints are named in a comment of the xacro file when
+bus without one (an actuator bus) gets no block: its joints are named in a comment of the xacro file when
 another bus has one, and a system with no such bus gets no ros2_control files.
 """
 
@@ -59,11 +65,21 @@ class Interface:
 
 
 @dataclass(frozen=True)
+class Module:
+    """A device entry inside a joint (ethercat_driver_ros2's `<ec_module>`): its plugin and parameters."""
+
+    name: str
+    plugin: str
+    params: tuple[Param, ...]
+
+
+@dataclass(frozen=True)
 class JointView:
     name: str
     params: tuple[Param, ...]
     command: tuple[Interface, ...]
     state: tuple[Interface, ...]
+    modules: tuple[Module, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -82,6 +98,7 @@ class Hardware:
     args: tuple[MacroArg, ...]
     joint_params: Callable[[model.Joint], tuple[Param, ...]]
     note: str = ""  # for the file's header: where the parameters' files come from
+    joint_modules: Callable[[model.Joint], tuple[Module, ...]] = lambda _j: ()
 
 
 @dataclass(frozen=True)
@@ -116,11 +133,36 @@ def _canopen(m: model.Model, bus: model.Bus, several: bool) -> Hardware:
     return Hardware("canopen_ros2_control/RobotSystem", params, args, joint_params, note)
 
 
+def _ethercat(m: model.Model, bus: model.Bus, several: bool) -> Hardware:
+    """ethercat_driver_ros2's EthercatDriver: the master's index and the cycle's rate; each joint's drive an
+    `<ec_module>` with the EcCiA402Drive plugin, its place on the line, its mode and the slave file build writes."""
+    from netcfg.protocols.ethercat import joints as ec
+
+    prefix = f"{bus.name}_" if several else ""
+    args = (MacroArg(prefix + "master_id", "0"), MacroArg(prefix + "slave_config_dir", None))
+    rate = max(1, round(1e9 / bus.ethercat.cycle_ns))
+    params = (Param("master_id", "${" + prefix + "master_id}"), Param("control_frequency", str(rate)))
+
+    def modules(j: model.Joint) -> tuple[Module, ...]:
+        mode = ec.mode_of_operation(list(j.command))
+        found = (
+            Param("alias", "0"),
+            Param("position", str(ec.slave_position(bus, j.node))),
+            *((Param("mode_of_operation", str(mode)),) if mode is not None else ()),
+            Param("slave_config", "${" + prefix + "slave_config_dir}/" + f"{j.node}.yaml"),
+        )
+        return (Module(j.node, ec.DRIVE_PLUGIN, found),)
+
+    note = f"bus {bus.name}: slave_config_dir is the folder of netcfg's ethercat/{bus.name}/ (one YAML per slave)"
+    return Hardware(ec.DRIVER_PLUGIN, params, args, lambda _j: (), note, modules)
+
+
 MakeHardware = Callable[[model.Model, model.Bus, bool], Hardware]
 
 # (which buses it drives, by their protocol's section of the bus; its block): EtherCAT and actuator buses add theirs
 HARDWARE: tuple[tuple[Callable[[model.Bus], bool], MakeHardware], ...] = (
     (lambda bus: bus.canopen is not None, _canopen),
+    (lambda bus: bus.ethercat is not None, _ethercat),
 )
 
 
@@ -195,6 +237,7 @@ def _joint_view(j: model.Joint, hw: Hardware) -> JointView:
         params=hw.joint_params(j),
         command=tuple(Interface(i, limits(i)) for i in j.command),
         state=tuple(Interface(i) for i in j.state),
+        modules=hw.joint_modules(j),
     )
 
 

@@ -49,6 +49,10 @@ class Unsaid:
     bounds_kept: bool
 
 
+# side -> interface -> (the PDO, the entry's name, bits, signed): Protocol.joint_entries
+JointEntries = dict[str, dict[str, tuple[str, str, int, bool]]]
+
+
 class Protocol:
     # a node speaking an actuator's own protocol (netcfg.devices.actuator_profile) may sit on a bus of it: only where
     # the protocol adds nothing to the link's frames (no SYNC, no schedule, no identifier scheme of its own)
@@ -161,6 +165,12 @@ class Protocol:
     def sim_whole_run(self, sc: WholeRunScenario) -> Callable[[], None] | None:
         """The run computed whole, as arrays, where the protocol's whole-run path covers it (called instead of the
         event path; netcfg.sim.whole_run.Undecided sends it back there); None: not covered."""
+        return None
+
+    def joint_entries(self, bus: model.Bus, node: str, axis: int) -> JointEntries | None:
+        """For a protocol whose drives' process data is no message (EtherCAT's image): what of node's axis carries
+        each joint interface, by side ("command", "state") and interface ("position", ...), as (PDO, entry name,
+        bits, signed); None: a joint on the bus names its messages' signals."""
         return None
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)

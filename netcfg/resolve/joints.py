@@ -1,6 +1,8 @@
 """Joints: the robot joints the spec binds to drive axes, checked against the network and scaled to SI units.
 
-A joint names its drive (and axis), the signals that carry its command and state interfaces and its limits. This
+A joint names its drive (and axis), the signals that carry its command and state interfaces and its limits (a drive
+whose process data is its bus's image, an EtherCAT slave, carries the interfaces of the CiA 402 objects it maps:
+its protocol's joint_entries; the joint names no signals then). This
 module checks each reference (the node, the message and its signal, the side of the message the drive is on), that
 the limits fit the range the signal's bits can carry, and that no axis moves two joints; and it derives the factors
 between the device's values and the joint's SI units from the gear ratio and the encoder's counts:
@@ -16,7 +18,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from netcfg import model
+from netcfg import model, protocols
+from netcfg.protocols.base import JointEntries
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.suggest import did_you_mean
@@ -58,11 +61,24 @@ def resolve_joints(r: Resolver) -> None:
 
 
 def _joint(r: Resolver, j: schema.Joint, path: Path) -> model.Joint | None:
-    if not any(getattr(side, name) for side in (j.command, j.state) for name in INTERFACES):
+    named = any(getattr(side, name) for side in (j.command, j.state) for name in INTERFACES)
+    sides: dict[str, dict[str, model.JointSignal]] = {"command": {}, "state": {}}
+    image = None if named else _image_entries(r, j)
+    if image is not None:  # a drive whose process data is its bus's image: the interfaces it maps
+        bus, entries = image
+        sides = _image_sides(j, bus, entries)
+        if not any(sides.values()):
+            r.err(
+                "joint-interfaces",
+                f"joint '{j.name}': node '{j.node}' maps no CiA 402 target or actual value whose scale the joint's "
+                "figures give (position and counts/s velocity: encoder_counts; effort: rated_torque)",
+                path,
+            )
+            return None
+    elif not named:
         r.err("joint-interfaces", f"joint '{j.name}' names no command or state signal: give one", path)
         return None
     ok = True
-    sides: dict[str, dict[str, model.JointSignal]] = {"command": {}, "state": {}}
     for side_name, side in (("command", j.command), ("state", j.state)):
         for interface in INTERFACES:
             ref = getattr(side, interface)
@@ -79,7 +95,7 @@ def _joint(r: Resolver, j: schema.Joint, path: Path) -> model.Joint | None:
             sides[side_name][interface] = model.JointSignal(
                 ref.partition(".")[0], found.name, factor, offset, lo * factor + offset, hi * factor + offset
             )
-    buses = {r.model.messages[c.message].bus for side in sides.values() for c in side.values()}
+    buses = {c.bus or r.model.messages[c.message].bus for side in sides.values() for c in side.values()}
     if len(buses) > 1:  # one hardware block drives a joint: its signals travel one bus
         r.err("joint-bus", f"joint '{j.name}': its signals travel several buses ({', '.join(sorted(buses))})", path)
         ok = False
@@ -103,28 +119,63 @@ def _joint(r: Resolver, j: schema.Joint, path: Path) -> model.Joint | None:
     )
 
 
-def _factor(r: Resolver, j: schema.Joint, interface: str, path: Path) -> float | None:
-    """The joint's SI value per device unit, or None (reported) when a figure it needs is missing."""
+def _image_entries(r: Resolver, j: schema.Joint) -> tuple[str, JointEntries] | None:
+    """The entries that carry the joint's interfaces where its drive's bus has no messages for them (its protocol's
+    joint_entries: an EtherCAT slave's mapped CiA 402 objects); None: the joint must name signals."""
+    for name in r.model.nodes[j.node].buses:
+        bus = r.model.buses.get(name)
+        found = protocols.of(bus).joint_entries(bus, j.node, j.axis) if bus is not None else None
+        if found is not None:
+            return name, found
+    return None
+
+
+def _image_sides(j: schema.Joint, bus: str, entries: JointEntries) -> dict[str, dict[str, model.JointSignal]]:
+    """Each mapped interface whose factor the joint's figures give, scaled as a signal's would be."""
+    from netcfg.runtime.codec import int_range  # the runtime package only when a spec has joints
+
+    out: dict[str, dict[str, model.JointSignal]] = {"command": {}, "state": {}}
+    for side, found in entries.items():
+        for interface, (pdo, entry, bits, signed) in found.items():
+            factor = _scale(j, interface)
+            if factor is None:
+                continue
+            lo, hi = int_range(bits, signed)
+            offset = j.zero if interface == "position" else 0.0
+            out[side][interface] = model.JointSignal(
+                pdo, entry, factor, offset, lo * factor + offset, hi * factor + offset, bus
+            )
+    return out
+
+
+def _scale(j: schema.Joint, interface: str) -> float | None:
+    """The joint's SI value per device unit; None when a figure it needs is missing."""
     counts = j.encoder_counts
     if interface == "position" or (interface == "velocity" and j.velocity_unit == "counts/s"):
-        if counts is None:
-            r.err(
-                "joint-scale",
-                f"joint '{j.name}': its {interface} is in encoder counts: give encoder_counts (per motor revolution)",
-                path,
-            )
-            return None
-        return 2 * math.pi / (counts * j.gear_ratio)
+        return None if counts is None else 2 * math.pi / (counts * j.gear_ratio)
     if interface == "velocity":
         return 2 * math.pi / (60 * j.gear_ratio)
-    if j.rated_torque is None:
+    return None if j.rated_torque is None else j.rated_torque * j.gear_ratio / 1000
+
+
+def _factor(r: Resolver, j: schema.Joint, interface: str, path: Path) -> float | None:
+    """The joint's SI value per device unit, or None (reported) when a figure it needs is missing."""
+    factor = _scale(j, interface)
+    if factor is not None:
+        return factor
+    if interface == "effort":
         r.err(
             "joint-scale",
             f"joint '{j.name}': its effort is in per mille of the motor's rated torque: give rated_torque (N m)",
             path,
         )
-        return None
-    return j.rated_torque * j.gear_ratio / 1000
+    else:
+        r.err(
+            "joint-scale",
+            f"joint '{j.name}': its {interface} is in encoder counts: give encoder_counts (per motor revolution)",
+            path,
+        )
+    return None
 
 
 def _signal(r: Resolver, j: schema.Joint, ref: str, side: str, path: Path) -> model.Signal | None:
@@ -165,6 +216,10 @@ def _device_range(s: model.Signal) -> tuple[float, float]:
     return ends[0], ends[1]
 
 
+def _carrier(c: model.JointSignal) -> str:
+    return f"{c.signal} of PDO {c.message}" if c.bus else f"signal {c.message}.{c.signal}"
+
+
 def _limits(
     r: Resolver, j: schema.Joint, sides: dict[str, dict[str, model.JointSignal]], path: Path
 ) -> dict[str, tuple[float, float]] | None:
@@ -190,8 +245,8 @@ def _limits(
             if lo < carrier.lowest or hi > carrier.highest:
                 r.err(
                     "joint-limits",
-                    f"joint '{j.name}': {interface} limits {_num(lo)}..{_num(hi)} do not fit signal "
-                    f"{carrier.message}.{carrier.signal}, which carries {_num(carrier.lowest)}..{_num(carrier.highest)}"
+                    f"joint '{j.name}': {interface} limits {_num(lo)}..{_num(hi)} do not fit "
+                    f"{_carrier(carrier)}, which carries {_num(carrier.lowest)}..{_num(carrier.highest)}"
                     f" {_UNITS[interface]} at this scaling",
                     lpath,
                 )

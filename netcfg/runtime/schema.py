@@ -75,8 +75,8 @@ def obj(null: bool = False, optional: bool = False, **fields: F) -> F:
     return F("obj", null=null, optional=optional, fields=fields)
 
 
-def num(lo: float, hi: float, null: bool = False) -> F:
-    return F("float", lo, hi, null)
+def num(lo: float, hi: float, null: bool = False, optional: bool = False) -> F:
+    return F("float", lo, hi, null, optional)
 
 
 BOOL = F("bool")
@@ -170,10 +170,15 @@ ECAT_SLAVE = obj(
     dc=obj(assign_activate=i(0, U16), sync0_cycle_ns=ns(), sync0_shift_ns=ns()),
     entries=lst(obj(direction=enum("outputs", "inputs"), pdo=i(0x1600, 0x1BFF), index=i(0, U16), sub=i(0, U8),
                     bits=i(1, 64), name=text(), bit_offset=i(0, 8 * U32))),
+    # what the simulator runs the cycle with, and the analysis' bound it holds the frame's passing against
+    forwarding_ns=ns(optional=True), cable_m=num(0, 1e6, optional=True), frame_passed_ns=ns(optional=True),
 )
 ETHERCAT = obj(
     optional=True, cycle_ns=ns(1), sync0_cycle_ns=ns(1), sync0_shift_ns=ns(), master=name(null=True),
     master_jitter_ns=ns(), out_bytes=i(0, U32), in_bytes=i(0, U32), slaves=lst(ECAT_SLAVE),
+    # the cycle's frames (each one LRW datagram of the image) and the analysis' bounds the simulator holds them to
+    frames=lst(obj(data_bytes=i(0, U16), wire_bytes=i(1, U16)), optional=True), latency_ns=ns(optional=True),
+    dc_precision_ns=ns(optional=True),
 )
 BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),

@@ -6,6 +6,8 @@
     babble:NODE@1s[..2s][=ID]   the node floods its buses with back-to-back frames of identifier ID (default 0)
     lose:MESSAGE@100ms          the first instance of MESSAGE queued at or after that instant is lost (CAN or
                                 Ethernet: for Ethernet, queued = handed to the producer's NIC)
+    lose:BUS@100ms              on an EtherCAT segment: the frame of the first cycle starting at or after that
+                                instant is lost, which the master sees as a working-counter mismatch
     master-fail@2s[:BACKUP]     the FTT-CAN master stops; the backup master (a node named *backup*, or BACKUP)
                                 notices the missing trigger message and takes over
 
@@ -128,9 +130,15 @@ class Fault:
             if self.target is not None and self.target in sc.eth_owner:  # Ethernet
                 sc.eth_owner[self.target].lose_at(self.target, self.at_ns)
                 return
+            lose_cycle = getattr(sc.protocols.get(self.target or ""), "lose_cycle_at", None)
+            if lose_cycle is not None:  # a bus whose cyclic frame carries its data (EtherCAT)
+                lose_cycle(self.at_ns)
+                return
             if self.target not in sc.msg_source:
                 hint = _hint(self.target, [*sc.msg_source, *sc.eth_owner])
-                raise FaultError(f"fault 'lose': no CAN or Ethernet message named '{self.target}'{hint}")
+                raise FaultError(
+                    f"fault 'lose': no CAN or Ethernet message named '{self.target}', nor an EtherCAT bus{hint}"
+                )
             bus, src = sc.msg_source[self.target]
             bus.lose.setdefault(src, []).append(self.at_ns)
         elif self.kind == "master-fail":

@@ -24,7 +24,8 @@ MAX_FRAME_ERROR_RATE = 1 / 9
 def events_per_second(cfg: runtime.RuntimeConfig) -> dict[str, Fraction]:
     """What generates simulation events, and how many per simulated second: every periodic or sporadic message
     (at its period or minimum inter-arrival), every task job (at its period, or at the rate of what activates it),
-    every SYNC and FTT-CAN elementary cycle. A sporadic source counts at its fastest rate: an upper bound."""
+    every SYNC, FTT-CAN elementary cycle and EtherCAT cycle. A sporadic source counts at its fastest rate: an upper
+    bound."""
     second = 10**9
     rates: dict[str, Fraction] = {}
     msg_rate: dict[str, Fraction] = {}
@@ -38,7 +39,7 @@ def events_per_second(cfg: runtime.RuntimeConfig) -> dict[str, Fraction]:
     for b in cfg.buses:
         if b.canopen is not None:
             sync_rate[b.name] = Fraction(second, b.canopen.sync_period_ns)
-        for what, period_ns in protocols.of(b).sim_events(b):  # a SYNC, an FTT-CAN elementary cycle
+        for what, period_ns in protocols.of(b).sim_events(b):  # a SYNC, an FTT-CAN elementary cycle, an EtherCAT cycle
             rates[what] = Fraction(second, period_ns)
     for n in cfg.nodes:
         for t in n.tasks:

@@ -131,6 +131,7 @@ def collect(sc: Scenario, wall_s: float = 0.0) -> RunResult:
         report = getattr(driver, "report", None)
         if report is not None:
             res.protocols[bus] = [report()]
+            res.frames += int(res.protocols[bus][0].get("frames_on_wire", 0))  # a segment's cyclic frames
     for tr in sc.flows:
         res.flow_latency[tr.name] = np.asarray(tr.latency.samples, dtype=np.int64)
         if tr.delivery is not None:
@@ -233,7 +234,7 @@ def summary(res: RunResult) -> dict[str, Any]:
     for bus, reps in res.protocols.items():  # a protocol's own cycles held against its analysis (CANopen's SYNC)
         texts = [text for i, rep in enumerate(reps) for text in _run_texts(rep.get("violations", []), i, res.runs)]
         if texts:
-            exceeded.append(f"{bus}.sync_cycle")
+            exceeded.append(f"{bus}.{reps[0].get('cycle_name', 'sync_cycle')}")
             violations += [f"bus {bus}: {text}" for text in texts]
     duration = res.duration_ns / 1e9
     out: dict[str, Any] = {
@@ -414,7 +415,37 @@ def _protocol_text(bus: str, rep: dict[str, Any]) -> list[str]:
                 f"{link['utilization']:.4f}, longest queue {link['max_queue']}, lost {link['lost']}"
             )
         return out
+    if "expected_wkc" in rep:
+        return _ethercat_text(bus, rep)
     return [f"  bus {bus}: {json.dumps(rep)[:200]}"]
+
+
+def _ethercat_text(bus: str, rep: dict[str, Any]) -> list[str]:
+    """An EtherCAT segment's cycles: the frames' return against the analysis, each slave's passing and SYNC0."""
+    out = [
+        f"  bus {bus}: EtherCAT, {rep['cycles']} cycles of {rep['cycle_us']:g} us, {rep['lost_frames']} frames "
+        f"lost, {rep['wkc_mismatches']} working-counter mismatches (expected {rep['expected_wkc']})"
+    ]
+    lat = rep.get("latency_us")
+    if lat:
+        bound = "-" if lat["analysed"] is None else f"{lat['analysed']:g}"
+        out.append(
+            f"    frames back at the master {lat['min']:g}-{lat['max']:g} us after the cycle starts (analysed "
+            f"{bound}), {rep['mailbox_room_us']:g} us left for mailbox traffic"
+        )
+    for node, s in rep["slaves"].items():
+        p = s.get("frame_passed_us")
+        if p is None:
+            continue
+        analysed = "-" if p["analysed"] is None else f"{p['analysed']:g}"
+        line = f"    {node:<16} frame passed up to {p['max']:g} us (analysed {analysed})"
+        if "sync0_margin_us" in s:
+            e = s["sync0_error_ns"]
+            line += f", SYNC0 {s['sync0_margin_us']:g} us after it at least (DC error {e['min']:g}..{e['max']:g} ns)"
+        out.append(line)
+    for m in rep.get("mismatches", ()):
+        out.append(f"    {m['time_us'] / 1000:10.3f} ms  working counter {m['wkc']}: {m['why']}")
+    return out
 
 
 def _f(x: float | None) -> str:

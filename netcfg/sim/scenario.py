@@ -7,7 +7,8 @@ for a real master too. What runs:
 * CAN buses arbitrate frame by frame (netcfg.sim.can_bus); free-running messages (periodic at their period,
   sporadic at their minimum inter-arrival time, the worst case the analysis assumes) come as release streams;
 * FTT-CAN buses get their master (netcfg.protocols.ftt.sim), CANopen buses their master cycle and drives
-  (netcfg.sim.canopen), Ethernet buses their switches (netcfg.sim.ethernet); with mode "unsync" every CAN bus
+  (netcfg.sim.canopen), Ethernet buses their switches (netcfg.sim.ethernet), EtherCAT segments their cyclic
+  frames through the slaves (netcfg.sim.ethercat); with mode "unsync" every CAN bus
   runs as plain, unsynchronised CAN instead, from the same configuration;
 * tasks that flows mention run when they are activated (period, trigger, SYNC or message), for a time drawn
   between BCET and WCET, and the flows are measured as data age (netcfg.sim.flows).
@@ -149,6 +150,10 @@ class Scenario:
                 net = EthernetNetwork(self, bus)
                 self.protocols[bus.name] = net
                 self.eth_owner.update(dict.fromkeys(net.owned, net))
+            elif bus.ethercat is not None:  # an EtherCAT segment: runtime.json's section of it
+                from netcfg.sim.ethercat import EthercatSegment
+
+                self.protocols[bus.name] = EthercatSegment(self, bus)
         self._start_free_running_tasks()
         for f in opts.faults:
             f.install(self)

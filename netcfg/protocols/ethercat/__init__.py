@@ -6,10 +6,10 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.ethercat import ETHERCAT
-from netcfg.protocols.base import Protocol
+from netcfg.protocols.base import JointEntries, Protocol
 
 if TYPE_CHECKING:
-    from netcfg import model
+    from netcfg import model, runtime
     from netcfg.bus_analysis import Analysis
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
@@ -26,6 +26,11 @@ class EtherCatProtocol(Protocol):
 
         return analyze_segment(m, bus, diags)
 
+    def joint_entries(self, bus: model.Bus, node: str, axis: int) -> JointEntries | None:
+        from netcfg.protocols.ethercat.joints import joint_entries
+
+        return joint_entries(bus, node, axis)
+
     def assumptions(self, bus: model.Bus, fifo_nodes: tuple[str, ...]) -> list[str]:
         from netcfg.protocols.ethercat.analysis import ASSUMES
 
@@ -34,7 +39,10 @@ class EtherCatProtocol(Protocol):
     def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
         from netcfg.protocols.ethercat.runtime_section import runtime_section
 
-        return {"ethercat": runtime_section(bus.ethercat)}
+        return {"ethercat": runtime_section(bus, bus.ethercat)}
+
+    def sim_events(self, bus: runtime.Bus) -> tuple[tuple[str, int], ...]:
+        return () if bus.ethercat is None else ((f"EtherCAT cycle of bus '{bus.name}'", bus.ethercat["cycle_ns"]),)
 
 
 ETHERCAT_PROTOCOL = EtherCatProtocol("ethercat", ETHERCAT)

@@ -18,7 +18,10 @@ The model, per cycle:
   are this figure).
 - The end of the last frame has passed slave k after the jitter, the wire time, and the forwarding delays and
   cables up to k: SYNC0 (each slave's shift after the cycle start) must come later, or the slave latches outputs
-  from the frame that is still passing.
+  from the frame that is still passing. A slave's SYNC0 may come early by the precision of distributed clocks
+  against the reference clock (100 ns: Beckhoff's EtherCAT terminal documentation, "Distributed Clock": the master
+  "synchronizes the local clock with the master clock in the EtherCAT bus with a precision of < 100 ns"), so the
+  shift must exceed the frame's passing by that much; what is left is the slave's SYNC0 margin.
 - What the latency leaves of the cycle is the room for mailbox traffic (CoE SDOs in frames of their own).
 
 Beckhoff's figures: Beckhoff Automation, "Next Generation Ethernet: EtherCAT I/O" (product overview, as published
@@ -41,11 +44,14 @@ from netcfg.diagnostics import Collector
 from netcfg.links import ethercat as link
 from netcfg.protocols.ethercat.segment import Segment
 
+DC_PRECISION_NS = 100  # SYNC0 against the reference clock (Beckhoff, "Distributed Clock": "< 100 ns")
+
 ASSUMES = [
     "one LRW datagram per frame carries the process image (outputs then inputs), several frames back to back when "
     f"it exceeds {link.MAX_DATAGRAM_DATA} bytes; the master sends a cycle's first frame at most its master_jitter "
     "late and waits for the last one to come back within the cycle",
     "each slave adds its forwarding delay to the round trip once (default 1 us, an RJ45 coupler's); cables at 0.7 c",
+    f"every DC slave's SYNC0 within {DC_PRECISION_NS} ns of the reference clock (the master's cycle locked to it)",
     "no frame is lost (a lost frame is a working-counter mismatch the master must detect) and mailbox traffic goes "
     "in the room the cyclic frames leave",
 ]
@@ -115,11 +121,12 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
             "or map less",
             m.source.at((*seg.path, "cycle")),
         )
-    slaves = []
+    slaves: list[dict[str, Any]] = []
     early: dict[tuple[str | int, ...], list[tuple[str, int, int]]] = {}  # SYNC0 too early, by the shift's place
     for s, passed in zip(seg.slaves, t.passed_ns):
         shift = s.sync0_shift_ns if s.sync0_shift_ns is not None else seg.sync0_shift_ns
-        ok = shift >= passed and (s.min_cycle_ns is None or seg.cycle_ns >= s.min_cycle_ns)
+        margin = shift - DC_PRECISION_NS - passed
+        ok = margin >= 0 and (s.min_cycle_ns is None or seg.cycle_ns >= s.min_cycle_ns)
         if s.min_cycle_ns is not None and seg.cycle_ns < s.min_cycle_ns:
             diags.add(
                 "min-cycle",
@@ -127,7 +134,7 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
                 f"{s.min_cycle_ns / 1000:g} us; bus '{bus.name}' runs {seg.cycle_ns / 1000:g} us",
                 m.source.at((*s.path, "min_cycle")),
             )
-        if s.assign_activate and shift < passed:
+        if s.assign_activate and margin < 0:
             where = (*s.path, "sync0_shift") if s.sync0_shift_ns is not None else (*seg.path, "sync0_shift")
             early.setdefault(where, []).append((s.node, shift, passed))
         slaves.append(
@@ -137,8 +144,11 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
                 "device": s.device,
                 "out_bytes": s.out_bytes,
                 "in_bytes": s.in_bytes,
+                "forwarding_us": us(s.forwarding_ns),
+                "cable_m": s.cable_m,
                 "frame_passed_us": us(passed),
                 "sync0_shift_us": us(shift),
+                "sync0_margin_us": us(margin) if s.assign_activate else None,
                 "assign_activate": f"0x{s.assign_activate:04X}",
                 "ok": ok,
             }
@@ -149,8 +159,9 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
         diags.add(
             "dc-shift",
             f"SYNC0 comes {shift / 1000:g} us after the cycle starts, but the last frame has passed slave '{node}' "
-            f"only {passed / 1000:.2f} us after (slaves {names} latch the outputs of a frame still passing): shift "
-            f"SYNC0 to {-(-passed // 1000)} us or later",
+            f"only {passed / 1000:.2f} us after (slaves {names} latch the outputs of a frame still passing, with "
+            f"SYNC0 up to {DC_PRECISION_NS} ns early by distributed clocks' precision): shift SYNC0 to "
+            f"{-(-(passed + DC_PRECISION_NS) // 1000)} us or later",
             m.source.at(where),
         )
     row["cycle"] = {
@@ -166,6 +177,8 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector) -> dict[st
         "master_jitter_us": us(t.jitter_ns),
         "latency_us": us(t.latency_ns),
         "mailbox_room_us": us(max(room, 0)),
+        "dc_precision_us": us(DC_PRECISION_NS),
+        "sync0_margin_us": min((m for x in slaves if (m := x["sync0_margin_us"]) is not None), default=None),
         "ok": room >= 0,
     }
     row["slaves"] = slaves

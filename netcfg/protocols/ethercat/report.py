@@ -1,4 +1,6 @@
-"""The text report's rows of an EtherCAT segment: the cycle's budget and each slave's place in it."""
+"""The report rows of an EtherCAT segment, in check's text and in report.md: the cycle's budget (the frames on the
+wire, the slaves' delays, the cables, the master's jitter, the room left for mailbox traffic, SYNC0's margin) and
+each slave's place in it."""
 
 from __future__ import annotations
 
@@ -15,6 +17,11 @@ def render_cycle(bus: dict[str, Any], table: Any, num: Any) -> list[str]:
         f"{num(c['mailbox_room_us'])} us left for mailbox traffic"
         + ("" if c["ok"] else " (NO: the cycle is too short)"),
     ]
+    if c.get("sync0_margin_us") is not None:
+        out.append(
+            f"  SYNC0 after the frame has passed with {num(c['sync0_margin_us'])} us to spare at the tightest slave "
+            f"(distributed clocks' precision {num(c['dc_precision_us'])} us taken off)"
+        )
     rows = [
         [
             str(s["position"]),
@@ -24,11 +31,46 @@ def render_cycle(bus: dict[str, Any], table: Any, num: Any) -> list[str]:
             str(s["in_bytes"]),
             num(s["frame_passed_us"]),
             num(s["sync0_shift_us"]),
+            "-" if s.get("sync0_margin_us") is None else num(s["sync0_margin_us"]),
             s["assign_activate"],
             num(s["ok"], false="NO"),
         ]
         for s in bus["slaves"]
     ]
-    head = ["pos", "slave", "device", "out B", "in B", "frame passed/us", "SYNC0/us", "DC", "ok"]
-    out.extend(table(head, rows, "rllrrrrrl"))
+    head = ["pos", "slave", "device", "out B", "in B", "frame passed/us", "SYNC0/us", "margin/us", "DC", "ok"]
+    out.extend(table(head, rows, "rllrrrrrrl"))
     return out
+
+
+def cycle_view(bus: dict[str, Any], num: Any) -> dict[str, Any]:
+    """What report.md shows of the bus's cycle (templates/report.md.j2): the budget's figures, and per slave
+    (headers, alignment, rows) for its table."""
+    c = bus["cycle"]
+    rows = [
+        [
+            str(s["position"]),
+            s["node"],
+            s["device"],
+            str(s["out_bytes"]),
+            str(s["in_bytes"]),
+            num(s.get("forwarding_us")),
+            num(s.get("cable_m")),
+            num(s["frame_passed_us"]),
+            num(s["sync0_shift_us"]) if s.get("sync0_margin_us") is not None else "-",
+            num(s.get("sync0_margin_us")),
+            s["assign_activate"],
+            "ok" if s["ok"] else "**NO**",
+        ]
+        for s in bus["slaves"]
+    ]
+    head = [
+        "pos", "slave", "device", "out bytes", "in bytes", "delay (us)", "cable (m)", "frame passed (us)",
+        "SYNC0 (us)", "SYNC0 margin (us)", "DC", "verdict",
+    ]
+    return {
+        **{k: num(v) for k, v in c.items() if isinstance(v, (int, float)) and not isinstance(v, bool)},
+        "frame_bytes": ", ".join(map(str, c["frame_bytes"])),
+        "ok": c["ok"],
+        "has_margin": c.get("sync0_margin_us") is not None,
+        "slaves": (head, "rllrrrrrrrll", rows),
+    }

@@ -1,7 +1,8 @@
 """ethercat/<bus>/<node>.yaml: each slave's configuration for ICube's ethercat_driver_ros2 (its GenericEcSlave and
 EcCiA402Drive plugins read it): vendor_id, product_id, assign_activate, the start-up sdo list, the rpdo/tpdo
-channels with their ros2_control command and state interfaces, and the sync managers, with the field names of the
-driver's published configurations (ethercat_driver/examples/configurations/*.yaml)."""
+channels with their ros2_control command and state interfaces (and, on a joint's channels, the factor and offset
+between the device's units and the joint's), and the sync managers, with the field names of the driver's published
+configurations (ethercat_driver/examples/configurations/*.yaml)."""
 
 from __future__ import annotations
 
@@ -57,16 +58,40 @@ def channel_type(index: int, bits: int, data_type: str) -> str:
     return f"uint{bits}" if bits in (8, 16, 32, 64) else f"bit{bits}"
 
 
-def _pdos(pdos: list[AssignedPdo], interfaces: dict[int, str], key: str) -> list[dict[str, Any]]:
+Scaling = dict[tuple[str, str], tuple[float, float]]  # (PDO, entry name) -> (factor, offset)
+
+
+def scaling(m: model.Model, bus: model.Bus, node: str) -> Scaling:
+    """The channel factors of the node's joints, as the driver applies them (ethercat_interface's
+    EcPdoChannelManager: a state interface = factor * the entry + offset; the entry written = factor * the command
+    interface + offset): the joint's SI units per device unit on the state side, their inverse on the command
+    side (netcfg.resolve.joints derives them from the gear ratio, the encoder's counts and the rated torque)."""
+    out: Scaling = {}
+    for j in m.joints.values():
+        if j.node != node:
+            continue
+        for c in j.state.values():
+            if c.bus == bus.name:
+                out[(c.message, c.signal)] = (c.from_dev, c.offset)
+        for c in j.command.values():
+            if c.bus == bus.name:
+                out[(c.message, c.signal)] = (1 / c.from_dev, -c.offset / c.from_dev + 0.0)  # + 0.0: no -0.0
+    return out
+
+
+def _pdos(pdos: list[AssignedPdo], interfaces: dict[int, str], key: str, scaled: Scaling) -> list[dict[str, Any]]:
     out = []
     for p in pdos:
         channels = []
-        for index, sub, bits, _name, data_type in p.entries:
+        for index, sub, bits, name, data_type in p.entries:
             channel = f"index: 0x{index:04x}, sub_index: {sub}, type: {channel_type(index, bits, data_type)}"
             if index in interfaces:
                 channel += f", {key}: {interfaces[index]}"
             if key == "command_interface" and index:
                 channel += ", default: 0"
+            factor = scaled.get((f"0x{p.index:04X}", name))
+            if factor is not None:
+                channel += f", factor: {factor[0]!r}" + (f", offset: {factor[1]!r}" if factor[1] else "")
             channels.append(channel)
         out.append({"index": f"0x{p.index:04x}", "channels": channels})
     return out
@@ -88,8 +113,8 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
                     f"value: {x['value']}"
                     for x in startup_sdos(s)
                 ],
-                "rpdo": _pdos(s.rx, COMMANDS, "command_interface"),
-                "tpdo": _pdos(s.tx, STATES, "state_interface"),
+                "rpdo": _pdos(s.rx, COMMANDS, "command_interface", scaled := scaling(m, bus, s.node)),
+                "tpdo": _pdos(s.tx, STATES, "state_interface", scaled),
                 "sm": [
                     {
                         "index": sm.number,

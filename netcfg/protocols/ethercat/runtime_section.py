@@ -1,11 +1,16 @@
 """runtime.json's section of an EtherCAT segment: what a SOEM master (through pysoem) applies in each slave's
 configuration hook (the PO2SO hook, in PRE-OP): the CoE start-up SDOs, then the sync managers, FMMUs and DC
-activation, and where each entry of the process image lies. Checked against netcfg.runtime.schema.ETHERCAT."""
+activation, and where each entry of the process image lies; and what the simulator runs the cycle with and holds
+it against (netcfg.sim.ethercat): each slave's forwarding delay and cable, the frames, and the analysis' bounds
+(the frame's return to the master, its passing each slave, distributed clocks' precision). Checked against
+netcfg.runtime.schema.ETHERCAT."""
 
 from __future__ import annotations
 
 from typing import Any
 
+from netcfg import model
+from netcfg.protocols.ethercat.analysis import DC_PRECISION_NS, segment_timing
 from netcfg.protocols.ethercat.segment import Segment, Slave
 
 ASSIGN = {"rx": 0x1C12, "tx": 0x1C13}
@@ -34,9 +39,10 @@ def startup_sdos(s: Slave) -> list[dict[str, int]]:
     return out
 
 
-def runtime_section(seg: Segment) -> dict[str, Any]:
+def runtime_section(bus: model.Bus, seg: Segment) -> dict[str, Any]:
+    timing = segment_timing(bus, seg)
     slaves = []
-    for s in seg.slaves:
+    for s, passed in zip(seg.slaves, timing.passed_ns):
         sms = {sm.kind: sm for sm in s.sync_managers}
         fmmu = []
         if s.out_bytes and "Outputs" in sms:
@@ -101,6 +107,9 @@ def runtime_section(seg: Segment) -> dict[str, Any]:
                     else 0,
                 },
                 "entries": entries,
+                "forwarding_ns": s.forwarding_ns,
+                "cable_m": s.cable_m,
+                "frame_passed_ns": passed,  # the analysis' bound: the last frame's end has passed the slave
             }
         )
     return {
@@ -112,4 +121,7 @@ def runtime_section(seg: Segment) -> dict[str, Any]:
         "out_bytes": seg.out_bytes,
         "in_bytes": seg.in_bytes,
         "slaves": slaves,
+        "frames": [{"data_bytes": d, "wire_bytes": w} for d, w in zip(timing.frames, timing.frame_bytes)],
+        "latency_ns": timing.latency_ns,  # the analysis' bound: the last frame back at the master
+        "dc_precision_ns": DC_PRECISION_NS,
     }
