@@ -65,7 +65,7 @@ def judged(wall_ms: float, cpu_ms: float, goal: float) -> str:
         return "met"
     if cpu_ms <= goal:
         return "met on CPU time (wall time not: the machine is loaded)"
-    return f"not met ({cpu_ms / goal:.1f}x over on CPU time)"
+    return f"not met ({cpu_ms / goal:.2f}x over on CPU time)"
 
 
 def main() -> None:
