@@ -8,8 +8,8 @@ editor's text, then the diagnostics converted to LSP's), on ALLEX-2 (specs/allex
 message CAN set of benchmarks/random_can.py, after one warm-up check of each: the median and the best of --runs, in
 wall time and in this process's CPU time. Beside each, the yardstick a user has without the server: the same spec
 checked by a cold `netcfg check` process (median of 3, wall and CPU). The closing `goal:` lines judge the median
-wall time when the machine is idle enough for it to match the CPU time, and say which they judged on (CPU time,
-the same work measured without what other users of a shared machine take).
+wall time; where only the median CPU time meets the goal (on a shared machine the wall time also counts what
+other users take), they say so.
 """
 
 from __future__ import annotations
