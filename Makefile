@@ -53,6 +53,7 @@ generated: $(BIN)/.installed
 bench: $(BIN)/.installed
 	$(BIN)/python -c "import netcfg.emit; netcfg.emit.precompile_templates()"  # templates edited since installing
 	$(BIN)/python benchmarks/bench_check.py
+	$(BIN)/python benchmarks/bench_dbc.py  # check F.dbc against cantools' own load of the same file
 	$(BIN)/python benchmarks/bench_build.py
 	$(BIN)/python benchmarks/bench_sim.py
 	$(BIN)/python benchmarks/bench_lsp.py  # warm re-checks inside the language server

@@ -1,9 +1,10 @@
 """How long `netcfg check` takes, and how netcfg's CAN analysis compares with pyCPA's.
 
-Prints figures only (no assertions; the machine may be shared):
+Prints figures only (no assertions; the machine may be shared), and closing `goal:` lines (the cold check of
+ALLEX-2 at or under 0.25 s, the 5,000-message check under 150 MB):
   1. whole-process wall time, CPU time (user + system) and peak resident memory of
      `python -m netcfg check --format json SPEC` (median, min, max of --runs runs; CPU: the median; memory: the
-     largest of the runs) on specs/large_plant.yaml and on random
+     largest of the runs) on specs/allex2.yaml, specs/large_plant.yaml and on random
      plain-CAN sets (benchmarks/random_can.py) of 100, 1,000 and 5,000 messages; for the random sets also of
      `netcfg check F.dbc --bitrate 500k` on the same set written as a DBC by netcfg's DBC emitter (cycle times
      in whole ms, as DBC files carry them);
@@ -150,24 +151,27 @@ def pycpa_analyse(
     return (out["times"], out["cpu"]), out["wcrt"]
 
 
-GOAL_RATIO = 50  # the whole check process against pyCPA's analysis alone, 1,000 messages
+GOAL_COLD_S = 0.25  # a cold `netcfg check` of ALLEX-2, whole process (the editor-support issue)
 GOAL_PEAK_MB = 150  # a 5,000-message check
 
 
 def print_goals(goals: dict[str, Any]) -> None:
-    """The speed and memory goals of this benchmark, each with its figure and whether it is met."""
+    """The goals of this benchmark, each with its figure and whether it is met. The cold check is judged on its
+    median wall time; where only the CPU time (user + system, the same on an idle machine for this single-threaded
+    process, and far less moved by other users of a shared one) meets it, the line says so. The DBC goal (at most
+    1.3x cantools' own load of the same file) is benchmarks/bench_dbc.py's."""
     print()
-    if "random_can_1000" in goals:
-        ours, dbc, peer, _, _ = goals["random_can_1000"]
-        for what, times in (("as a spec", ours), ("as a DBC", dbc)):
-            if peer and times:
-                wall_x = statistics.median(peer[0]) / statistics.median(times[0])
-                cpu_x = statistics.median(peer[1]) / statistics.median(times[1])
-                verdict = "met" if wall_x >= GOAL_RATIO else f"{GOAL_RATIO / wall_x:.1f}x short"
-                print(f"goal: check of 1,000 messages {what} >= {GOAL_RATIO}x pyCPA: {wall_x:.1f}x wall, "
-                      f"{cpu_x:.1f}x CPU: {verdict}")  # fmt: skip
-            else:
-                print(f"goal: check of 1,000 messages {what} >= {GOAL_RATIO}x pyCPA: no pyCPA figure")
+    if "allex2" in goals:
+        (walls, cpus), _, _, _, _ = goals["allex2"]
+        wall, cpu = statistics.median(walls), statistics.median(cpus)
+        if wall <= GOAL_COLD_S:
+            verdict = "met"
+        elif cpu <= GOAL_COLD_S:
+            verdict = "met on CPU time (wall time not: the machine is loaded)"
+        else:
+            verdict = f"not met ({cpu / GOAL_COLD_S:.2f}x over on CPU time)"
+        print(f"goal: cold check of ALLEX-2, whole process, <= {GOAL_COLD_S} s: {wall:.3f} s wall "
+              f"[{min(walls):.3f}-{max(walls):.3f}], {cpu:.3f} s CPU (median of {len(walls)}): {verdict}")  # fmt: skip
     if "random_can_5000" in goals:
         _, _, _, peak, dbc_peak = goals["random_can_5000"]
         worst = max(peak, dbc_peak or 0)
@@ -189,7 +193,7 @@ def main() -> None:
     rows, compare = [], []
     goals: dict[str, Any] = {}  # label -> (check, DBC check, pyCPA) times and peaks, for the goal lines
     with tempfile.TemporaryDirectory(prefix="netcfg-bench-") as tmp:
-        specs = [("large_plant", ROOT / "specs" / "large_plant.yaml")]
+        specs = [("allex2", ROOT / "specs" / "allex2.yaml"), ("large_plant", ROOT / "specs" / "large_plant.yaml")]
         specs += [(f"random_can_{n}", write_random_can(n, Path(tmp))) for n in args.sizes]
         for label, spec in specs:
             check_times, code, peak_mb, check_cpu = wall(spec, args.runs)

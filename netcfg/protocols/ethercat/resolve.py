@@ -6,16 +6,20 @@ the process image it makes. The cycle's timing is the analysis' (analysis.py).""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from netcfg import model
 from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.inputs import check_input_path
 from netcfg.links.ethercat import BIT_RATES
-from netcfg.protocols.ethercat import esi as esi_file
-from netcfg.protocols.ethercat.segment import AssignedPdo, Segment, Slave, SyncManagerSetup
 from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.suggest import did_you_mean
+
+if TYPE_CHECKING:  # imported where used: a spec without an EtherCAT segment does not pay for them (nor for XML)
+    from netcfg.protocols.ethercat import esi as esi_file
+    from netcfg.protocols.ethercat.segment import Segment, Slave
 
 DEFAULT_FORWARDING_NS = 1_000  # Beckhoff EK1101 technical data: "propagation delay 1 us typ."
 DC_SYNC0 = 0x0300  # register 0x0980: cyclic unit and SYNC0 active (ETG.1020), what CiA 402 drives' ESIs give
@@ -97,6 +101,8 @@ class EthercatRules(BusRules):
         if shift is None or not 0 <= shift < sync0:
             self.r.err("dc", "the SYNC0 shift must lie inside the SYNC0 cycle", (*epath, "sync0_shift"))
             shift = cycle // 2
+        from netcfg.protocols.ethercat.segment import Segment
+
         seg = Segment(cycle, master, [], sync0, shift, sec.master_jitter.to_ns(None) or 0, epath)
         seen: dict[str, int] = {}
         for i, s in enumerate(sec.slaves):
@@ -144,6 +150,8 @@ class EthercatRules(BusRules):
                 "ethercat", f"slave '{s.node}' needs its device: 'esi: {{file: ...}}' or 'profile: cia402'", spath
             )
             return None
+        from netcfg.protocols.ethercat.segment import Slave
+
         forwarding = s.forwarding_delay.to_ns(None) if s.forwarding_delay else DEFAULT_FORWARDING_NS
         slave = Slave(
             s.node,
@@ -172,6 +180,9 @@ class EthercatRules(BusRules):
         return self.from_profile(s, builtin_profile(s.profile), slave, spath)
 
     def from_esi(self, s: schema.EthercatSlave, e: schema.EthercatEsi, slave: Slave, spath: Path) -> Slave | None:
+        from netcfg.protocols.ethercat import esi as esi_file
+        from netcfg.protocols.ethercat.segment import AssignedPdo, SyncManagerSetup
+
         try:
             file = check_input_path(self.r.spec_dir, e.file, "ESI file")
             dev = esi_file.select(esi_file.read_esi(file), e.device, e.file)
@@ -342,6 +353,8 @@ class EthercatRules(BusRules):
         return out
 
     def from_profile(self, s: schema.EthercatSlave, prof: DeviceProfile, slave: Slave, spath: Path) -> Slave:
+        from netcfg.protocols.ethercat.segment import AssignedPdo, SyncManagerSetup
+
         slave.vendor_id, slave.product_code = prof.vendor_id or 0, prof.product_code or 0
         slave.revision, slave.device, slave.source = prof.revision or 0, prof.name, prof.source
         mappings = self.mappings(s, spath, None, prof.source)
