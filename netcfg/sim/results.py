@@ -392,8 +392,12 @@ def _protocol_text(bus: str, rep: dict[str, Any]) -> list[str]:
         if done and done["max"] is not None:
             bound = "no bound" if done["analysed"] is None else f"{done['analysed']:g} us"
             out.append(f"    SYNC -> last TPDO up to {done['max']:g} us, analysed {bound}")
-        for event in rep.get("supervision", ()):  # the live master's supervision, as netcfg run reports it
-            out.append(f"    {event['time_s']:9.3f} s  {event['text']} -> {event['action']}")
+        # the drills played (--fault KIND:ARG) and the live master's supervision, in time order, as netcfg run says
+        lines = [(d["time_s"], 0, f"drill: {d['text']}") for d in rep.get("drills", ())]
+        lines += [(e["time_s"], 1, f"{e['text']} -> {e['action']}") for e in rep.get("supervision", ())]
+        out += [f"    {t:9.3f} s  {text}" for t, _, text in sorted(lines, key=lambda line: line[:2])]
+        if rep.get("ended_by"):
+            out.append(f"    cycle ended by {rep['ended_by']}")
         for drive, d in rep["drives"].items():
             p = d["period_us"] or {}
             out.append(
