@@ -307,7 +307,11 @@ def log_check(cfg: RuntimeConfig, frames: list[Any]) -> dict[str, Any]:
 
     report = check_frames(cfg, frames)
     keys = ("ok", "violation_count", "violations_by_kind", "warning_count")
-    return {**{k: report[k] for k in keys}, "violations": report["violations"][:20]}
+    out = {**{k: report[k] for k in keys}, "violations": report["violations"][:20]}
+    if report.get("fault_phases"):  # the drills' faults, as verify reads them (netcfg.verify.fault_phases)
+        out["fault_phases"] = report["fault_phases"]
+        out["phase_sequence"] = report["phase_sequence"]
+    return out
 
 
 def text(doc: dict[str, Any]) -> str:
@@ -373,7 +377,16 @@ def text(doc: dict[str, Any]) -> str:
         lines += ["", "  outside the analysis:", *(f"    {v}" for v in doc["violations"])]
     check = doc.get("log_check")
     if check is not None:
-        lines += ["", f"  trace held against the analysis (as netcfg verify): {check['violation_count']} violations"]
+        faults = len(check.get("fault_phases", ()))
+        lines += [
+            "",
+            f"  trace held against the analysis (as netcfg verify): {check['violation_count']} violations"
+            + (f", {faults} fault phase{'s' if faults > 1 else ''} (their gaps are the faults', not violations)"
+               if faults else ""),
+        ]
+        for ph in check.get("phase_sequence", ()) if faults else ():
+            detail = f": {ph['detail']}" if ph.get("detail") else ""
+            lines.append(f"    {ph['from_us'] / 1e6:9.6f} .. {ph['to_us'] / 1e6:9.6f} s  {ph['phase']}{detail}")
         for v in check["violations"]:
             lines.append(f"    {v['time_us'] / 1e6:.6f} s: {v['kind']}: {v['message'] or ''} {v['detail']}")
     if doc.get("note"):
