@@ -127,9 +127,14 @@ def test_run_reset_with_recover_reads_as_fault_recovery_normal(tmp_path: Path) -
 def test_a_host_clock_is_told_from_frames_closer_than_the_wire_allows() -> None:
     cfg = load(ROOT / "generated" / "allex2" / "runtime.json")
     bus = [b for b in cfg.buses if b.is_can]
-    wire, host = HostClock(bus), HostClock(bus)
-    flags, length, on = np.zeros(2, np.uint8), np.full(2, 8), np.zeros(2, np.int64)
-    wire.take(np.array([1000, 1111]), on, flags, length)  # 111 us apart: possible
-    host.take(np.array([1000, 1050]), on, flags, length)  # 50 us apart: not on a wire
-    assert wire.report() == {"clock": "wire", "pairs": 1, "too_close": 0}
-    assert host.report() == {"clock": "host", "pairs": 1, "too_close": 1, "closest_us": 50, "needed_us": 111}
+    wire, host, glitch = HostClock(bus), HostClock(bus), HostClock(bus)
+    n = 20
+    flags, length, on = np.zeros(n, np.uint8), np.full(n, 8), np.zeros(n, np.int64)
+    wire.take(1000 + 111 * np.arange(n), on, flags, length)  # 111 us apart: possible
+    host.take(1000 + 50 * np.arange(n), on, flags, length)  # 50 us apart: not on a wire
+    one_off = 1000 + 111 * np.arange(n)
+    one_off[10] -= 61  # one frame 50 us after the one before: an edited log, not a host's clock
+    glitch.take(one_off, on, flags, length)
+    assert wire.report() == {"clock": "wire", "pairs": n - 1, "too_close": 0}
+    assert host.report() == {"clock": "host", "pairs": n - 1, "too_close": n - 1, "closest_us": 50, "needed_us": 111}
+    assert glitch.report()["clock"] == "wire" and glitch.report()["too_close"] == 1
