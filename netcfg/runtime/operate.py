@@ -247,14 +247,7 @@ class _Operation(RecoveringOperation):
             _, until = self.stalls.pop(0)
             self.out.drills.append((elapsed, Drill("stall", until_ns=round(until * 1e9)).description()))
             self.clock.sleep_until(self.first + until)
-        # every frame queued before the read ended has been fed (the queue is FIFO): check at that instant, so a
-        # heartbeat still queued after a late wake-up is not mistaken for silence
-        self.supervisor.check(record.read_done)
-        self._poll_recoveries()
-        while len(self.out.events) < len(self.supervisor.events):
-            event = self.supervisor.events[len(self.out.events)]
-            self.out.events.append((event.time - self.first, event))
-            self._react(event, event.time - self.first)
+        # the statuswords of this cycle first: an event of this cycle (an EMCY's FAULT) has the last word on a state
         for name, enabler in self.enablers.items():
             node = self.out.nodes[name]
             node.enable_path = list(enabler.path)
@@ -265,6 +258,14 @@ class _Operation(RecoveringOperation):
                 node.state = "ENABLE FAILED"
                 if self.stop_requested is None:
                     self.stop_requested = f"enable failed: {name}"
+        # every frame queued before the read ended has been fed (the queue is FIFO): check at that instant, so a
+        # heartbeat still queued after a late wake-up is not mistaken for silence
+        self.supervisor.check(record.read_done)
+        self._poll_recoveries()
+        while len(self.out.events) < len(self.supervisor.events):
+            event = self.supervisor.events[len(self.out.events)]
+            self.out.events.append((event.time - self.first, event))
+            self._react(event, event.time - self.first)
         if self.plan.on_cycle is not None:
             self.plan.on_cycle(record, self.out)
         return self.stop_requested is None
