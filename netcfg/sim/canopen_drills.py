@@ -28,7 +28,7 @@ reported with the instants it missed (`sync_gaps`, as run's JSON).
 from __future__ import annotations
 
 import contextlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import can
 
@@ -53,9 +53,12 @@ EMCY_REGISTER = 0x01  # CiA 301 7.5.2.2: generic error
 def install(sc: SimRun, drill: Drill) -> None:
     """Give the drill to the live CANopen master of the bus it acts on (a node drill: the bus of its node; a master
     drill: every live CANopen master). ValueError when there is none."""
-    from netcfg.sim.canopen import CanopenMaster
-
-    live = [d for d in sc.protocols.values() if isinstance(d, CanopenMaster) and d.live]
+    # the CANopen masters: the drivers with a DrillPlayer (netcfg.sim.canopen imports this module, not the reverse)
+    live = [
+        cast("CanopenMaster", d)
+        for d in sc.protocols.values()
+        if isinstance(getattr(d, "drills", None), DrillPlayer) and getattr(d, "live", False)
+    ]
     if not live:
         raise ValueError(
             "a drill acts on a CANopen bus simulated with its live master (PDO mode, --canopen pdo, not --mode "
