@@ -28,7 +28,7 @@ reported with the instants it missed (`sync_gaps`, as run's JSON).
 from __future__ import annotations
 
 import contextlib
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import can
 
@@ -38,10 +38,25 @@ from netcfg.runtime.supervision import BUS_OFF_TEXT, Event, Supervisor, bus_back
 from netcfg.sim.engine import NEVER
 
 if TYPE_CHECKING:
+    from netcfg.runtime import Bus
     from netcfg.runtime.canopen_master import CycleRecord, MasterCycle
-    from netcfg.sim.canopen import CanopenMaster
+    from netcfg.sim.can_bus import CanBus
     from netcfg.sim.pybus import SimCanBus, VirtualClock
     from netcfg.sim.run import SimRun
+
+
+class CanopenMaster(Protocol):
+    """What the drills use of netcfg.sim.canopen's master (which imports this module, so it is not imported)."""
+
+    sc: SimRun
+    can: CanBus
+    bus: Bus
+    master: str
+    drives: list[str]
+    drills: DrillPlayer
+
+    @property
+    def live(self) -> bool: ...
 
 NMT_ID = 0x000
 NMT_PRE_OPERATIONAL = 0x80  # CiA 301 7.2.8.3.1.1: enter pre-operational
