@@ -19,6 +19,8 @@ SDO_TX_BASE = 0x580  # server -> client
 SDO_RX_BASE = 0x600  # client -> server
 HEARTBEAT_BASE = 0x700
 NMT_STATE_OPERATIONAL = 0x05  # a heartbeat's one byte, CiA 301 7.2.8.3.2.4 (0x00 boot-up, 0x04 stopped, 0x7F pre-op)
+NMT_STATE_PRE_OPERATIONAL = 0x7F
+NMT_BOOT_UP = 0x00  # the boot-up message, CiA 301 7.2.8.3.2.1
 HEARTBEAT_TIME = 0x1017  # producer heartbeat time in ms (CiA 301 7.5.2.19)
 LSS_IDS = (0x7E4, 0x7E5)
 

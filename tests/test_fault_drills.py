@@ -15,6 +15,7 @@ Sources of the numbers:
 
 from __future__ import annotations
 
+import json
 import time
 import uuid
 from dataclasses import replace
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import can
 import pytest
-from conftest import ROOT, allex2_cia402_over_pdos
+from conftest import ROOT, allex2_cia402_over_pdos, cli
 
 import netcfg.runtime as rt
 from netcfg.runtime.cia402 import OPERATION_ENABLED, SWITCH_ON_DISABLED
@@ -471,3 +472,17 @@ def test_an_sdo_timeout_out_of_range_is_an_error(tmp_path: Path) -> None:
     (error,) = report["errors"]
     assert (error["code"], error["line"]) == ("sdo-timeout", 49)  # hip_l's on_loss is on line 48 of allex2.yaml
     assert "more than 0 and at most 60 s" in error["message"]
+
+
+def test_an_emcy_of_a_drive_enabled_over_its_pdos_leaves_it_listed_in_fault(tmp_path: Path) -> None:
+    """hip_l walked up through its PDOs (its statusword in TPDO2) sends EMCY 0x2310 at 0.5 s; on_emcy stop_all (the
+    default). CiA 402: the drive's fault reaction ends in FAULT; the statusword of the cycle that saw the EMCY was
+    sampled at the SYNC before it and says OPERATION ENABLED: the EMCY has the last word, so the node is listed in
+    FAULT, as its safe stop finds it (before, the table said OPERATION ENABLED beside 'safe stop -> FAULT')."""
+    spec = tmp_path / "pdo402.yaml"
+    spec.write_text(allex2_cia402_over_pdos(), encoding="utf-8")
+    proc = cli("run", str(spec), "--simulated-drives", "--cycles", "50", "--emcy", "hip_l@0.5s", "--format", "json")
+    doc = json.loads(proc.stdout)
+    hip_l = next(n for n in doc["nodes"] if n["name"] == "hip_l")
+    assert (hip_l["state"], hip_l["safe_state"]) == ("FAULT", "FAULT")
+    assert doc["ended_by"].startswith("stop_all: hip_l: EMCY 0x2310")

@@ -35,12 +35,11 @@ from typing import Any, TextIO
 from netcfg import jsontext
 from netcfg.commands.base import Subcommands
 from netcfg.commands.options import internal_error, io_problem, not_json
+from netcfg.runtime.drills import DEFAULT_ABORT, DEFAULT_EMCY, KINDS, NODE_KINDS, Drill, parse_drill
 
 NAME = "run"
 BATCH = False
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")
-DEFAULT_EMCY = 0x2310  # CiA 402: "continuous over-current", a drive's typical fault
-DEFAULT_ABORT = 0x08000020  # CiA 301: "data cannot be transferred or stored to the application"
 
 
 def add_parser(sub: Subcommands) -> None:
@@ -95,61 +94,6 @@ def _duration_s(text: str, what: str) -> float:
     return d.ns / 1e9
 
 
-def _span(text: str, kind: str) -> tuple[float, float]:
-    """'T..T2' -> (seconds, seconds), T2 after T."""
-    start, dots, end = text.partition("..")
-    if not dots:
-        raise ValueError(f"--{kind} {text!r}: write FROM..TO, e.g. 1s..1.2s")
-    span = _duration_s(start.strip(), f"--{kind}"), _duration_s(end.strip(), f"--{kind}")
-    if span[1] <= span[0]:
-        raise ValueError(f"--{kind} {text!r}: the span ends before it begins")
-    return span
-
-
-def _reset_drill(text: str) -> tuple[str, float, float]:
-    """'NODE@T+OUTAGE' -> (node, seconds, outage seconds)."""
-    node, at, rest = text.partition("@")
-    when, plus, outage = rest.partition("+")
-    if not at or not node or not plus:
-        raise ValueError(f"--reset {text!r}: write NODE@TIME+OUTAGE, e.g. knee_r@1s+50ms")
-    return node, _duration_s(when.strip(), "--reset"), _duration_s(outage.strip(), "--reset outage")
-
-
-def _abort_drill(text: str) -> tuple[str, int | tuple[int, int], int]:
-    """'NODE:INDEX[:SUB][=CODE]' -> (node, index or (index, sub), abort code)."""
-    where, eq, code = text.partition("=")
-    node, *obj = where.split(":")
-    try:
-        if not node or len(obj) not in (1, 2):
-            raise ValueError
-        numbers = [int(o, 0) for o in obj]
-        value = int(code, 0) if eq else DEFAULT_ABORT
-    except ValueError:
-        raise ValueError(
-            f"--sdo-abort {text!r}: write NODE:INDEX[:SUB][=CODE], e.g. knee_r:0x1A00:0=0x06010002"
-        ) from None
-    if not 0 <= numbers[0] <= 0xFFFF or (len(numbers) == 2 and not 0 <= numbers[1] <= 0xFF) or not 0 <= value < 2**32:
-        raise ValueError(f"--sdo-abort {text!r}: an index has 16 bits, a sub-index 8, an abort code 32")
-    return node, numbers[0] if len(numbers) == 1 else (numbers[0], numbers[1]), value
-
-
-def _drill(text: str, kind: str) -> tuple[str, float, int]:
-    """'NODE@T' / 'NODE@T=CODE' -> (node, seconds, code)."""
-    node, at, rest = text.partition("@")
-    if not at or not node:
-        raise ValueError(f"--{kind} {text!r}: write NODE@TIME, e.g. knee_r@1s")
-    when, eq, code = rest.partition("=")
-    if eq and kind != "emcy":
-        raise ValueError(f"--{kind} {text!r}: only --emcy takes a code")
-    try:
-        value = int(code, 0) if eq else DEFAULT_EMCY
-    except ValueError:
-        raise ValueError(f"--emcy {text!r}: the code is a number such as 0x2310") from None
-    if not 0 <= value <= 0xFFFF:
-        raise ValueError(f"--emcy {text!r}: an EMCY error code has 16 bits")
-    return node, _duration_s(when.strip(), f"--{kind}"), value
-
-
 @contextmanager
 def _config(source: Path) -> Iterator[Any]:
     """The runtime configuration; a spec is compiled in memory, its device files in a temporary folder for the
@@ -199,15 +143,9 @@ def run_command(args: argparse.Namespace) -> int:
     from netcfg import runtime
 
     try:
-        kills = [_drill(k, "kill") for k in args.kill]
-        emcys = [_drill(e, "emcy") for e in args.emcy]
-        resets = [_reset_drill(r) for r in args.reset]
-        aborts = [_abort_drill(a) for a in args.sdo_abort]
-        faults = [_drill(f, "fault") for f in args.fault]
-        for s in args.stall:
-            _span(s, "stall")  # checked here, used by _run_master
-        for s in args.bus_off:
-            _span(s, "bus-off")
+        # one grammar with `simulate --fault KIND:ARG` (netcfg.runtime.drills); --fault is an actuator's error
+        drills = {kind: [parse_drill(kind, a) for a in getattr(args, kind.replace("-", "_"))] for kind in KINDS}
+        faults = [parse_drill("fault", f) for f in args.fault]
         duration_s = _duration_s(args.duration, "--duration") if args.duration is not None else None
     except ValueError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
@@ -215,7 +153,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.cycles is not None and args.cycles < 1:
         print("netcfg: --cycles must be 1 or more", file=sys.stderr)
         return 2
-    if (kills or emcys or resets or aborts or faults) and not args.simulated_drives:
+    if (any(drills[k] for k in NODE_KINDS) or faults) and not args.simulated_drives:
         print(
             "netcfg: --kill, --emcy, --reset, --sdo-abort and --fault act on simulated drives; add --simulated-drives",
             file=sys.stderr,
@@ -246,12 +184,12 @@ def run_command(args: argparse.Namespace) -> int:
                 return 1
             actuators = _actuator_bus(args, cfg)
             if actuators is not None:
-                return _run_actuators(args, cfg, actuators, kills, faults, [emcys, resets, aborts], duration_s)
+                return _run_actuators(args, cfg, actuators, drills, faults, duration_s)
             if faults or args.set:
                 print("netcfg: --fault and --set act on an actuator bus; this run drives a CANopen bus",
                       file=sys.stderr)
                 return 2
-            return _run_master(args, cfg, kills, emcys, resets, aborts, duration_s)
+            return _run_master(args, cfg, drills, duration_s)
     except runtime.RuntimeConfigError as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 1
@@ -276,12 +214,12 @@ def _actuator_bus(args: argparse.Namespace, cfg: Any) -> str | None:
         return None  # neither: the CANopen run says why
 
 
-def _run_actuators(args: argparse.Namespace, cfg: Any, bus_name: str, kills: list[tuple[str, float, int]],
-                   faults: list[tuple[str, float, int]], canopen_drills: list[list[Any]],
-                   duration_s: float | None) -> int:
+def _run_actuators(args: argparse.Namespace, cfg: Any, bus_name: str, drills: dict[str, list[Drill]],
+                   faults: list[Drill], duration_s: float | None) -> int:
     from netcfg.run_actuators import run_actuator_bus
 
-    if any(canopen_drills) or args.stall or args.bus_off or args.samples or args.allow_missing:
+    canopen_only = any(drills[k] for k in KINDS if k != "kill")
+    if canopen_only or args.samples or args.allow_missing:
         print("netcfg: --emcy, --reset, --sdo-abort, --stall, --bus-off, --samples and --allow-missing act on a "
               f"CANopen run; bus '{bus_name}' is an actuator bus (its drills: --kill, --fault)", file=sys.stderr)
         return 2
@@ -289,18 +227,16 @@ def _run_actuators(args: argparse.Namespace, cfg: Any, bus_name: str, kills: lis
     channel = args.channel or (f"netcfg-run-{os.getpid()}" if interface == "virtual" else None)
     return run_actuator_bus(
         cfg, bus_name, interface=interface, channel=channel, simulated=args.simulated_drives, cycles=args.cycles,
-        duration_s=duration_s, settings=args.set, kills=[(n, t) for n, t, _ in kills],
-        faults=[(n, t) for n, t, _ in faults], log=args.log, stop_on_signals=_stop_on_signals, fmt=args.format,
+        duration_s=duration_s, settings=args.set,
+        kills=[(d.node or "", d.at_s) for d in drills["kill"]], faults=[(d.node or "", d.at_s) for d in faults],
+        log=args.log, stop_on_signals=_stop_on_signals, fmt=args.format,
     )
 
 
 def _run_master(
     args: argparse.Namespace,
     cfg: Any,
-    kills: list[tuple[str, float, int]],
-    emcys: list[tuple[str, float, int]],
-    resets: list[tuple[str, float, float]],
-    aborts: list[tuple[str, int | tuple[int, int], int]],
+    drills: dict[str, list[Drill]],
     duration_s: float | None,
 ) -> int:
     import can
@@ -317,7 +253,7 @@ def _run_master(
         return 2
     assert co_bus.canopen is not None
     slaves = {n.name for n in canopen_slaves(cfg, co_bus)}
-    for node, _, _ in [*kills, *emcys, *resets, *aborts]:
+    for node in (d.node for k in NODE_KINDS for d in drills[k]):
         if node not in slaves:
             print(
                 f"netcfg: '{node}' is not a CANopen slave of bus '{co_bus.name}' ({', '.join(sorted(slaves))})",
@@ -334,8 +270,8 @@ def _run_master(
         from netcfg.runtime.drives import DriveBench
 
         refused: dict[str, dict[str, Any]] = {}
-        for node, obj, code in aborts:
-            refused.setdefault(node, {"abort_writes": {}})["abort_writes"][obj] = code
+        for d in drills["sdo-abort"]:
+            refused.setdefault(str(d.node), {"abort_writes": {}})["abort_writes"][d.obj] = d.code
         bench = DriveBench(cfg, channel=str(channel), bus_name=co_bus.name, options=refused).start()
     try:
         try:
@@ -349,19 +285,16 @@ def _run_master(
             raw.shutdown()
             print(f"netcfg: cannot write the log {args.log}: {exc}", file=sys.stderr)
             return 2
-        drills: list[tuple[float, str, Callable[[], None]]] = []
-        for start, end in (_span(s, "bus-off") for s in args.bus_off):
-            drills.append(
-                (start, f"the master's CAN controller goes bus-off until {end:g} s", partial(bus.bus_off, end - start))
-            )
+        actions: list[tuple[float, str, Callable[[], None]]] = []
+        for d in drills["bus-off"]:
+            actions.append((d.at_s, d.description(), partial(bus.bus_off, d.until_s - d.at_s)))
         if bench is not None:
-            for node, at, _ in kills:
-                drills.append((at, f"{node} killed", bench[node].kill))
-            for node, at, code in emcys:
-                drills.append((at, f"{node} sends EMCY 0x{code:04X}", partial(bench[node].emergency, code)))
-            for node, at, outage in resets:
-                what = f"{node} reboots, silent for {1e3 * outage:g} ms"
-                drills.append((at, what, partial(bench[node].reboot, outage)))
+            for d in drills["kill"]:
+                actions.append((d.at_s, d.description(), bench[str(d.node)].kill))
+            for d in drills["emcy"]:
+                actions.append((d.at_s, d.description(), partial(bench[str(d.node)].emergency, d.code)))
+            for d in drills["reset"]:
+                actions.append((d.at_s, d.description(), partial(bench[str(d.node)].reboot, d.outage_s)))
         live = (
             _LiveView(sys.stdout, cycles, {m.name: m.producer for m in cfg.messages})
             if args.format == "text" and sys.stdout.isatty()
@@ -371,8 +304,8 @@ def _run_master(
             cycles=cycles,
             bus_name=co_bus.name,
             allow_missing=args.allow_missing,
-            drills=drills,
-            stalls=[_span(s, "stall") for s in args.stall],  # validated by run_command
+            drills=actions,
+            stalls=[(d.at_s, d.until_s) for d in drills["stall"]],
             on_cycle=live.update if live is not None else None,
         )
         with bus, _stop_on_signals() as arm:

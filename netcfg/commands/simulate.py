@@ -65,7 +65,9 @@ def add_parser(sub: Subcommands) -> None:
                    help="simulate a spec that check refuses (to see how it fails); the analysis does not hold")
     p.add_argument("--fault", action="append", default=[], metavar="FAULT",
                    help="inject a fault (repeatable): ber=1e-6, bit-error@12ms, crash:NODE@2s, "
-                   "babble:NODE@1s..2s, lose:MESSAGE@100ms, master-fail@2s")
+                   "babble:NODE@1s..2s, lose:MESSAGE@100ms, master-fail@2s; or a drill of netcfg run, "
+                   "KIND:ARG for run's --KIND ARG: kill:NODE@1s, emcy:NODE@1s[=CODE], reset:NODE@1s+50ms, "
+                   "stall:1s..1.2s, bus-off:1s..1.2s")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -215,6 +217,8 @@ def _simulate(args: argparse.Namespace, cfg: runtime.RuntimeConfig, opts: SimOpt
         doc_out["deadline_misses"]
         or doc_out["lost"]
         or doc_out.get("findings")
+        # a node lost, an EMCY, a reboot, missed SYNC instants: what the live master's supervision reported (as run)
+        or any(rep.get("supervision") for reps in doc_out.get("protocols", {}).values() for rep in reps)
         or (doc_out["exceeds_analysis"] and not excused)
         or (not doc_out.get("log_check", {"ok": True})["ok"] and not excused)
     )

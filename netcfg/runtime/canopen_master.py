@@ -105,7 +105,9 @@ class MasterCycle:
     (0.132 ms) would fit the order of a Raspberry Pi's sleep latency, but the paper does not say, and K is tuned per
     machine anyway. Default 0: SystemClock spins the last 0.5 ms, so the residual error is a few microseconds.
     With drift_free=True the iteration ends at first_start + (i + 1) T - K instead, so errors do not accumulate over
-    a run (the paper's anchoring lets them add up to its 1.266 ms per 8 s gait cycle).
+    a run (the paper's anchoring lets them add up to its 1.266 ms per 8 s gait cycle). A loop held for more than a
+    period (a stalled host, a bus-off) goes on at the next instant of its grid: the instants it missed are skipped,
+    not sent in a burst.
 
     The SYNC instant. In the paper's loop the SYNC follows the writes at once, so it moves with the writing time
     (Table 5: 0.23 to 8.56 ms). A spec that gives the master a SYNC task (`sync: true` on the SYNC producer, e.g.
@@ -355,7 +357,14 @@ class MasterCycle:
             processed = clock.now()
             processing = processed - start
             waiting = self.period_s - processing - self.k_s  # eq. (1)
-            target = first + (i + 1) * self.period_s - self.k_s if self.drift_free else start + self.period_s - self.k_s
+            if self.drift_free:
+                target = first + (i + 1) * self.period_s - self.k_s
+                behind = clock.now() - target
+                if behind > self.period_s:  # a held loop (a stalled host, a bus-off): the instants it missed are
+                    first += math.floor(behind / self.period_s) * self.period_s  # gone, not caught up in a burst
+                    target = first + (i + 1) * self.period_s - self.k_s
+            else:
+                target = start + self.period_s - self.k_s
             self._sleep_until(target)
             end = clock.now()
             record = CycleRecord(

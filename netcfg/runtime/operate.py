@@ -48,10 +48,11 @@ from netcfg.runtime.canopen_setup import NMT_PRE_OPERATIONAL, NMT_START
 from netcfg.runtime.cia402 import STATUSWORD, Cia402Error, PdoEnabler, enable_operation, safe_stop
 from netcfg.runtime.clock import Clock, SystemClock
 from netcfg.runtime.codec import Number
+from netcfg.runtime.drills import Drill
 from netcfg.runtime.operate_outcome import NodeOutcome, Outcome, Plan
 from netcfg.runtime.operate_recovery import RecoveringOperation
 from netcfg.runtime.operate_state import sdo_io
-from netcfg.runtime.supervision import Event, Supervisor
+from netcfg.runtime.supervision import BUS_OFF_TEXT, Event, Supervisor, bus_back, sync_gap
 
 __all__ = ["BusLog", "NodeOutcome", "Outcome", "Plan", "operate"]
 
@@ -184,7 +185,7 @@ class _Operation(RecoveringOperation):
                 master,
                 "bus-off",
                 "hold",
-                "the master's CAN controller is bus-off: it stops sending and waits for the bus",
+                BUS_OFF_TEXT,
             )
         )
         while self._bus_is_off() and self.stop_requested is None:
@@ -200,20 +201,8 @@ class _Operation(RecoveringOperation):
         if self.bus_back is None or self.supervisor is None or self.master is None or self.first is None:
             return
         (detected, back), self.bus_back = self.bus_back, None
-        off_ms, recovery_ms = 1e3 * (back - detected), 1e3 * (record.sync_sent - back)
-        self.out.bus_offs.append(
-            {
-                "detected_s": round(detected - self.first, 6),
-                "back_s": round(back - self.first, 6),
-                "first_sync_s": round(record.sync_sent - self.first, 6),
-                "off_ms": round(off_ms, 3),
-                "recovery_ms": round(recovery_ms, 3),
-            }
-        )
-        text = (
-            f"the bus is back after {off_ms:.1f} ms off (detected at {detected - self.first:.3f} s); the first SYNC "
-            f"went out {recovery_ms:.1f} ms after its return"
-        )
+        found, text = bus_back(detected, back, record.sync_sent, self.first)
+        self.out.bus_offs.append(found)
         self.supervisor.events.append(Event(record.sync_sent, self.master.master.name, "bus-on", "continue", text))
 
     def _missed_syncs(self, record: CycleRecord) -> None:
@@ -225,21 +214,13 @@ class _Operation(RecoveringOperation):
         last, self.last_sync = self.last_sync, record.sync_sent
         if last is None:
             return
-        period = self.master.period_s
-        gap = record.sync_sent - last
-        missed = round(gap / period) - 1
-        if missed < 1:
+        found = sync_gap(last, record.sync_sent, self.master.period_s, self.first)
+        if found is None:
             return
-        instants = [round(last - self.first + k * period, 6) for k in range(1, missed + 1)]
-        from_s, to_s = last - self.first, record.sync_sent - self.first
-        self.out.sync_gaps.append(
-            {"from_s": round(from_s, 6), "to_s": round(to_s, 6), "missed": missed, "instants_s": instants}
+        self.out.sync_gaps.append(found[0])
+        self.supervisor.events.append(
+            Event(record.sync_sent, self.master.master.name, "missed-sync", "continue", found[1])
         )
-        text = (
-            f"no SYNC for {1e3 * gap:.1f} ms ({from_s:.3f} s to {to_s:.3f} s): {missed} SYNC instants of the "
-            f"{1e3 * period:g} ms period missed; the cycle resumed"
-        )
-        self.supervisor.events.append(Event(record.sync_sent, self.master.master.name, "missed-sync", "continue", text))
 
     def _commands(self, cycle: int, samples: Samples) -> dict[str, dict[str, Number]]:
         """The controlwords of the PDO-mapped drives, from the statuswords of the last cycle."""
@@ -264,16 +245,9 @@ class _Operation(RecoveringOperation):
             self.out.drills.append((elapsed, text))
         while self.stalls and self.stalls[0][0] <= elapsed:
             _, until = self.stalls.pop(0)
-            self.out.drills.append((elapsed, f"the master's loop stalls until {until:g} s: no SYNC, no RxPDO"))
+            self.out.drills.append((elapsed, Drill("stall", until_ns=round(until * 1e9)).description()))
             self.clock.sleep_until(self.first + until)
-        # every frame queued before the read ended has been fed (the queue is FIFO): check at that instant, so a
-        # heartbeat still queued after a late wake-up is not mistaken for silence
-        self.supervisor.check(record.read_done)
-        self._poll_recoveries()
-        while len(self.out.events) < len(self.supervisor.events):
-            event = self.supervisor.events[len(self.out.events)]
-            self.out.events.append((event.time - self.first, event))
-            self._react(event, event.time - self.first)
+        # the statuswords of this cycle first: an event of this cycle (an EMCY's FAULT) has the last word on a state
         for name, enabler in self.enablers.items():
             node = self.out.nodes[name]
             node.enable_path = list(enabler.path)
@@ -284,6 +258,14 @@ class _Operation(RecoveringOperation):
                 node.state = "ENABLE FAILED"
                 if self.stop_requested is None:
                     self.stop_requested = f"enable failed: {name}"
+        # every frame queued before the read ended has been fed (the queue is FIFO): check at that instant, so a
+        # heartbeat still queued after a late wake-up is not mistaken for silence
+        self.supervisor.check(record.read_done)
+        self._poll_recoveries()
+        while len(self.out.events) < len(self.supervisor.events):
+            event = self.supervisor.events[len(self.out.events)]
+            self.out.events.append((event.time - self.first, event))
+            self._react(event, event.time - self.first)
         if self.plan.on_cycle is not None:
             self.plan.on_cycle(record, self.out)
         return self.stop_requested is None

@@ -37,7 +37,9 @@ from canopen.nmt import NmtMaster
 from netcfg import cia301
 from netcfg.runtime import Bus, RuntimeConfig
 
-__all__ = ["ACTIONS", "REBOOT_ACTIONS", "EmcyRecord", "Event", "Supervisor"]
+__all__ = ["ACTIONS", "REBOOT_ACTIONS", "EmcyRecord", "Event", "Supervisor", "bus_back", "sync_gap"]
+
+BUS_OFF_TEXT = "the master's CAN controller is bus-off: it stops sending and waits for the bus"
 
 ACTIONS = ("stop_all", "stop_node", "continue")
 REBOOT_ACTIONS = ("recover", "stop_node", "stop_all")
@@ -272,3 +274,41 @@ class Supervisor:
 
     def lost(self, name: str) -> bool:
         return self.watched[name].lost_at is not None
+
+
+def sync_gap(last_s: float, sync_s: float, period_s: float, first_s: float) -> tuple[dict[str, object], str] | None:
+    """SYNC instants that passed without a SYNC between two SYNCs sent at last_s and sync_s: a SYNC more than half
+    a period after its instant means the master's loop was held (a stalled host, a bus-off). -> (the JSON record
+    of `sync_gaps`, the event's text), times from first_s; None when no instant was missed."""
+    gap = sync_s - last_s
+    missed = round(gap / period_s) - 1
+    if missed < 1:
+        return None
+    instants = [round(last_s - first_s + k * period_s, 6) for k in range(1, missed + 1)]
+    from_s, to_s = last_s - first_s, sync_s - first_s
+    record: dict[str, object] = {
+        "from_s": round(from_s, 6), "to_s": round(to_s, 6), "missed": missed, "instants_s": instants
+    }
+    text = (
+        f"no SYNC for {1e3 * gap:.1f} ms ({from_s:.3f} s to {to_s:.3f} s): {missed} SYNC instants of the "
+        f"{1e3 * period_s:g} ms period missed; the cycle resumed"
+    )
+    return record, text
+
+
+def bus_back(detected_s: float, back_s: float, sync_s: float, first_s: float) -> tuple[dict[str, object], str]:
+    """A bus-off the master rode out, detected at detected_s, the bus back at back_s, the first SYNC after it at
+    sync_s: (the JSON record of `bus_offs`, the "bus-on" event's text), times from first_s."""
+    off_ms, recovery_ms = 1e3 * (back_s - detected_s), 1e3 * (sync_s - back_s)
+    record: dict[str, object] = {
+        "detected_s": round(detected_s - first_s, 6),
+        "back_s": round(back_s - first_s, 6),
+        "first_sync_s": round(sync_s - first_s, 6),
+        "off_ms": round(off_ms, 3),
+        "recovery_ms": round(recovery_ms, 3),
+    }
+    text = (
+        f"the bus is back after {off_ms:.1f} ms off (detected at {detected_s - first_s:.3f} s); the first SYNC "
+        f"went out {recovery_ms:.1f} ms after its return"
+    )
+    return record, text

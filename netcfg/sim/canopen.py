@@ -25,6 +25,7 @@ from netcfg.runtime import Bus, Task
 from netcfg.runtime.canopen_master import CycleRecord, MasterCycle, MasterRun
 from netcfg.runtime.supervision import Supervisor
 from netcfg.sim.can_bus import CanBus
+from netcfg.sim.canopen_drills import DrillPlayer
 from netcfg.sim.engine import NEVER
 from netcfg.sim.stats import spread
 
@@ -68,7 +69,7 @@ class CanopenMaster:
         self._sync_count = 0
         # who answers a SYNC, grouped by how long after its reception: (delay, [(every n-th SYNC, when its producer
         # crashes, the TPDO's source on the bus)])
-        self._answers: list[tuple[int, list[tuple[int, int, int]]]] | None = None
+        self._answers: list[tuple[int, list[tuple[int, int, int, str]]]] | None = None
         # tasks a SYNC starts, grouped by how long after its reception they start: (after, [task])
         self._sync_tasks: list[tuple[int, list[Task]]] = []
         self.sdo_timeouts: dict[str, int] = {}  # drive -> SDO transfers that timed out and were repeated
@@ -76,6 +77,7 @@ class CanopenMaster:
         self.run: MasterRun | None = None
         self.supervisor: Supervisor | None = None
         self._lead = 0.0  # how long after a cycle's start its SYNC is due (MasterCycle.sync_lead_s)
+        self.drills = DrillPlayer(self)  # `--fault KIND:ARG` drills on this bus (netcfg.sim.canopen_drills)
         if self.mode in ("pdo", "external"):
             sc.listen(self.sync.name, self._on_sync)
         elif self.mode == "sdo":
@@ -115,9 +117,12 @@ class CanopenMaster:
         # the live master's supervision too: heartbeats against their consumer times, EMCY (as `netcfg run` has it)
         supervisor = self.supervisor = Supervisor(sc.cfg, self.bus, [d for d in self.drives if self._watched(d)])
 
+        drills = self.drills
+
         def after_cycle(record: CycleRecord) -> bool:
+            go = drills.after_cycle(record) if drills else True
             supervisor.check(record.read_done)
-            return True
+            return drills.react(record) and go if drills else True
 
         try:
             cycle = MasterCycle(
@@ -133,6 +138,8 @@ class CanopenMaster:
                 after_cycle=after_cycle,
             )
             self._lead = cycle.sync_lead_s
+            if drills:
+                drills.bind(cycle, pybus, clock, supervisor)
             supervisor.start(clock.now())
             self.run = cycle.run(1 << 62, until_s=until_ns / 1e9)
         finally:
@@ -171,7 +178,7 @@ class CanopenMaster:
             answers = self._answers = _grouped(
                 (
                     self._drive_delay(m.producer),
-                    (self.every[m.name], sc.crash_at.get(m.producer, NEVER), sc.msg_source[m.name][1]),
+                    (self.every[m.name], sc.crash_at.get(m.producer, NEVER), sc.msg_source[m.name][1], m.producer),
                 )
                 for m in self.tpdos
             )
@@ -182,7 +189,12 @@ class CanopenMaster:
             )
         at = sc.sim.at
         for delay, tpdos in answers:
-            due = [(crash, src) for every, crash, src in tpdos if n % every == 0 and end < crash]
+            stopped = self.drills.stopped  # drives an NMT command stopped (a drill's reaction)
+            due = [
+                (crash, src)
+                for every, crash, src, producer in tpdos
+                if n % every == 0 and end < crash and (not stopped or end < stopped.get(producer, NEVER))
+            ]
             if due:
                 at(end + delay, self._tpdos, due)
         now = sc.sim.now
@@ -357,6 +369,8 @@ class CanopenMaster:
             out["collection_us"] = spread(np.asarray(done))
         violations, as_analysed = self._held_to_analysis(run, out)
         findings += as_analysed
+        self.drills.report(out)
+        findings += self.drills.findings
         if findings:
             out["findings"] = findings
         if violations:
@@ -372,11 +386,11 @@ class CanopenMaster:
         findings, not violations. Returns (violations, findings); the measured and analysed figures go into `out`."""
         bound = self.co.sync_completion_ns
         window = round(run.read_window_s * 1e9)
-        crash = self.sc.crash_at
+        quiet = self.drills.quiet_from  # a crashed, rebooted or stopped drive's TPDOs are not due
         incomplete = sum(
             1
             for rec in run.records
-            if any(round(rec.sync_sent * 1e9) < crash.get(run.producers[m], NEVER) for m in rec.missing)
+            if rec.sync_ok and any(round(rec.sync_sent * 1e9) < quiet(run.producers[m]) for m in rec.missing)
         )
         # a SYNC or TPDO a `lose` fault took leaves one cycle incomplete: the fault's doing, not the timing's
         incomplete = max(0, incomplete - self._lost_by_faults())

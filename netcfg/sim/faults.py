@@ -11,18 +11,30 @@
     master-fail@2s[:BACKUP]     the FTT-CAN master stops; the backup master (a node named *backup*, or BACKUP)
                                 notices the missing trigger message and takes over
 
+and the fault drills of a CANopen bus, written as `netcfg run` writes them (`--fault KIND:ARG` is `run --KIND ARG`,
+one grammar: netcfg.runtime.drills), played on the simulated bus's live master (netcfg.sim.canopen_drills):
+
+    kill:NODE@T                 the node drops off the bus (the same as crash:NODE@T)
+    emcy:NODE@T[=CODE]          the node sends an EMCY and faults
+    reset:NODE@T+OUTAGE         the node reboots: silent for OUTAGE, then its boot-up message, PRE-OPERATIONAL
+    stall:T..T2                 the master's loop pauses: no SYNC, no RxPDO
+    bus-off:T..T2               the master's CAN controller is bus-off
+    sdo-abort:NODE:INDEX[:SUB]  refused: it acts on the set-up over SDO, which a simulation starts after
+
 Without :BUS a bit-error fault applies to every CAN bus. Bit errors are CAN only: the Ethernet model has no
 error model (a corrupted Ethernet frame is simply dropped by the receiver's FCS check; use lose: for that).
 """
 
 from __future__ import annotations
 
+import contextlib
 import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from netcfg.runtime.drills import Drill, DrillError, parse_drill, split_drill
 from netcfg.sim.engine import NEVER
 from netcfg.spec.units import parse_instant_option
 
@@ -43,15 +55,41 @@ def parse_time(text: str) -> int:
 
 @dataclass(frozen=True)
 class Fault:
-    kind: str  # "ber" | "bit-error" | "crash" | "babble" | "lose" | "master-fail"
+    kind: str  # "ber" | "bit-error" | "crash" | "babble" | "lose" | "master-fail" | "drill"
     target: str | None = None  # node, message, bus or backup master
     at_ns: int = 0
     until_ns: int = NEVER
     value: float = 0.0  # bit error rate, or the babbler's identifier
+    drill: Drill | None = None  # kind "drill": which (netcfg.runtime.drills)
+
+    @property
+    def silences(self) -> str | None:
+        """The node this fault silences from at_ns on: a crash, and a reset (after its boot-up message the node is
+        PRE-OPERATIONAL with its default dictionary: no PDO, and no heartbeat the configuration could say)."""
+        if self.kind == "crash" or (self.drill is not None and self.drill.kind == "reset"):
+            return self.target
+        return None
 
     @staticmethod
     def parse(text: str) -> Fault:
         t = text.strip()
+        drill = split_drill(t)
+        if drill is not None:
+            try:
+                d = parse_drill(*drill)
+            except DrillError as exc:
+                # the same message, naming the option as written here
+                said = str(exc).replace(f"--{drill[0]} {drill[1].strip()!r}", f"fault '{t}'", 1)
+                raise FaultError(said) from None
+            if d.kind == "kill":  # the run's name for a crash
+                return Fault("crash", d.node, d.at_ns, drill=d)
+            if d.kind == "sdo-abort":
+                raise FaultError(
+                    f"fault '{text}': an SDO abort refuses a write of the set-up, and a simulation starts with every "
+                    "node set up (its run is the cyclic phase); drill it with netcfg run --simulated-drives "
+                    f"--sdo-abort {drill[1]}"
+                )
+            return Fault("drill", d.node, d.at_ns, d.until_ns or NEVER, float(d.code), d)
         if t.startswith("ber="):
             rate, _, bus = t[4:].partition(":")
             try:
@@ -86,7 +124,8 @@ class Fault:
             return Fault("master-fail", m.group(2), parse_time(m.group(1)))
         raise FaultError(
             f"cannot read fault '{text}': write one of ber=1e-6, bit-error@12ms, crash:NODE@2s, "
-            "babble:NODE@1s..2s=0x0, lose:MESSAGE@100ms, master-fail@2s"
+            "babble:NODE@1s..2s=0x0, lose:MESSAGE@100ms, master-fail@2s, or a drill as netcfg run writes it: "
+            "kill:NODE@1s, emcy:NODE@1s=0x2310, reset:NODE@1s+50ms, stall:1s..1.2s, bus-off:1s..1.2s"
         )
 
     def install(self, sc: SimRun) -> None:
@@ -118,6 +157,11 @@ class Fault:
                 bus.error_times = sorted([*bus.error_times, self.at_ns])
         elif self.kind == "crash":
             node = _node(sc, self.target)
+            if self.drill is not None:  # kill: a crash, said as a drill where a live CANopen master plays drills
+                from netcfg.sim.canopen_drills import install
+
+                with contextlib.suppress(ValueError):
+                    install(sc, self.drill)
             for bus in sc.can.values():
                 sc.sim.at(self.at_ns, lambda _, b=bus: b.remove_pending(lambda s, b=b: b.sources[s].producer != node))
         elif self.kind == "babble":
@@ -141,6 +185,14 @@ class Fault:
                 )
             bus, src = sc.msg_source[self.target]
             bus.lose.setdefault(src, []).append(self.at_ns)
+        elif self.kind == "drill":
+            from netcfg.sim.canopen_drills import install
+
+            assert self.drill is not None
+            try:
+                install(sc, self.drill)
+            except ValueError as exc:
+                raise FaultError(f"fault '{self.drill.text()}': {exc}") from None
         elif self.kind == "master-fail":
             masters = [d for d in sc.protocols.values() if hasattr(d, "fail")]
             if not masters:

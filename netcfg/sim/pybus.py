@@ -134,11 +134,26 @@ class SimCanBus(can.BusABC):
         self._crash = sc.crash_at.get(node, NEVER)  # when its node crashes (sc.alive, asked at every send)
         self._channel = self.sim_bus.name
         self._frames: dict[int, tuple[int, bool, bytes, Callable[[int, bytes | None], can.Message] | None]] = {}
+        self.off: list[tuple[int, int]] = []  # [from, until) spans its controller is bus-off (a drill): no send, no rx
         self.sim_bus.monitor(self._heard)
         super().__init__(channel=channel, **kwargs)
 
+    def is_off(self, t: int) -> bool:
+        """Its controller is bus-off at t (python-can's BusState.ERROR)."""
+        return any(lo <= t < hi for lo, hi in self.off)
+
+    @property
+    def state(self) -> can.BusState:
+        return can.BusState.ERROR if self.off and self.is_off(self._sim.now) else can.BusState.ACTIVE
+
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        raise NotImplementedError("the simulator's bus state follows its bus-off drills")
+
     def _heard(self, end: int, src: int, _release: int, data: bytes | None) -> None:
         # never one of its own frames (the bus does not deliver those): like python-can's buses, no echo
+        if self.off and self.is_off(end):
+            return  # a controller that is bus-off hears nothing
         frame = self._frames.get(src)
         if frame is None:
             frame = self._frames[src] = self._frame_of(src)
@@ -187,6 +202,8 @@ class SimCanBus(can.BusABC):
         if self.sc.sim.now >= self._crash:
             self.sim_bus.drop(src)  # a crashed node sends nothing
             return
+        if self.off and self.is_off(self._sim.now):
+            raise can.CanOperationError("the CAN controller is bus-off")
         self.sim_bus.submit(src, bytes(msg.data))
 
     def recv(self, timeout: float | None = None) -> can.Message | None:

@@ -308,7 +308,11 @@ def log_check(cfg: RuntimeConfig, frames: list[Any]) -> dict[str, Any]:
 
     report = check_frames(cfg, frames)
     keys = ("ok", "violation_count", "violations_by_kind", "warning_count")
-    return {**{k: report[k] for k in keys}, "violations": report["violations"][:20]}
+    out = {**{k: report[k] for k in keys}, "violations": report["violations"][:20]}
+    if report.get("fault_phases"):  # the drills' faults, as verify reads them (netcfg.verify.fault_phases)
+        out["fault_phases"] = report["fault_phases"]
+        out["phase_sequence"] = report["phase_sequence"]
+    return out
 
 
 def text(doc: dict[str, Any]) -> str:
@@ -374,7 +378,16 @@ def text(doc: dict[str, Any]) -> str:
         lines += ["", "  outside the analysis:", *(f"    {v}" for v in doc["violations"])]
     check = doc.get("log_check")
     if check is not None:
-        lines += ["", f"  trace held against the analysis (as netcfg verify): {check['violation_count']} violations"]
+        faults = len(check.get("fault_phases", ()))
+        lines += [
+            "",
+            f"  trace held against the analysis (as netcfg verify): {check['violation_count']} violations"
+            + (f", {faults} fault phase{'s' if faults > 1 else ''} (their gaps are the faults', not violations)"
+               if faults else ""),
+        ]
+        for ph in check.get("phase_sequence", ()) if faults else ():
+            detail = f": {ph['detail']}" if ph.get("detail") else ""
+            lines.append(f"    {ph['from_us'] / 1e6:9.6f} .. {ph['to_us'] / 1e6:9.6f} s  {ph['phase']}{detail}")
         for v in check["violations"]:
             lines.append(f"    {v['time_us'] / 1e6:.6f} s: {v['kind']}: {v['message'] or ''} {v['detail']}")
     if doc.get("note"):
@@ -393,8 +406,12 @@ def _protocol_text(bus: str, rep: dict[str, Any]) -> list[str]:
         if done and done["max"] is not None:
             bound = "no bound" if done["analysed"] is None else f"{done['analysed']:g} us"
             out.append(f"    SYNC -> last TPDO up to {done['max']:g} us, analysed {bound}")
-        for event in rep.get("supervision", ()):  # the live master's supervision, as netcfg run reports it
-            out.append(f"    {event['time_s']:9.3f} s  {event['text']} -> {event['action']}")
+        # the drills played (--fault KIND:ARG) and the live master's supervision, in time order, as netcfg run says
+        lines = [(d["time_s"], 0, f"drill: {d['text']}") for d in rep.get("drills", ())]
+        lines += [(e["time_s"], 1, f"{e['text']} -> {e['action']}") for e in rep.get("supervision", ())]
+        out += [f"    {t:9.3f} s  {text}" for t, _, text in sorted(lines, key=lambda line: line[:2])]
+        if rep.get("ended_by"):
+            out.append(f"    cycle ended by {rep['ended_by']}")
         for drive, d in rep["drives"].items():
             p = d["period_us"] or {}
             out.append(

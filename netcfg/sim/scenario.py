@@ -98,7 +98,8 @@ class Scenario:
         self.can: dict[str, CanBus] = {}
         self.msg_source: dict[str, tuple[CanBus, int]] = {}
         self.eth_owner: dict[str, EthernetNetwork] = {}  # Ethernet message -> its network
-        self.crash_at: dict[str, int] = {f.target: f.at_ns for f in opts.faults if f.kind == "crash" and f.target}
+        # a crash, and a reset drill (its node's boot-up message aside: netcfg.sim.canopen_drills)
+        self.crash_at: dict[str, int] = {f.silences: f.at_ns for f in opts.faults if f.silences}
         self.lost: dict[str, int] = {}  # message -> instances that never made it (scripted loss, crash)
         self.protocols: dict[str, object] = {}  # bus -> its protocol driver (FTT master, CANopen master, network)
         self._task_runs: dict[str, list[tuple[int, int]]] = {}  # task -> (start, end) of each run, event by event

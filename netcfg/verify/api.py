@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from netcfg.runtime import RuntimeConfig
 from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker
+from netcfg.verify.fault_phases import FaultScan, add_fault_phases, excused_spans
 from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, PAYLOAD_COLUMNS, Batch, ChannelTable
+from netcfg.verify.host_clock import HostClock, host_finding
 from netcfg.verify.logs import read_log
 from netcfg.verify.phases import Phase, cyclic_span, split, sync_ids
 
@@ -28,10 +30,41 @@ def verify_log(
 ) -> dict[str, Any]:
     """Read the log in batches and check it; LogError when it cannot be read, VerifyError when the log and the
     configuration cannot be matched."""
-    # a CANopen master's log: the analysis speaks of its cyclic phase, set-up and shut-down are phases of their own
-    span = cyclic_span(cfg, read_log(log, log_format, fast=fast)[1]) if sync_ids(cfg) else None
-    channels, batches = read_log(log, log_format, fast=fast, progress=progress)
+    report = _judge(
+        cfg,
+        lambda first: read_log(log, log_format, fast=fast, progress=None if first else progress),
+        bus,
+        window_us,
+        strict,
+    )
+    report["log"] = str(log)
+    return report
+
+
+def _judge(
+    cfg: RuntimeConfig,
+    read: Callable[[bool], tuple[ChannelTable, Iterable[Batch]]],
+    bus: str | Mapping[str, str] | None,
+    window_us: int,
+    strict: bool,
+) -> dict[str, Any]:
+    """The frames `read(first read?)` gives, judged: verify's one path, for a log file and for frames in memory."""
+    # a CANopen master's log: the analysis speaks of its cyclic phase, set-up and shut-down are phases of their own;
+    # faults in it (a reboot, a lost node, an EMCY, no SYNC) are phases too (netcfg.verify.fault_phases)
+    span, faults, scan, clock = None, [], None, None
+    if sync_ids(cfg):
+        first, batches = read(True)
+        probe = Checker(cfg, first.names, bus, window_us, strict)  # the channel -> bus mapping of the checker
+        scan = FaultScan(cfg, probe.buses_of)
+        clock = HostClock(probe.buses)
+        span = cyclic_span(cfg, _scanned(batches, scan, clock, probe))
+        faults = scan.finish(span)
+    channels, batches = read(False)
     checker = Checker(cfg, channels.names, bus, window_us, strict)
+    if clock is not None and clock.host:
+        checker.host_clock = host_finding(cfg)  # lateness on a host's clock is named the host's
+    if faults and scan is not None:
+        checker.excuse(excused_spans(faults, scan.end_us or 0))
     setup, shutdown = Phase(), Phase()
     origin: list[int] = []
     judged = batches if span is None else split(batches, span, setup, shutdown, origin, checker.note_services)
@@ -46,8 +79,20 @@ def verify_log(
             "cyclic": {"from_us": span[0] - origin[0], "to_us": cyclic_end - origin[0]},
             "shutdown": shutdown.report(origin[0], services),
         }
-    report["log"] = str(log)
+    if clock is not None:
+        report["timestamps"] = clock.report()
+    if scan is not None:
+        add_fault_phases(report, faults, span, origin[0] if origin else (checker.origin_t or 0), scan.end_us or 0)
     return report
+
+
+def _scanned(batches: Iterable[Batch], scan: FaultScan, clock: HostClock, probe: Checker) -> Iterator[Batch]:
+    """The first read: the fault phases' evidence and whose clock stamped the log, batch by batch."""
+    for batch in batches:
+        scan.take(batch)
+        keep = (batch.flags & ERROR) == 0
+        clock.take(batch.t_us[keep], probe.buses_of(batch.channel)[keep], batch.flags[keep], batch.length[keep])
+        yield batch
 
 
 def check_frames(
@@ -75,6 +120,5 @@ def check_frames(
         flags.append((EXTENDED if extended else 0) | (ERROR if error else 0) | (FD if fd else 0) | (BRS if brs else 0))
         lengths.append(len(data))
         payload += bytes(data[:PAYLOAD_COLUMNS]).ljust(PAYLOAD_COLUMNS, b"\0")
-    checker = Checker(cfg, table.names, window_us=window_us)
-    checker.feed(Batch.of_columns(t, ch, ids, flags, lengths, bytes(payload)))
-    return checker.finish()
+    batch = Batch.of_columns(t, ch, ids, flags, lengths, bytes(payload))
+    return _judge(cfg, lambda _first: (table, [batch]), None, window_us, False)

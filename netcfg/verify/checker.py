@@ -59,6 +59,8 @@ from netcfg.verify.message_checks import HIST_BINS, MAX_VIOLATIONS, MessageState
 if TYPE_CHECKING:
     import can
 
+    from netcfg.verify.host_clock import HostFinding
+
 __all__ = ["MAX_VIOLATIONS", "Checker", "VerifyError"]
 
 DEFAULT_WINDOW_US = 100_000
@@ -157,8 +159,12 @@ class Checker:
         self.warnings: list[dict[str, Any]] = []
         self.warning_count = 0
         self._frame_ns: dict[int, int] = {}  # kind of frame (_frames_ns) -> its worst-case time
+        self.host_clock: HostFinding | None = None  # a host stamped the log: what its lateness is called
 
-    # --- setup --------------------------------------------------------------------------------------------------
+    def excuse(self, spans: Mapping[str, list[tuple[int, int]]]) -> None:
+        """Message -> log spans of fault phases that silence it: its gaps there are the fault's, not violations."""
+        for st in self.states:
+            st.excused = list(spans.get(st.msg.name, ()))
 
     def _state(self, m: Message, bus: int) -> MessageState:
         timing = frame_timing(m, self.buses[bus].bitrate, self.buses[bus].data_bitrate)
@@ -207,7 +213,8 @@ class Checker:
             return co.master_jitter_ns
         return 0
 
-    def _buses_of(self, channel: NDArray[np.int32]) -> NDArray[np.int64]:
+    def buses_of(self, channel: NDArray[np.int32]) -> NDArray[np.int64]:
+        """Each frame's bus index (-1: a channel of no bus), from the reader's channel numbers."""
         while len(self._channel_bus) < len(self.channels):
             name = self.channels[len(self._channel_bus)]
             self._channel_bus.append(self._bus_of_channel(name))
@@ -255,7 +262,7 @@ class Checker:
         self.frames += n
         err = (batch.flags & ERROR) != 0
         keep = ~err
-        bus = self._buses_of(batch.channel)
+        bus = self.buses_of(batch.channel)
         if err.any():
             self.error_frames += int(err.sum())
             for ti, b in zip(t[err].tolist(), bus[err].tolist()):
@@ -300,7 +307,7 @@ class Checker:
             self.origin_t = int(batch.t_us[0])
         self.unjudged += len(batch)
         keep = (batch.flags & (ERROR | EXTENDED)) == 0
-        bus = self._buses_of(batch.channel)
+        bus = self.buses_of(batch.channel)
         for b, services in self.services.items():
             on_bus = np.flatnonzero((bus == b) & keep)
             if len(on_bus):
@@ -403,6 +410,10 @@ class Checker:
         self._violation("error_frames", None, breach.first_ns // 1000, detail)
 
     def _violation(self, kind: str, st: MessageState | None, t: int, detail: str) -> None:
+        if self.host_clock is not None:  # a host stamped the log: its lateness is named (netcfg.verify.host_clock)
+            kind, detail, warn = self.host_clock(kind, st, detail)
+            if warn:
+                return self._warning(kind, st, t, detail)
         self.violation_count[kind] = self.violation_count.get(kind, 0) + 1
         if st is not None:
             st.violations += 1

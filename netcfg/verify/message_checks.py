@@ -77,6 +77,15 @@ class MessageState:
     range_out: dict[str, list[Any]] = field(default_factory=dict)  # signal -> [count, first_t, worst value]
     bad_size: list[int] = field(default_factory=list)  # [count, first_t, length]
     jitter_out: list[Any] | None = None  # intervals outside period +- slack: [count, first_t, worst, its t, its iv]
+    excused: list[tuple[int, int]] = field(default_factory=list)  # spans of fault phases that silence it
+    excused_missing: int = 0  # periods missing inside them: the fault's, not violations
+
+    def _excused(self, start: NDArray[np.int64], end: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Which gaps [start, end] overlap a fault phase that silences this message (netcfg.verify.fault_phases)."""
+        hit = np.zeros(len(start), bool)
+        for lo, hi in self.excused:
+            hit |= (start <= hi) & (end >= lo)
+        return hit
 
 
     def take(
@@ -148,7 +157,13 @@ class MessageState:
         assert period is not None
         periods = periods_spanned(iv, period, st.slack_us)
         gaps = periods >= 2
-        for k in np.flatnonzero(gaps)[:MAX_VIOLATIONS]:
+        if st.excused and gaps.any():
+            faults = gaps & st._excused(ends - iv, ends)
+            st.excused_missing += int((periods[faults] - 1).sum())
+            judged = gaps & ~faults
+        else:
+            judged = gaps
+        for k in np.flatnonzero(judged)[:MAX_VIOLATIONS]:
             missing = int(periods[k] - 1)
             st.missing += missing
             violation(
@@ -158,8 +173,8 @@ class MessageState:
                 f"{missing} period{'s' if missing > 1 else ''} missing: {iv[k] / 1000:.3f} ms since the previous "
                 f"frame, period {period / 1000:g} ms",
             )
-        if gaps.sum() > MAX_VIOLATIONS:
-            st.missing += int((periods[gaps] - 1)[MAX_VIOLATIONS:].sum())
+        if judged.sum() > MAX_VIOLATIONS:
+            st.missing += int((periods[judged] - 1)[MAX_VIOLATIONS:].sum())
         dev = np.abs(iv[~gaps] - period)
         if len(dev):
             st.dev_max = max(st.dev_max, int(np.ceil(dev.max())))
@@ -214,7 +229,9 @@ class MessageState:
             return
         if st.period_us is not None and end is not None and st.last_t is not None:
             trailing = int(periods_spanned(np.array([end - st.last_t]), st.period_us, st.slack_us)[0]) - 1
-            if trailing >= 1:
+            if trailing >= 1 and st._excused(np.array([st.last_t]), np.array([end]))[0]:
+                st.excused_missing += trailing
+            elif trailing >= 1:
                 st.missing += trailing
                 violation(
                     "gap",
@@ -261,7 +278,7 @@ class MessageState:
         assert st.period_us is not None and st.first_t is not None and st.last_t is not None
         span = st.last_t - st.first_t
         needed = int(np.floor((span * (1 - ppm / 1e6) - st.slack_us) / st.period_us)) + 1
-        short = needed - st.count - st.missing
+        short = needed - st.count - st.missing - st.excused_missing
         if short > 0:
             violation(
                 "rate",
@@ -290,6 +307,7 @@ class MessageState:
             "response_from": st.response_ref,
             "wcrt_us": st.wcrt_us,
             "missing": st.missing,
+            "missing_in_faults": st.excused_missing,
             "within_analysis": None if st.count == 0 and m.kind == "on-demand" else st.violations == 0,
             "warnings": st.warnings,
             "histograms": {

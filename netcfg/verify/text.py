@@ -35,6 +35,7 @@ def text(report: dict[str, Any]) -> str:
         "error frames, "
         f"{report['violation_count']} violations, {report['warning_count']} warnings",
         *_phase_lines(report.get("phases")),
+        *_sequence_lines(report),
         "",
         f"  {'message':<24}{'id':>9}{'count':>10}{'period min/mean/max ms':>27}{'jitter us':>11}{'bound us':>10}"
         f"{'resp max us':>13}{'wcrt us':>9}{'missing':>9}  ok",
@@ -94,7 +95,13 @@ def text(report: dict[str, Any]) -> str:
         lines.append(f"  warning: {w['time_us'] / 1e6:.6f} s: {w['kind']}: {w['message']}: {w['detail']}")
     if report["warning_count"] > 20:
         lines.append(f"  ... {report['warning_count'] - 20} more warnings (--format json lists up to 1000)")
-    lines += ["", "  inside the analysis" if report["ok"] else "  OUTSIDE THE ANALYSIS: see the violations below"]
+    if report["ok"]:
+        verdict = "  inside the analysis"
+    elif not report["violation_count"]:
+        verdict = "  A FAULT: see its phases above (no violation outside them)"
+    else:
+        verdict = "  OUTSIDE THE ANALYSIS: see the violations below"
+    lines += ["", verdict]
     return "\n".join(lines)
 
 
@@ -119,3 +126,23 @@ def _phase_lines(phases: dict[str, Any] | None) -> list[str]:
 
 def _f(x: float | None) -> str:
     return "-" if x is None else f"{x:.0f}"
+
+
+def _sequence_lines(report: dict[str, Any]) -> list[str]:
+    """The log as phases when it holds a fault (netcfg.verify.fault_phases), and whose clock stamped it."""
+    out = []
+    stamps = report.get("timestamps")
+    if stamps is not None and stamps["clock"] == "host":
+        out.append(
+            f"  timestamps: a host's, not the wire's: {stamps['too_close']} of {stamps['pairs']} frames came sooner "
+            f"after the one before than the bus can carry them (as close as {stamps['closest_us']} us, a frame needs "
+            f"{stamps['needed_us']} us); responses beyond their bound are the host's lateness (host_late)"
+        )
+    if not report.get("fault_phases"):
+        return out
+    out.append(f"  phases ({report['fault_count']} faults):")
+    for ph in report["phase_sequence"]:
+        what = ph["phase"] if ph["phase"] != "normal" else "normal operation"
+        detail = f": {ph['detail']}" if ph.get("detail") else ""
+        out.append(f"    {ph['from_us'] / 1e6:9.6f} .. {ph['to_us'] / 1e6:9.6f} s  {what}{detail}")
+    return out
