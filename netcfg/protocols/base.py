@@ -64,8 +64,10 @@ class Protocol:
 
     def over(self, link: Link) -> Protocol | str:
         """The protocol as it runs over `link` (a spec's `link:`), or why netcfg does not model it there."""
-        if link is self.link:
-            return self
+        return self if link is self.link else self.not_over(link)
+
+    def not_over(self, link: Link) -> str:
+        """Why netcfg does not model the protocol over `link` (the error at a spec's `link:` key)."""
         return f"{self.name} runs on {self.link.name} here; netcfg does not model it over {link.name}"
 
     def rules(self) -> type[BusRules]:

@@ -20,9 +20,7 @@ if TYPE_CHECKING:
 
 
 class Canopen(Protocol):
-    def over(self, link: Link) -> Protocol | str:
-        if link is self.link:
-            return self
+    def not_over(self, link: Link) -> str:
         return (
             f"CANopen over {link.name} is not modelled: CANopen FD (CiA 1301) has PDOs of up to 64 bytes and USDO "
             "in place of SDO, while netcfg's CANopen (its PDO checks, EDS/DCF and live master) is CiA 301's on "

@@ -26,9 +26,7 @@ if TYPE_CHECKING:
 
 
 class Ftt(Protocol):
-    def over(self, link: Link) -> Protocol | str:
-        if link is self.link:
-            return self
+    def not_over(self, link: Link) -> str:
         return (
             f"FTT-CAN over {link.name} is not modelled: the elementary cycle's trigger message and windows are "
             "analysed and simulated for classical frames; write link: can"
