@@ -6,15 +6,54 @@ protocol names its rules (`netcfg.protocols.Protocol.rules`).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from pathlib import Path as FsPath
+from typing import TYPE_CHECKING, Literal, Protocol
 
 from netcfg import model
 from netcfg.model import MessageKind
 from netcfg.spec import schema
-from netcfg.spec.source import Path
+from netcfg.spec.source import Path, SourceMap
 
 if TYPE_CHECKING:
-    from netcfg.resolve.core import Resolver
+    from netcfg.diagnostics import Collector
+    from netcfg.spec.units import Duration
+
+
+class Resolution(Protocol):
+    """What the layers' hooks read and call of the resolution they take part in: the spec, the model built so far
+    and the shared checks. netcfg.resolve.core.Resolver is one; the hooks name this type, not the resolver, so the
+    layers below the resolver do not depend on it (not even by annotations)."""
+
+    spec: schema.Spec
+    smap: SourceMap
+    d: Collector
+    spec_dir: FsPath
+    model: model.Model
+    spec_nodes: dict[str, schema.Node]
+    spec_buses: dict[str, schema.Bus]
+    slowest: dict[Path, int]  # period_range's slowest period, by the message's or trigger's path
+    shared_node_ids: set[str]  # nodes whose node id another node on one of their buses has too
+    actuator_replies: dict[str, str]  # an actuator's reply message -> the task that sends it
+
+    def err(self, code: str, message: str, path: Path) -> None: ...
+
+    def warn(self, code: str, message: str, path: Path) -> None: ...
+
+    def key_or_item(self, path: Path, key: str) -> Path: ...
+
+    def ns(self, value: Duration | None, path: Path, ec_ns: int | None) -> int | None: ...
+
+    def check_offset(self, offset: int | None, period: int | None, path: Path, what: str = ...) -> None: ...
+
+    def period_range(
+        self, given: tuple[Duration, Duration], period: int | None, path: Path, ec: int | None
+    ) -> int | None: ...
+
+    def task_refs(self) -> list[str]: ...
+
+    def masters(self, bus: str) -> list[str]: ...
+
+    def claim_implicit_name(self, name: str, what: str) -> None: ...
 
 
 class BusRules:
@@ -27,7 +66,7 @@ class BusRules:
     auto_offsets = False  # 'offset: auto' (derived from flows)
     device_nodes = False  # its nodes are devices of the protocol: node ids 1..127, device profiles, heartbeats
 
-    def __init__(self, r: Resolver) -> None:
+    def __init__(self, r: Resolution) -> None:
         self.r = r
 
     # -- buses

@@ -4,7 +4,7 @@ and what these bounds assume. The protocols over CAN call `analyze_arbitrated` w
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from netcfg import links, model
 from netcfg.bus_analysis import (
@@ -22,8 +22,36 @@ from netcfg.spec.units import format_ns
 from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, flows, load
 from netcfg.timing.frames import bits_to_ns
 
-if TYPE_CHECKING:
-    from netcfg.protocols.base import Protocol
+
+class ArbitrationHooks(Protocol):
+    """What the arbitration analysis asks of the protocol over the link (netcfg.protocols.base.Protocol has each,
+    a protocol overriding what it adds): named here, in the link layer, so that it does not depend on the layer
+    above it."""
+
+    def overhead(self, bus: model.Bus) -> tuple[int, int] | None: ...
+
+    def offsets_unused(self, bus: model.Bus) -> str | None: ...
+
+    def bound_messages(
+        self,
+        m: model.Model,
+        bus: model.Bus,
+        rows: list[dict[str, Any]],
+        timings: dict[str, load.FrameTiming],
+        worst: float,
+        diags: Collector,
+        acc: Analysis,
+    ) -> dict[str, Any] | None: ...
+
+    def check_tx_queues(self, m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None: ...
+
+    def extend(
+        self, m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming], diags: Collector, acc: Analysis
+    ) -> dict[str, Any]: ...
+
+    def check_overload(
+        self, m: model.Model, bus: model.Bus, timings: dict[str, load.FrameTiming], worst: float, diags: Collector
+    ) -> None: ...
 
 
 def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
@@ -201,7 +229,7 @@ def check_tx_queues(m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], 
 
 
 def analyze_arbitrated(
-    m: model.Model, bus: model.Bus, diags: Collector, acc: Analysis, proto: Protocol
+    m: model.Model, bus: model.Bus, diags: Collector, acc: Analysis, proto: ArbitrationHooks
 ) -> dict[str, Any]:
     """A bus whose frames arbitrate by identifier: every message's bound under priority arbitration (with FIFO
     queues, release offsets and the error model), the protocol adding its own frames, bounds and sections."""

@@ -10,10 +10,10 @@ from netcfg.spec import schema
 from netcfg.spec.source import Path
 
 if TYPE_CHECKING:
-    from netcfg.resolve.core import Resolver
+    from netcfg.rules import Resolution
 
 
-def layout_signals(r: Resolver, sigs: list[schema.Signal], path: Path) -> tuple[model.Signal, ...]:
+def layout_signals(r: Resolution, sigs: list[schema.Signal], path: Path) -> tuple[model.Signal, ...]:
     from netcfg.runtime.codec import int_range  # the runtime package only when a spec has signals
 
     out: list[model.Signal] = []
@@ -79,7 +79,7 @@ def layout_signals(r: Resolver, sigs: list[schema.Signal], path: Path) -> tuple[
     check_signal_overlap(r, out, {s.name: k for k, s in enumerate(sigs)}, path)
     return tuple(out)
 
-def check_signal_overlap(r: Resolver, signals: list[model.Signal], index: dict[str, int], path: Path) -> None:
+def check_signal_overlap(r: Resolution, signals: list[model.Signal], index: dict[str, int], path: Path) -> None:
     """Two signals may share bits only when no frame carries both (different values of one multiplexer)."""
     from netcfg.runtime.codec import byte_ops
 

@@ -11,7 +11,7 @@ from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from netcfg.resolve.core import Resolver
+    from netcfg.spec.schema import Spec
 
 
 def closest(name: str, known: Iterable[str]) -> str | None:
@@ -36,9 +36,9 @@ def suggestion(match: str | None) -> str:
     return f" (did you mean '{match}'?)" if match is not None else ""
 
 
-def nodes_on_bus(r: Resolver, bus: str) -> list[str]:
+def nodes_on_bus(spec: Spec, bus: str) -> list[str]:
     """The nodes of the spec that sit on `bus` (the names a per-bus role may refer to)."""
-    return [n.name for n in r.spec.nodes if bus in n.buses]
+    return [n.name for n in spec.nodes if bus in n.buses]
 
 
 def some_names(names: Iterable[str], limit: int = 8) -> str:

@@ -13,7 +13,7 @@ from netcfg.spec import schema
 from netcfg.spec.source import Path
 
 if TYPE_CHECKING:
-    from netcfg.resolve.core import Resolver
+    from netcfg.rules import Resolution
 
 _OBJECT_REF = re.compile(r"^\s*(0x[0-9A-Fa-f]{1,4}|[0-9]{1,5})\s*(?:(?::|sub)\s*(0x[0-9A-Fa-f]{1,2}|[0-9]{1,3}))?\s*$")
 
@@ -24,7 +24,7 @@ def snake(text: str) -> str:
     return schema.safe_name(re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower(), "obj", "_obj")
 
 
-def parse_object_ref(r: Resolver, ref: int | str, path: Path) -> tuple[int, int] | None:
+def parse_object_ref(r: Resolution, ref: int | str, path: Path) -> tuple[int, int] | None:
     if isinstance(ref, bool):
         ref = str(ref)
     if isinstance(ref, int):
@@ -47,7 +47,7 @@ def parse_object_ref(r: Resolver, ref: int | str, path: Path) -> tuple[int, int]
 
 
 def resolve_pdo(
-    r: Resolver, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
+    r: Resolution, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
 ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
     p = m.pdo
     assert p is not None

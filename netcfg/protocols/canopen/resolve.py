@@ -22,7 +22,7 @@ from netcfg.spec.suggest import did_you_mean, nodes_on_bus
 from netcfg.spec.units import format_ns
 
 if TYPE_CHECKING:
-    from netcfg.resolve.core import Resolver
+    from netcfg.rules import Resolution
 
 
 class CanopenRules(CanRules):
@@ -74,7 +74,7 @@ class CanopenRules(CanRules):
             self.r.err(
                 "unknown-node",
                 f"SYNC producer '{producer}' is not a node on bus '{b.name}'"
-                f"{did_you_mean(producer, nodes_on_bus(self.r, b.name))}",
+                f"{did_you_mean(producer, nodes_on_bus(self.r.spec, b.name))}",
                 (*cpath, "sync_producer"),
             )
             return
@@ -276,7 +276,7 @@ class CanopenRules(CanRules):
                 )
 
 
-def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> DeviceProfile | None:
+def load_device(r: Resolution, n: schema.Node, path: Path, on_canopen: bool) -> DeviceProfile | None:
     if n.device is None:
         return None
     dpath = (*path, "device")
@@ -321,7 +321,7 @@ def load_device(r: Resolver, n: schema.Node, path: Path, on_canopen: bool) -> De
         return None
 
 
-def _with_objects(r: Resolver, base: DeviceProfile, device: schema.ProfileDevice, dpath: Path) -> DeviceProfile:
+def _with_objects(r: Resolution, base: DeviceProfile, device: schema.ProfileDevice, dpath: Path) -> DeviceProfile:
     """A built-in profile with the spec's own application objects: not the built-in one any more (its EDS is the
     spec's, so bus.yml and the DCF comments do not call it by the profile's name)."""
     objects = dict(base.objects)
@@ -347,7 +347,7 @@ def _with_objects(r: Resolver, base: DeviceProfile, device: schema.ProfileDevice
     return dataclasses.replace(base, name=base.name, source=f"spec:{device.profile}", objects=objects)
 
 
-def device_has_heartbeat(r: Resolver, dev: DeviceProfile | None, hb_ns: int, path: Path) -> bool:
+def device_has_heartbeat(r: Resolution, dev: DeviceProfile | None, hb_ns: int, path: Path) -> bool:
     """A node's heartbeat is its producer heartbeat time (0x1017), which the DCF sets and the master writes by SDO: the
     device must have it writable, or hold that very value, as the event timer is checked against 0x18xx sub 5."""
     if dev is None:
@@ -365,7 +365,9 @@ def device_has_heartbeat(r: Resolver, dev: DeviceProfile | None, hb_ns: int, pat
     return False
 
 
-def sync_task(r: Resolver, node: str, t: schema.Task, path: Path, period: int | None) -> tuple[str | None, int | None]:
+def sync_task(
+    r: Resolution, node: str, t: schema.Task, path: Path, period: int | None
+) -> tuple[str | None, int | None]:
     """A SYNC-driven task takes its period from its node's CANopen bus."""
     buses = [b for b in r.spec_nodes[node].buses if b in r.model.buses and r.model.buses[b].canopen]
     if len(buses) != 1:

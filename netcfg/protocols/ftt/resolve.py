@@ -65,7 +65,7 @@ class FttRules(CanRules):
                 return
             master = ms[0]
         elif master not in self.r.spec_nodes or b.name not in self.r.spec_nodes[master].buses:
-            hint = did_you_mean(master, nodes_on_bus(self.r, b.name))
+            hint = did_you_mean(master, nodes_on_bus(self.r.spec, b.name))
             self.r.err(
                 "unknown-node", f"FTT-CAN master '{master}' is not a node on bus '{b.name}'{hint}", (*fpath, "master")
             )
