@@ -96,6 +96,7 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
         **tolerance,
         "name": b.name,
         "protocol": b.protocol,
+        "link": links.of(b).name,  # what the runtime reads to tell CAN frames from datagrams
         "bitrate": b.bitrate,
         "id_bits": b.id_bits,
         "nodes": list(b.nodes),

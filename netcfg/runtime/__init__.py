@@ -13,15 +13,15 @@ written through one unsigned field `<message>_raw` spanning its payload, the sam
 
 Version 1 has grown without changing the meaning of any key, so it is still version 1: nodes gained `identity`,
 `eds`, `dcf`, `sdo_init`, `rpdo_count`, `tpdo_count`, `heartbeat_timeout_ns`, `on_loss`, `on_emcy`, `on_reboot`
-(stop_node without it), `sdo_timeout_ns` (500 ms), `sdo_retries` (0) and `safe_stop`, CANopen buses
-`sync_overflow` and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns` and
-`unsync_latency_max_ns`, messages `sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`, CAN buses `errors` and
-`clock_tolerance_ppm`, FTT-CAN schedule slots `allowance_ns`, and Ethernet switch ports `queue` and Ethernet
-buses `nics` (each node's NIC queue). A file written before them still loads: their fields are then None (no
-`errors`: an error-free bus; no `allowance_ns`: 0; no `clock_tolerance_ppm`: 100; no queue depths: the
-simulator's default; `sdo_init` None means "not stated", () means "nothing to write"; `sent_by` None: no task sends
-the message as it finishes, it runs free; no `windows` means the asynchronous window first), and a master falls
-back to what it did without them.
+(stop_node without it), `sdo_timeout_ns` (500 ms), `sdo_retries` (0) and `safe_stop`, CANopen buses `sync_overflow`
+and `sync_completion_ns`, PDOs `cob_id`, flows `unsync_latency_min_ns` and `unsync_latency_max_ns`, messages
+`sent_by` and `wcrt_unsync_ns`, FTT-CAN buses `windows`, CAN buses `errors` and `clock_tolerance_ppm`, FTT-CAN
+schedule slots `allowance_ns`, Ethernet switch ports `queue`, Ethernet buses `nics` (each node's NIC queue) and
+every bus its `link`. A file written before them still loads: their fields are then None (no `errors`: an error-free
+bus; no `allowance_ns`: 0; no `clock_tolerance_ppm`: 100; no queue depths: the simulator's default; no `link`: the
+one link its protocol then ran over, schema.EARLIER_LINKS; `sdo_init` None means "not stated", () means "nothing to
+write"; `sent_by` None: no task sends the message as it finishes, it runs free; no `windows` means the asynchronous
+window first), and a master falls back to what it did without them.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from netcfg.runtime.codec import CodecError
     from netcfg.runtime.config import (
-        CAN_PROTOCOLS,  # noqa: F401  (not in __all__; kept importable from here)
+        CAN_LINKS,  # noqa: F401  (not in __all__; kept importable from here)
         FD_PADDING,  # noqa: F401
         Bus,
         CanopenParams,
@@ -68,7 +68,7 @@ _HOME: dict[str, str] = {"CodecError": "netcfg.runtime.codec"}
 _HOME.update(
     dict.fromkeys(
         (
-            "CAN_PROTOCOLS",
+            "CAN_LINKS",
             "FD_PADDING",
             "Bus",
             "CanopenParams",

@@ -20,24 +20,25 @@ if TYPE_CHECKING:
 
     from netcfg.runtime.actuators import Actuator
 
-# The runtime's one table of the protocols runtime.json names (it imports without the compiler's layers)
-CAN_PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can")  # their frames arbitrate on a CAN link
-UDP_PROTOCOLS = ("ethernet-udp",)  # datagrams through switched Ethernet
+# How the frames of the links runtime.json names travel. The runtime imports without the compiler's layers, so it
+# cannot ask netcfg.links; a test ties these to the links' own `arbitrates` and `switched`.
+CAN_LINKS = ("can", "can-fd")  # CAN frames (ISO 11898-1) that arbitrate by identifier: python-can carries them
+SWITCHED_LINKS = ("ethernet",)  # switched Ethernet, which carries UDP datagrams (the one protocol netcfg runs there)
 FD_PADDING = 0x00  # pads a CAN FD payload to its frame length, as netcfg.timing.frames.CANFD_PADDING (tested)
 
 
 class _Carried:
-    """How a bus's or a message's frames travel, from the protocol runtime.json names (the table above)."""
+    """How a bus's or a message's frames travel: by the link runtime.json gives the bus (the table above)."""
 
-    protocol: str
+    link: str
 
     @property
     def is_can(self) -> bool:
-        return self.protocol in CAN_PROTOCOLS
+        return self.link in CAN_LINKS
 
     @property
     def is_udp(self) -> bool:
-        return self.protocol in UDP_PROTOCOLS
+        return self.link in SWITCHED_LINKS
 
 
 class UnknownNameError(KeyError):
@@ -111,7 +112,8 @@ class UdpPorts:
 class Message(_Carried):
     name: str
     bus: str
-    protocol: str  # the bus's protocol: decides between CAN frames and UDP datagrams
+    protocol: str  # the bus's protocol
+    link: str  # the bus's link: decides between CAN frames and UDP datagrams
     producer: str
     consumers: tuple[str, ...]
     id: int  # CAN identifier, or the 1-byte application message id on Ethernet (seed 001, Table 6.1)
@@ -402,7 +404,8 @@ class EthernetParams:
 @dataclass(frozen=True)
 class Bus(_Carried):
     name: str
-    protocol: str  # "can" | "can-fd" | "canopen" | "ftt-can" | "ethernet-udp"
+    protocol: str  # "can" | "can-fd" | "canopen" | "ftt-can" | "ethernet-udp" | "ethercat"
+    link: str  # the physical bus it runs over: "can" | "can-fd" | "ethernet" | "ethercat" (netcfg.links)
     bitrate: int
     id_bits: int
     nodes: tuple[str, ...]

@@ -37,7 +37,7 @@ from netcfg.runtime.config import (
     TxQueue,
     UdpPorts,
 )
-from netcfg.runtime.schema import check_document
+from netcfg.runtime.schema import bus_link, check_document
 
 FORMAT = "netcfg-runtime"
 SUPPORTED_VERSIONS = (1,)
@@ -168,7 +168,7 @@ def _problems(cfg: RuntimeConfig) -> list[str]:
 
 def _config(d: dict[str, Any], source: str) -> RuntimeConfig:
     buses = tuple(_bus(b) for b in d["buses"])
-    protocol = {b.name: b.protocol for b in buses}
+    carried = {b.name: (b.protocol, b.link) for b in buses}
     return RuntimeConfig(
         format=d["format"],
         version=d["version"],
@@ -176,7 +176,7 @@ def _config(d: dict[str, Any], source: str) -> RuntimeConfig:
         spec_sha256=d["spec_sha256"],
         buses=buses,
         nodes=tuple(_node(n) for n in d["nodes"]),
-        messages=tuple(_message(m, protocol[m["bus"]]) for m in d["messages"]),
+        messages=tuple(_message(m, *carried[m["bus"]]) for m in d["messages"]),
         triggers=tuple(_trigger(t) for t in d["triggers"]),
         flows=tuple(_flow(f) for f in d["flows"]),
         source=source,
@@ -196,6 +196,7 @@ def _bus(d: dict[str, Any]) -> Bus:
     return Bus(
         name=d["name"],
         protocol=d["protocol"],
+        link=bus_link(d),
         bitrate=d["bitrate"],
         data_bitrate=d.get("data_bitrate"),
         clock_tolerance_ppm=d.get("clock_tolerance_ppm", DEFAULT_CLOCK_TOLERANCE_PPM),
@@ -333,12 +334,13 @@ def _identity(d: dict[str, Any] | None) -> NodeIdentity | None:
     return None if d is None else NodeIdentity(d["vendor_id"], d["product_code"], d["revision"])
 
 
-def _message(d: dict[str, Any], protocol: str) -> Message:
+def _message(d: dict[str, Any], protocol: str, link: str) -> Message:
     pdo, udp, rate = d["pdo"], d["udp"], d["rate_hz"]
     return Message(
         name=d["name"],
         bus=d["bus"],
         protocol=protocol,
+        link=link,
         producer=d["producer"],
         consumers=_strs(d["consumers"]),
         id=d["id"],

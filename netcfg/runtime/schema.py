@@ -23,6 +23,13 @@ MAX_NS = 10**15  # the longest duration netcfg handles (netcfg.spec.units.MAX_DU
 U8, U16, U32 = 0xFF, 0xFFFF, 0xFFFF_FFFF
 MAX_NAME_CHARS = 255
 PROTOCOLS = ("can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat")
+LINKS = ("can", "can-fd", "ethernet", "ethercat")  # the links a bus runs over (netcfg.links.LINKS; tested)
+# The link of a bus in a file written before buses stated it: each of these protocols ran over one link, its own
+# (netcfg.protocols.PROTOCOLS[name].link; a test ties the two), so the bus's protocol named its link
+EARLIER_LINKS = {
+    "can": "can", "can-fd": "can-fd", "canopen": "can", "ftt-can": "can", "ethernet-udp": "ethernet",
+    "ethercat": "ethercat",
+}
 # CAN 2.0; CAN FD (ISO 11898-1:2015); UDP without fragmentation
 MAX_PAYLOAD = {"can": 8, "can-fd": 64, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472, "ethercat": 0}
 # CAN FD data lengths (ISO 11898-1:2015), as netcfg.timing.frames has them (a master does not import the compiler;
@@ -184,7 +191,7 @@ BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),
     canopen=CANOPEN, ftt=FTT, ethernet=ETHERNET, ethercat=ETHERCAT, data_bitrate=i(1, 10**12, optional=True),
     errors=obj(null=True, optional=True, burst=i(0, 10_000), interval_ns=ns(1)),
-    clock_tolerance_ppm=i(0, 10_000, optional=True),
+    clock_tolerance_ppm=i(0, 10_000, optional=True), link=enum(*LINKS, optional=True),
 )
 TRIGGER = obj(
     name=name(), bus=name(), ftt_id=i(0, 10**6), period_ns=ns(1), interval_ns=ns(1, null=True), offset_ns=ns(),
@@ -304,6 +311,12 @@ def _actuator_problems(node: dict[str, Any], messages: set[str]) -> list[str]:
     return [f"{where}: message {x!r} is not in the file" for x in named if x not in messages]
 
 
+def bus_link(bus: Mapping[str, Any]) -> str:
+    """The link a bus of the document runs over: its own key, else (a file written before the key) the one its
+    protocol ran over (EARLIER_LINKS; check_document refuses a bus that has neither)."""
+    return str(bus["link"]) if "link" in bus else EARLIER_LINKS[bus["protocol"]]
+
+
 def check_document(doc: Any, strict: bool = False) -> list[str]:
     """Every problem of a runtime.json document, as "where: what". strict: also keys the schema does not know
     (the emitter's check; a reader tolerates them, so that an older master reads a newer file)."""
@@ -325,6 +338,8 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
         )
         if section is not None and b.get(section) is None:
             out.append(f"{where}: a {b['protocol']} bus needs its '{section}' section")
+        if "link" not in b and b["protocol"] not in EARLIER_LINKS:
+            out.append(f"{where}: a {b['protocol']} bus needs its 'link' (rebuild the file with netcfg build)")
         if b["protocol"] == "can-fd" and "data_bitrate" not in b:
             out.append(f"{where}: a can-fd bus needs its data_bitrate")
         ftt = b["ftt"]

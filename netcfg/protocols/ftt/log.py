@@ -15,6 +15,7 @@ def trigger_message(bus: Bus) -> Message:
         name=f"{bus.name}_TM",
         bus=bus.name,
         protocol=bus.protocol,
+        link=bus.link,
         producer=ftt.master,
         consumers=(),
         id=ftt.tm_id,
