@@ -118,7 +118,7 @@ def test_odrive_commands_byte_for_byte(odrive_dbc: Any) -> None:
                 _odrive_random(rng, f))
         ours = ActuatorCodec(plain, node_id=node).encode(m["name"], values)
         dbc = _dbc_message(odrive_dbc, node, m["name"])
-        assert (ours.arbitration_id, ours.is_extended, ours.is_fd) == (dbc.frame_id, False, False)
+        assert (ours.arbitration_id, ours.is_extended, ours.fd) == (dbc.frame_id, False, False)
         assert ours.data == dbc.encode(vendor, scaling=True, padding=False, strict=True), (m["name"], values)
 
 
@@ -247,7 +247,7 @@ def test_moteus_position_commands_byte_for_byte() -> None:
         cmd = moteus.Controller(id=node, source_can_id=host).make_position(**vendor, query=True)
         ours = ActuatorCodec(plain, node_id=node, host_id=host).encode("position_query", si)
         assert (ours.arbitration_id, ours.is_extended, ours.data) == _moteus_frame(cmd)
-        assert ours.is_fd and ours.bitrate_switch
+        assert ours.fd and ours.brs
 
 
 def test_moteus_query_and_stop() -> None:

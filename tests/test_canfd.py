@@ -242,6 +242,21 @@ def test_runtime_sends_and_receives_fd_frames_on_a_virtual_bus() -> None:
     assert decoded["j9_torque_feedforward"] == -3.5 and decoded["sequence"] == 200
 
 
+def test_frames_cross_to_python_can_and_back_through_one_adapter() -> None:
+    """netcfg's fd/brs become python-can's is_fd/bitrate_switch and come back as they were; a classical frame has no
+    bit-rate switch (ISO 11898-1:2015: the BRS bit exists in FD frames only), whatever python-can's flag says."""
+    import can
+
+    from netcfg.links import pycan_frames
+
+    for fd, brs in ((False, False), (True, False), (True, True)):
+        msg = pycan_frames.message(0x123, False, bytes(8), fd=fd, brs=brs)
+        assert (msg.is_fd, msg.bitrate_switch, msg.arbitration_id, msg.is_extended_id) == (fd, brs, 0x123, False)
+        assert pycan_frames.frame_format(msg) == (fd, brs)
+    classical = can.Message(arbitration_id=0x123, is_extended_id=False, bitrate_switch=True, data=bytes(8))
+    assert pycan_frames.frame_format(classical) == (False, False)
+
+
 def test_runtime_fd_lengths_match_the_timing_core_and_python_can() -> None:
     """The runtime keeps its own copy of the DLC lengths (a master does not import the compiler): the same as
     netcfg.timing.frames and as python-can's dlc2len for DLC 0..15."""

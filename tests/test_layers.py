@@ -56,6 +56,14 @@ def test_no_import_cycle_even_by_annotations() -> None:
     assert import_cycles(edges) == []
 
 
+def test_the_python_can_frames_are_a_leaf() -> None:
+    """The runtime (and the model, through the runtime's shapes) imports netcfg.links.pycan_frames, import-linter
+    allowing that one edge: it must import no module of netcfg, not even under TYPE_CHECKING."""
+    graph = grimp.build_graph("netcfg", exclude_type_checking_imports=False, cache_dir=None)
+    assert graph.find_modules_directly_imported_by("netcfg.links.pycan_frames") == set()
+    assert "netcfg.links.pycan_frames" in graph.find_modules_directly_imported_by("netcfg.runtime.config")
+
+
 def test_the_cycle_measure_finds_a_cycle() -> None:
     """a -> b -> c -> a is one component of three (d, imported by c, is in none); a lone a -> b is none."""
     assert import_cycles([("a", "b"), ("b", "c"), ("c", "a"), ("c", "d")]) == [["a", "b", "c"]]
@@ -97,64 +105,55 @@ def test_no_command_decides_by_a_protocol_name() -> None:
     assert found == []
 
 
-# Where a frame's own CAN FD flag (`.is_fd`) is read: python-can's and cantools' messages, and an actuator profile's
-# frames, which take python-can's names. Everywhere else a bus's CAN FD data phase is its link's (Link.data_phase).
-FRAME_FLAGS = {
-    "netcfg/verify/frames.py": "python-can's Message, read from a log",
-    "netcfg/sim/pybus.py": "python-can's Message, sent on the simulated bus",
-    "netcfg/importers/dbc.py": "cantools' Message, read from a DBC file",
-    "netcfg/importers/dbc_text.py": "cantools' Message, read from a DBC file",
-    "netcfg/runtime/actuators.py": "an actuator profile's frame (MessageCodec, ActuatorFrame)",
-    "netcfg/resolve/actuators.py": "an actuator profile's frame (netcfg.runtime.actuators.MessageCodec)",
-    "netcfg/runtime/actuator_master.py": "an actuator profile's frame (ActuatorFrame), sent as python-can's Message",
-    "netcfg/runtime/simulated_actuator.py": "an actuator profile's frame (ActuatorFrame), sent as python-can's Message",
-}
 LAYERS = ("netcfg/links/", "netcfg/protocols/")
+# A foreign library's frame format: python-can's Message and cantools' DBC Message say `is_fd` (python-can also
+# `bitrate_switch`). Only the link layer's adapters speak it (links/pycan_frames.py, links/dbc_frames.py); frames of
+# netcfg's own say `fd` and `brs`, and a bus's CAN FD data phase is its link's (Link.data_phase).
+FOREIGN_FLAGS = ("is_fd", "bitrate_switch")
 
 
-def _receiver(node: ast.Attribute) -> str:
-    return ast.unparse(node.value).lower()
-
-
-def _decides_by_a_flag(rel: str, node: ast.AST) -> bool:
-    """`bus.ftt is None`, `b.ftt is not None` (a bus's FTT-CAN section: its protocol's question), and `x.is_fd` read
-    anywhere but on a frame of python-can, cantools or an actuator profile (FRAME_FLAGS), never on a bus or a link."""
+def _decides_by_a_flag(node: ast.AST) -> bool:
+    """`bus.ftt is None`, `b.ftt is not None` (a bus's FTT-CAN section: its protocol's question), and a foreign
+    frame's format flag read (`msg.is_fd`) or handed over (`can.Message(is_fd=...)`) outside the layers."""
     if isinstance(node, ast.Compare) and all(isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops):
         return any(isinstance(p, ast.Attribute) and p.attr == "ftt" for p in (node.left, *node.comparators))
-    if isinstance(node, ast.Attribute) and node.attr == "is_fd" and isinstance(node.ctx, ast.Load):
-        return rel not in FRAME_FLAGS or any(w in _receiver(node) for w in ("bus", "link", "proto"))
-    return False
+    if isinstance(node, ast.Attribute) and node.attr in FOREIGN_FLAGS:
+        return True
+    return isinstance(node, ast.Call) and any(k.arg in FOREIGN_FLAGS for k in node.keywords)
 
 
 def test_no_command_decides_by_a_protocol_flag() -> None:
     """What an FTT-CAN section or a CAN FD flag would decide outside the layers is a question for the bus's protocol
-    (Protocol.own_frames, scheduled, runtime_section, sim_driver, log_frames, ...) or its link (Link.data_phase)."""
+    (Protocol.own_frames, scheduled, runtime_section, sim_driver, log_frames, ...) or its link (Link.data_phase); a
+    frame goes to python-can or cantools, or comes from them, through the link layer's adapters."""
     found = []
     for path in _sources():
         rel = path.relative_to(ROOT).as_posix()
         if rel.startswith(LAYERS):
             continue
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if _decides_by_a_flag(rel, node):
+            if _decides_by_a_flag(node):
                 found.append(f"{rel}:{getattr(node, 'lineno', 0)}: {ast.unparse(node)}")
     assert found == []
 
 
 @pytest.mark.parametrize(
-    ("rel", "code", "decides"),
+    ("code", "decides"),
     [
-        ("netcfg/emit/x.py", "bus.ftt is not None", True),
-        ("netcfg/sim/x.py", "b.ftt is None", True),
-        ("netcfg/emit/x.py", "bus.ftt == other", False),  # not a presence test (and no such code exists)
-        ("netcfg/emit/x.py", "link.is_fd", True),
-        ("netcfg/verify/frames.py", "msg.is_fd", False),  # python-can's frame flag
-        ("netcfg/verify/frames.py", "bus.is_fd", True),
-        ("netcfg/emit/x.py", "can.Message(is_fd=True)", False),  # a keyword given to python-can, not a decision
+        ("bus.ftt is not None", True),
+        ("b.ftt is None", True),
+        ("bus.ftt == other", False),  # not a presence test (and no such code exists)
+        ("link.is_fd", True),
+        ("msg.is_fd", True),  # python-can's frame flag: pycan_frames.frame_format reads it
+        ("msg.bitrate_switch and x", True),
+        ("can.Message(arbitration_id=1, is_fd=True)", True),  # handed to python-can: pycan_frames.message does it
+        ("cdb.Message(is_fd=msg.fd)", True),  # handed to cantools: dbc_frames.message does it
+        ("pycan_frames.message(1, False, data, fd=True, brs=msg.brs)", False),  # netcfg's own flags
     ],
 )
-def test_the_flag_check_tells_a_decision_from_a_frame_flag(rel: str, code: str, decides: bool) -> None:
+def test_the_flag_check_tells_a_decision_from_a_frame_of_our_own(code: str, decides: bool) -> None:
     tree = ast.parse(code)
-    assert any(_decides_by_a_flag(rel, n) for n in ast.walk(tree)) is decides
+    assert any(_decides_by_a_flag(n) for n in ast.walk(tree)) is decides
 
 
 @pytest.mark.parametrize("path", _sources(), ids=lambda p: p.relative_to(PACKAGE).as_posix())

@@ -46,6 +46,7 @@ from cantools.database.conversion import BaseConversion
 from cantools.database.namedsignalvalue import NamedSignalValue
 
 from netcfg import links, model, protocols
+from netcfg.links import dbc_frames
 from netcfg.protocols.base import Unsaid
 from netcfg.runtime import raw_signal_name
 from netcfg.runtime.codec import Field
@@ -197,8 +198,9 @@ def database(
             NetcfgTxQueue=TX_QUEUE, NetcfgTxQueueDepth=TX_QUEUE_DEPTH, NetcfgTxQueueOnFull=TX_QUEUE_ON_FULL
         )
     if links.of(bus).data_phase:
-        # Vector's CAN FD attributes: BusType "CAN FD" makes cantools write each frame's VFrameFormat (and read it
-        # back as is_fd); Baudrate_CANFD is the data rate; CANFD_BRS (default 1) marks frames without bit-rate switch
+        # Vector's CAN FD attributes: BusType "CAN FD" makes cantools write each frame's VFrameFormat (its CAN FD
+        # format, read back by netcfg.links.dbc_frames); Baudrate_CANFD is the data rate; CANFD_BRS (default 1) marks
+        # frames without bit-rate switch
         assert bus.data_bitrate is not None
         specifics.attribute_definitions.update(BusType=BUS_TYPE, Baudrate_CANFD=BAUDRATE_CANFD, CANFD_BRS=CANFD_BRS)
         specifics.attributes["BusType"] = DbcAttribute("CAN FD", BUS_TYPE)
@@ -311,8 +313,8 @@ def _message(m: model.Model, msg: model.Message, jitter_ns: int) -> cdb.Message:
     specifics = _timing(msg, jitter_ns)
     if msg.fd and not msg.brs:
         specifics.attributes["CANFD_BRS"] = _Attribute("0", CANFD_BRS)
-    return cdb.Message(
-        is_fd=msg.fd,  # the length a DBC gives an FD frame is its padded data length
+    return dbc_frames.message(
+        msg.fd,  # the length a DBC gives an FD frame is its padded data length
         frame_id=msg.id,
         name=msg.name,
         length=msg.frame_size,

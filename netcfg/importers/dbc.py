@@ -23,10 +23,10 @@ needs it any more):
   A message without sender (Vector__XXX) is sent by the placeholder node 'unassigned' (warning dbc-no-sender);
   one without receivers (read by a logger or a gateway outside the file) is received by all other nodes
   (warning dbc-no-receiver). `netcfg check --werror CODE` makes either an error.
-- CAN FD: a DBC with FD frames (cantools' is_fd, from VFrameFormat StandardCAN_FD/ExtendedCAN_FD, or a frame of
-  more than 8 bytes, with a warning when no VFrameFormat says FD) is a `protocol: can-fd` bus; its data rate comes
-  from --data-bitrate, else the Vector attribute Baudrate_CANFD, else an error saying how to give one. A frame with
-  CANFD_BRS 0 gets `brs: false`; the classical frames on that bus `fd: false`.
+- CAN FD: a DBC with FD frames (declared by VFrameFormat StandardCAN_FD/ExtendedCAN_FD, or a frame of more than 8
+  bytes, with a warning when no VFrameFormat says FD; netcfg.links.dbc_frames reads both) is a `protocol: can-fd`
+  bus; its data rate comes from --data-bitrate, else the Vector attribute Baudrate_CANFD, else an error saying how
+  to give one. A frame with CANFD_BRS 0 gets `brs: false`; the classical frames on that bus `fd: false`.
 - timing, from GenMsgSendType (cantools reads its enum, or the definition's default) and, in ms, GenMsgCycleTime,
   GenMsgCycleTimeFast and GenMsgDelayTime (Vector's interaction layer: DelayTime is the least time between two
   transmissions, CycleTimeFast the repetition period while active, also of the GenMsgNrOfRepetition repeats
@@ -78,8 +78,9 @@ from netcfg.diagnostics import Collector
 from netcfg.importers import Imported, ImportOptions
 from netcfg.importers import Path as DataPath
 from netcfg.importers.dbc_signals import layout_drops, signal_entry, signal_note
-from netcfg.importers.dbc_text import CAN_MAX_PAYLOAD, MAX_FRAME_BYTES, DbcFile, dbc_frame_id, is_fd, read_dbc
+from netcfg.importers.dbc_text import CAN_MAX_PAYLOAD, MAX_FRAME_BYTES, DbcFile, dbc_frame_id, read_dbc
 from netcfg.importers.dbc_timing import bitrate, bitrate_text, data_bitrate, message_timing, ms_exact
+from netcfg.links.dbc_frames import fd_declared, fd_frame
 from netcfg.protocols import PROTOCOLS
 from netcfg.spec.names import safe_name
 from netcfg.spec.source import SourceMap
@@ -165,7 +166,7 @@ class _Importer(DbcFile):
         if rate is not None:
             bus["bitrate"] = bitrate_text(rate[0])
             self.comments[("buses", 0, "bitrate")] = rate[1]
-        self.fd = any(is_fd(msg) for msg in db.messages)
+        self.fd = any(fd_frame(msg) for msg in db.messages)
         data_rate = data_bitrate(self, db, self.options) if self.fd else None
         if self.fd:
             bus["protocol"] = "can-fd"
@@ -278,7 +279,7 @@ class _Importer(DbcFile):
         if msg.length > MAX_FRAME_BYTES:
             self.add("dbc-can-fd", f"message '{msg.name}' is {msg.length} bytes: a CAN FD frame has at most 64", at)
             return None
-        if msg.length > CAN_MAX_PAYLOAD and not msg.is_fd:
+        if msg.length > CAN_MAX_PAYLOAD and not fd_declared(msg):
             self.add(
                 "dbc-can-fd",
                 f"message '{msg.name}' has {msg.length} bytes but no VFrameFormat saying CAN FD; imported as a CAN FD "
@@ -325,7 +326,7 @@ class _Importer(DbcFile):
         if msg.is_extended_frame:
             out["extended"] = True
         out["size"] = msg.length
-        if self.fd and not is_fd(msg):
+        if self.fd and not fd_frame(msg):
             out["fd"] = False
         elif self.fd and msg.dbc is not None and "CANFD_BRS" in msg.dbc.attributes:
             out.update({} if str(msg.dbc.attributes["CANFD_BRS"].value).strip() == "1" else {"brs": False})

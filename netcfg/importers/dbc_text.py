@@ -94,10 +94,6 @@ def dbc_frame_id(msg: Message) -> int:
     return msg.frame_id | (0x8000_0000 if msg.is_extended_frame else 0)
 
 
-def is_fd(msg: Message) -> bool:
-    return bool(msg.is_fd) or msg.length > CAN_MAX_PAYLOAD
-
-
 def read_dbc(path: Path, diags: Collector) -> str | None:
     """The DBC's text through the one input guard (netcfg.inputs: a regular file within the DBC size limit, refused
     before it is read whole), decoded as DBC tools write it. InputError (an OSError) propagates: an I/O problem."""

@@ -15,7 +15,8 @@ from typing import Any
 from cantools.database.can import Database, Message
 
 from netcfg.importers import ImportOptions
-from netcfg.importers.dbc_text import DbcFile, is_fd
+from netcfg.importers.dbc_text import DbcFile
+from netcfg.links.dbc_frames import fd_frame
 from netcfg.spec.units import format_ns
 
 KBIT_LIMIT = 1000  # Baudrate/BusSpeed values up to this are kbit/s: no CAN bus runs at 1000 bit/s or less
@@ -92,7 +93,7 @@ def data_bitrate(dbc: DbcFile, db: Database, options: ImportOptions) -> tuple[in
     """The CAN FD data rate: --data-bitrate, else Vector's Baudrate_CANFD attribute."""
     if options.data_bitrate is not None:
         return options.data_bitrate, "from the command line (--data-bitrate), which wins over the DBC"
-    fd_names = [f"message '{m.name}'" for m in db.messages if is_fd(m)]
+    fd_names = [f"message '{m.name}'" for m in db.messages if fd_frame(m)]
     more = f" and {len(fd_names) - 3} more" if len(fd_names) > 3 else ""
     got = dbc.db_attribute(db, "Baudrate_CANFD")
     if got is not None:

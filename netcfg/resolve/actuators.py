@@ -339,7 +339,7 @@ class _Actuator:
         if name in self.r.model.messages:
             self.r.err("duplicate-name", f"message '{name}' is already defined", path)
             return None
-        fd = mc.is_fd
+        fd = mc.fd
         fields = {f["name"]: f for f in pm.get("fields") or ()}
         description = description or _limits(self.profile.name, mc)
         msg = model.Message(

@@ -35,6 +35,7 @@ from typing import Any
 
 import can
 
+from netcfg.links import pycan_frames
 from netcfg.runtime.actuator_plan import LOSS_MULTIPLIER, ActuatorPlan, CommandPlan
 from netcfg.runtime.actuators import ActuatorFrame, Decoded
 from netcfg.runtime.clock import Clock, SystemClock
@@ -166,9 +167,9 @@ class ActuatorMaster:
 
     def _send(self, frame: ActuatorFrame) -> float:
         # a remote frame (ODrive's Get_* requests) carries no data; its DLC is the length it asks for
-        msg = can.Message(arbitration_id=frame.arbitration_id, is_extended_id=frame.is_extended, is_fd=frame.is_fd,
-                          bitrate_switch=frame.bitrate_switch, is_remote_frame=frame.is_remote,
-                          dlc=REMOTE_DLC if frame.is_remote else None, data=None if frame.is_remote else frame.data)
+        msg = pycan_frames.message(frame.arbitration_id, frame.is_extended, None if frame.is_remote else frame.data,
+                                   fd=frame.fd, brs=frame.brs, remote=frame.is_remote,
+                                   dlc=REMOTE_DLC if frame.is_remote else None)
         msg.timestamp = time.time()
         self.bus.send(msg)
         return msg.timestamp

@@ -2,7 +2,7 @@
 
     codec = ActuatorCodec(profile.plain, node_id=3)           # plain: netcfg.devices.actuator_profile's output
     frame = codec.encode("mit_command", position=0.5, velocity=0.0, kp=20.0, kd=1.0, torque=0.0)
-    frame.arbitration_id, frame.is_extended, frame.is_fd, frame.data
+    frame.arbitration_id, frame.is_extended, frame.fd, frame.data
     reply = codec.decode(arbitration_id, is_extended, data)   # Decoded(message, values, errors, states) or None
 
 The runtime reads the profile's plain-data form (JSON types only), so a master needs neither YAML nor the compiler;
@@ -77,14 +77,15 @@ SI_UNITS: dict[str, tuple[str, float]] = {
 
 @dataclass(frozen=True)
 class ActuatorFrame:
-    """One CAN frame: what a bus interface sends (python-can's Message takes these names)."""
+    """One CAN frame: what a bus interface sends (as python-can's Message through netcfg.links.pycan_frames); `fd`:
+    a CAN FD frame, `brs`: its bit-rate switch."""
 
     arbitration_id: int
     is_extended: bool
-    is_fd: bool
+    fd: bool
     data: bytes
     is_remote: bool = False
-    bitrate_switch: bool = False
+    brs: bool = False
 
 
 @dataclass(frozen=True)
@@ -208,7 +209,7 @@ class MessageCodec:
         self.name: str = plain["name"]
         self.sender: str = plain["from"]
         self.size: int = plain["size"]
-        self.is_fd: bool = bool(plain.get("fd", False))
+        self.fd: bool = bool(plain.get("fd", False))
         self.is_remote: bool = bool(plain.get("remote", False))
         self.pad: int = plain.get("pad", 0)
         self.fixed: bytes | None = bytes.fromhex(plain["data"]) if plain.get("data") else None
@@ -273,8 +274,8 @@ class MessageCodec:
             for i in self._untouched:
                 packed[i] = self.pad
             data = bytes(packed)
-        return ActuatorFrame(arbitration_id, self._frame_extended(arbitration_id), self.is_fd, data,
-                             is_remote=self.is_remote, bitrate_switch=self.is_fd)
+        return ActuatorFrame(arbitration_id, self._frame_extended(arbitration_id), self.fd, data,
+                             is_remote=self.is_remote, brs=self.fd)
 
     def matches(self, arbitration_id: int, is_extended: bool, data: bytes) -> bool:
         if self.extended != "auto" and bool(self.extended) != is_extended:

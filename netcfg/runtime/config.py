@@ -188,19 +188,12 @@ class Message(_Carried):
 
     def frame(self, data: bytes) -> can.Message:
         """The CAN frame carrying this payload (from encode()), as to_can() sends it."""
-        import can  # only CAN masters need python-can
+        from netcfg.links import pycan_frames  # only CAN masters need python-can
 
         if self.fd:  # padded to the frame length, so that every receiver sees the DLC the analysis timed
             data += bytes([FD_PADDING]) * (self.frame_size - self.size)
-            return can.Message(
-                arbitration_id=self.id,
-                is_extended_id=self.extended,
-                is_fd=True,
-                bitrate_switch=self.brs,
-                dlc=len(data),
-                data=data,
-            )
-        return can.Message(arbitration_id=self.id, is_extended_id=self.extended, dlc=self.size, data=data)
+            return pycan_frames.message(self.id, self.extended, data, fd=True, brs=self.brs, dlc=len(data))
+        return pycan_frames.message(self.id, self.extended, data, dlc=self.size)
 
     def encode_udp(self, **values: Number | str | bytes) -> bytes:
         """The UDP datagram's payload: the 1-byte message id, then the data (seed 001, Table 6.1)."""

@@ -25,6 +25,7 @@ from typing import Any
 
 import can
 
+from netcfg.links import pycan_frames
 from netcfg.runtime.actuators import ActuatorCodec, MessageCodec
 from netcfg.runtime.config import Node, RuntimeConfig
 from netcfg.runtime.drive_responses import ResponseScheduler
@@ -129,8 +130,8 @@ class SimulatedActuator:
                 values[name] = v if f.lo is None or f.hi is None else min(max(v, f.lo), f.hi)
         frame = mc.encode(values, si=False, clamp=True)
         try:
-            self.bus.send(can.Message(arbitration_id=frame.arbitration_id, is_extended_id=frame.is_extended,
-                                      is_fd=frame.is_fd, bitrate_switch=frame.bitrate_switch, data=frame.data))
+            self.bus.send(pycan_frames.message(frame.arbitration_id, frame.is_extended, frame.data, fd=frame.fd,
+                                               brs=frame.brs))
             self.answered += 1
         except can.CanError:
             pass  # a bus shut down under a late answer

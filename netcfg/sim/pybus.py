@@ -24,6 +24,7 @@ from typing import Any
 
 import can
 
+from netcfg.links import pycan_frames
 from netcfg.sim.engine import NEVER
 from netcfg.sim.run import SimRun
 from netcfg.timing.frames import CANFD_PADDING, canfd_padded_size
@@ -180,9 +181,8 @@ class SimCanBus(can.BusABC):
         def fd(end: int, data: bytes | None) -> can.Message:
             payload = data if data is not None else rest
             payload += bytes([CANFD_PADDING]) * (canfd_padded_size(len(payload)) - len(payload))
-            return can.Message(
-                timestamp=end / 1e9, arbitration_id=s.can_id, is_extended_id=s.extended, data=payload,
-                channel=self._channel, is_fd=True, bitrate_switch=s.brs,
+            return pycan_frames.message(
+                s.can_id, s.extended, payload, fd=True, brs=s.brs, timestamp=end / 1e9, channel=self._channel
             )
 
         return s.can_id, s.extended, rest, fd
@@ -192,8 +192,9 @@ class SimCanBus(can.BusABC):
         src = self._by_id.get(key)
         if src is None:
             name = f"{self.node}_0x{msg.arbitration_id:x}"
+            fd, brs = pycan_frames.frame_format(msg)
             src = self.sim_bus.add_source(
-                name, msg.arbitration_id, msg.is_extended_id, msg.dlc, self.node, fd=msg.is_fd, brs=msg.bitrate_switch
+                name, msg.arbitration_id, msg.is_extended_id, msg.dlc, self.node, fd=fd, brs=brs
             )
             self._by_id[key] = src
         if src not in self._own:

@@ -21,6 +21,8 @@ from typing import NamedTuple, TextIO, cast
 
 import can
 
+from netcfg.links import pycan_frames
+
 __all__ = ["SUPPORTED_SUFFIXES", "TraceFrame", "write_trace"]
 
 SUPPORTED_SUFFIXES = (".log", ".asc")
@@ -124,15 +126,15 @@ def write_trace(frames: Iterable[TraceFrame], path: str | Path, fmt: str | None 
             if frame.error:
                 msg = can.Message(timestamp=frame.t_ns / 1e9, channel=channel, is_error_frame=True)
             else:
-                msg = can.Message(
+                msg = pycan_frames.message(
+                    frame.can_id,
+                    frame.extended,
+                    frame.data,
+                    fd=frame.fd,
+                    brs=frame.brs,
+                    dlc=len(frame.data),
                     timestamp=frame.t_ns / 1e9,
                     channel=channel,
-                    arbitration_id=frame.can_id,
-                    is_extended_id=frame.extended,
-                    dlc=len(frame.data),
-                    data=frame.data,
-                    is_fd=frame.fd,
-                    bitrate_switch=frame.brs,
                     check=True,  # python-can refuses identifiers and payloads the frame's format cannot carry
                 )
             writer.on_message_received(msg)

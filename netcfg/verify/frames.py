@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from netcfg.links import pycan_frames
+
 __all__ = ["BRS", "ERROR", "EXTENDED", "FD", "REMOTE", "Batch", "ChannelTable", "batch_from_messages"]
 
 # bits of Batch.flags
@@ -96,12 +98,13 @@ def batch_from_messages(messages: Iterable[object], channels: ChannelTable) -> B
         channel = msg.channel  # type: ignore[attr-defined]
         ch.append(channels.index("" if channel is None else str(channel)))
         ids.append(int(msg.arbitration_id))  # type: ignore[attr-defined]
+        fd, brs = pycan_frames.frame_format(msg)  # type: ignore[arg-type]
         flags.append(
             (EXTENDED if msg.is_extended_id else 0)  # type: ignore[attr-defined]
-            | (FD if msg.is_fd else 0)  # type: ignore[attr-defined]
+            | (FD if fd else 0)
             | (ERROR if msg.is_error_frame else 0)  # type: ignore[attr-defined]
             | (REMOTE if msg.is_remote_frame else 0)  # type: ignore[attr-defined]
-            | (BRS if msg.is_fd and msg.bitrate_switch else 0)  # type: ignore[attr-defined]
+            | (BRS if brs else 0)
         )
         data = bytes(msg.data or b"")  # type: ignore[attr-defined]
         # a remote frame carries a DLC but no data
