@@ -191,9 +191,8 @@ def pdo_rows(
 ) -> list[dict[str, Any]]:
     """Each PDO message's delivery (netcfg.protocols.ethercat.messages) for the flows, and its row: its worst case
     from the cycle's start against its deadline."""
-    from netcfg.timing.flows import Delivery
-
     from netcfg.protocols.ethercat.messages import delivery, pdo_messages
+    from netcfg.timing.flows import Delivery
 
     rows = []
     position = {s.node: k for k, s in enumerate(seg.slaves)}

@@ -86,7 +86,7 @@ def cycle_view(bus: dict[str, Any], num: Any) -> dict[str, Any]:
     ]
     pdos = [pdo_text(m, num) for m in bus.get("messages", ())]
     return {
-        **({"pdos": pdos} if pdos else {}),
+        "pdos": pdos,
         **{k: num(v) for k, v in c.items() if isinstance(v, (int, float)) and not isinstance(v, bool)},
         "frame_bytes": ", ".join(map(str, c["frame_bytes"])),
         "ok": c["ok"],

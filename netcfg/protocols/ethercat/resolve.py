@@ -50,6 +50,7 @@ class EthercatRules(BusRules):
     name = "ethercat"
     section = "ethercat"
     id_meaning = "none: EtherCAT process data comes from the slaves' PDOs"
+    pdo_messages = True
     extended_ids = False
 
     def carries_messages(self, bus: model.Bus) -> bool:
