@@ -34,7 +34,7 @@ from netcfg.spec.source import Path
 
 if TYPE_CHECKING:
     from netcfg.protocols.ethercat.analysis import CycleTiming
-    from netcfg.protocols.ethercat.resolve import EthercatRules
+    from netcfg.resolve.core import Resolver
     from netcfg.protocols.ethercat.segment import AssignedPdo, Segment, Slave
 
 FIRST = {"tpdo": 0x1A00, "rpdo": 0x1600}
@@ -66,10 +66,21 @@ def _data_type(name: str, bits: int) -> int:
     return COE_TYPES.get(base, UNSIGNED_BY_BITS.get(bits, 0x07 if bits > 8 else 0x05))
 
 
+def object_ref(ref: int | str) -> tuple[int, int] | None:
+    """An object written 0x6064 or '0x30D1:2' as (index, sub-index); None when it is neither."""
+    if isinstance(ref, int):
+        return ref, 0
+    text = ref.strip()
+    index, _, sub = text.partition(":")
+    try:
+        return int(index, 0), int(sub, 0) if sub else 0
+    except ValueError:
+        return None
+
+
 def resolve_pdo(
-    rules: EthercatRules, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
+    r: Resolver, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
 ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
-    r = rules.r
     seg: Segment | None = bus.ethercat
     assert m.pdo is not None
     ppath = (*path, "pdo")
@@ -125,8 +136,6 @@ def resolve_pdo(
     carried = {(e[0], e[1]) for e in pdo.entries}
     for k, ref in enumerate(m.pdo.map):
         obj = ref.object if isinstance(ref, schema.PdoEntry) else ref
-        from netcfg.protocols.ethercat.resolve import object_ref
-
         parsed = object_ref(obj)
         if parsed is None or parsed not in carried:
             listed = ", ".join(f"0x{i:04X}:{s}" for i, s in sorted(carried)) or "nothing"

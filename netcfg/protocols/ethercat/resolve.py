@@ -13,6 +13,7 @@ from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.inputs import check_input_path
 from netcfg.links.ethercat import BIT_RATES
 from netcfg.model import MessageKind
+from netcfg.protocols.ethercat.messages import object_ref
 from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path
@@ -33,17 +34,6 @@ PROFILE_SMS = (
 )
 SM_KIND = {"rx": "Outputs", "tx": "Inputs"}
 SIDE = {"rx": "RxPDO (outputs, 0x1C12)", "tx": "TxPDO (inputs, 0x1C13)"}
-
-
-def object_ref(ref: int | str) -> tuple[int, int] | None:
-    if isinstance(ref, int):
-        return ref, 0
-    text = ref.strip()
-    index, _, sub = text.partition(":")
-    try:
-        return int(index, 0), int(sub, 0) if sub else 0
-    except ValueError:
-        return None
 
 
 class EthercatRules(BusRules):
@@ -80,7 +70,7 @@ class EthercatRules(BusRules):
     ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
         from netcfg.protocols.ethercat.messages import resolve_pdo
 
-        return resolve_pdo(self, m, sbus, bus, path)
+        return resolve_pdo(self.r, m, sbus, bus, path)
 
     def pdo_timing(
         self,
