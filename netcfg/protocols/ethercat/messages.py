@@ -34,8 +34,8 @@ from netcfg.spec.source import Path
 
 if TYPE_CHECKING:
     from netcfg.protocols.ethercat.analysis import CycleTiming
-    from netcfg.resolve.core import Resolver
     from netcfg.protocols.ethercat.segment import AssignedPdo, Segment, Slave
+    from netcfg.resolve.core import Resolver
 
 FIRST = {"tpdo": 0x1A00, "rpdo": 0x1600}
 SIDE_OF = {"tpdo": "tx", "rpdo": "rx"}
