@@ -174,3 +174,23 @@ def test_a_wrong_pdo_on_the_command_line(tmp_path: Path) -> None:
     assert out.returncode == 1 and "Traceback" not in out.stderr + out.stdout
     line = next(x for x in (out.stdout + out.stderr).splitlines() if "has no TPDO 3" in x)
     assert line.startswith(f"{tmp_path / 'spec.yaml'}:") and ": error: " in line
+
+
+def test_the_read_of_a_byte_in_the_second_frame() -> None:
+    """An image of 2,000 bytes goes in two frames (1,486 + 514 bytes of data): logical byte 1,500 is the 15th data
+    byte of the second frame, read after the whole first frame (1,538 bytes with preamble and gap), the second's
+    preamble and headers (8 + 14 + 2 + 10) and 14 bytes before it: (1,538 + 34 + 14) x 80 ns = 126,880 ns."""
+    from netcfg.protocols.ethercat.analysis import cycle_timing
+    from netcfg.protocols.ethercat.messages import read_offset_ns
+
+    t = cycle_timing(2000, 100_000_000, [], [])
+    assert t.frames == (1486, 514) and t.frame_bytes[0] == 1538
+    assert read_offset_ns(t, 1500, 100_000_000) == (1538 + 34 + 14) * 80 == 126_880
+    assert read_offset_ns(t, 0, 100_000_000) == 34 * 80
+
+
+def test_a_slave_that_failed_gets_no_second_error(tmp_path: Path) -> None:
+    data = _example(tmp_path)
+    (tmp_path / "esi" / "can_gateway.xml").unlink()
+    report = check_data(tmp_path, data)
+    assert [e["code"] for e in report["errors"]] == ["esi"]

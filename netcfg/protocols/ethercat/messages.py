@@ -114,13 +114,15 @@ def resolve_pdo(
         return None
     slave = next((s for s in seg.slaves if s.node == slave_name), None)
     if slave is None:
-        names = ", ".join(s.node for s in seg.slaves)
-        r.err(
-            "pdo",
-            f"message '{m.name}': '{slave_name}' is none of bus '{sbus.name}''s slaves ({names}); a "
-            f"{'TxPDO' if kind == 'tpdo' else 'RxPDO'} is a slave's",
-            (*path, "producer") if kind == "tpdo" else (*path, "consumers"),
-        )
+        listed = sbus.ethercat is not None and any(s.node == slave_name for s in sbus.ethercat.slaves)
+        if not listed:  # (a listed slave that did not resolve has its error at the slave)
+            names = ", ".join(s.node for s in seg.slaves) or "none"
+            r.err(
+                "pdo",
+                f"message '{m.name}': '{slave_name}' is none of bus '{sbus.name}''s slaves ({names}); "
+                f"{'a TxPDO' if kind == 'tpdo' else 'an RxPDO'} is a slave's",
+                (*path, "producer") if kind == "tpdo" else (*path, "consumers"),
+            )
         return None
     pdos = slave.tx if kind == "tpdo" else slave.rx
     pdo = next((p for p in pdos if p.index == index), None)
