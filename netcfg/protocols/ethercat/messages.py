@@ -114,8 +114,8 @@ def resolve_pdo(
         return None
     slave = next((s for s in seg.slaves if s.node == slave_name), None)
     if slave is None:
-        listed = sbus.ethercat is not None and any(s.node == slave_name for s in sbus.ethercat.slaves)
-        if not listed:  # (a listed slave that did not resolve has its error at the slave)
+        in_section = sbus.ethercat is not None and any(s.node == slave_name for s in sbus.ethercat.slaves)
+        if not in_section:  # (a listed slave that did not resolve has its error at the slave)
             names = ", ".join(s.node for s in seg.slaves) or "none"
             r.err(
                 "pdo",
