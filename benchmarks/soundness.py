@@ -542,7 +542,61 @@ def ethercat_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[s
     f.opt(bus, "buses[].bitrate", st.sampled_from(["100 Mbit/s", "1 Gbit/s"]), 0.3)
     nodes = [{"name": "master", "role": "master", "buses": ["ecat"]}]
     nodes += [{"name": s["node"], "buses": ["ecat"]} for s in slaves]
-    return {"system": "random_ecat", "buses": [bus], "nodes": nodes, "messages": []}
+    spec = {"system": "random_ecat", "buses": [bus], "nodes": nodes, "messages": []}
+    if f.feature("ethercat gateway flows", 0.6):
+        _add_ecat_gateway(f, spec, slaves, cycle_us)
+    return spec
+
+
+def _add_ecat_gateway(f: Fields, spec: dict[str, Any], slaves: list[dict[str, Any]], cycle_us: int) -> None:
+    """A CAN bus behind one slave, a gateway: a sensor's CAN message through the gateway's copy task into its
+    TxPDO 1 (the slave's inputs) and the master's cyclic frame to a master task; a master task's data through the
+    gateway's first assigned RxPDO, its copy task and a CAN message to an actuator's task. The tasks' periods,
+    offsets, execution times and triggers (a period, or the message that starts them) are drawn."""
+    g = f(st.sampled_from(slaves))
+    rx = g.get("rxpdo", [0x1600])[0] if "esi" in g else 0x1600
+    nodes = {n["name"]: n for n in spec["nodes"]}
+    nodes[g["node"]]["buses"].append("can")
+    spec["buses"].append({"name": "can", "protocol": "can",
+                          "bitrate": f(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"]))})
+    spec["nodes"] += [{"name": "sensor", "buses": ["can"]}, {"name": "act", "buses": ["can"]}]
+    nodes = {n["name"]: n for n in spec["nodes"]}
+
+    def period() -> int:
+        return f(st.one_of(st.sampled_from([cycle_us, 2 * cycle_us, cycle_us // 2]), st.integers(200, 20_000)))
+
+    def task(node: str, name: str, every: int | None, on: str | None = None) -> None:
+        wcet = f(st.integers(1, max(1, min(every or cycle_us, cycle_us) // 4)))
+        t: dict[str, Any] = {"name": name, "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 3)} us"}
+        if on is not None:
+            t["on_message"] = on
+        else:
+            t["period"] = f"{every} us"
+            if f.chance(0.4):
+                t["offset"] = f"{f(st.integers(0, max(0, (every or 1) - 1)))} us"
+        nodes[node].setdefault("tasks", []).append(t)
+
+    p_in, p_out = max(1_000, period()), max(1_000, period())  # two CAN frames at 250 kbit/s fit a millisecond
+    spec["messages"] += [
+        {"name": "cin", "bus": "can", "producer": "sensor", "consumers": [g["node"]], "id": 0x100,
+         "size": f(st.integers(1, 8)), "period": f"{p_in} us"},
+        {"name": "cout", "bus": "can", "producer": g["node"], "consumers": ["act"], "id": 0x200,
+         "size": f(st.integers(1, 8)), "period": f"{p_out} us"},
+        # a PDO's map, when given, names objects it carries (the status PDO's statusword, the outputs' controlword)
+        {"name": "ein", "producer": g["node"], "consumers": ["master"],
+         "pdo": {"tpdo": 1, "map": [0x6041] if f.chance(0.5) else []}},
+        {"name": "eout", "producer": "master", "consumers": [g["node"]],
+         "pdo": {"rpdo": rx - 0x1600 + 1, "map": [0x6040] if f.chance(0.5) else []}},
+    ]
+    task("sensor", "s", p_in)
+    task(g["node"], "up", period(), "cin" if f.chance(0.3) else None)
+    task(g["node"], "down", p_out if f.chance(0.6) else period())
+    task("master", "ctl", period(), "ein" if f.chance(0.2) else None)
+    task("act", "use", period(), "cout" if f.chance(0.5) else None)
+    spec["flows"] = [
+        {"name": "gw_in", "chain": ["sensor.s", "cin", f"{g['node']}.up", "ein", "master.ctl"]},
+        {"name": "gw_out", "chain": ["master.ctl", "eout", f"{g['node']}.down", "cout", "act.use"]},
+    ]
 
 
 TPDO_TYPES = st.one_of(st.integers(1, 3), st.sampled_from([0, 254, 255]))

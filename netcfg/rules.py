@@ -65,6 +65,7 @@ class BusRules:
     rate_adaptation = False  # 'period_range' (FTT-CAN on-line rate adaptation)
     auto_offsets = False  # 'offset: auto' (derived from flows)
     device_nodes = False  # its nodes are devices of the protocol: node ids 1..127, device profiles, heartbeats
+    pdo_messages = False  # every message on it names a PDO (EtherCAT: a slave's); one without is refused at once
 
     def __init__(self, r: Resolution) -> None:
         self.r = r

@@ -70,6 +70,11 @@ class Protocol:
         """Why netcfg does not model the protocol over `link` (the error at a spec's `link:` key)."""
         return f"{self.name} runs on {self.link.name} here; netcfg does not model it over {link.name}"
 
+    def sent_as_tasks_end(self, bus: model.Bus) -> bool:
+        """Whether a task on a message's producer sends it as it finishes (netcfg.resolve.flows' sent_by); False
+        where the protocol's own cycle carries every message, taking the data it finds when it passes."""
+        return True
+
     def rules(self) -> type[BusRules]:
         """The resolver's hooks for a bus of this protocol: the link's rules unless the protocol adds its own."""
         return self.link.rules()

@@ -291,6 +291,9 @@ class Resolver:
         ec = rules.cycle_ns(sbus)
         if not rules.carries_messages(bus):
             return None  # the bus error is reported already
+        if rules.pdo_messages and m.pdo is None:
+            rules.check_fields(m, path)  # says what the bus's messages are
+            return None
         # --- what is sent: size, signals, PDO map
         pdo = None
         signals: tuple[model.Signal, ...] = ()

@@ -82,7 +82,10 @@ def message_senders(m: model.Model) -> dict[str, tuple[str, ...]]:
     """Message -> the tasks (node.task) that send it as they finish: in some flow, a task on its producer in the
     step before it, at its rate (a task a message starts runs at that message's: a reply goes out with every
     run); for a sporadic message any such task, whose run raises the event (at most once per minimum
-    inter-arrival time, the load the analysis assumes). Other messages run at their own rate."""
+    inter-arrival time, the load the analysis assumes). Other messages run at their own rate, and so do those
+    whose bus's own cycle carries them (Protocol.sent_as_tasks_end)."""
+    from netcfg import protocols
+
     out: dict[str, set[str]] = {}
     for flow in m.flows.values():
         for prev, step in zip(flow.steps, flow.steps[1:]):
@@ -90,6 +93,8 @@ def message_senders(m: model.Model) -> dict[str, tuple[str, ...]]:
                 continue
             for name in step.refs:
                 msg = m.messages[name]
+                if not protocols.of(m.buses[msg.bus]).sent_as_tasks_end(m.buses[msg.bus]):
+                    continue  # its bus's cycle takes the data the task left (an EtherCAT PDO)
                 for ref in prev.refs:
                     task = m.task(ref)
                     if task.node == msg.producer and (msg.kind == "sporadic" or same_rate(m, task, msg)):

@@ -30,8 +30,9 @@ EARLIER_LINKS = {
     "can": "can", "can-fd": "can-fd", "canopen": "can", "ftt-can": "can", "ethernet-udp": "ethernet",
     "ethercat": "ethercat",
 }
-# CAN 2.0; CAN FD (ISO 11898-1:2015); UDP without fragmentation
-MAX_PAYLOAD = {"can": 8, "can-fd": 64, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472, "ethercat": 0}
+# CAN 2.0; CAN FD (ISO 11898-1:2015); UDP without fragmentation; an EtherCAT PDO within one frame's datagram (1,486
+# bytes: netcfg.links.ethercat.MAX_DATAGRAM_DATA)
+MAX_PAYLOAD = {"can": 8, "can-fd": 64, "canopen": 8, "ftt-can": 8, "ethernet-udp": 1472, "ethercat": 1486}
 # CAN FD data lengths (ISO 11898-1:2015), as netcfg.timing.frames has them (a master does not import the compiler;
 # a test keeps the two equal)
 FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
@@ -186,6 +187,11 @@ ETHERCAT = obj(
     # the cycle's frames (each one LRW datagram of the image) and the analysis' bounds the simulator holds them to
     frames=lst(obj(data_bytes=i(0, U16), wire_bytes=i(1, U16)), optional=True), latency_ns=ns(optional=True),
     dc_precision_ns=ns(optional=True),
+    # the messages that are slaves' PDOs (netcfg.protocols.ethercat.messages): the slave, its inputs or outputs, and
+    # when, after the master's send, the frame reads a slave's inputs
+    messages=lst(
+        obj(name=name(), slave=i(0, U16), direction=enum("inputs", "outputs"), read_offset_ns=ns()), optional=True
+    ),
 )
 BUS = obj(
     name=name(), protocol=enum(*PROTOCOLS), bitrate=i(1, 10**12), id_bits=enum(11, 29), nodes=lst(name()),

@@ -120,9 +120,15 @@ class EthercatSegment:
         self._dc_offset = self._rng["dc"].uniform(-precision / 2, precision / 2, len(self.slaves))
         self._acc = _Tally(len(self.slaves))
         self._lost_cycles = sorted({c for c in (self._cycle_at(at, n) for at in self.lose_at) if c is not None})
+        self._pdos = list(ec.get("messages") or ())
+        self._deliveries: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {
+            p["name"]: [] for p in self._pdos
+        }
         for first in range(0, n, CHUNK):
             self._window(first, min(n, first + CHUNK), cycle)
         self.result = self._summary(n, cycle, len(frames))
+        for p in self._pdos:
+            self._deliver(p["name"])
 
     def _cycle_at(self, at_ns: int, n: int) -> int | None:
         """The first cycle starting at or after at_ns (None: after the run)."""
@@ -160,6 +166,17 @@ class EthercatSegment:
         acc.lost += int(lost.sum())
         got = ~lost
         acc.add_latency(np.rint(back - starts)[got])
+        for p in self._pdos:  # each PDO message: its capture and its delivery, in the cycles that carried it
+            j = int(p["slave"])
+            seen = got & alive[:, j]
+            if p["direction"] == "inputs":  # read as the datagram passes the slave, delivered with the frame's return
+                capture = send + float(p["read_offset_ns"]) + reached[:, j]
+                end = back
+            else:  # copied as the master sends, the slave's once the frame has passed it (its check sequence good)
+                capture, end = send, passed[:, j]
+            self._deliveries[p["name"]].append(
+                (starts[seen], np.rint(capture[seen]).astype(np.int64), np.rint(end[seen]).astype(np.int64))
+            )
         precision = float(ec.get("dc_precision_ns", 0))
         dc = self._rng["dc"]
         for j, s in enumerate(self.slaves):
@@ -264,9 +281,47 @@ class EthercatSegment:
         assert self.result is not None
         return self.result
 
+    def _delivered(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        parts = self._deliveries.get(name) or []
+        if not parts:
+            return np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+        return tuple(np.concatenate([x[k] for x in parts]) for k in range(3))  # type: ignore[return-value]
+
+    def _deliver(self, name: str) -> None:
+        """Each delivery of a PDO message as an event, in time order: the flows it is a step of measure it (their
+        data taken at the capture), and the tasks it starts run."""
+        sc = self.sc
+        trackers = sc.trackers_of(name)
+        tasks = [(t, sc.cfg.node(t.node).rx_delay_ns) for t in sc.tasks_on_message(name)]
+        if not trackers and not tasks:
+            return
+        _, capture, end = self._delivered(name)
+        captures, ends = capture.tolist(), end.tolist()
+        k = 0
+
+        def deliver(_: object) -> None:
+            nonlocal k
+            for tr in trackers:
+                tr.message_delivered(name, captures[k], ends[k])
+            for task, rx_delay in tasks:
+                sc.run_task(task, ends[k] + rx_delay)
+            k += 1
+            if k < len(ends):
+                sc.sim.at(ends[k], deliver)
+
+        if ends:
+            sc.sim.at(ends[0], deliver)
+
     def records(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
-        """No message of the spec rides the cyclic frame: none to time (results.collect asks every driver)."""
-        return []
+        """The PDO messages' deliveries from each cycle's start (results.collect holds them to their wcrt_ns, the
+        analysis' latest delivery); the cyclic frame itself is the report's."""
+        if self.result is None:
+            self.start()
+        out = []
+        for p in getattr(self, "_pdos", ()):
+            release, _, end = self._delivered(p["name"])
+            out.append((p["name"], release, end))
+        return out
 
     def lost_by_message(self) -> dict[str, int]:
         """The cyclic frames lost, under the bus's name: the run's lost total counts them."""

@@ -92,10 +92,14 @@ def start_spread(m: model.Model, task: model.Task, chained: dict[str, Delivery])
 
 
 def sent_by_producer(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> bool:
-    """True when the task before the message in the flow sends it as it finishes (same rate)."""
+    """True when the task before the message in the flow sends it as it finishes (same rate; and its bus lets a
+    task send it: netcfg.resolve.flows put the task in its sent_by)."""
     if prev is None or prev.kind != "task":
         return False
-    return any(m.task(ref).node == msg.producer and same_rate(m, m.task(ref), msg) for ref in prev.refs)
+    senders = sending_tasks(m, msg)
+    return any(
+        m.task(ref).node == msg.producer and same_rate(m, m.task(ref), msg) and ref in senders for ref in prev.refs
+    )
 
 
 def queue_delay(m: model.Model, msg: model.Message, prev: model.FlowStep | None) -> int:

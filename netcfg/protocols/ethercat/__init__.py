@@ -21,10 +21,14 @@ class EtherCatProtocol(Protocol):
 
         return EthercatRules
 
+    def sent_as_tasks_end(self, bus: model.Bus) -> bool:
+        """A PDO rides the master's cyclic frame: a task writes its data, the next frame takes it."""
+        return False
+
     def analyze(self, m: model.Model, bus: model.Bus, diags: Collector, acc: Analysis) -> dict[str, Any]:
         from netcfg.protocols.ethercat.analysis import analyze_segment
 
-        return analyze_segment(m, bus, diags)
+        return analyze_segment(m, bus, diags, acc)
 
     def joint_entries(self, bus: model.Bus, node: str, axis: int) -> JointEntries | None:
         from netcfg.protocols.ethercat.joints import joint_entries

@@ -39,7 +39,24 @@ def render_cycle(bus: dict[str, Any], table: Any, num: Any) -> list[str]:
     ]
     head = ["pos", "slave", "device", "out B", "in B", "frame passed/us", "SYNC0/us", "margin/us", "DC", "ok"]
     out.extend(table(head, rows, "rllrrrrrrl"))
+    for m in bus["messages"]:
+        out.append("  " + pdo_text(m, num))
     return out
+
+
+def pdo_text(m: dict[str, Any], num: Any) -> str:
+    """One PDO message's delivery in words (netcfg.protocols.ethercat.messages)."""
+    if m["direction"] == "inputs":
+        return (
+            f"{m['name']}: TxPDO {m['pdo']} of {m['slave']}, its inputs at logical byte {m['logical']}, read "
+            f"{num(m['read_offset_ns'] / 1000)} us after the master's send, at the master {num(m['best_us'])} us "
+            f"after that at the earliest and {num(m['wcrt_us'])} us after the cycle starts at the latest"
+        )
+    return (
+        f"{m['name']}: RxPDO {m['pdo']} of {m['slave']}, its outputs at logical byte {m['logical']}, copied at the "
+        f"master's send, at the slave {num(m['best_us'])} us after that at the earliest and {num(m['wcrt_us'])} us "
+        "after the cycle starts at the latest"
+    )
 
 
 def cycle_view(bus: dict[str, Any], num: Any) -> dict[str, Any]:
@@ -67,7 +84,9 @@ def cycle_view(bus: dict[str, Any], num: Any) -> dict[str, Any]:
         "pos", "slave", "device", "out bytes", "in bytes", "delay (us)", "cable (m)", "frame passed (us)",
         "SYNC0 (us)", "SYNC0 margin (us)", "DC", "verdict",
     ]
+    pdos = [pdo_text(m, num) for m in bus.get("messages", ())]
     return {
+        "pdos": pdos,
         **{k: num(v) for k, v in c.items() if isinstance(v, (int, float)) and not isinstance(v, bool)},
         "frame_bytes": ", ".join(map(str, c["frame_bytes"])),
         "ok": c["ok"],

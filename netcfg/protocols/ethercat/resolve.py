@@ -12,6 +12,8 @@ from netcfg import model
 from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.inputs import check_input_path
 from netcfg.links.ethercat import BIT_RATES
+from netcfg.model import MessageKind
+from netcfg.protocols.ethercat.messages import object_ref
 from netcfg.rules import BusRules
 from netcfg.spec import schema
 from netcfg.spec.source import Path
@@ -34,33 +36,73 @@ SM_KIND = {"rx": "Outputs", "tx": "Inputs"}
 SIDE = {"rx": "RxPDO (outputs, 0x1C12)", "tx": "TxPDO (inputs, 0x1C13)"}
 
 
-def object_ref(ref: int | str) -> tuple[int, int] | None:
-    if isinstance(ref, int):
-        return ref, 0
-    text = ref.strip()
-    index, _, sub = text.partition(":")
-    try:
-        return int(index, 0), int(sub, 0) if sub else 0
-    except ValueError:
-        return None
-
-
 class EthercatRules(BusRules):
     name = "ethercat"
     section = "ethercat"
     id_meaning = "none: EtherCAT process data comes from the slaves' PDOs"
+    pdo_messages = True
     extended_ids = False
 
     def carries_messages(self, bus: model.Bus) -> bool:
         return True
 
     def check_fields(self, m: schema.Message, path: Path) -> None:
-        self.r.err(
-            "wrong-section",
-            f"message '{m.name}': an EtherCAT bus carries the slaves' PDOs (ethercat.slaves[].rxpdo/txpdo), "
-            "not messages of its own",
-            path,
-        )
+        if m.pdo is None:
+            self.r.err(
+                "wrong-section",
+                f"message '{m.name}': an EtherCAT bus carries the slaves' PDOs, not messages of its own: name one "
+                "of a slave's assigned PDOs with 'pdo: {tpdo: N}' (its inputs, 0x1A00 + N - 1) or 'pdo: {rpdo: N}' "
+                "(its outputs, 0x1600 + N - 1)",
+                path,
+            )
+            return
+        for key in ("id", "offset", "jitter", "udp"):
+            if getattr(m, key) is not None:
+                self.r.err(
+                    "wrong-section",
+                    f"message '{m.name}': '{key}' means nothing for a PDO in an EtherCAT cycle (its place in the "
+                    "process image is its address, the cycle its release)",
+                    (*path, key),
+                )
+
+    def resolve_pdo(
+        self, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
+    ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
+        from netcfg.protocols.ethercat.messages import resolve_pdo
+
+        return resolve_pdo(self.r, m, sbus, bus, path)
+
+    def pdo_timing(
+        self,
+        pdo: model.Pdo,
+        bus: model.Bus,
+        kind: MessageKind | None,
+        period: int | None,
+        mit: int | None,
+        path: Path,
+        jitter: int = 0,
+    ) -> tuple[MessageKind | None, int | None, int | None] | None:
+        """A PDO rides every cycle: periodic at the bus's cycle (a period, if given, must be it)."""
+        seg = bus.ethercat
+        if seg is None:
+            return None
+        if (kind is not None and kind != "periodic") or (period is not None and period != seg.cycle_ns):
+            self.r.err(
+                "period",
+                f"a PDO of EtherCAT bus '{bus.name}' rides every cycle ({seg.cycle_ns / 1000:g} us): drop 'period' "
+                "and 'type'",
+                path,
+            )
+            return None
+        return "periodic", seg.cycle_ns, mit
+
+    def message_id(self, m: schema.Message, pdo: model.Pdo | None, path: Path) -> int | None:
+        from netcfg.protocols.ethercat.messages import message_id
+
+        if pdo is None:
+            return None
+        segs = [b.ethercat for b in self.r.model.buses.values() if b.ethercat is not None]
+        return next((x for seg in segs if (x := message_id(seg, pdo)) is not None), None)
 
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
         if bus.bitrate not in BIT_RATES:

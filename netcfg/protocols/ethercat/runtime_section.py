@@ -11,6 +11,7 @@ from typing import Any
 
 from netcfg import model
 from netcfg.protocols.ethercat.analysis import DC_PRECISION_NS, segment_timing
+from netcfg.protocols.ethercat.messages import pdo_messages, read_offset_ns
 from netcfg.protocols.ethercat.segment import Segment, Slave
 
 ASSIGN = {"rx": 0x1C12, "tx": 0x1C13}
@@ -112,7 +113,7 @@ def runtime_section(bus: model.Bus, seg: Segment) -> dict[str, Any]:
                 "frame_passed_ns": passed,  # the analysis' bound: the last frame's end has passed the slave
             }
         )
-    return {
+    out = {
         "cycle_ns": seg.cycle_ns,
         "sync0_cycle_ns": seg.sync0_cycle_ns,
         "sync0_shift_ns": seg.sync0_shift_ns,
@@ -125,3 +126,17 @@ def runtime_section(bus: model.Bus, seg: Segment) -> dict[str, Any]:
         "latency_ns": timing.latency_ns,  # the analysis' bound: the last frame back at the master
         "dc_precision_ns": DC_PRECISION_NS,
     }
+    pdos = pdo_messages(bus, seg)
+    if pdos:  # (only then: a segment without PDO messages writes what it always did)
+        position = {s.node: k for k, s in enumerate(seg.slaves)}
+        out["messages"] = [
+            {
+                "name": p.name,
+                "slave": position[p.slave],
+                "direction": p.direction,
+                # from the master's send to the read of the slave's first input byte (netcfg.sim.ethercat's capture)
+                "read_offset_ns": read_offset_ns(timing, p.logical, bus.bitrate) if p.direction == "inputs" else 0,
+            }
+            for p in pdos
+        ]
+    return out
