@@ -37,14 +37,16 @@ tests/test_ethercat.py derives each from this model.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 from netcfg import model
 from netcfg.bus_analysis import Analysis, set_verdict, us
 from netcfg.diagnostics import Collector
 from netcfg.links import ethercat as link
+from netcfg.protocols.ethercat.cycle import CycleTiming, cycle_timing, segment_timing
 from netcfg.protocols.ethercat.segment import Segment
+
+__all__ = ["ASSUMES", "DC_PRECISION_NS", "CycleTiming", "analyze_segment", "cycle_timing", "segment_timing"]
 
 DC_PRECISION_NS = 100  # SYNC0 against the reference clock (Beckhoff, "Distributed Clock": "< 100 ns")
 
@@ -58,45 +60,6 @@ ASSUMES = [
     "in the room the cyclic frames leave",
 ]
 
-
-@dataclass(frozen=True)
-class CycleTiming:
-    frames: tuple[int, ...]  # data bytes of each frame's datagram
-    frame_bytes: tuple[int, ...]  # each frame on the wire
-    wire_ns: int  # all frames back to back: the bus's busy time
-    forwarding_ns: int  # the slaves' forwarding delays
-    propagation_ns: int  # the cables, out and back
-    jitter_ns: int
-    passed_ns: tuple[int, ...]  # per slave: the last frame's end has passed it, from the cycle's start
-
-    @property
-    def latency_ns(self) -> int:
-        """From the cycle's start to the last frame back at the master."""
-        return self.jitter_ns + self.wire_ns + self.forwarding_ns + self.propagation_ns
-
-
-def cycle_timing(
-    image_bytes: int, bitrate: int, forwarding_ns: list[int], cables_m: list[float], jitter_ns: int = 0
-) -> CycleTiming:
-    frames = tuple(link.split_image(image_bytes))
-    sizes = tuple(link.frame_bytes([d]) for d in frames)
-    wire = link.wire_ns(sum(sizes), bitrate)
-    passed, fwd, prop = [], 0.0, 0.0
-    for d, cable in zip(forwarding_ns, cables_m):
-        fwd += d
-        prop += link.propagation_ns(cable)
-        passed.append(round(jitter_ns + wire + fwd + prop))
-    return CycleTiming(frames, sizes, wire, round(fwd), round(2 * prop), jitter_ns, tuple(passed))
-
-
-def segment_timing(bus: model.Bus, seg: Segment) -> CycleTiming:
-    return cycle_timing(
-        seg.out_bytes + seg.in_bytes,
-        bus.bitrate,
-        [s.forwarding_ns for s in seg.slaves],
-        [s.cable_m for s in seg.slaves],
-        seg.master_jitter_ns,
-    )
 
 
 def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector, acc: Analysis | None = None) -> dict[str, Any]:

@@ -33,9 +33,9 @@ from netcfg.spec import schema
 from netcfg.spec.source import Path
 
 if TYPE_CHECKING:
-    from netcfg.protocols.ethercat.analysis import CycleTiming
+    from netcfg.protocols.ethercat.cycle import CycleTiming
     from netcfg.protocols.ethercat.segment import AssignedPdo, Segment, Slave
-    from netcfg.resolve.core import Resolver
+    from netcfg.rules import Resolution
 
 FIRST = {"tpdo": 0x1A00, "rpdo": 0x1600}
 SIDE_OF = {"tpdo": "tx", "rpdo": "rx"}
@@ -79,7 +79,7 @@ def object_ref(ref: int | str) -> tuple[int, int] | None:
 
 
 def resolve_pdo(
-    r: Resolver, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
+    r: Resolution, m: schema.Message, sbus: schema.Bus, bus: model.Bus, path: Path
 ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
     seg: Segment | None = bus.ethercat
     assert m.pdo is not None
