@@ -143,6 +143,9 @@ class Message:
     brs: bool = False  # CAN FD bit-rate switch: the data phase at the bus's data_bitrate
     may_be_lost: bool = False  # a FIFO that drops may lose some of its frames: no bound, and no error
     fixed_by: str | None = None  # what sets its identifier and release (an actuator profile): `netcfg tune` keeps both
+    # a remote frame (RTR recessive, ISO 11898-1): no data field (size 0), it asks for the data frame of its identifier,
+    # which wins arbitration over it; the one case two messages of a bus share an identifier (links.can)
+    remote: bool = False
 
     @property
     def frame_size(self) -> int:

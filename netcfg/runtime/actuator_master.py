@@ -40,7 +40,6 @@ from netcfg.runtime.actuators import ActuatorFrame, Decoded
 from netcfg.runtime.clock import Clock, SystemClock
 
 RUNNING, LOST, STOPPED = "RUNNING", "LOST", "STOPPED"
-REMOTE_DLC = 8  # a profile's remote requests ask for its 8-byte answer
 SAFE_STOP_WAIT_S = 0.5  # how long the master waits for the safe stop's replies at the end
 ENABLE_WAIT_NS = 500_000_000  # the wait for an enable's reply of an actuator with no loss timeout
 
@@ -168,7 +167,7 @@ class ActuatorMaster:
         # a remote frame (ODrive's Get_* requests) carries no data; its DLC is the length it asks for
         msg = can.Message(arbitration_id=frame.arbitration_id, is_extended_id=frame.is_extended, is_fd=frame.is_fd,
                           bitrate_switch=frame.bitrate_switch, is_remote_frame=frame.is_remote,
-                          dlc=REMOTE_DLC if frame.is_remote else None, data=None if frame.is_remote else frame.data)
+                          dlc=frame.dlc, data=None if frame.is_remote else frame.data)
         msg.timestamp = time.time()
         self.bus.send(msg)
         return msg.timestamp
@@ -258,7 +257,7 @@ class ActuatorMaster:
             self._pending.setdefault((c.node, c.reply), []).append(_Pending(sent, self.clock.now() + wait_ns / 1e9))
 
     def _decode(self, msg: can.Message) -> tuple[str, Decoded] | None:
-        if msg.is_error_frame:
+        if msg.is_error_frame or msg.is_remote_frame:  # a remote frame is a request, sent by a host
             return None
         for p in self.plans.values():
             got = p.codec.decode(msg.arbitration_id, msg.is_extended_id, bytes(msg.data))

@@ -137,6 +137,8 @@ class Message(_Carried):
     brs: bool = False  # CAN FD bit-rate switch
     # data bytes in the frame: a CAN FD payload padded to the next valid length (ISO 11898-1:2015); 0: size
     frame_size: int = 0
+    # a remote frame (RTR, ISO 11898-1): no data field, size 0; it asks for the data frame of its identifier
+    remote: bool = False
     fields: tuple[Field, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -198,6 +200,8 @@ class Message(_Carried):
                 dlc=len(data),
                 data=data,
             )
+        if self.remote:  # no data field; the DLC a requester gives is the length it asks for, unknown here: 0
+            return can.Message(arbitration_id=self.id, is_extended_id=self.extended, is_remote_frame=True, dlc=0)
         return can.Message(arbitration_id=self.id, is_extended_id=self.extended, dlc=self.size, data=data)
 
     def encode_udp(self, **values: Number | str | bytes) -> bytes:
