@@ -145,10 +145,16 @@ class ActuatorMaster:
         self._stop_waits: dict[str, str] = {}  # node -> the reply its safe stop waits for
         self._stop_reason: str | None = None
         self._t0 = 0.0
+        # called with "stop_all:<node>" when an actuator's on_loss or on_emcy stops this bus: a run of several buses
+        # stops the others with it (netcfg.run_actuators), as stop_all means every actuator
+        self.on_stop_all: Callable[[str], None] | None = None
 
     # -- control from outside (a signal handler, a test)
     def stop(self, reason: str = "stop()") -> None:
-        self._stop_reason = reason
+        if self._stop_reason is None:
+            self._stop_reason = reason
+            if reason.startswith("stop_all"):  # another bus's actuator stopped the whole run
+                self.result.ended_by = reason
 
     # -- the run
     def run(self, bus: can.BusABC, plan: ActuatorRunPlan) -> ActuatorRun:
@@ -338,6 +344,8 @@ class ActuatorMaster:
             if self._stop_reason is None:
                 self._stop_reason = f"stop_all:{name}"
                 self.result.ended_by = self._stop_reason
+                if self.on_stop_all is not None:
+                    self.on_stop_all(self._stop_reason)
         elif action == "stop_node":
             self._safe_stop(name)
 
