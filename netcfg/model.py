@@ -68,6 +68,9 @@ class Node:
     # an actuator profile's node: its plain profile, parameters and which model messages carry its commands, replies
     # and cyclic messages (netcfg.resolve.actuators; runtime.json's `actuator`, netcfg.runtime.actuators.Actuator)
     actuator: dict[str, Any] | None = None
+    # the actuator's vendor ros2_control plugin, as its profile describes it (netcfg.devices.actuator_ros2); None: the
+    # profile has none (or the node is no actuator)
+    ros2_control: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)

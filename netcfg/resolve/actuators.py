@@ -142,6 +142,7 @@ class _Actuator:
             "commands": self.commands,
             "cyclic": self.cyclics,
         }
+        node.ros2_control = self.profile.ros2_control
 
     # -- who, and with which parameters
     def commander(self, sbus: schema.Bus) -> str | None:
