@@ -89,6 +89,28 @@ def test_the_rtr_bit_orders_arbitration() -> None:
     assert order == sorted(order) and len(set(order)) == len(order)
 
 
+def test_the_simulated_bus_lets_the_data_frame_win() -> None:
+    """The simulator's arbitration, by hand at 1 Mbit/s: a frame on 0x100 holds the bus 0..55 us; meanwhile a remote
+    frame on 0x029 (queued at 5 us, first) and the 8-byte data frame on 0x029 (at 10 us) wait. The data frame wins
+    (its RTR bit is dominant), 55..190 us; the remote frame follows, 190..245 us. Responses: 190 - 10 = 180 us and
+    245 - 5 = 240 us (with equal keys the remote frame, queued first, would have gone first)."""
+    from netcfg.sim.can_bus import CanBus
+    from netcfg.sim.engine import Simulator
+
+    sim = Simulator()
+    bus = CanBus(sim, "can0", 1_000_000)
+    first = bus.add_source("first", 0x100, False, 0, "n1")
+    remote = bus.add_source("request", 0x029, False, 0, "host", remote=True)
+    data = bus.add_source("answer", 0x029, False, 8, "axis")
+    bus.start()
+    sim.at(0, lambda _: bus.submit(first))
+    sim.at(5_000, lambda _: bus.submit(remote))
+    sim.at(10_000, lambda _: bus.submit(data, bytes(8)))
+    sim.run_until(1_000_000)
+    assert bus.record.msg == [first, data, remote]
+    assert dict(zip(bus.record.msg, bus.record.response)) == {first: 55_000, data: 180_000, remote: 240_000}
+
+
 def test_every_other_shared_identifier_is_still_refused(tmp_path: Path) -> None:
     """A data frame of the spec's own on 0x029 collides with the answer; so would two remote frames of one
     identifier, which a profile of the user's can ask for."""
