@@ -256,3 +256,27 @@ def test_a_simulated_odrive_answers_a_remote_frame_of_any_dlc(tmp_path: Path) ->
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(pytest.main([__file__, "-q"]))
+
+
+def test_tune_keeps_the_pair_and_places_the_rest(tmp_path: Path) -> None:
+    """`netcfg tune` keeps what the profile fixes and ranks the remote frame one level below its answer: a message
+    of the spec's own with a 300 us deadline at 0x300 misses it behind the axis' frames (check refuses), and tune
+    moves it to the top, where by hand its bound is its own 135 us plus the longest lower frame's 135 us, 270 us.
+    Before the remote frame had a level of its own, the search lost one of the pair and refused the spec."""
+    from conftest import check
+
+    data = odrive_spec()
+    data["nodes"][1]["actuator"]["commands"] = data["nodes"][1]["actuator"]["commands"][:2]
+    data["messages"] = [
+        {"name": "fast", "producer": "host", "consumers": ["axis"], "id": 0x300, "size": 8, "period": "1 ms",
+         "deadline": "300 us"},
+        {"name": "slow", "producer": "host", "consumers": ["axis"], "id": 0x010, "size": 8, "period": "50 ms"}]
+    spec, out = write(tmp_path, data), tmp_path / "tuned.yaml"
+    assert not check(spec)["ok"]
+    proc = cli("tune", str(spec), "-o", str(out))
+    assert proc.returncode == 0, proc.stderr
+    report = check(out)
+    assert report["ok"], report["errors"]
+    rows = {r["name"]: r for r in report["buses"][0]["messages"]}
+    assert (rows["fast"]["id"], rows["fast"]["wcrt_us"]) == (0x010, 270)
+    assert rows["axis_request_encoder_estimates"]["id"] == rows["axis_get_encoder_estimates"]["id"] == 0x029
