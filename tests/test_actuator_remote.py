@@ -74,6 +74,10 @@ def test_a_request_and_its_answer_share_the_identifier(tmp_path: Path) -> None:
     assert (rows["axis_request_encoder_estimates"]["frame_bits_worst"], rows["axis_get_encoder_estimates"]
             ["frame_bits_worst"]) == (55, 135)
     assert rows["axis_request_encoder_estimates"]["wcrt_us"] == 460
+    assert rows["axis_request_encoder_estimates"]["remote"] is True and "remote" not in rows["axis_get_iq"]
+    text = cli("check", str(tmp_path / "odrive.yaml")).stdout.splitlines()
+    assert [line.split()[:3] for line in text if " 0x29 " in line] == [
+        ["axis_get_encoder_estimates", "0x29", "8"], ["axis_request_encoder_estimates", "0x29", "RTR"]]
     # the load: per 10 ms 3 data frames of 135 bits (Set_Input_Vel and the two answers) and 2 remote frames of 55,
     # and the heartbeat (135 bits every 100 ms), at 1 Mbit/s: (3 * 135 + 2 * 55) / 10,000 + 135 / 100,000 = 5.285 %
     assert report["buses"][0]["utilization"] == pytest.approx(0.05285, rel=1e-12)
