@@ -773,13 +773,15 @@ def _joint(f: Fields, d: str, messages: list[dict[str, Any]]) -> dict[str, Any] 
 
 # Actuator profiles a random CAN spec may hold: (profile, commands it may send at a rate, node id base, the
 # parameters that keep its identifiers apart from the others'), each reply answering its command within the
-# profile's delay range (or the spec's reply_delay). Not here: RobStride's private protocol, whose feedback carries
-# fields in its identifier (refused at a rate), and ODrive's remote requests, whose replies share their identifier
+# profile's delay range (or the spec's reply_delay); ODrive's remote requests (a remote frame and its answer on one
+# identifier) for the Get_* messages whose cyclic rate is off by default. Not here: RobStride's private protocol,
+# whose feedback carries fields in its identifier (refused at a rate)
 ACTUATORS: list[tuple[str, list[str], int, dict[str, int]]] = [
     ("damiao-dm-j4310", ["mit_command", "vel_command", "pos_vel_command"], 40, {"master_id": 80}),
     ("cubemars-ak80-9-mit", ["mit_command"], 100, {"master_id": 120}),
     ("myactuator-rmd-x8", ["torque_command", "speed_command", "position_command"], 1, {}),
-    ("odrive-cansimple", ["set_input_torque", "set_input_vel", "set_input_pos"], 20, {"encoder_msg_rate_ms": 50}),
+    ("odrive-cansimple", ["set_input_torque", "set_input_vel", "set_input_pos", "request_iq", "request_torques"], 20,
+     {"encoder_msg_rate_ms": 50}),
     ("moteus", ["position_query", "query"], 1, {"host_id": 0}),  # CAN FD frames: on a can-fd bus only
 ]
 # command rates by bit rate (else slow ones): light enough that the random traffic beside them still fits often

@@ -25,7 +25,8 @@ def build(spec: Path, out: Path | None, worker: Background | None = None) -> tup
     it is closed on return.
 
     report["kept"] lists the files of the user's that were found in netcfg's output folder and kept there;
-    report["notes"] what of the spec a written file cannot say (a DBC: netcfg.emit.dbc.unsaid).
+    report["notes"] what of the spec a written file cannot say (a DBC: netcfg.emit.dbc.unsaid; the ros2_control
+    description: the joints no published plugin drives, netcfg.emit.ros2_control.unsaid).
     Raises OutputError (an OSError) when the output folder is one netcfg must not replace."""
     if worker is None:
         worker = Background.start()  # it imports what the report needs while the spec is analysed here
@@ -37,6 +38,9 @@ def build(spec: Path, out: Path | None, worker: Background | None = None) -> tup
             return report, None, {}
         files = emit_all(model, report, worker)
         report["notes"] = [f"{name}: it cannot say {u.what}" for name, lost in unsaid(model).items() for u in lost]
+        from netcfg.emit import ros2_control  # after emit_all, which has imported it
+
+        report["notes"] += ros2_control.unsaid(model)
     finally:
         worker.close()
     target = out if out is not None else Path("generated") / model.system

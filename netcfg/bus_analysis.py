@@ -68,6 +68,8 @@ def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
     }
     if t.fd_worst is not None:  # CAN FD: the padded length, and how many of the worst-case bits are at the data rate
         row.update(fd=True, brs=msg.brs, frame_size=msg.frame_size, frame_bits_worst_data_phase=t.fd_worst.data)
+    if msg.remote:  # a remote frame (RTR): no data field, below the data frame of its identifier
+        row["remote"] = True
     return row
 
 

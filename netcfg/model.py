@@ -68,6 +68,9 @@ class Node:
     # an actuator profile's node: its plain profile, parameters and which model messages carry its commands, replies
     # and cyclic messages (netcfg.resolve.actuators; runtime.json's `actuator`, netcfg.runtime.actuators.Actuator)
     actuator: dict[str, Any] | None = None
+    # the actuator's vendor ros2_control plugin, as its profile describes it (netcfg.devices.actuator_ros2); None: the
+    # profile has none (or the node is no actuator)
+    ros2_control: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -143,6 +146,9 @@ class Message:
     brs: bool = False  # CAN FD bit-rate switch: the data phase at the bus's data_bitrate
     may_be_lost: bool = False  # a FIFO that drops may lose some of its frames: no bound, and no error
     fixed_by: str | None = None  # what sets its identifier and release (an actuator profile): `netcfg tune` keeps both
+    # a remote frame (RTR recessive, ISO 11898-1): no data field (size 0), it asks for the data frame of its identifier,
+    # which wins arbitration over it; the one case two messages of a bus share an identifier (links.can)
+    remote: bool = False
 
     @property
     def frame_size(self) -> int:

@@ -84,13 +84,15 @@ def render(report: dict[str, Any]) -> str:
             out.append("  " + errors_text(bus["errors"]))
         rows = []
         # by identifier, the order of priority on CAN and how people look frames up; ones without an id last
-        for m in sorted(bus["messages"], key=lambda m: (m["id"] < 0, m.get("extended", False), m["id"], m["name"])):
+        # (a remote frame after the data frame of its identifier, which wins over it)
+        for m in sorted(bus["messages"], key=lambda m: (m["id"] < 0, m.get("extended", False), m["id"],
+                                                        m.get("remote", False), m["name"])):
             ident = f"0x{m['id']:X}" if m["id"] >= 0 else "-"
             rows.append(
                 [
                     m["name"],
                     ident,
-                    str(m["size"]),
+                    "RTR" if m.get("remote") else str(m["size"]),
                     num(m["interval_us"]),
                     str(m["frame_bits_worst"]),
                     num(m["tx_us"]),

@@ -1,17 +1,19 @@
-"""`netcfg run` on an actuator bus, as a library: the bus, the simulated actuators, the drills, the master
-(netcfg.runtime.actuator_master) and its result as text or as the JSON document.
+"""`netcfg run` on actuator buses, as a library: the buses, the simulated actuators, the drills, one master per bus
+(netcfg.runtime.actuator_master), all at once, and their result as text or as the JSON document.
 
 The JSON document: {"ok", "system", "bus", "period_ms", "cycles", "ended_by", "actuators": {name: {"profile",
 "state", "enabled", "commands", "replies", "missing", "late", "reply_delay_us": {"min", "mean", "max"} | null,
 "reply_bound_us", "loss_timeout_ms", "heard": {message: frames}, "last": {message: {field: SI value}}, "states",
 "errors", "lost_at_s", "stopped_at_s", "safe_stop"}}, "events": [{"t_s", "node", "kind", "detail", "action"}],
-"drills": [{"t_s", "what"}], "unknown_frames", "simulated": {name: frames sent} | null}.
+"drills": [{"t_s", "what"}], "unknown_frames", "simulated": {name: frames sent} | null}: one bus's; a run of
+several buses prints {"ok", "system", "buses": [one such document per bus]}.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import threading
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import AbstractContextManager
 from functools import partial
@@ -39,12 +41,12 @@ def parse_setting(text: str) -> tuple[tuple[str, str], str, float | str]:
     return (parts[0], parts[1]), parts[2], number
 
 
-def run_actuator_bus(
+def run_actuator_buses(
     cfg: RuntimeConfig,
-    bus_name: str,
+    bus_names: list[str],
     *,
     interface: str,
-    channel: str | None,
+    channels: Mapping[str, str | None],
     simulated: bool,
     cycles: int | None,
     duration_s: float | None,
@@ -55,67 +57,136 @@ def run_actuator_bus(
     stop_on_signals: Callable[[], AbstractContextManager[Arm]],
     fmt: str,
 ) -> int:
-    """The command's work once the configuration is read; its exit code (0 ok, 1 a fault, 2 usage or I/O)."""
+    """The command's work once the configuration is read: one master per bus (`channels`: each bus's python-can
+    channel), all at once, each bus's cycle counted in its own control period; their frames in one log, each under
+    its bus's name when there are several. An actuator's stop_all stops every bus. The exit code: 0 ok, 1 a
+    fault, 2 usage or I/O."""
     import can
 
     from netcfg import jsontext
-    from netcfg.runtime.bus_log import BusLog
+    from netcfg.runtime.bus_log import BusLog, LogFile
 
-    values: dict[tuple[str, str], dict[str, float | str]] = {}
+    bus_of = {n.name: b for n in cfg.nodes if n.actuator is not None for b in n.buses if b in bus_names}
+    values: dict[str, dict[tuple[str, str], dict[str, float | str]]] = {b: {} for b in bus_names}
+    masters: dict[str, ActuatorMaster] = {}
     try:
         for text in settings:
             key, field, value = parse_setting(text)
-            values.setdefault(key, {})[field] = value
-        plans = plan_actuators(cfg, bus_name, values)
-        master = ActuatorMaster(plans, bus_name)
+            # a node on none of the buses goes to the first, whose plan names what it has
+            values[bus_of.get(key[0], bus_names[0])].setdefault(key, {})[field] = value
+        for b in bus_names:
+            masters[b] = ActuatorMaster(plan_actuators(cfg, b, values[b]), b)
     except (ValueError, CodecError) as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 2
-    names = {p.name for p in plans}
     for node, _ in [*kills, *faults]:
-        if node not in names:
-            print(f"netcfg: '{node}' is not an actuator of bus '{bus_name}' ({', '.join(sorted(names))})",
-                  file=sys.stderr)
+        if node not in bus_of:
+            where = f"bus '{bus_names[0]}'" if len(bus_names) == 1 else f"buses {', '.join(bus_names)}"
+            print(f"netcfg: '{node}' is not an actuator of {where} ({', '.join(sorted(bus_of))})", file=sys.stderr)
             return 2
-    period_s = master.period_ns / 1e9
-    if duration_s is not None:
-        cycles = max(1, math.ceil(duration_s / period_s - 1e-9))
-    bench = None
-    if simulated:
-        from netcfg.runtime.simulated_actuator import ActuatorBench
-
-        bench = ActuatorBench(cfg, bus_name, channel=str(channel), interface=interface).start()
+    for m in masters.values():  # stop_all: every actuator of the run
+        m.on_stop_all = partial(_stop_others, list(masters.values()), m)
+    plans: dict[str, ActuatorRunPlan] = {}
+    for b, m in masters.items():
+        period_s = m.period_ns / 1e9
+        n = cycles if duration_s is None else max(1, math.ceil(duration_s / period_s - 1e-9))
+        plans[b] = ActuatorRunPlan(cycles=n)
+    benches: dict[str, Any] = {}
+    opened: list[BusLog] = []
+    shared = None
+    several = len(bus_names) > 1
     try:
-        try:
-            raw = can.Bus(interface=interface, channel=channel, bitrate=cfg.bus(bus_name).bitrate)
-        except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
-            print(f"netcfg: cannot open the CAN interface {interface!r} channel {channel!r}: {exc}", file=sys.stderr)
-            return 2
-        try:
-            bus = BusLog(raw, log)
-        except (OSError, ValueError) as exc:
-            raw.shutdown()
-            print(f"netcfg: cannot write the log {log}: {exc}", file=sys.stderr)
-            return 2
-        drills: list[tuple[float, str, Callable[[], None]]] = []
-        if bench is not None:
-            drills += [(at, f"{node} killed", bench[node].kill) for node, at in kills]
-            drills += [(at, f"{node} reports an error", partial(bench[node].fault)) for node, at in faults]
-        with bus, stop_on_signals() as arm:
-            arm(master.stop)
-            result = master.run(bus, ActuatorRunPlan(cycles=cycles, drills=drills))
+        if simulated:
+            from netcfg.runtime.simulated_actuator import ActuatorBench
+
+            for b in bus_names:
+                benches[b] = ActuatorBench(cfg, b, channel=str(channels[b]), interface=interface).start()
+        if log is not None and several:
+            try:
+                shared = LogFile(log)
+            except (OSError, ValueError) as exc:
+                print(f"netcfg: cannot write the log {log}: {exc}", file=sys.stderr)
+                return 2
+        buses: dict[str, BusLog] = {}
+        for b in bus_names:
+            try:
+                raw = can.Bus(interface=interface, channel=channels[b], bitrate=cfg.bus(b).bitrate)
+            except (can.CanError, OSError, ValueError, ImportError, NotImplementedError) as exc:
+                print(f"netcfg: cannot open the CAN interface {interface!r} channel {channels[b]!r}: {exc}",
+                      file=sys.stderr)
+                return 2
+            try:
+                bus = BusLog(raw, None, log=shared, channel=b) if several else BusLog(raw, log)
+            except (OSError, ValueError) as exc:
+                raw.shutdown()
+                print(f"netcfg: cannot write the log {log}: {exc}", file=sys.stderr)
+                return 2
+            opened.append(bus)
+            buses[b] = bus
+        for node, at in kills:
+            if bus_of[node] in benches:
+                plans[bus_of[node]].drills.append((at, f"{node} killed", benches[bus_of[node]][node].kill))
+        for node, at in faults:
+            if bus_of[node] in benches:
+                plans[bus_of[node]].drills.append((at, f"{node} reports an error",
+                                                   partial(benches[bus_of[node]][node].fault)))
+        with stop_on_signals() as arm:
+            arm(partial(_stop_others, list(masters.values()), None))
+            results = _run_all(masters, buses, plans)
     finally:
-        if bench is not None:
+        for bus in opened:
+            bus.shutdown()
+        if shared is not None:
+            shared.close()
+        for bench in benches.values():
             bench.stop()
-    simulated_frames = {n: a.answered for n, a in bench.actuators.items()} if bench is not None else None
-    doc = result_document(result, cfg.system, simulated_frames)
+    docs = []
+    for b in bus_names:
+        frames = {n: a.answered for n, a in benches[b].actuators.items()} if b in benches else None
+        docs.append(result_document(results[b], cfg.system, frames))
+    doc = docs[0] if not several else {"ok": all(d["ok"] for d in docs), "system": cfg.system, "buses": docs}
     if fmt == "json":
         print(jsontext.dumps(doc, indent=2))
     else:
-        print(result_text(doc))
+        print("\n".join(result_text(d) for d in docs))
+        if several:
+            print(f"result, {len(docs)} buses: {'OK' if doc['ok'] else 'FAILED'}")
         if log is not None:
-            print(f"bus log: {log}")
+            print(f"bus log: {log}" + (" (each frame under its bus's name)" if several else ""))
     return 0 if doc["ok"] else 1
+
+
+def _stop_others(masters: list[ActuatorMaster], me: ActuatorMaster | None, reason: str) -> None:
+    for m in masters:
+        if m is not me:
+            m.stop(reason)
+
+
+def _run_all(masters: dict[str, ActuatorMaster], buses: Mapping[str, Any],
+             plans: Mapping[str, ActuatorRunPlan]) -> dict[str, ActuatorRun]:
+    """Every bus's master at once, each in a thread of its own but the first, which runs in this one (where the
+    signal handlers are); an exception in a bus's thread stops the others and is raised here."""
+    results: dict[str, ActuatorRun] = {}
+    failed: list[BaseException] = []
+
+    def one(b: str) -> None:
+        try:
+            results[b] = masters[b].run(buses[b], plans[b])
+        except BaseException as exc:  # re-raised in the calling thread
+            failed.append(exc)
+            for m in masters.values():
+                m.stop(f"bus '{b}' failed")
+
+    names = list(masters)
+    threads = [threading.Thread(target=one, args=(b,), name=f"actuators-{b}", daemon=True) for b in names[1:]]
+    for t in threads:
+        t.start()
+    one(names[0])
+    for t in threads:
+        t.join()
+    if failed:
+        raise failed[0]
+    return results
 
 
 def result_document(run: ActuatorRun, system: str, simulated: Mapping[str, int] | None = None) -> dict[str, Any]:

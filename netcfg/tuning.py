@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import gcd, lcm
 from pathlib import Path
 from typing import Any
@@ -41,12 +41,12 @@ from netcfg.analyze import analysis_jitter
 from netcfg.bus_analysis import error_model
 from netcfg.diagnostics import Collector
 from netcfg.importers import ImportOptions
-from netcfg.links.arbitration import rta_frames
+from netcfg.links.arbitration import frame_priority, rta_frames
 from netcfg.protocols import release_offsets
 from netcfg.spec.schema import Spec
 from netcfg.timing import can_errors, can_offsets, can_rta, clocks, flows, load
 from netcfg.timing.can_errors import ErrorModel
-from netcfg.timing.frames import arbitration_key, bits_to_ns
+from netcfg.timing.frames import bits_to_ns
 
 MAX_ERRORS = 64
 MAX_STEPS = 20_000
@@ -66,6 +66,7 @@ class Item:
     producer: str
     pinned: bool
     id_range: tuple[int, int] | None
+    remote: bool = False  # a remote frame: pinned (an actuator profile's), one level below its identifier's data frame
 
 
 @dataclass
@@ -140,8 +141,9 @@ def audsley(
     items: Sequence[Item], tau: int, robust: bool = False, ppm: int = 0
 ) -> tuple[dict[str, int], int | None]:
     """-> (message -> identifier, error frames tolerated by all (robust) or None). Raises NoAssignment."""
-    levels = sorted({(arbitration_key(it.id, it.extended), it.id, it.extended) for it in items})
-    pinned_at = {(it.id, it.extended): it for it in items if it.pinned}
+    # a level per identifier, and one below it for a remote frame of that identifier (frame_priority: the RTR bit)
+    levels = sorted({(frame_priority(it.id, it.extended, it.remote), it.id, it.extended, it.remote) for it in items})
+    pinned_at = {(it.id, it.extended, it.remote): it for it in items if it.pinned}
     c = np.array([it.c_ns for it in items], dtype=np.int64)
     t = np.array([it.t_ns for it in items], dtype=np.int64)
     j = np.array([it.j_ns for it in items], dtype=np.int64)
@@ -170,10 +172,10 @@ def audsley(
                 hi = mid - 1
         return lo
 
-    for _, ident, extended in reversed(levels):
+    for _, ident, extended, remote in reversed(levels):
         chosen: Item | None = None
-        if (ident, extended) in pinned_at:
-            it = pinned_at[(ident, extended)]
+        if (ident, extended, remote) in pinned_at:
+            it = pinned_at[(ident, extended, remote)]
             if not meets(it, fits(it)):
                 raise NoAssignment(_refusal(it, ident, fits(it), pinned=True))
             chosen = it
@@ -327,6 +329,7 @@ def plan_bus(
             msg.producer,
             (msg.name in pins and pins[msg.name].id == "fixed") or msg.fixed_by is not None,  # type: ignore[union-attr]
             ranges.get(msg.producer),
+            msg.remote,
         )
         for msg in bus.messages
     ]
@@ -340,10 +343,7 @@ def plan_bus(
             "bound; --robust reorders them for the most error frames survived)"
         )
     # offsets, on the new identifiers
-    new = [
-        can_rta.CanFrame(f.name, ids[f.name], f.extended, f.c_ns, f.t_ns, f.j_ns, f.d_ns)
-        for f in rta_frames(bus.messages, timings, acc)
-    ]
+    new = [replace(f, id=ids[f.name]) for f in rta_frames(bus.messages, timings, acc)]  # each keeps its RTR bit
     before = release_offsets(m, bus)
     after = dict(before)
     by_node: dict[str, dict[str, int]] = {}

@@ -9,9 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from netcfg.sim.can_bus import CanBus, arbitration_key
+from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, NodeClock, Simulator
 from netcfg.sim.streams import PeriodicStreams
+from netcfg.timing.frames import arbitration_key
 
 
 def test_arbitration_follows_the_bits_on_the_wire() -> None:

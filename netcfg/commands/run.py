@@ -49,14 +49,15 @@ def add_parser(sub: Subcommands) -> None:
     )
     p.add_argument("source", type=Path, metavar="SPEC|RUNTIME_JSON")
     p.add_argument("--interface", default=None, help="python-can interface: socketcan, pcan, kvaser, virtual, ...")
-    p.add_argument("--channel", default=None, help="python-can channel, e.g. can0 (virtual: any name)")
+    p.add_argument("--channel", default=None, help="python-can channel, e.g. can0 (virtual: any name); several "
+                   "actuator buses: BUS=CHANNEL,BUS=CHANNEL,... (virtual: each bus a channel of its own by default)")
     p.add_argument(
         "--simulated-drives",
         action="store_true",
         help="bring up netcfg's simulated drives on the (virtual) bus: the quick start, no hardware",
     )
     p.add_argument("--bus", default=None, help="which CANopen or actuator bus of the configuration (default: its "
-                   "only CANopen bus, else its only actuator bus)")
+                   "only CANopen bus, else every actuator bus at once)")
     length = p.add_mutually_exclusive_group()
     length.add_argument("--cycles", type=int, help="SYNC cycles to run (default: until Ctrl-C)")
     length.add_argument("--duration", help="how long to cycle, e.g. 8s or 500 ms (whole SYNC periods)")
@@ -182,7 +183,7 @@ def run_command(args: argparse.Namespace) -> int:
         with _config(args.source) as cfg:
             if cfg is None:
                 return 1
-            actuators = _actuator_bus(args, cfg)
+            actuators = _actuator_buses(args, cfg)
             if actuators is not None:
                 return _run_actuators(args, cfg, actuators, drills, faults, duration_s)
             if faults or args.set:
@@ -197,10 +198,10 @@ def run_command(args: argparse.Namespace) -> int:
         return not_json(args.source, exc)
 
 
-def _actuator_bus(args: argparse.Namespace, cfg: Any) -> str | None:
-    """The actuator bus this run drives: the one --bus names, or the only one when the configuration has no CANopen
+def _actuator_buses(args: argparse.Namespace, cfg: Any) -> list[str] | None:
+    """The actuator buses this run drives: the one --bus names, or every one when the configuration has no CANopen
     bus to default to; None: a CANopen run."""
-    from netcfg.runtime.actuator_plan import actuator_bus
+    from netcfg.runtime.actuator_plan import actuator_bus, actuator_buses
     from netcfg.runtime.canopen_master import canopen_bus
 
     try:
@@ -208,29 +209,57 @@ def _actuator_bus(args: argparse.Namespace, cfg: Any) -> str | None:
         return None
     except (ValueError, KeyError):
         pass
+    if args.bus is None:
+        return actuator_buses(cfg) or None  # none: the CANopen run says why
     try:
-        return actuator_bus(cfg, args.bus)
+        return [actuator_bus(cfg, args.bus)]
     except ValueError:
         return None  # neither: the CANopen run says why
 
 
-def _run_actuators(args: argparse.Namespace, cfg: Any, bus_name: str, drills: dict[str, list[Drill]],
+def _run_actuators(args: argparse.Namespace, cfg: Any, bus_names: list[str], drills: dict[str, list[Drill]],
                    faults: list[Drill], duration_s: float | None) -> int:
-    from netcfg.run_actuators import run_actuator_bus
+    from netcfg.run_actuators import run_actuator_buses
 
     canopen_only = any(drills[k] for k in KINDS if k != "kill")
     if canopen_only or args.samples or args.allow_missing:
+        what = f"bus '{bus_names[0]}' is an actuator bus" if len(bus_names) == 1 else (
+            f"buses {', '.join(bus_names)} are actuator buses")
         print("netcfg: --emcy, --reset, --sdo-abort, --stall, --bus-off, --samples and --allow-missing act on a "
-              f"CANopen run; bus '{bus_name}' is an actuator bus (its drills: --kill, --fault)", file=sys.stderr)
+              f"CANopen run; {what} (their drills: --kill, --fault)", file=sys.stderr)
         return 2
     interface = args.interface or "virtual"
-    channel = args.channel or (f"netcfg-run-{os.getpid()}" if interface == "virtual" else None)
-    return run_actuator_bus(
-        cfg, bus_name, interface=interface, channel=channel, simulated=args.simulated_drives, cycles=args.cycles,
+    try:
+        channels = _channels(interface, args.channel, bus_names)
+    except ValueError as exc:
+        print(f"netcfg: {exc}", file=sys.stderr)
+        return 2
+    return run_actuator_buses(
+        cfg, bus_names, interface=interface, channels=channels, simulated=args.simulated_drives, cycles=args.cycles,
         duration_s=duration_s, settings=args.set,
         kills=[(d.node or "", d.at_s) for d in drills["kill"]], faults=[(d.node or "", d.at_s) for d in faults],
         log=args.log, stop_on_signals=_stop_on_signals, fmt=args.format,
     )
+
+
+def _channels(interface: str, given: str | None, bus_names: list[str]) -> dict[str, str | None]:
+    """Each bus's python-can channel. One bus: --channel (virtual: a name of this process by default). Several:
+    `--channel BUS=CHANNEL,BUS=CHANNEL,...` for each; on the virtual interface each bus gets a channel of its own
+    by default, named after it (after --channel's name, when one is given)."""
+    if len(bus_names) == 1:
+        return {bus_names[0]: given or (f"netcfg-run-{os.getpid()}" if interface == "virtual" else None)}
+    if given is not None and "=" in given:
+        pairs = dict(part.split("=", 1) for part in given.split(",") if part)
+        unknown, missing = sorted(set(pairs) - set(bus_names)), [b for b in bus_names if b not in pairs]
+        if unknown or missing:
+            raise ValueError(f"--channel {given!r}: give each actuator bus its channel, BUS=CHANNEL joined by ',' "
+                             f"({', '.join(bus_names)})" + (f"; not a bus: {', '.join(unknown)}" if unknown else ""))
+        return dict(pairs)
+    if interface != "virtual":
+        raise ValueError(f"this run drives {len(bus_names)} actuator buses ({', '.join(bus_names)}): give each its "
+                         f"channel with --channel {','.join(f'{b}=CHANNEL' for b in bus_names)}, or one with --bus")
+    base = given or f"netcfg-run-{os.getpid()}"
+    return {b: f"{base}-{b}" for b in bus_names}
 
 
 def _run_master(

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from netcfg.devices.actuator_ids import IdRuleError, parse_id_rule
+from netcfg.devices.actuator_ros2 import check_ros2_control
 from netcfg.diagnostics import Collector, Position, SpecError
 from netcfg.links import LINKS
 from netcfg.runtime.actuators import SI_UNITS
@@ -31,7 +32,7 @@ CAN_FD_SIZES = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
 _NAME = re.compile(r"^[a-z_][a-z0-9_]*$")
 
 TOP_KEYS = ("profile", "format", "vendor", "product", "source", "link", "parameters", "messages", "notes", "enable",
-            "safe_stop")
+            "safe_stop", "ros2_control")
 # what a live master sends an actuator before its cycle (enable) and to bring it to rest (safe_stop): a host message
 # of the profile with its fields' values, and the value names the device's state fields report after it
 ACTION_KEYS = ("message", "values", "state", "doc")
@@ -70,6 +71,9 @@ class ActuatorProfile:
     source: str  # "builtin:<name>" or the file as given
     document: str  # the vendor document and version it was written from
     plain: dict[str, Any]  # what netcfg.runtime.actuators.ActuatorCodec reads
+    # the vendor's ros2_control plugin (netcfg.devices.actuator_ros2), None: it has none; not in `plain`, as a
+    # master does not need it
+    ros2_control: dict[str, Any] | None = None
 
     def message_names(self, sender: str | None = None) -> list[str]:
         return [m["name"] for m in self.plain["messages"] if sender is None or m["from"] == sender]
@@ -108,7 +112,8 @@ def parse_actuator_profile(text: str, file: str) -> ActuatorProfile:
     assert plain is not None
     src = plain.get("source", {})
     document = f"{src.get('document', '?')}, {src.get('version', '?')}"
-    return ActuatorProfile(plain["name"], file, document, plain)
+    ros2 = plain.pop("ros2_control", None)
+    return ActuatorProfile(plain["name"], file, document, plain, ros2)
 
 
 class _Checker:
@@ -211,6 +216,8 @@ class _Checker:
         for key in ("enable", "safe_stop"):
             if key in top:
                 out[key] = self.action(key, top[key], out_messages)
+        if "ros2_control" in top:
+            out["ros2_control"] = check_ros2_control(self, top["ros2_control"], params, out_messages)
         return out
 
     def action(self, key: str, data: Any, messages: list[dict[str, Any]]) -> dict[str, Any] | None:

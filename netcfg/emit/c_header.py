@@ -302,6 +302,7 @@ class MessageView:
     brs: bool = False
     frame_size: int = 0
     dlc: int = 0
+    remote: bool = False  # a remote frame (RTR): no data, DLC dlc (the length of the data frame it asks for)
 
 
 @dataclass(frozen=True)
@@ -409,8 +410,15 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
         fd=msg.fd,
         brs=msg.brs,
         frame_size=msg.frame_size,
-        dlc=canfd_dlc(msg.size) if msg.fd else msg.size,
+        dlc=canfd_dlc(msg.size) if msg.fd else _requested_size(msg, bus) if msg.remote else msg.size,
+        remote=msg.remote,
     )
+
+
+def _requested_size(msg: model.Message, bus: model.Bus) -> int:
+    """A remote frame's DLC: the length of the data frame of its identifier, which answers it (ISO 11898-1 asks the
+    two to agree); 0 when the bus has none."""
+    return next((x.size for x in bus.messages if not x.remote and (x.id, x.extended) == (msg.id, msg.extended)), 0)
 
 
 # a message's view differs between nodes only in the direction: (bus, message, sends, receives); (bus, message)

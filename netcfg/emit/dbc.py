@@ -112,6 +112,10 @@ def unsaid(m: model.Model) -> dict[str, list[Unsaid]]:
         if not links.of(bus).arbitrates:
             continue
         lost = list(protocols.of(bus).dbc_unsaid(bus))
+        remote = [msg.name for msg in bus.messages if msg.remote]
+        if remote:  # a DBC's BO_ is a data frame; a remote frame of the same identifier has no line of its own
+            lost.append(Unsaid(f"remote frames (RTR) {', '.join(remote)}: a DBC has no remote frames, so they are left "
+                               "out and the DBC's bounds leave out their load", False))
         if lost:
             out[f"dbc/{bus.name}.dbc"] = lost
     return out
@@ -180,7 +184,8 @@ def database(
 ) -> cdb.Database:
     """The bus as a cantools database; `jitter`: each message's release jitter as analysed (release_jitter),
     else the spec's own."""
-    messages = [_message(m, msg, (jitter or {}).get(msg.name, msg.jitter_ns)) for msg in bus.messages]
+    messages = [_message(m, msg, (jitter or {}).get(msg.name, msg.jitter_ns)) for msg in bus.messages
+                if not msg.remote]  # a remote frame is no BO_ (unsaid)
     messages += _own_frames(m, bus)
     messages.sort(key=lambda x: (x.is_extended_frame, x.frame_id, x.name))
     nodes = [_node(m.nodes[name]) for name in bus.nodes] if with_nodes else []

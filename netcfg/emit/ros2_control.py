@@ -32,15 +32,24 @@ Names as the consumers publish them:
   `mode_of_operation` (CiA 402: 8 position, 9 velocity, 10 torque) and `slave_config`, the slave's YAML build writes
   (ethercat/<bus>/<node>.yaml), as the driver's example configurations (*.ros2_control.xacro) write them.
 
+- An actuator bus: the vendor's own plugin for each joint's actuator, as the actuator's profile describes it (its
+  `ros2_control:` section, netcfg.devices.actuator_ros2): ODrive's `odrive_ros2_control_plugin/ODriveHardwareInterface`
+  (odrive_ros2_control 0.0.1) with the hardware parameter `can` (the SocketCAN interface, by default named as the
+  bus) and per joint `node_id`. A joint goes in when its interfaces are the messages the plugin itself sends and
+  reads, and what it reads comes on its own (a cyclic message: the plugin asks for nothing). An actuator whose
+  profile names no plugin has none published (MIT-mode motors, RobStride, MyActuator, moteus): its joints are left
+  out, and said so (unsaid(); build prints it), never given a made-up plugin.
+
 Other protocols are an entry in HARDWARE: which buses it drives and a function from the bus to its `<hardware>` block. A
-bus without one (an actuator bus) gets no block: its joints are named in a comment of the xacro file when
-another bus has one, and a system with no such bus gets no ros2_control files.
+bus without one gets no block: its joints are named in a comment of the xacro file when another bus has one, and a
+system with no such bus gets no ros2_control files.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from netcfg import model
@@ -170,43 +179,119 @@ def hardware(bus: model.Bus) -> MakeHardware | None:
     return next((make for drives, make in HARDWARE if drives(bus)), None)
 
 
-def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
-    if not m.joints:
-        return {}
+def _actuator(m: model.Model, bus: model.Bus, several: bool, plugin: dict[str, Any]) -> Hardware:
+    """An actuator vendor's plugin, from the profile's ros2_control section: its hardware parameters (the CAN
+    interface a macro argument, named as the bus by default) and each joint's (a parameter of its actuator)."""
+    prefix = f"{bus.name}_" if several else ""
+    hw = [(name, what) for name, what in plugin["hardware"]]
+    args = tuple(MacroArg(prefix + name, bus.name) for name, what in hw if what == "interface")
+    params = tuple(Param(name, "${" + prefix + name + "}") for name, _ in hw)
+
+    def joint_params(j: model.Joint) -> tuple[Param, ...]:
+        actuator = m.nodes[j.node].actuator or {}
+        values = dict(actuator.get("parameters") or ())
+        return tuple(Param(name, _number(values[param])) for name, param in plugin["joint"])
+
+    source = plugin["source"]
+    interface = ", ".join(name for name, what in hw if what == "interface")
+    note = f"bus {bus.name}: {plugin['plugin']}, {source.get('version', '?')}; {interface}: the SocketCAN interface " \
+           "the bus is on"
+    return Hardware(plugin["plugin"], params, args, joint_params, note)
+
+
+def _number(value: Any) -> str:
+    return str(int(value)) if float(value).is_integer() else repr(float(value))
+
+
+def _plugin_misfit(m: model.Model, j: model.Joint, plugin: dict[str, Any]) -> str | None:
+    """Why the plugin cannot drive the joint as the spec binds it; None: it can."""
+    actuator = m.nodes[j.node].actuator or {}
+    cyclic = {c["message"] for c in actuator.get("cyclic") or ()}
+    for side, carriers in (("command", j.command), ("state", j.state)):
+        for interface, c in carriers.items():
+            want = plugin[side].get(interface)
+            if want is None:
+                return f"{plugin['plugin']} has no {side} interface {interface}"
+            if (c.message, c.signal) != (f"{j.node}_{want[0]}", want[1]):
+                return (f"{plugin['plugin']} {'sends' if side == 'command' else 'reads'} its {interface} as "
+                        f"{want[0]}.{want[1]}, the joint names {c.message}.{c.signal}")
+            if side == "state" and c.message not in cyclic:
+                return (f"{plugin['plugin']} reads its {interface} from {want[0]} and never asks for it: give "
+                        f"{c.message} a cyclic rate")
+    return None
+
+
+Group = tuple[model.Bus, MakeHardware, list[model.Joint]]
+
+
+def _groups(m: model.Model) -> tuple[list[Group], list[str]]:
+    """Each block to write (its bus, its hardware, its joints) and what is left out, and why."""
     by_bus: dict[str, list[model.Joint]] = {}
     for j in m.joints.values():
         bus = joint_bus(m, j)
         if bus is not None:
             by_bus.setdefault(bus.name, []).append(j)
-    driven = [b for b in by_bus if hardware(m.buses[b]) is not None]
-    several = len(driven) > 1
-    if not driven:
-        return {}  # no bus with a plugin: nothing to describe yet
-    blocks: list[BlockView] = []
-    args: list[MacroArg] = []
-    notes: list[str] = []
+    groups: list[Group] = []
     left_out: list[str] = []
     for bus_name, joints in by_bus.items():
         bus = m.buses[bus_name]
         make = hardware(bus)
-        if make is None:
-            left_out.append(
-                f"joints {', '.join(j.name for j in joints)} on bus {bus_name}: no ros2_control hardware plugin "
-                f"for {bus.protocol} buses here"
-            )
+        if make is not None:
+            groups.append((bus, make, joints))
             continue
+        plugins: dict[str, tuple[dict[str, Any], list[model.Joint]]] = {}
+        none: dict[str, list[str]] = {}  # why there is no plugin -> the joints
+        for j in joints:
+            node = m.nodes[j.node]
+            plugin = node.ros2_control
+            if plugin is None:
+                why = (f"no official ros2_control plugin for {node.actuator['profile']['name']} (its vendor publishes "
+                       "none)" if node.actuator else f"no ros2_control hardware plugin for {bus.protocol} buses here")
+                none.setdefault(why, []).append(j.name)
+                continue
+            misfit = _plugin_misfit(m, j, plugin)
+            if misfit is not None:
+                left_out.append(f"joint {j.name} on bus {bus_name}: {misfit}")
+                continue
+            plugins.setdefault(plugin["plugin"], (plugin, []))[1].append(j)
+        for why, names in none.items():
+            left_out.append(f"joints {', '.join(names)} on bus {bus_name}: {why}")
+        for plugin, members in plugins.values():
+            groups.append((bus, partial(_actuator, plugin=plugin), members))
+    return groups, left_out
+
+
+def unsaid(m: model.Model) -> list[str]:
+    """What of the joints the ros2_control description leaves out, for build to print."""
+    return [f"ros2_control: {line}" for line in _groups(m)[1]] if m.joints else []
+
+
+def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
+    if not m.joints:
+        return {}
+    groups, left_out = _groups(m)
+    if not groups:
+        return {}  # no bus with a plugin: nothing to describe yet
+    several = len(groups) > 1
+    blocks: list[BlockView] = []
+    args: list[MacroArg] = []
+    notes: list[str] = []
+    names = [bus.name for bus, _, _ in groups]
+    for bus, make, joints in groups:
         hw = make(m, bus, several)
         args.extend(hw.args)
         if hw.note:
             notes.append(hw.note)
+        suffix = f"_{hw.plugin.split('/')[0]}" if names.count(bus.name) > 1 else ""
         blocks.append(
             BlockView(
-                name=f"${{prefix}}{m.system}_{bus_name}",
+                name=f"${{prefix}}{m.system}_{bus.name}{suffix}",
                 plugin=hw.plugin,
                 params=hw.params,
                 joints=tuple(_joint_view(j, hw) for j in joints),
             )
         )
+    driven = {bus.name: joints for bus, _, joints in groups}
     return {
         f"ros2_control/{m.system}.ros2_control.xacro": render(
             XACRO_TEMPLATE,
@@ -219,10 +304,24 @@ def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
         "ros2_control/controllers.yaml": render(
             CONTROLLERS_TEMPLATE,
             system=m.system,
-            update_rate=update_rate(m, [m.buses[b] for b in driven]),
-            controllers=_controllers(m, {b: by_bus[b] for b in driven}),
+            update_rate=update_rate(m, [m.buses[b] for b in driven], _command_periods(m, driven)),
+            controllers=_controllers(m, driven),
         ),
     }
+
+
+def _command_periods(m: model.Model, driven: dict[str, list[model.Joint]]) -> list[int]:
+    """The periods of the commands that move actuator joints: the rate the spec gives the plugin's writes."""
+    out = []
+    for joints in driven.values():
+        for j in joints:
+            if m.nodes[j.node].actuator is None:
+                continue
+            for c in j.command.values():
+                period = m.messages[c.message].period_ns
+                if period:
+                    out.append(period)
+    return out
 
 
 def _joint_view(j: model.Joint, hw: Hardware) -> JointView:
@@ -272,10 +371,10 @@ def control_period_ns(m: model.Model, bus: model.Bus) -> int | None:
     return min(periods) if periods else None
 
 
-def update_rate(m: model.Model, buses: list[model.Bus]) -> int:
+def update_rate(m: model.Model, buses: list[model.Bus], commands_ns: list[int] | None = None) -> int:
     """The controller manager's rate, Hz: the fastest control step of the buses (their SYNC when the master has no
-    task), rounded to a whole Hz as ros2_control takes it, at least 1."""
-    periods = []
+    task; an actuator joint's command period otherwise), rounded to a whole Hz as ros2_control takes it, at least 1."""
+    periods = list(commands_ns or ())
     for bus in buses:
         period = control_period_ns(m, bus)
         if period is None and bus.canopen is not None:

@@ -252,8 +252,10 @@ def _interpolation_init(m: model.Model, n: model.Node) -> list[dict[str, Any]]:
 
 def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None, wcrt_unsync_ns: int | None) -> dict[str, Any]:
     fd = {"fd": True, "brs": msg.brs, "frame_size": msg.frame_size} if msg.fd else {}
+    remote = {"remote": True} if msg.remote else {}  # a remote frame: RTR, no data (size 0)
     return {
         **fd,
+        **remote,
         "name": msg.name,
         "bus": msg.bus,
         "producer": msg.producer,

@@ -4,6 +4,7 @@ and what these bounds assume. The protocols over CAN call `analyze_arbitrated` w
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from netcfg import links, model
@@ -20,7 +21,7 @@ from netcfg.bus_analysis import (
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, flows, load
-from netcfg.timing.frames import bits_to_ns
+from netcfg.timing.frames import arbitration_key, bits_to_ns
 
 
 class ArbitrationHooks(Protocol):
@@ -81,12 +82,31 @@ def assumptions(bus: model.Bus, fifo_nodes: tuple[str, ...] = ()) -> list[str]:
     return out
 
 
+def frame_priority(can_id: int, extended: bool, remote: bool) -> int:
+    """Sort key of arbitration, lower wins, with the RTR bit: after the identifier (a standard frame's 11 bits,
+    an extended frame's 29), the RTR bit is dominant in a data frame and recessive in a remote frame, so a data
+    frame wins over a remote frame of its identifier (ISO 11898-1, 10.4.2.2 and 10.8.2). A standard remote frame
+    still wins over an extended frame of its base identifier: its IDE bit, dominant, comes before theirs."""
+    return arbitration_key(can_id, extended) << 1 | remote
+
+
+@dataclass(frozen=True)
+class ArbitratedFrame(can_rta.CanFrame):
+    """A frame as the analyses see it, its priority with the RTR bit (frame_priority)."""
+
+    remote: bool = False
+
+    @property
+    def priority_key(self) -> int:
+        return frame_priority(self.id, self.extended, self.remote)
+
+
 def rta_frames(
     msgs: list[model.Message], timings: dict[str, load.FrameTiming], acc: Analysis | None = None
 ) -> list[can_rta.CanFrame]:
     """The messages as the response-time analysis sees them (worst-case frame times from the load)."""
     return [
-        can_rta.CanFrame(
+        ArbitratedFrame(
             msg.name,
             msg.id,
             msg.extended,
@@ -94,6 +114,7 @@ def rta_frames(
             msg.interval_ns,
             acc.jitter(msg) if acc else msg.jitter_ns,
             msg.deadline_ns,
+            msg.remote,
         )
         for msg in msgs
     ]

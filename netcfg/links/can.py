@@ -46,18 +46,23 @@ class CanRules(BusRules):
         return None
 
     def check_identifiers(self, bus: model.Bus) -> None:
-        taken = self.reserved_ids(bus)
-        owner: dict[tuple[bool, int], model.Message] = {}
+        """Every data frame's identifier is its own, and so is every remote frame's among the remote frames: a
+        remote frame asks for the data frame of its identifier (ISO 11898-1, 10.3: the RTR bit, dominant in the data
+        frame, decides their arbitration), so that pair is the one identifier two messages of a bus share."""
+        reserved = self.reserved_ids(bus)
+        taken = {(ext, can_id, False): what for (ext, can_id), what in reserved.items()}
+        owner: dict[tuple[bool, int, bool], model.Message] = {}
         for m in bus.messages:
             if m.id < 0:
                 continue
-            id_key = (m.extended, m.id)
+            id_key = (m.extended, m.id, m.remote)
             if id_key in owner and self._follows_shared_node_id(m, owner[id_key]):
                 continue  # both identifiers follow from one duplicated node id: that is the one error
-            if id_key in taken:
+            clash = taken.get(id_key) or (reserved.get((m.extended, m.id)) if m.remote else None)
+            if clash is not None:
                 self.r.err(
                     "duplicate-id",
-                    f"identifier 0x{m.id:03X} of '{m.name}' collides with {taken[id_key]}; pick a free one",
+                    f"identifier 0x{m.id:03X} of '{m.name}' collides with {clash}; pick a free one",
                     self.r.key_or_item(m.path, "id"),
                 )
                 continue

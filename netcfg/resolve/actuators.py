@@ -142,6 +142,7 @@ class _Actuator:
             "commands": self.commands,
             "cyclic": self.cyclics,
         }
+        node.ros2_control = self.profile.ros2_control
 
     # -- who, and with which parameters
     def commander(self, sbus: schema.Bus) -> str | None:
@@ -342,12 +343,14 @@ class _Actuator:
         fd = mc.fd
         fields = {f["name"]: f for f in pm.get("fields") or ()}
         description = description or _limits(self.profile.name, mc)
+        # a remote request (RTR) has no data field: 0 bytes on the wire, whatever length its DLC asks for
         msg = model.Message(
             name=name, bus=bus.name, producer=producer, consumers=(consumer,), id=mc.base_id,
-            extended=mc._frame_extended(mc.base_id), size=mc.size, kind="periodic", period_ns=period,
+            extended=mc._frame_extended(mc.base_id), size=0 if mc.is_remote else mc.size, kind="periodic",
+            period_ns=period,
             interval_ns=period, offset_ns=None, offset_auto=False, deadline_ns=period, jitter_ns=0, path=path,
             signals=tuple(_signal(f, fields[f.name]) for f in mc.payload if f.const is None), description=description,
-            fd=fd, brs=fd, fixed_by=f"actuator profile {self.profile.name}",
+            fd=fd, brs=fd, fixed_by=f"actuator profile {self.profile.name}", remote=mc.is_remote,
         )
         self.r.model.messages[name] = msg
         bus.messages.append(msg)

@@ -11,6 +11,11 @@ between the device's values and the joint's SI units from the gear ratio and the
     velocity  rad/s  = rpm * 2 pi / (60 * gear_ratio)                (velocity_unit rpm, at the motor)
                      = counts/s * 2 pi / (encoder_counts * gear_ratio)  (velocity_unit counts/s)
     effort    N m    = per mille * rated_torque * gear_ratio / 1000  (CiA 402 0x6077, of the motor's 0x6076)
+
+A signal with a unit of its interface's quantity (an actuator profile's field: rev, rev/s, deg, rad, Nm, ...) is
+scaled from that unit instead (netcfg.runtime.actuators.SI_UNITS), at the motor as the others are:
+
+    position, velocity = value * SI factor / gear_ratio;  effort = value * SI factor * gear_ratio
 """
 
 from __future__ import annotations
@@ -85,9 +90,14 @@ def _joint(r: Resolver, j: schema.Joint, path: Path) -> model.Joint | None:
             if ref is None:
                 continue
             spath: Path = (*path, side_name, interface)
-            factor = _factor(r, j, interface, path)
             found = _signal(r, j, ref, side_name, spath)
-            if factor is None or found is None:
+            if found is None:
+                ok = False
+                continue
+            factor = _unit_factor(r, j, interface, found, spath)
+            if factor is None:
+                factor = _factor(r, j, interface, path)
+            if factor is None or factor == 0:
                 ok = False
                 continue
             lo, hi = _device_range(found)
@@ -102,6 +112,12 @@ def _joint(r: Resolver, j: schema.Joint, path: Path) -> model.Joint | None:
     limits = _limits(r, j, sides, path)
     if not ok or limits is None:
         return None
+    plugin = r.model.nodes[j.node].ros2_control
+    if plugin is not None and not plugin["applies_gear_ratio"] and j.gear_ratio != 1:
+        r.warn("joint-gear", f"joint '{j.name}': {plugin['plugin']} applies no gear ratio (the device reports the "
+               f"joint's side once its gearbox is configured), so its figures are the signals' times their unit "
+               f"alone; with gear_ratio {j.gear_ratio:g} netcfg's differ: configure the gearbox on the device and "
+               "give gear_ratio 1", r.key_or_item(path, "gear_ratio"))
     return model.Joint(
         j.name,
         j.node,
@@ -156,6 +172,25 @@ def _scale(j: schema.Joint, interface: str) -> float | None:
     if interface == "velocity":
         return 2 * math.pi / (60 * j.gear_ratio)
     return None if j.rated_torque is None else j.rated_torque * j.gear_ratio / 1000
+
+
+_SI = {"position": "rad", "velocity": "rad/s", "effort": "Nm"}  # each interface's SI unit, as SI_UNITS names it
+
+
+def _unit_factor(r: Resolver, j: schema.Joint, interface: str, s: model.Signal, path: Path) -> float | None:
+    """The joint's SI value per unit of a signal that states its unit, 0 (reported) for a unit of another quantity;
+    None: the signal states no unit the scaling knows (counts, per mille: _factor)."""
+    from netcfg.runtime.actuators import SI_UNITS  # the runtime package only when a spec has joints
+
+    known = SI_UNITS.get(s.unit or "")
+    if known is None or known[0] == "1":
+        return None
+    si, per_unit = known
+    if si != _SI[interface]:
+        r.err("joint-signal", f"joint '{j.name}': its {interface} is in {_SI[interface]}, and signal '{s.name}' is in "
+              f"{s.unit} ({si})", path)
+        return 0
+    return per_unit * j.gear_ratio if interface == "effort" else per_unit / j.gear_ratio
 
 
 def _factor(r: Resolver, j: schema.Joint, interface: str, path: Path) -> float | None:

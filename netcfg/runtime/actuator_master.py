@@ -41,7 +41,6 @@ from netcfg.runtime.actuators import ActuatorFrame, Decoded
 from netcfg.runtime.clock import Clock, SystemClock
 
 RUNNING, LOST, STOPPED = "RUNNING", "LOST", "STOPPED"
-REMOTE_DLC = 8  # a profile's remote requests ask for its 8-byte answer
 SAFE_STOP_WAIT_S = 0.5  # how long the master waits for the safe stop's replies at the end
 ENABLE_WAIT_NS = 500_000_000  # the wait for an enable's reply of an actuator with no loss timeout
 
@@ -147,10 +146,16 @@ class ActuatorMaster:
         self._stop_waits: dict[str, str] = {}  # node -> the reply its safe stop waits for
         self._stop_reason: str | None = None
         self._t0 = 0.0
+        # called with "stop_all:<node>" when an actuator's on_loss or on_emcy stops this bus: a run of several buses
+        # stops the others with it (netcfg.run_actuators), as stop_all means every actuator
+        self.on_stop_all: Callable[[str], None] | None = None
 
     # -- control from outside (a signal handler, a test)
     def stop(self, reason: str = "stop()") -> None:
-        self._stop_reason = reason
+        if self._stop_reason is None:
+            self._stop_reason = reason
+            if reason.startswith("stop_all"):  # another bus's actuator stopped the whole run
+                self.result.ended_by = reason
 
     # -- the run
     def run(self, bus: can.BusABC, plan: ActuatorRunPlan) -> ActuatorRun:
@@ -169,7 +174,7 @@ class ActuatorMaster:
         # a remote frame (ODrive's Get_* requests) carries no data; its DLC is the length it asks for
         msg = pycan_frames.message(frame.arbitration_id, frame.is_extended, None if frame.is_remote else frame.data,
                                    fd=frame.fd, brs=frame.brs, remote=frame.is_remote,
-                                   dlc=REMOTE_DLC if frame.is_remote else None)
+                                   dlc=frame.dlc)
         msg.timestamp = time.time()
         self.bus.send(msg)
         return msg.timestamp
@@ -259,7 +264,7 @@ class ActuatorMaster:
             self._pending.setdefault((c.node, c.reply), []).append(_Pending(sent, self.clock.now() + wait_ns / 1e9))
 
     def _decode(self, msg: can.Message) -> tuple[str, Decoded] | None:
-        if msg.is_error_frame:
+        if msg.is_error_frame or msg.is_remote_frame:  # a remote frame is a request, sent by a host
             return None
         for p in self.plans.values():
             got = p.codec.decode(msg.arbitration_id, msg.is_extended_id, bytes(msg.data))
@@ -340,6 +345,8 @@ class ActuatorMaster:
             if self._stop_reason is None:
                 self._stop_reason = f"stop_all:{name}"
                 self.result.ended_by = self._stop_reason
+                if self.on_stop_all is not None:
+                    self.on_stop_all(self._stop_reason)
         elif action == "stop_node":
             self._safe_stop(name)
 

@@ -86,6 +86,7 @@ class ActuatorFrame:
     data: bytes
     is_remote: bool = False
     brs: bool = False
+    dlc: int | None = None  # a remote frame's DLC: the length of the data frame it asks for (the profile's size)
 
 
 @dataclass(frozen=True)
@@ -275,7 +276,7 @@ class MessageCodec:
                 packed[i] = self.pad
             data = bytes(packed)
         return ActuatorFrame(arbitration_id, self._frame_extended(arbitration_id), self.fd, data,
-                             is_remote=self.is_remote, brs=self.fd)
+                             is_remote=self.is_remote, brs=self.fd, dlc=self.size if self.is_remote else None)
 
     def matches(self, arbitration_id: int, is_extended: bool, data: bytes) -> bool:
         if self.extended != "auto" and bool(self.extended) != is_extended:

@@ -139,6 +139,8 @@ class Message(_Carried):
     brs: bool = False  # CAN FD bit-rate switch
     # data bytes in the frame: a CAN FD payload padded to the next valid length (ISO 11898-1:2015); 0: size
     frame_size: int = 0
+    # a remote frame (RTR, ISO 11898-1): no data field, size 0; it asks for the data frame of its identifier
+    remote: bool = False
     fields: tuple[Field, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -193,6 +195,8 @@ class Message(_Carried):
         if self.fd:  # padded to the frame length, so that every receiver sees the DLC the analysis timed
             data += bytes([FD_PADDING]) * (self.frame_size - self.size)
             return pycan_frames.message(self.id, self.extended, data, fd=True, brs=self.brs, dlc=len(data))
+        if self.remote:  # no data field; the DLC a requester gives is the length it asks for, unknown here: 0
+            return pycan_frames.message(self.id, self.extended, None, remote=True, dlc=0)
         return pycan_frames.message(self.id, self.extended, data, dlc=self.size)
 
     def encode_udp(self, **values: Number | str | bytes) -> bytes:

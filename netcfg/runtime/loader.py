@@ -358,6 +358,7 @@ def _message(d: dict[str, Any], protocol: str, link: str) -> Message:
         fd=bool(d.get("fd", False)),
         brs=bool(d.get("brs", False)),
         frame_size=d.get("frame_size", 0),
+        remote=bool(d.get("remote", False)),
         udp=None if udp is None else UdpPorts(udp["src_port"], udp["dst_port"]),
         pdo=None
         if pdo is None

@@ -115,6 +115,7 @@ MESSAGE = obj(
     wcrt_unsync_ns=ns(null=True, optional=True),
     sent_by=lst(name(), null=True, optional=True),
     fd=F("bool", optional=True), brs=F("bool", optional=True), frame_size=i(0, 64, optional=True),
+    remote=F("bool", optional=True),
 )
 TASK = obj(
     name=name(), period_ns=ns(1, null=True), offset_ns=ns(), wcet_ns=ns(1), bcet_ns=ns(),
@@ -370,6 +371,8 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
         frame_size = m.get("frame_size", m["size"])
         if (frame_size not in FD_LENGTHS or frame_size < m["size"]) if fd else frame_size != m["size"]:
             out.append(f"{where}: a frame of {frame_size} bytes cannot carry {m['size']}")
+        if m.get("remote") and (m["size"] or fd):
+            out.append(f"{where}: a remote frame carries no data (size 0) and is no CAN FD frame")
         if m["kind"] == "periodic" and m["period_ns"] is None:
             out.append(f"{where}: a periodic message needs period_ns")
         for s in m["signals"]:

@@ -14,10 +14,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from netcfg.links.arbitration import frame_priority
 from netcfg.runtime.codec import Field, resting_payload
 from netcfg.sim.can_frames import CanSource, ExactFrames, Gate, Listener, Pending, Record, Stream, TxFifo
 from netcfg.sim.engine import EARLY, LATE, NEVER, Simulator
-from netcfg.timing.frames import FrameStuffing, arbitration_key, bits_to_ns, frame_bits
+from netcfg.timing.frames import FrameStuffing, bits_to_ns, frame_bits
 
 # An error flag (6 bits), other nodes' superposed flags (up to 6 more), the error delimiter (8) and the
 # intermission (3): ISO 11898-1's active error frame at its longest.
@@ -99,10 +100,11 @@ class CanBus:
         fd: bool = False,
         brs: bool = False,
         fields: tuple[Field, ...] = (),
+        remote: bool = False,
     ) -> int:
         src = CanSource(len(self.sources), name, can_id, extended, size, producer, gated=gated, fd=fd, brs=brs)
         src.fields, src.rest = fields, resting_payload(fields, size)
-        src.key = arbitration_key(can_id, extended)
+        src.key = frame_priority(can_id, extended, remote)  # a data frame wins over a remote frame of its id
         # in exact mode each frame's length comes from its payload (_duration); dur_ns is then the worst case
         mode: FrameStuffing = "worst" if self.stuffing == "exact" else FRAME_BITS[self.stuffing]
         assert mode != "exact"

@@ -328,7 +328,8 @@ class Scenario:
         proto = protocols.of(bus) if self.synchronised else None
         for m in self.cfg.messages_on(bus.name):
             gated = proto is not None and proto.sim_gated(m)
-            src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs, m.fields)
+            src = can.add_source(m.name, m.id, m.extended, m.size, m.producer, gated, m.fd, m.brs, m.fields,
+                                 m.remote)
             self.msg_source[m.name] = (can, src)
         for node in self.cfg.nodes:
             if node.tx_queue.fifo and bus.name in node.buses:

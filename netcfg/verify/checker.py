@@ -116,7 +116,7 @@ class Checker:
                 continue
             b = [x.name for x in self.buses].index(m.bus)
             self.states.append(self._state(m, b))
-            keys.append(_key(b, m.id, m.extended))
+            keys.append(_key(b, m.id, m.extended) | (REMOTE_KEY if m.remote else 0))
         # an actuator's reply answers its command: its response is measured from the command's frame before it,
         # the reference keyed past the buses' own (its command's state index + the number of buses)
         by_name, answers = {st.msg.name: i for i, st in enumerate(self.states)}, reply_commands(cfg)
@@ -130,6 +130,7 @@ class Checker:
         order = np.argsort(np.array(keys, np.int64), kind="stable")
         self._keys = np.array(keys, np.int64)[order]
         self._key_state = order
+        self._any_remote = any(k & REMOTE_KEY for k in keys)
         # per bus the message a response is measured from (CANopen's SYNC, FTT-CAN's trigger message), and what is
         # added back to its logged end to reach the analysis' reference (Protocol.response_reference)
         self._ref_offset: dict[int, int] = {}
@@ -274,12 +275,16 @@ class Checker:
             )
         ext = (batch.flags & EXTENDED) != 0
         self._load(t[keep], bus[keep], batch.flags[keep], batch.length[keep])
-        key = _key_array(bus, batch.can_id, ext)
-        pos = np.searchsorted(self._keys, key)
-        pos_c = np.minimum(pos, max(len(self._keys) - 1, 0))
-        known = keep & (len(self._keys) > 0) & (self._keys[pos_c] == key if len(self._keys) else False)
-        state_idx = np.where(known, self._key_state[pos_c] if len(self._keys) else 0, -1)
         fd_or_remote = (batch.flags & (FD | REMOTE)) != 0
+        key = _key_array(bus, batch.can_id, ext)
+        # a remote frame belongs to the remote message of its identifier, where the configuration has one; else it
+        # is an odd frame of the data message (a size violation)
+        known, state_idx = self._lookup(key, keep)
+        if self._any_remote:
+            remote = keep & ((batch.flags & REMOTE) != 0)
+            known_remote, state_remote = self._lookup(key | REMOTE_KEY, remote)
+            known |= known_remote
+            state_idx = np.where(known_remote, state_remote, state_idx)
         # SYNC (TM) times first: a synchronous message's response is measured from the one before it
         ref_times = {b: t[state_idx == s] for b, s in self._ref_state.items()}
         unknown = keep & ~known
@@ -295,6 +300,14 @@ class Checker:
         for b, times in ref_times.items():
             if len(times):
                 self._last_ref[b] = int(times[-1])
+
+    def _lookup(self, key: NDArray[np.int64], keep: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
+        """Which frames' keys are a configured message's, and that message's state index (-1: none)."""
+        if not len(self._keys):
+            return np.zeros(len(key), bool), np.full(len(key), -1, np.int64)
+        pos_c = np.minimum(np.searchsorted(self._keys, key), len(self._keys) - 1)
+        known = keep & (self._keys[pos_c] == key)
+        return known, np.where(known, self._key_state[pos_c], -1)
 
     def note_services(self, batch: Batch) -> int:
         """Frames outside the judged span (a master's set-up and shut-down, netcfg.verify.phases): their CANopen
@@ -333,7 +346,7 @@ class Checker:
     def _frames_ns(self, bus: NDArray[np.int64], flags: NDArray[np.uint8], length: Any) -> NDArray[np.int64]:
         """Each frame's worst-case time on the wire as check times it (netcfg.timing.frames.frame_bits): from its
         format (extended, CAN FD, bit-rate switch) and payload length, once per kind of frame."""
-        kinds = (bus.astype(np.int64) << 16) | (flags.astype(np.int64) & (EXTENDED | FD | BRS)) << 8
+        kinds = (bus.astype(np.int64) << 16) | (flags.astype(np.int64) & (EXTENDED | FD | BRS | REMOTE)) << 8
         kinds |= np.asarray(length, np.int64) & 0xFF
         unique, inverse = np.unique(kinds, return_inverse=True)
         durations = np.empty(len(unique), np.int64)
@@ -342,7 +355,8 @@ class Checker:
             if got is None:
                 b, f, n = kind >> 16, kind >> 8 & 0xFF, kind & 0xFF
                 fd = bool(f & FD)
-                size = min(n, CANFD_MAX_PAYLOAD if fd else CAN_MAX_PAYLOAD)  # a remote frame's DLC may say more
+                # a remote frame has no data field (ISO 11898-1): its DLC, the length it asks for, adds no bits
+                size = 0 if f & REMOTE else min(n, CANFD_MAX_PAYLOAD if fd else CAN_MAX_PAYLOAD)
                 bits = frame_bits(size, bool(f & EXTENDED), fd, bool(f & BRS))
                 got = self._frame_ns[kind] = bits.ns(self.buses[b].bitrate, self.buses[b].data_bitrate)
             durations[k] = got
@@ -566,6 +580,9 @@ def _keep(found: list[dict[str, Any]], kind: str, st: MessageState | None, t: in
     """A finding kept in detail, up to MAX_VIOLATIONS of each list (all of them are counted)."""
     if len(found) < MAX_VIOLATIONS:
         found.append({"kind": kind, "message": None if st is None else st.msg.name, "time_us": t, "detail": detail})
+
+
+REMOTE_KEY = 1 << 29  # above every identifier (29 bits), below the extended flag: a remote message's key
 
 
 def _key(bus: int, can_id: int, extended: bool) -> int:

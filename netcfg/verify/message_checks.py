@@ -105,7 +105,8 @@ class MessageState:
             st.first_t = int(t[0])
         st.count += len(t)
         # payload length; a CAN FD message's frames carry its padded length (odd: FD or remote, as expected for it)
-        wrong = (length != m.frame_size) if m.fd else (length != m.size) | odd
+        # a remote message's frames are remote frames, their DLC the length they ask for (no payload)
+        wrong = ~odd if m.remote else (length != m.frame_size) if m.fd else (length != m.size) | odd
         if wrong.any():
             if not st.bad_size:
                 st.bad_size = [0, int(t[wrong][0]), int(length[wrong][0])]
@@ -259,6 +260,7 @@ class MessageState:
                 "size",
                 st,
                 first,
+                f"{count} data frame(s) with {length} bytes; the message is a remote frame" if m.remote else
                 f"{count} frame(s) with {length} bytes (or CAN FD / remote); the message has {m.size}",
             )
         for name, (count, first, worst) in st.range_out.items():
