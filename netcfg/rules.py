@@ -7,7 +7,7 @@ protocol names its rules (`netcfg.protocols.Protocol.rules`).
 from __future__ import annotations
 
 from pathlib import Path as FsPath
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import TYPE_CHECKING, Literal, NamedTuple, Protocol
 
 from netcfg import model
 from netcfg.model import MessageKind
@@ -56,6 +56,18 @@ class Resolution(Protocol):
     def claim_implicit_name(self, name: str, what: str) -> None: ...
 
 
+Rate = tuple[MessageKind | None, int | None, int | None]  # a message's (kind, period, min. interarrival) in ns
+
+
+class Release(NamedTuple):
+    """A message's release as the spec gives it, in ns: what a protocol's release grid checks."""
+
+    kind: MessageKind
+    period: int | None
+    offset: int | None
+    offset_auto: bool  # 'offset: auto': derived from flows in a last pass
+
+
 class BusRules:
     name = ""
     section: str | None = None  # the bus's own section in the spec ('ftt:', 'canopen:', 'ethernet:')
@@ -99,32 +111,14 @@ class BusRules:
     def check_payload(self, m: schema.Message, size: int, path: Path) -> None:
         """The payload fits one frame of the protocol."""
 
-    def pdo_timing(
-        self,
-        pdo: model.Pdo,
-        bus: model.Bus,
-        kind: MessageKind | None,
-        period: int | None,
-        mit: int | None,
-        path: Path,
-        jitter: int = 0,
-    ) -> tuple[MessageKind | None, int | None, int | None] | None:
-        """-> (kind, period, min. interarrival) after the PDO's own timing settings (`jitter`: the spec's release
-        jitter of the message); None when they leave the rate unbounded (reported here)."""
-        return kind, period, mit
+    def pdo_timing(self, pdo: model.Pdo, bus: model.Bus, rate: Rate, path: Path, jitter: int = 0) -> Rate | None:
+        """-> the message's rate after the PDO's own timing settings (`jitter`: the spec's release jitter of the
+        message); None when they leave the rate unbounded (reported here)."""
+        return rate
 
-    def release_offset(
-        self,
-        m: schema.Message,
-        kind: MessageKind,
-        period: int | None,
-        offset: int | None,
-        offset_auto: bool,
-        path: Path,
-        ec: int | None,
-    ) -> int | None:
+    def release_offset(self, m: schema.Message, release: Release, path: Path, ec: int | None) -> int | None:
         """-> the message's release offset once the protocol's release grid is checked."""
-        return offset
+        return release.offset
 
     def resolve_window(
         self, m: schema.Message, sbus: schema.Bus, kind: MessageKind, path: Path

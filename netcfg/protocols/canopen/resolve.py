@@ -14,8 +14,8 @@ from netcfg.devices.eds import EdsError, cached_profile
 from netcfg.diagnostics import Position
 from netcfg.inputs import check_input_path
 from netcfg.links.can import CanRules
-from netcfg.model import MessageKind
 from netcfg.protocols.canopen import pdo as pdo_map
+from netcfg.rules import Rate
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.suggest import did_you_mean, nodes_on_bus
@@ -106,19 +106,11 @@ class CanopenRules(CanRules):
     ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
         return pdo_map.resolve_pdo(self.r, m, sbus, bus, path)
 
-    def pdo_timing(
-        self,
-        pdo: model.Pdo,
-        bus: model.Bus,
-        kind: MessageKind | None,
-        period: int | None,
-        mit: int | None,
-        path: Path,
-        jitter: int = 0,
-    ) -> tuple[MessageKind | None, int | None, int | None] | None:
+    def pdo_timing(self, pdo: model.Pdo, bus: model.Bus, rate: Rate, path: Path, jitter: int = 0) -> Rate | None:
         # CANopen PDOs: the transmission type says when a TPDO goes out (CiA 301, 0x1800 sub 2).
         if pdo.kind != "tpdo" or bus.canopen is None:
-            return kind, period, mit
+            return rate
+        kind, period, mit = rate
         sync = bus.canopen.sync_period_ns
         tt = pdo.transmission
         if 1 <= tt <= 240 and period is not None and period != tt * sync:

@@ -10,6 +10,7 @@ from typing import Literal
 from netcfg import model
 from netcfg.links.can import CanRules
 from netcfg.model import MessageKind
+from netcfg.rules import Release
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.suggest import did_you_mean, nodes_on_bus, some_names
@@ -85,16 +86,8 @@ class FttRules(CanRules):
     def carries_messages(self, bus: model.Bus) -> bool:
         return bus.ftt is not None
 
-    def release_offset(
-        self,
-        m: schema.Message,
-        kind: MessageKind,
-        period: int | None,
-        offset: int | None,
-        offset_auto: bool,
-        path: Path,
-        ec: int | None,
-    ) -> int | None:
+    def release_offset(self, m: schema.Message, release: Release, path: Path, ec: int | None) -> int | None:
+        kind, period, offset, offset_auto = release
         if ec and kind == "periodic" and (m.window or "sync") == "sync":
             for key, value in (("period", period), ("offset", offset)):
                 if value is not None and value % ec:
