@@ -4,6 +4,7 @@ of the report and its verdict, the deadline errors, and the bit-error model's te
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from netcfg import model
@@ -14,6 +15,17 @@ from netcfg.timing import can_errors, can_rta, flows, load
 
 def us(ns: float | int | None) -> float | None:
     return None if ns is None else round(ns / 1000, 3)
+
+
+@dataclass(frozen=True)
+class BusFrames:
+    """What the arbitration analysis of a CAN bus hands a protocol that bounds the bus's messages itself
+    (netcfg.protocols.base.Protocol.bound_messages): the report's rows, one a message in the bus's order, each
+    message's frame timing, and the bus's worst-case utilisation."""
+
+    rows: list[dict[str, Any]]
+    timings: dict[str, load.FrameTiming]
+    worst: float
 
 
 class Analysis:

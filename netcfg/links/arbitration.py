@@ -10,6 +10,7 @@ from typing import Any, Protocol
 from netcfg import links, model
 from netcfg.bus_analysis import (
     Analysis,
+    BusFrames,
     error_model,
     errors_section,
     frame_times,
@@ -34,14 +35,7 @@ class ArbitrationHooks(Protocol):
     def offsets_unused(self, bus: model.Bus) -> str | None: ...
 
     def bound_messages(
-        self,
-        m: model.Model,
-        bus: model.Bus,
-        rows: list[dict[str, Any]],
-        timings: dict[str, load.FrameTiming],
-        worst: float,
-        diags: Collector,
-        acc: Analysis,
+        self, m: model.Model, bus: model.Bus, frames: BusFrames, diags: Collector, acc: Analysis
     ) -> dict[str, Any] | None: ...
 
     def check_tx_queues(self, m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None: ...
@@ -292,7 +286,7 @@ def analyze_arbitrated(
         ),
         "messages": rows,
     }
-    section = proto.bound_messages(m, bus, rows, timings, worst, diags, acc)
+    section = proto.bound_messages(m, bus, BusFrames(rows, timings, worst), diags, acc)
     if section is not None:
         out.update(section)
     else:

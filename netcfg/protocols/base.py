@@ -14,7 +14,7 @@ from netcfg.links.base import Link
 
 if TYPE_CHECKING:
     from netcfg import model, runtime
-    from netcfg.bus_analysis import Analysis
+    from netcfg.bus_analysis import Analysis, BusFrames
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
     from netcfg.sim.can_bus import CanBus
@@ -186,17 +186,10 @@ class Protocol:
         return None
 
     def bound_messages(
-        self,
-        m: model.Model,
-        bus: model.Bus,
-        rows: list[dict[str, Any]],
-        timings: dict[str, FrameTiming],
-        worst: float,
-        diags: Collector,
-        acc: Analysis,
+        self, m: model.Model, bus: model.Bus, frames: BusFrames, diags: Collector, acc: Analysis
     ) -> dict[str, Any] | None:
-        """The protocol's own bounds of the bus's messages, written into `rows` with their verdicts, and its report
-        section; None: the arbitration analysis' bounds are the messages' (the caller writes them)."""
+        """The protocol's own bounds of the bus's messages, written into `frames.rows` with their verdicts, and its
+        report section; None: the arbitration analysis' bounds are the messages' (the caller writes them)."""
         return None
 
     def check_tx_queues(self, m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:
