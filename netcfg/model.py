@@ -18,6 +18,7 @@ from netcfg.runtime.config import (  # the same records in runtime.json: defined
     FlowStep,
     PdoEntry,
     TaskTiming,
+    TriggerTiming,
     TxQueue,
 )
 from netcfg.spec.source import Path, SourceMap
@@ -141,13 +142,7 @@ class Message:
 
 
 @dataclass(frozen=True)
-class Trigger:
-    name: str
-    bus: str
-    ftt_id: int
-    period_ns: int
-    interval_ns: int
-    offset_ns: int | None
+class Trigger(TriggerTiming):
     offset_auto: bool
     tasks: tuple[str, ...]
     path: Path

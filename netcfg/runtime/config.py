@@ -432,13 +432,19 @@ class Bus(_Carried):
 
 
 @dataclass(frozen=True)
-class Trigger:
+class TriggerTiming:
+    """An FTT-CAN trigger in time, as runtime.json and the spec's model (netcfg.model.Trigger) both hold it."""
+
     name: str
     bus: str
     ftt_id: int
     period_ns: int
     interval_ns: int
     offset_ns: int | None
+
+
+@dataclass(frozen=True)
+class Trigger(TriggerTiming):
     tasks: tuple[str, ...]  # node.task refs
 
 
