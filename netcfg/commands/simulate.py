@@ -20,9 +20,8 @@ from netcfg.commands.options import (
     MAX_JOBS,
     MAX_RUNS,
     MAX_SEED,
+    guarded,
     int_option,
-    internal_error,
-    io_problem,
     not_json,
     number_option,
 )
@@ -71,13 +70,7 @@ def add_parser(sub: Subcommands) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return simulate_command(args)
-    except OSError as exc:
-        print(f"netcfg: {io_problem(exc, 'simulate', args.source)}", file=sys.stderr)
-        return 2
-    except Exception as exc:  # a bug in netcfg
-        return internal_error("simulating", args.source, exc)
+    return guarded(simulate_command, args, "simulate", "simulating", args.source)
 
 
 def simulate_command(args: argparse.Namespace) -> int:
