@@ -21,6 +21,7 @@ from typing import Any
 
 from netcfg import cia301, jsontext, links, model, protocols
 from netcfg.protocols.canopen import dcf as canopen_dcf
+from netcfg.records import same_named
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
 from netcfg.timing import flows
@@ -63,6 +64,9 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
         "triggers": [_trigger(t) for t in m.triggers.values()],
         "flows": [_flow(f, flow_rows.get(f.name)) for f in m.flows.values()],
     }
+
+
+TASK_KEYS = "name period_ns offset_ns wcet_ns bcet_ns trigger on_message sync_bus"  # a task's, as the model's
 
 
 def _report_wcrt(report: dict[str, Any], key: str = "wcrt_ns") -> dict[str, int | None]:
@@ -109,15 +113,10 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
     }
 
 
-def _same(obj: object, names: str) -> dict[str, Any]:
-    """The keys runtime.json names as the model does (`names`, space-separated), each the attribute's value."""
-    return {name: getattr(obj, name) for name in names.split()}
-
-
 def _canopen(co: model.CanopenBus | None) -> dict[str, Any] | None:
     if co is None:
         return None
-    return _same(
+    return same_named(
         co, "sync_period_ns sync_window_ns read_window_ns sync_producer sync_id master_jitter_ns sync_overflow"
     )
 
@@ -132,7 +131,7 @@ def _ethernet(m: model.Model, b: model.Bus) -> dict[str, Any]:
 
 def _switch(s: model.Switch) -> dict[str, Any]:
     return {
-        **_same(s, "name latency_ns queue"),
+        **same_named(s, "name latency_ns queue"),
         "ports": [
             {"port": p, "to": s.ports[p], "cable_m": s.cables_m.get(p, 0.0), "queue": s.queues[p]}
             for p in sorted(s.ports)
@@ -153,14 +152,12 @@ def _node_keys(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[
     own = [paths for (_, name), paths in files.items() if name == n.name]
     paths = own[0] if len(own) == 1 else {}
     return {
-        **_same(n, "name node_id role ip heartbeat_ns heartbeat_timeout_ns on_loss on_emcy on_reboot sdo_timeout_ns"),
-        **_same(n, "sdo_retries safe_stop tx_delay_ns rx_delay_ns"),
+        **same_named(n, "name node_id role ip heartbeat_ns heartbeat_timeout_ns on_loss on_emcy on_reboot"),
+        **same_named(n, "sdo_timeout_ns sdo_retries safe_stop tx_delay_ns rx_delay_ns"),
         "buses": list(n.buses),
         "device": n.device.name if n.device is not None else None,
-        "tx_queue": _same(n.tx_queue, "policy depth on_full"),
-        "tasks": [
-            _same(t, "name period_ns offset_ns wcet_ns bcet_ns trigger on_message sync_bus") for t in n.tasks.values()
-        ],
+        "tx_queue": same_named(n.tx_queue, "policy depth on_full"),
+        "tasks": [same_named(t, TASK_KEYS) for t in n.tasks.values()],
         "identity": None
         if dev is None
         else {"vendor_id": dev.vendor_id, "product_code": dev.product_code, "revision": dev.revision},
@@ -231,8 +228,8 @@ def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None, wcrt_unsyn
     return {
         **fd,
         **remote,
-        **_same(msg, "name bus producer id extended size kind period_ns interval_ns offset_ns deadline_ns jitter_ns"),
-        **_same(msg, "window ftt_id implicit"),
+        **same_named(msg, "name bus producer id extended size kind period_ns interval_ns offset_ns deadline_ns"),
+        **same_named(msg, "jitter_ns window ftt_id implicit"),
         "consumers": list(msg.consumers),
         "rate_hz": None if msg.rate_hz is None else [msg.rate_hz.numerator, msg.rate_hz.denominator],
         "udp": None if msg.udp_ports is None else {"src_port": msg.udp_ports[0], "dst_port": msg.udp_ports[1]},
@@ -249,16 +246,16 @@ def _pdo(msg: model.Message) -> dict[str, Any] | None:
     if p is None:
         return None
     return {
-        **_same(p, "kind number transmission inhibit_100us event_timer_ms sync_start"),
+        **same_named(p, "kind number transmission inhibit_100us event_timer_ms sync_start"),
         "node": p.device_node,
         "cob_id": cia301.pdo_cob_id(p.kind, msg.id, msg.extended),  # the DCF's value: the same function
-        "entries": [_same(e, "index sub bits name data_type") for e in p.entries],
+        "entries": [same_named(e, "index sub bits name data_type") for e in p.entries],
     }
 
 
 def _signal(s: model.Signal) -> dict[str, Any]:
     return {
-        **_same(s, "name start_bit bits signed unit"),
+        **same_named(s, "name start_bit bits signed unit"),
         "float": s.is_float,
         "scale": float(s.scale),
         "offset": float(s.offset),
@@ -272,7 +269,7 @@ def _signal(s: model.Signal) -> dict[str, Any]:
 
 
 def _trigger(t: model.Trigger) -> dict[str, Any]:
-    return {**_same(t, "name bus ftt_id period_ns interval_ns offset_ns"), "tasks": list(t.tasks)}
+    return {**same_named(t, "name bus ftt_id period_ns interval_ns offset_ns"), "tasks": list(t.tasks)}
 
 
 def _flow(f: model.Flow, row: dict[str, Any] | None) -> dict[str, Any]:
