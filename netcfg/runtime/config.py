@@ -90,9 +90,7 @@ class MappedObject:
 
 
 @dataclass(frozen=True)
-class PdoEntry(MappedObject):
-    """A CiA 301 PDO's mapped object; the spec's model (netcfg.model.Pdo) maps the same records."""
-
+class PdoEntry(MappedObject):  # the spec's model maps the same records (netcfg.model.Pdo)
     data_type: int  # CiA 301 data type code
 
 
