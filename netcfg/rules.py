@@ -13,6 +13,7 @@ from netcfg import model
 from netcfg.model import MessageKind
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
+from netcfg.spec.suggest import did_you_mean, nodes_on_bus
 
 if TYPE_CHECKING:
     from netcfg.diagnostics import Collector
@@ -88,6 +89,30 @@ class BusRules:
 
     def resolve_items(self) -> None:
         """What the protocol adds once every message is resolved (implicit messages, triggers, topology)."""
+
+    def section_master(
+        self, b: schema.Bus, given: str | None, path: Path, key: str, role: str, title: str, code: str
+    ) -> str | None:
+        """The node that drives the protocol on bus b: the one its section (at `path`) names (`given`, at `key`),
+        which must be on the bus, else the bus's one node with 'role: master'; None when there is none (reported).
+        `role`: what the node is ("SYNC producer"), `title`: the protocol's ("CANopen"), `code`: the error without
+        a master."""
+        if given is None:
+            ms = self.r.masters(b.name)
+            if len(ms) != 1:
+                self.r.err(
+                    code,
+                    f"{title} bus '{b.name}' needs one node with 'role: master' (found "
+                    f"{len(ms)}) or '{self.section}: {{{key}: <node>}}'",
+                    path,
+                )
+                return None
+            return ms[0]
+        if given not in self.r.spec_nodes or b.name not in self.r.spec_nodes[given].buses:
+            hint = did_you_mean(given, nodes_on_bus(self.r.spec, b.name))
+            self.r.err("unknown-node", f"{role} '{given}' is not a node on bus '{b.name}'{hint}", (*path, key))
+            return None
+        return given
 
     def cycle_ns(self, b: schema.Bus) -> int | None:
         """The length the spec gives the protocol's cycle, in which the bus's times may be counted ('2 ec': FTT-CAN's

@@ -13,7 +13,7 @@ from netcfg.model import MessageKind
 from netcfg.rules import Release
 from netcfg.spec import schema
 from netcfg.spec.source import Path
-from netcfg.spec.suggest import did_you_mean, nodes_on_bus, some_names
+from netcfg.spec.suggest import did_you_mean, some_names
 from netcfg.spec.units import Duration, format_ns
 from netcfg.timing.frames import arbitration_key
 
@@ -53,23 +53,8 @@ class FttRules(CanRules):
                 f"EC of {format_ns(ec)}; shorten the LSW",
                 (*fpath, "lsw"),
             )
-        master = f.master
+        master = self.section_master(b, f.master, fpath, "master", "FTT-CAN master", "FTT-CAN", "ftt-master")
         if master is None:
-            ms = self.r.masters(b.name)
-            if len(ms) != 1:
-                self.r.err(
-                    "ftt-master",
-                    f"FTT-CAN bus '{b.name}' needs one node with 'role: master' (found "
-                    f"{len(ms)}) or 'ftt: {{master: <node>}}'",
-                    fpath,
-                )
-                return
-            master = ms[0]
-        elif master not in self.r.spec_nodes or b.name not in self.r.spec_nodes[master].buses:
-            hint = did_you_mean(master, nodes_on_bus(self.r.spec, b.name))
-            self.r.err(
-                "unknown-node", f"FTT-CAN master '{master}' is not a node on bus '{b.name}'{hint}", (*fpath, "master")
-            )
             return
         bus.ftt = model.FttBus(
             ec_ns=ec,
