@@ -25,6 +25,7 @@ from netcfg.commands.options import (
     not_json,
     number_option,
 )
+from netcfg.records import same_named
 
 if TYPE_CHECKING:
     from netcfg import runtime
@@ -121,12 +122,9 @@ def simulate_command(args: argparse.Namespace) -> int:
     if doc is None:
         return 1
     opts = SimOptions(
+        **same_named(args, "seed stuffing mode canopen"),  # the options named as SimOptions names them
         duration_ns=duration,
-        seed=args.seed,
-        stuffing=args.stuffing,
         drift_ppm=args.drift,
-        mode=args.mode,
-        canopen=args.canopen,
         faults=faults,
         trace=args.log is not None,
     )
