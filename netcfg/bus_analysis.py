@@ -55,17 +55,18 @@ def frame_times(timings: dict[str, load.FrameTiming]) -> dict[str, tuple[int, in
     return {name: (t.nominal_ns, t.tx_ns) for name, t in timings.items()}
 
 
+def message_head(msg: model.Message, *, extended: bool = True) -> dict[str, Any]:
+    """The columns that open every bus's message row: who the message is, who sends and reads it, how often."""
+    row: dict[str, Any] = {"name": msg.name, "id": msg.id}
+    if extended:  # an identifier's format: frames that arbitrate have one
+        row["extended"] = msg.extended
+    row.update(size=msg.size, kind=msg.kind, producer=msg.producer, consumers=list(msg.consumers),
+               period_us=us(msg.period_ns), interval_us=us(msg.interval_ns))
+    return row
+
+
 def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
-    row = {
-        "name": msg.name,
-        "id": msg.id,
-        "extended": msg.extended,
-        "size": msg.size,
-        "kind": msg.kind,
-        "producer": msg.producer,
-        "consumers": list(msg.consumers),
-        "period_us": us(msg.period_ns),
-        "interval_us": us(msg.interval_ns),
+    row = message_head(msg) | {
         "offset_us": us(msg.offset_ns),
         "frame_bits_worst": t.bits_worst,
         "frame_bits_nominal": t.bits_nominal,
