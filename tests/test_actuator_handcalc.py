@@ -197,6 +197,14 @@ def test_the_assumed_reply_delay_puts_the_knee_reply_past_the_cycle(tmp_path: An
     assert knee >= 640 + 500 + 135 - 111 > 1000
     assert check_data(tmp_path, quadruped((0, 336)))["ok"]
     assert not check_data(tmp_path, quadruped((0, 337)))["ok"]
+    # at 500 Hz (the Mini Cheetah's command rate, the example's header) the six 135-bit frames take 810 us of every
+    # 2 ms, 40.5 %, and the assumed delay fits: the knee's reply is queued by 640 + 500 us, before the next commands
+    text = QUADRUPED.read_text(encoding="utf-8").replace("rate: 1 kHz", "rate: 500 Hz")
+    text = text.replace("period: 1 ms, bcet", "period: 2 ms, bcet")
+    text = text.replace("period: 1 ms, offset: 900 us", "period: 2 ms, offset: 1900 us")
+    report = check_data(tmp_path, yaml.safe_load(text))
+    assert report["ok"], report["errors"]
+    assert [b["utilization"] for b in report["buses"]] == pytest.approx([6 * 135 / 2000] * 4)
 
 
 @pytest.mark.parametrize("delay", [(0, 1), (10, 50), (0, 300)])
