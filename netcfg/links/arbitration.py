@@ -331,7 +331,9 @@ def analyze_arbitrated(
         acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
     # the rows' bounds: replies held with their commands; flows and the holistic jitter keep the offset-free ones
     # (a reply's transaction bound counts from its command, not from its own release as a flow's delivery does)
-    bounded = transaction_responses(m, bus, proto, frames, timings, tau, released, plain)
+    bounded = plain if acc.jitter_only or worst > 1 else transaction_responses(
+        m, bus, proto, frames, timings, tau, released, plain
+    )
     out: dict[str, Any] = {
         "name": bus.name,
         "protocol": bus.protocol,

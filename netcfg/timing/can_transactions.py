@@ -39,7 +39,7 @@ from netcfg.timing import can_offsets
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.can_rta import CanFrame, Response
 
-MAX_ROUNDS = 20  # rounds of the dynamic-offset iteration; each round's bounds are sound, so stopping early is too
+MAX_ROUNDS = 10  # rounds of the dynamic-offset iteration; each round's bounds are sound, so stopping early is too
 
 
 @dataclass(frozen=True)
