@@ -40,6 +40,9 @@ class Analysis:
         self.task_ns: dict[str, int | None] = {}  # node.task -> worst-case response time on its processor
         self.task_wcrt: dict[str, int | None] = {}  # the same from the task's nominal release (jitter included)
         self.extra_jitter: dict[str, int] = {}  # message -> release jitter its sending task's response adds
+        # a round of the holistic iteration: only what the next round reads (deliveries, task responses) is needed,
+        # not the report's bounds that nothing else reads (a reply's transaction bound)
+        self.jitter_only = False
 
     def jitter(self, msg: model.Message) -> int:
         """A message's release jitter: the spec's, plus its sending task's response-time variation."""

@@ -181,6 +181,12 @@ class Protocol:
         return None
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)
+    def answers(self, m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]:
+        """Each message of the bus that a node sends in answer to another message of the bus -> (that message,
+        the shortest time from its frame's end to the answer's queueing): the arbitration analysis holds each pair
+        as one transaction (timing.can_transactions). None by default: every message is released on its own."""
+        return {}
+
     def overhead(self, bus: model.Bus) -> tuple[int, int] | None:
         """(time on the wire, period) in ns of a frame the protocol adds to the spec's messages every period."""
         return None
