@@ -111,7 +111,7 @@ def unsaid(m: model.Model) -> dict[str, list[Unsaid]]:
     for bus in m.buses.values():
         if not links.of(bus).arbitrates:
             continue
-        lost = list(protocols.of(bus).dbc_unsaid(bus))
+        lost = list(protocols.of(bus).dbc_unsaid(m, bus))
         remote = [msg.name for msg in bus.messages if msg.remote]
         if remote:  # a DBC's BO_ is a data frame; a remote frame of the same identifier has no line of its own
             lost.append(Unsaid(f"remote frames (RTR) {', '.join(remote)}: a DBC has no remote frames, so they are left "

@@ -127,7 +127,7 @@ class Protocol:
         schedules, by name, as the analysis built it; {}: the protocol schedules nothing (the C headers ask)."""
         return {}
 
-    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+    def dbc_unsaid(self, m: model.Model, bus: model.Bus) -> tuple[Unsaid, ...]:
         """What of the bus's timing under this protocol a DBC cannot say (netcfg.emit.dbc.unsaid)."""
         return ()
 

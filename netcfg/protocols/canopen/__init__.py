@@ -38,7 +38,7 @@ class Canopen(Protocol):
     def identifiers_fixed(self, bus: model.Bus) -> str | None:
         return "CiA 301 COB-IDs, the predefined connection set its devices expect"
 
-    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+    def dbc_unsaid(self, m: model.Model, bus: model.Bus) -> tuple[Unsaid, ...]:
         return (
             Unsaid(
                 "the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the DBC bounds each "

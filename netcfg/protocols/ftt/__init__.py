@@ -98,7 +98,7 @@ class Ftt(Protocol):
         assert sched is not None  # the analysis built it
         return {e.name: e for e in sched.entries}
 
-    def dbc_unsaid(self, bus: model.Bus) -> tuple[Unsaid, ...]:
+    def dbc_unsaid(self, m: model.Model, bus: model.Bus) -> tuple[Unsaid, ...]:
         return (
             Unsaid(
                 "the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames as free-running "
