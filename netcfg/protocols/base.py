@@ -38,6 +38,7 @@ class OwnFrame:
     period_ns: int
     field: str  # the one unsigned field spanning its payload
     comment: str
+    fd: bool = False  # a CAN FD frame with bit-rate switch (FTT-CAN's trigger message on a CAN FD link)
 
 
 @dataclass(frozen=True)
