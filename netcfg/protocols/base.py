@@ -137,6 +137,16 @@ class Protocol:
         `ftt` (its schedule); {}: none (every bus has `ftt: null`)."""
         return {}
 
+    def build_notes(self, bus: model.Bus) -> tuple[str, ...]:
+        """What the files `netcfg build` writes for the bus cannot carry of it under this protocol over its link
+        (build prints them with the DBC's notes); (): nothing."""
+        return ()
+
+    def run_refused(self, bus: runtime.Bus) -> str | None:
+        """Why `netcfg run`'s live master (and the simulator's SDO mode, which runs it) cannot drive the bus, as the
+        error to print; None: it can."""
+        return None
+
     # -- what netcfg.verify expects of a recorded log of a bus of this protocol (runtime.json's bus)
     def log_frames(self, bus: runtime.Bus) -> tuple[runtime.Message, ...]:
         """The frames the protocol sends besides runtime.json's messages, as messages the log is checked for."""
