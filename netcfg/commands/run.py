@@ -283,8 +283,8 @@ def _run_master(
     assert co_bus.canopen is not None
     from netcfg import protocols
 
-    if (refused := protocols.of(co_bus).run_refused(co_bus)) is not None:
-        print(f"netcfg: {args.source}: {refused}", file=sys.stderr)
+    if (not_driven := protocols.of(co_bus).run_refused(co_bus)) is not None:
+        print(f"netcfg: {args.source}: {not_driven}", file=sys.stderr)
         return 1
     slaves = {n.name for n in canopen_slaves(cfg, co_bus)}
     for node in (d.node for k in NODE_KINDS for d in drills[k]):
