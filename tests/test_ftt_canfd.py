@@ -113,3 +113,33 @@ def test_the_dbc_declares_the_trigger_message_an_fd_frame(tmp_path: Path) -> Non
     db = cantools.database.load_file(str(out / "dbc" / "bus.dbc"))
     frames = {m.name: m.is_fd for m in db.messages}
     assert frames == {"bus_TM": True, "wide": True, "narrow": False}
+
+
+def test_the_c_headers_say_the_trigger_message_is_an_fd_frame(tmp_path: Path) -> None:
+    """Each node's header names the TM's frame format, which the master's firmware sends it in, and gcc compiles it
+    (-std=c99 -Wall -Wextra -Wpedantic -Werror). Rendered with this repository's templates (an editable install may
+    map netcfg.templates to another checkout's), in a process of its own so the cached environment is this one's."""
+    import shutil
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    path = tmp_path / "spec.yaml"
+    runtime_config_of(path, _spec())
+    out = tmp_path / "out"
+    program = (
+        "import sys; from pathlib import Path; import netcfg.templating as t; "
+        f"t.templates_folder = lambda: Path({str(ROOT / 'templates')!r}); "
+        "from netcfg.build import build; "
+        f"build(Path({str(path)!r}), Path({str(out)!r}))"
+    )
+    proc = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    header = (out / "c" / "master.h").read_text(encoding="utf-8")
+    assert "#define BUS_BUS_TM_FD 1" in header
+    gcc = shutil.which("gcc")
+    if gcc is not None:
+        compiled = subprocess.run([gcc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-fsyntax-only",
+                                   str(out / "c" / "master.h")], capture_output=True, text=True, timeout=60)
+        assert compiled.returncode == 0, compiled.stderr
