@@ -36,7 +36,7 @@ def holistic_jitter(m: model.Model) -> dict[str, int]:
     if any(_sent_by_task(m, msg) for msg in m.messages.values()):
         for _ in range(MAX_HOLISTIC_ROUNDS):
             acc = Analysis()
-            acc.extra_jitter = extra
+            acc.extra_jitter, acc.jitter_only = extra, True
             _analyze_once(m, Collector(), acc)
             grown = sender_jitter(m, acc)
             if grown == extra:

@@ -4,6 +4,7 @@ of the report and its verdict, the deadline errors, and the bit-error model's te
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from netcfg import model
@@ -14,6 +15,17 @@ from netcfg.timing import can_errors, can_rta, flows, load
 
 def us(ns: float | int | None) -> float | None:
     return None if ns is None else round(ns / 1000, 3)
+
+
+@dataclass(frozen=True)
+class BusFrames:
+    """What the arbitration analysis of a CAN bus hands a protocol that bounds the bus's messages itself
+    (netcfg.protocols.base.Protocol.bound_messages): the report's rows, one a message in the bus's order, each
+    message's frame timing, and the bus's worst-case utilisation."""
+
+    rows: list[dict[str, Any]]
+    timings: dict[str, load.FrameTiming]
+    worst: float
 
 
 class Analysis:
@@ -28,6 +40,9 @@ class Analysis:
         self.task_ns: dict[str, int | None] = {}  # node.task -> worst-case response time on its processor
         self.task_wcrt: dict[str, int | None] = {}  # the same from the task's nominal release (jitter included)
         self.extra_jitter: dict[str, int] = {}  # message -> release jitter its sending task's response adds
+        # a round of the holistic iteration: only what the next round reads (deliveries, task responses) is needed,
+        # not the report's bounds that nothing else reads (a reply's transaction bound)
+        self.jitter_only = False
 
     def jitter(self, msg: model.Message) -> int:
         """A message's release jitter: the spec's, plus its sending task's response-time variation."""
@@ -43,17 +58,18 @@ def frame_times(timings: dict[str, load.FrameTiming]) -> dict[str, tuple[int, in
     return {name: (t.nominal_ns, t.tx_ns) for name, t in timings.items()}
 
 
+def message_head(msg: model.Message, *, extended: bool = True) -> dict[str, Any]:
+    """The columns that open every bus's message row: who the message is, who sends and reads it, how often."""
+    row: dict[str, Any] = {"name": msg.name, "id": msg.id}
+    if extended:  # an identifier's format: frames that arbitrate have one
+        row["extended"] = msg.extended
+    row.update(size=msg.size, kind=msg.kind, producer=msg.producer, consumers=list(msg.consumers),
+               period_us=us(msg.period_ns), interval_us=us(msg.interval_ns))
+    return row
+
+
 def message_row(msg: model.Message, t: load.FrameTiming) -> dict[str, Any]:
-    row = {
-        "name": msg.name,
-        "id": msg.id,
-        "extended": msg.extended,
-        "size": msg.size,
-        "kind": msg.kind,
-        "producer": msg.producer,
-        "consumers": list(msg.consumers),
-        "period_us": us(msg.period_ns),
-        "interval_us": us(msg.interval_ns),
+    row = message_head(msg) | {
         "offset_us": us(msg.offset_ns),
         "frame_bits_worst": t.bits_worst,
         "frame_bits_nominal": t.bits_nominal,

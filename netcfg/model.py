@@ -14,7 +14,13 @@ from netcfg.timing.frames import QUEUE_FRAMES, canfd_padded_size
 
 if TYPE_CHECKING:
     from netcfg.timing.ftt_schedule import Schedule
-from netcfg.runtime.config import FlowStep, TxQueue  # the same records in runtime.json: defined once, there
+from netcfg.runtime.config import (  # the same records in runtime.json: defined once, there
+    FlowStep,
+    PdoEntry,
+    TaskTiming,
+    TriggerTiming,
+    TxQueue,
+)
 from netcfg.spec.source import Path, SourceMap
 
 Protocol = Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat"]
@@ -22,23 +28,11 @@ MessageKind = Literal["periodic", "sporadic", "on-demand"]
 
 
 @dataclass(frozen=True)
-class Task:
-    node: str
-    name: str
-    period_ns: int | None
-    offset_ns: int
-    wcet_ns: int
-    bcet_ns: int
-    trigger: str | None  # FTT-CAN trigger that activates it
-    on_message: str | None  # event-driven: runs when this message arrives
+class Task(TaskTiming):
     path: Path
     description: str | None = None
     sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
     priority: int | None = None  # on its node's processor, 0 the highest; None: rate-monotonic
-
-    @property
-    def ref(self) -> str:
-        return f"{self.node}.{self.name}"
 
 
 @dataclass
@@ -71,15 +65,6 @@ class Node:
     # the actuator's vendor ros2_control plugin, as its profile describes it (netcfg.devices.actuator_ros2); None: the
     # profile has none (or the node is no actuator)
     ros2_control: dict[str, Any] | None = None
-
-
-@dataclass(frozen=True)
-class PdoEntry:
-    index: int
-    sub: int
-    bits: int
-    name: str
-    data_type: int
 
 
 @dataclass(frozen=True)
@@ -157,13 +142,7 @@ class Message:
 
 
 @dataclass(frozen=True)
-class Trigger:
-    name: str
-    bus: str
-    ftt_id: int
-    period_ns: int
-    interval_ns: int
-    offset_ns: int | None
+class Trigger(TriggerTiming):
     offset_auto: bool
     tasks: tuple[str, ...]
     path: Path

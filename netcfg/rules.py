@@ -7,12 +7,13 @@ protocol names its rules (`netcfg.protocols.Protocol.rules`).
 from __future__ import annotations
 
 from pathlib import Path as FsPath
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import TYPE_CHECKING, Literal, NamedTuple, Protocol
 
 from netcfg import model
 from netcfg.model import MessageKind
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
+from netcfg.spec.suggest import did_you_mean, nodes_on_bus
 
 if TYPE_CHECKING:
     from netcfg.diagnostics import Collector
@@ -56,6 +57,18 @@ class Resolution(Protocol):
     def claim_implicit_name(self, name: str, what: str) -> None: ...
 
 
+Rate = tuple[MessageKind | None, int | None, int | None]  # a message's (kind, period, min. interarrival) in ns
+
+
+class Release(NamedTuple):
+    """A message's release as the spec gives it, in ns: what a protocol's release grid checks."""
+
+    kind: MessageKind
+    period: int | None
+    offset: int | None
+    offset_auto: bool  # 'offset: auto': derived from flows in a last pass
+
+
 class BusRules:
     name = ""
     section: str | None = None  # the bus's own section in the spec ('ftt:', 'canopen:', 'ethernet:')
@@ -76,6 +89,30 @@ class BusRules:
 
     def resolve_items(self) -> None:
         """What the protocol adds once every message is resolved (implicit messages, triggers, topology)."""
+
+    def section_master(
+        self, b: schema.Bus, given: str | None, path: Path, key: str, role: str, title: str, code: str
+    ) -> str | None:
+        """The node that drives the protocol on bus b: the one its section (at `path`) names (`given`, at `key`),
+        which must be on the bus, else the bus's one node with 'role: master'; None when there is none (reported).
+        `role`: what the node is ("SYNC producer"), `title`: the protocol's ("CANopen"), `code`: the error without
+        a master."""
+        if given is None:
+            ms = self.r.masters(b.name)
+            if len(ms) != 1:
+                self.r.err(
+                    code,
+                    f"{title} bus '{b.name}' needs one node with 'role: master' (found "
+                    f"{len(ms)}) or '{self.section}: {{{key}: <node>}}'",
+                    path,
+                )
+                return None
+            return ms[0]
+        if given not in self.r.spec_nodes or b.name not in self.r.spec_nodes[given].buses:
+            hint = did_you_mean(given, nodes_on_bus(self.r.spec, b.name))
+            self.r.err("unknown-node", f"{role} '{given}' is not a node on bus '{b.name}'{hint}", (*path, key))
+            return None
+        return given
 
     def cycle_ns(self, b: schema.Bus) -> int | None:
         """The length the spec gives the protocol's cycle, in which the bus's times may be counted ('2 ec': FTT-CAN's
@@ -104,32 +141,14 @@ class BusRules:
     def check_payload(self, m: schema.Message, size: int, path: Path) -> None:
         """The payload fits one frame of the protocol."""
 
-    def pdo_timing(
-        self,
-        pdo: model.Pdo,
-        bus: model.Bus,
-        kind: MessageKind | None,
-        period: int | None,
-        mit: int | None,
-        path: Path,
-        jitter: int = 0,
-    ) -> tuple[MessageKind | None, int | None, int | None] | None:
-        """-> (kind, period, min. interarrival) after the PDO's own timing settings (`jitter`: the spec's release
-        jitter of the message); None when they leave the rate unbounded (reported here)."""
-        return kind, period, mit
+    def pdo_timing(self, pdo: model.Pdo, bus: model.Bus, rate: Rate, path: Path, jitter: int = 0) -> Rate | None:
+        """-> the message's rate after the PDO's own timing settings (`jitter`: the spec's release jitter of the
+        message); None when they leave the rate unbounded (reported here)."""
+        return rate
 
-    def release_offset(
-        self,
-        m: schema.Message,
-        kind: MessageKind,
-        period: int | None,
-        offset: int | None,
-        offset_auto: bool,
-        path: Path,
-        ec: int | None,
-    ) -> int | None:
+    def release_offset(self, m: schema.Message, release: Release, path: Path, ec: int | None) -> int | None:
         """-> the message's release offset once the protocol's release grid is checked."""
-        return offset
+        return release.offset
 
     def resolve_window(
         self, m: schema.Message, sbus: schema.Bus, kind: MessageKind, path: Path

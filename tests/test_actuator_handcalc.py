@@ -13,13 +13,21 @@ position (DATA[2..3] maxSpeed uint16 1 dps/LSB, DATA[4..7] angleControl int32 0.
 (DATA[1] temperature int8 1 °C, DATA[2..3] iq int16 0.01 A, DATA[4..5] speed int16 1 dps, DATA[6..7] degree int16
 1 degree), and 0x9A read status 1 (DATA[1] temperature, DATA[3] brake, DATA[4..5] voltage uint16 0.1 V, DATA[6..7]
 errorState bits); identifiers 0x140 + ID and 0x240 + ID. All little-endian.
+
+The quadruped's leg bus (examples/quadruped_mit.yaml): the bounds of a command and the reply it causes, held as
+one transaction (netcfg.timing.can_transactions), worked out from the frame times in the tests' docstrings; and
+the simulator's measurements of the same buses inside them.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
+import soundness
+import yaml
+from conftest import ROOT, check_data
 
 from netcfg.devices.actuator_profile import builtin_actuator_profile
 from netcfg.runtime.actuators import ActuatorCodec
@@ -116,3 +124,95 @@ def test_rmd_replies() -> None:
     assert got.values["voltage"] == pytest.approx(48.0) and got.errors == ("LOW_VOLTAGE",)
     assert got.states == {"brake": "BRAKE_RELEASED"}
     assert codec.decode(0x241, False, bytes.fromhex("A1326400F4012D00")) is None  # motor 1's
+
+
+QUADRUPED = ROOT / "examples" / "quadruped_mit.yaml"
+
+
+def quadruped(delay: tuple[int, int]) -> dict[str, Any]:
+    """The example with every joint's reply delay measured as [delay[0], delay[1]] us."""
+    data: dict[str, Any] = yaml.safe_load(QUADRUPED.read_text(encoding="utf-8"))
+    data.setdefault("messages", [])
+    for node in data["nodes"]:
+        for command in node.get("actuator", {}).get("commands", ()):
+            command["reply_delay"] = [f"{delay[0]} us", f"{delay[1]} us"]
+    return data
+
+
+def test_third_reply_on_a_leg_bus_by_hand(tmp_path: Any) -> None:
+    """One leg bus of the quadruped, each reply measured within [0 us, 1 us] of its command's end.
+
+    Frames (ISO 11898-1 bit stuffing: after five equal bits one of the other value; an 8-byte standard frame has
+    34 + 64 bits that stuffing covers, at worst floor((34 + 64 - 1) / 4) = 24 stuff bits, Davis et al. 2007
+    eq. 3): C = 47 + 64 + 24 = 135 bits with the 3-bit intermission, 135 us at 1 Mbit/s; without stuff bits
+    C_best = 111 us. The control task (the example: BCET 50 us, WCET 150 us, alone on its processor) queues the
+    three commands (ids 0x1-0x3) together as it ends: their nominal release is its BCET, their jitter
+    J_c = 150 - 50 = 100 us. The replies are 0x11-0x13, below every command.
+
+    Commands (Davis et al. 2007, eqs. 5, 12, 13; a lower-priority frame, a reply, may have just begun:
+    B = 135 us): R_c1 = J_c + B + C = 370, R_c2 = 505, R_c3 = 640 us.
+
+    Replies, as transactions with their commands (Palencia and Gonzalez Harbour 1998, WCDO): the offset of reply
+    i is its command's earliest end, phi = C_best + 0 = 111 us after the commands' nominal release; its jitter
+    the rest up to its command's worst end plus the longest delay: J_r3 = 640 + 1 - 111 = 530 us. The worst
+    case starts with the commands at their latest release (100 us): they go back to back, 100 + 3 C = 505 us;
+    each reply is queued by then (its command's end + at most 1 us) and waits for them; the replies follow in
+    identifier order: r1 ends 640, r2 775, r3 910 us. From its nominal release at 111 us:
+
+        R_r3 = 910 - 111 = 799 us
+        R_r2 = 775 - 111 + 135 = 799 us      (r3 may block it: the analysis grants one lower frame, B = C)
+        R_r1 = 640 - 111 + 135 = 664 us
+
+    The bus's +-100 ppm clocks (clock_tolerance's default, netcfg.timing.clocks) let the 111 us between the
+    commands' release and the replies' offset be as short as 111 000 - ceil(111 000 * 100 / 10^6) = 110 988 ns:
+    each bound is 12 ns more. The holistic analysis alone gives r3 its command's whole response range and the
+    delay as jitter (530 us) and every command again at any phase: its bound is not the one kept."""
+    report = check_data(tmp_path, quadruped((0, 1)))
+    assert report["ok"], report["errors"]
+    c, c_best, tau = 135, 111, 1
+    assert c == 47 + 64 + (34 + 64 - 1) // 4 and c_best == 47 + 64 and (55 + 10 * 8) * tau == c
+    j_c, b = 150 - 50, c
+    r_cmd = [j_c + b + k * c for k in (1, 2, 3)]
+    end_cmds = j_c + 3 * c
+    ends = [end_cmds + k * c for k in (1, 2, 3)]
+    clock = (111_000 * 100 + 10**6 - 1) // 10**6 / 1000  # us: the offset taken short by the clocks' tolerance
+    expected = {"hip_mit_command": r_cmd[0], "thigh_mit_command": r_cmd[1], "knee_mit_command": r_cmd[2],
+                "hip_feedback": ends[0] - c_best + b + clock, "thigh_feedback": ends[1] - c_best + b + clock,
+                "knee_feedback": ends[2] - c_best + clock}
+    assert expected["knee_feedback"] == pytest.approx(799.012) and expected["hip_feedback"] == pytest.approx(664.012)
+    for bus in report["buses"]:
+        leg = bus["name"].split("_")[0]
+        got = {r["name"].removeprefix(f"{leg}_"): r["wcrt_us"] for r in bus["messages"]}
+        assert got == pytest.approx(expected, abs=1e-3)
+        assert max(got.values()) < 1000  # every reply inside the 1 ms cycle: check accepts the spec
+
+
+def test_the_assumed_reply_delay_puts_the_knee_reply_past_the_cycle(tmp_path: Any) -> None:
+    """With the profile's assumed 0..500 us reply delay (the example as written) the knee's reply may be queued
+    640 + 500 = 1140 us after the commands' nominal release, past the next cycle's commands (1000 us, of higher
+    priority): measured from its nominal release (111 us) it ends no sooner than 1140 + C - 111 = 1164 us, past
+    the 1 ms deadline whatever the analysis. With a measured delay of at most 336 us every reply fits."""
+    report = check_data(tmp_path, yaml.safe_load(QUADRUPED.read_text(encoding="utf-8")))
+    knee = {r["name"]: r["wcrt_us"] for r in report["buses"][0]["messages"]}["fl_knee_feedback"]
+    assert knee >= 640 + 500 + 135 - 111 > 1000
+    assert check_data(tmp_path, quadruped((0, 336)))["ok"]
+    assert not check_data(tmp_path, quadruped((0, 337)))["ok"]
+    # at 500 Hz (the Mini Cheetah's command rate, the example's header) the six 135-bit frames take 810 us of every
+    # 2 ms, 40.5 %, and the assumed delay fits: the knee's reply is queued by 640 + 500 us, before the next commands
+    text = QUADRUPED.read_text(encoding="utf-8").replace("rate: 1 kHz", "rate: 500 Hz")
+    text = text.replace("period: 1 ms, bcet", "period: 2 ms, bcet")
+    text = text.replace("period: 1 ms, offset: 900 us", "period: 2 ms, offset: 1900 us")
+    report = check_data(tmp_path, yaml.safe_load(text))
+    assert report["ok"], report["errors"]
+    assert [b["utilization"] for b in report["buses"]] == pytest.approx([6 * 135 / 2000] * 4)
+
+
+@pytest.mark.parametrize("delay", [(0, 1), (10, 50), (0, 300)])
+def test_quadruped_simulated_inside_the_transaction_bounds(delay: tuple[int, int]) -> None:
+    """The simulator (random phases and drift, and the critical instant: every clock at 0) measures every
+    command and reply of the four leg buses inside the bounds check gives them (soundness.check_spec holds each
+    figure to its bound); a reply is measured from its command's frame, as verify does."""
+    out = soundness.check_spec(quadruped(delay), seed=1, duration_ns=500_000_000)
+    assert out.accepted and out.violations == [], out.violations
+    replies = [ratio for name, ratio in out.tightness.items() if name.endswith("_feedback")]
+    assert len(replies) == 12 and 0 < max(replies) <= 1

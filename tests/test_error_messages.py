@@ -146,3 +146,37 @@ def test_init_writes_a_spec_check_accepts_whatever_its_file_name(tmp_path: Path,
     assert proc.returncode == 0, proc.stderr
     report = check(tmp_path / name)
     assert report["ok"], report["errors"]
+
+
+@pytest.mark.parametrize(
+    ("section", "key", "code", "title", "role"),
+    [
+        ({"canopen": {"sync_period": "20 ms"}}, "sync_producer", "sync-producer", "CANopen", "SYNC producer"),
+        ({"ftt": {"ec": "5 ms", "tm_size": 5}}, "master", "ftt-master", "FTT-CAN", "FTT-CAN master"),
+    ],
+)
+def test_the_node_driving_canopen_and_ftt_is_found_by_one_rule(
+    tmp_path: Path, section: dict[str, Any], key: str, code: str, title: str, role: str
+) -> None:
+    """CANopen's SYNC producer (CiA 301) and FTT-CAN's master (seed 002) are each the node the bus's section names,
+    which must be on the bus, else the bus's one node with 'role: master'. Three specs per protocol: two masters
+    and no name (which one?), a name that is no node on the bus (with the close name suggested), and one master."""
+    protocol = "canopen" if "canopen" in section else "ftt-can"
+    (name,) = section
+
+    def spec(masters: int, given: str | None) -> dict[str, Any]:
+        body = {**section[name], **({key: given} if given else {})}
+        nodes = [{"name": f"m{i}", "role": "master", "node_id": 120 + i, "buses": ["bus0"]} for i in range(masters)]
+        return {"system": "t", "buses": [{"name": "bus0", "protocol": protocol, "bitrate": "1M", name: body}],
+                "nodes": nodes, "messages": []}
+
+    (err,) = check_data(tmp_path, spec(2, None))["errors"]
+    lines = (tmp_path / "spec.yaml").read_text(encoding="utf-8").splitlines()
+    # at the section that lacks the key: its mapping, which starts on the line below `name:` (1-based: + 2)
+    assert (err["code"], err["line"]) == (code, lines.index(f"  {name}:") + 2)
+    assert err["message"].startswith(f"{title} bus 'bus0' needs one node with 'role: master' (found 2)")
+    assert f"'{name}: {{{key}: <node>}}'" in err["message"]
+    (err,) = check_data(tmp_path, spec(1, "m_0"))["errors"]
+    assert err["code"] == "unknown-node"
+    assert err["message"] == f"{role} 'm_0' is not a node on bus 'bus0' (did you mean 'm0'?)"
+    assert check_data(tmp_path, spec(1, None))["errors"] == []

@@ -402,3 +402,23 @@ def test_the_quadruped_s_four_buses_at_once(tmp_path: Path) -> None:
     for m in got["messages"]:
         node = m["name"].rsplit("_", 2)[0] if m["name"].endswith("_mit_command") else m["name"].rsplit("_", 1)[0]
         assert m["count"] == 27 - (missing[node] if m["name"].endswith("_feedback") else 0), m
+
+
+def test_run_counts_a_reply_late_from_the_commands_send(tmp_path: Path) -> None:
+    """The master times a reply from its command's send, at or after the command's release; the analysis bounds the
+    reply from its command's earliest end (netcfg.timing.can_transactions), and that end is at most the command's
+    own worst case after its release. So the master's bound is the sum of the two figures `check` reports (never the
+    reply's alone, which a reply within the analysis can pass by the command's queueing and frame)."""
+    from conftest import runtime_config
+
+    from netcfg.check import analyse_spec
+    from netcfg.runtime.actuator_plan import plan_actuators
+
+    spec = arm(tmp_path)
+    _, report = analyse_spec(spec)
+    rows = {m["name"]: m for b in report["buses"] for m in b["messages"]}
+    cfg = runtime_config(spec)
+    got = {(c.node, c.command): c.bound_ns for p in plan_actuators(cfg, "arm_can") for c in p.commands}
+    for node in ("shoulder", "elbow", "wrist"):
+        reply, command = rows[f"{node}_feedback"]["wcrt_ns"], rows[f"{node}_mit_command"]["wcrt_ns"]
+        assert got[(node, "mit_command")] == reply + command

@@ -6,6 +6,7 @@ import argparse
 import json
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -101,6 +102,28 @@ def internal_error(doing: str, path: Path, exc: Exception, nothing_written: bool
         file=sys.stderr,
     )
     return 2
+
+
+def guarded(
+    command: Callable[[argparse.Namespace], int],
+    args: argparse.Namespace,
+    verb: str,
+    doing: str,
+    path: Path,
+    passes: tuple[type[Exception], ...] = (),
+) -> int:
+    """command(args)'s exit code, where an OSError is a file that cannot be read or written (one line naming it,
+    exit 2) and any other exception a bug in netcfg (`verb`, `doing`: what the command does, "simulate",
+    "simulating"). `passes`: the exceptions left to the caller."""
+    try:
+        return command(args)
+    except passes:
+        raise
+    except OSError as exc:
+        print(f"netcfg: {io_problem(exc, verb, path)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug in netcfg
+        return internal_error(doing, path, exc)
 
 
 def io_problem(exc: OSError, verb: str, path: Path) -> str:

@@ -34,7 +34,7 @@ from typing import Any, TextIO
 
 from netcfg import jsontext
 from netcfg.commands.base import Subcommands
-from netcfg.commands.options import internal_error, io_problem, not_json
+from netcfg.commands.options import guarded, not_json
 from netcfg.runtime.drills import DEFAULT_ABORT, DEFAULT_EMCY, KINDS, NODE_KINDS, Drill, parse_drill
 
 NAME = "run"
@@ -128,16 +128,11 @@ def _config(source: Path) -> Iterator[Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return run_command(args)
+    try:  # on a bug in netcfg the safe stop has run already (operate's finally)
+        return guarded(run_command, args, "run", "running", args.source)
     except KeyboardInterrupt:  # before the cycle's own handler was armed (set-up): what was started is stopped
         print(f"netcfg: {args.source}: interrupted; started nodes were brought to their safe state", file=sys.stderr)
         return 1
-    except OSError as exc:
-        print(f"netcfg: {io_problem(exc, 'run', args.source)}", file=sys.stderr)
-        return 2
-    except Exception as exc:  # a bug in netcfg; the safe stop has run (operate's finally)
-        return internal_error("running", args.source, exc)
 
 
 def run_command(args: argparse.Namespace) -> int:

@@ -20,12 +20,12 @@ from netcfg.commands.options import (
     MAX_JOBS,
     MAX_RUNS,
     MAX_SEED,
+    guarded,
     int_option,
-    internal_error,
-    io_problem,
     not_json,
     number_option,
 )
+from netcfg.records import same_named
 
 if TYPE_CHECKING:
     from netcfg import runtime
@@ -71,13 +71,7 @@ def add_parser(sub: Subcommands) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return simulate_command(args)
-    except OSError as exc:
-        print(f"netcfg: {io_problem(exc, 'simulate', args.source)}", file=sys.stderr)
-        return 2
-    except Exception as exc:  # a bug in netcfg
-        return internal_error("simulating", args.source, exc)
+    return guarded(simulate_command, args, "simulate", "simulating", args.source)
 
 
 def simulate_command(args: argparse.Namespace) -> int:
@@ -128,12 +122,9 @@ def simulate_command(args: argparse.Namespace) -> int:
     if doc is None:
         return 1
     opts = SimOptions(
+        **same_named(args, "seed stuffing mode canopen"),  # the options named as SimOptions names them
         duration_ns=duration,
-        seed=args.seed,
-        stuffing=args.stuffing,
         drift_ppm=args.drift,
-        mode=args.mode,
-        canopen=args.canopen,
         faults=faults,
         trace=args.log is not None,
     )

@@ -16,7 +16,7 @@ from typing import Any
 
 from netcfg import jsontext
 from netcfg.commands.base import Subcommands
-from netcfg.commands.options import internal_error, io_problem
+from netcfg.commands.options import guarded
 
 NAME = "verify"
 BATCH = False
@@ -39,15 +39,8 @@ def add_parser(sub: Subcommands) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return verify_command(args)
-    except BrokenPipeError:
-        raise  # main's: `netcfg verify ... | head` is not an error
-    except OSError as exc:
-        print(f"netcfg: {io_problem(exc, 'verify', args.log)}", file=sys.stderr)
-        return 2
-    except Exception as exc:  # a bug in netcfg
-        return internal_error("verifying", args.log, exc)
+    # a BrokenPipeError is main's: `netcfg verify ... | head` is not an error
+    return guarded(verify_command, args, "verify", "verifying", args.log, passes=(BrokenPipeError,))
 
 
 def verify_command(args: argparse.Namespace) -> int:

@@ -76,17 +76,27 @@ class DeviceProfile:
         return any(i == index for i, _ in self.objects)
 
 
-def builtin_profile_names() -> list[str]:
-    folder = resources.files("netcfg.devices").joinpath("profiles")
+def builtin_names(kind: str) -> list[str]:
+    """The names of the built-in files of one kind: "profiles" (CANopen devices) or "actuators"."""
+    folder = resources.files("netcfg.devices").joinpath(kind)
     return sorted(p.name.removesuffix(".yaml") for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+def builtin_text(kind: str, name: str) -> str:
+    """A built-in file's text by its kind and name; KeyError for an unknown name."""
+    if name not in builtin_names(kind):
+        raise KeyError(name)
+    return resources.files("netcfg.devices").joinpath(kind).joinpath(f"{name}.yaml").read_text("utf-8")
+
+
+def builtin_profile_names() -> list[str]:
+    return builtin_names("profiles")
 
 
 @cache
 def builtin_profile(name: str) -> DeviceProfile:
     """Load a built-in profile by name; raises KeyError for an unknown name."""
-    if name not in builtin_profile_names():
-        raise KeyError(name)
-    text = resources.files("netcfg.devices").joinpath("profiles").joinpath(f"{name}.yaml").read_text("utf-8")
+    text = builtin_text("profiles", name)
     raw = yaml.safe_load(text)
     profile = DeviceProfile(
         name=name,

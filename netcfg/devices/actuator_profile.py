@@ -13,10 +13,10 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from functools import cache
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from netcfg.devices import builtin_names, builtin_text
 from netcfg.devices.actuator_ids import IdRuleError, parse_id_rule
 from netcfg.devices.actuator_ros2 import check_ros2_control
 from netcfg.diagnostics import Collector, Position, SpecError
@@ -80,17 +80,13 @@ class ActuatorProfile:
 
 
 def builtin_actuator_names() -> list[str]:
-    folder = resources.files("netcfg.devices").joinpath("actuators")
-    return sorted(p.name.removesuffix(".yaml") for p in folder.iterdir() if p.name.endswith(".yaml"))
+    return builtin_names("actuators")
 
 
 @cache
 def builtin_actuator_profile(name: str) -> ActuatorProfile:
     """A built-in profile by name; KeyError for an unknown one."""
-    if name not in builtin_actuator_names():
-        raise KeyError(name)
-    text = resources.files("netcfg.devices").joinpath("actuators").joinpath(f"{name}.yaml").read_text("utf-8")
-    return parse_actuator_profile(text, f"builtin:{name}")
+    return parse_actuator_profile(builtin_text("actuators", name), f"builtin:{name}")
 
 
 def load_actuator_profile(path: str | Path) -> ActuatorProfile:

@@ -29,6 +29,7 @@ from fractions import Fraction
 from typing import Any
 
 from netcfg import links, model, protocols
+from netcfg.records import same_named
 from netcfg.runtime import codec, raw_signal_name
 from netcfg.templating import environment, render
 from netcfg.timing.frames import canfd_dlc
@@ -383,35 +384,20 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
     if msg.pdo is not None:
         pdo = f"{msg.pdo.kind.upper()} {msg.pdo.number} of {msg.pdo.device_node}"
     return MessageView(
-        name=msg.name,
+        **same_named(msg, "name producer consumers id extended size kind period_ns interval_ns offset_ns deadline_ns"),
+        **same_named(msg, "window implicit fd brs frame_size remote"),
         bus=bus.name,
         protocol=bus.protocol,
         sends=msg.producer == node,
         receives=node in msg.consumers,
-        producer=msg.producer,
-        consumers=msg.consumers,
-        id=msg.id,
-        extended=msg.extended,
-        size=msg.size,
-        kind=msg.kind,
-        period_ns=msg.period_ns,
-        interval_ns=msg.interval_ns,
-        offset_ns=msg.offset_ns,
-        deadline_ns=msg.deadline_ns,
-        window=msg.window,
         ftt=ftt_views.get(msg.name) if msg.window == "sync" else None,  # a scheduled message's entry
         udp=msg.udp_ports,
         pdo=pdo,
-        implicit=msg.implicit,
         signals=sigs,
         end_bit=max((s.end_bit for s in sigs), default=0),
         pack_order=tuple(sorted(sigs, key=lambda s: s.mux_depth)),
         description=_description(msg),
-        fd=msg.fd,
-        brs=msg.brs,
-        frame_size=msg.frame_size,
         dlc=canfd_dlc(msg.size) if msg.fd else _requested_size(msg, bus) if msg.remote else msg.size,
-        remote=msg.remote,
     )
 
 

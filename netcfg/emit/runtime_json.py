@@ -21,6 +21,7 @@ from typing import Any
 
 from netcfg import cia301, jsontext, links, model, protocols
 from netcfg.protocols.canopen import dcf as canopen_dcf
+from netcfg.records import same_named
 from netcfg.runtime import interpolation_period
 from netcfg.runtime.schema import check_document
 from netcfg.timing import flows
@@ -63,6 +64,9 @@ def runtime_document(m: model.Model, report: dict[str, Any]) -> dict[str, Any]:
         "triggers": [_trigger(t) for t in m.triggers.values()],
         "flows": [_flow(f, flow_rows.get(f.name)) for f in m.flows.values()],
     }
+
+
+TASK_KEYS = "name period_ns offset_ns wcet_ns bcet_ns trigger on_message sync_bus"  # a task's, as the model's
 
 
 def _report_wcrt(report: dict[str, Any], key: str = "wcrt_ns") -> dict[str, int | None]:
@@ -112,15 +116,9 @@ def _bus(m: model.Model, b: model.Bus, sync_completion_ns: int | None = None) ->
 def _canopen(co: model.CanopenBus | None) -> dict[str, Any] | None:
     if co is None:
         return None
-    return {
-        "sync_period_ns": co.sync_period_ns,
-        "sync_window_ns": co.sync_window_ns,
-        "read_window_ns": co.read_window_ns,
-        "sync_producer": co.sync_producer,
-        "sync_id": co.sync_id,
-        "master_jitter_ns": co.master_jitter_ns,
-        "sync_overflow": co.sync_overflow,
-    }
+    return same_named(
+        co, "sync_period_ns sync_window_ns read_window_ns sync_producer sync_id master_jitter_ns sync_overflow"
+    )
 
 
 def _ethernet(m: model.Model, b: model.Bus) -> dict[str, Any]:
@@ -133,9 +131,7 @@ def _ethernet(m: model.Model, b: model.Bus) -> dict[str, Any]:
 
 def _switch(s: model.Switch) -> dict[str, Any]:
     return {
-        "name": s.name,
-        "latency_ns": s.latency_ns,
-        "queue": s.queue,
+        **same_named(s, "name latency_ns queue"),
         "ports": [
             {"port": p, "to": s.ports[p], "cable_m": s.cables_m.get(p, 0.0), "queue": s.queues[p]}
             for p in sorted(s.ports)
@@ -156,36 +152,12 @@ def _node_keys(m: model.Model, n: model.Node, files: dict[tuple[str, str], dict[
     own = [paths for (_, name), paths in files.items() if name == n.name]
     paths = own[0] if len(own) == 1 else {}
     return {
-        "name": n.name,
-        "node_id": n.node_id,
-        "role": n.role,
+        **same_named(n, "name node_id role ip heartbeat_ns heartbeat_timeout_ns on_loss on_emcy on_reboot"),
+        **same_named(n, "sdo_timeout_ns sdo_retries safe_stop tx_delay_ns rx_delay_ns"),
         "buses": list(n.buses),
-        "ip": n.ip,
         "device": n.device.name if n.device is not None else None,
-        "heartbeat_ns": n.heartbeat_ns,
-        "heartbeat_timeout_ns": n.heartbeat_timeout_ns,
-        "on_loss": n.on_loss,
-        "on_emcy": n.on_emcy,
-        "on_reboot": n.on_reboot,
-        "sdo_timeout_ns": n.sdo_timeout_ns,
-        "sdo_retries": n.sdo_retries,
-        "safe_stop": n.safe_stop,
-        "tx_queue": {"policy": n.tx_queue.policy, "depth": n.tx_queue.depth, "on_full": n.tx_queue.on_full},
-        "tx_delay_ns": n.tx_delay_ns,
-        "rx_delay_ns": n.rx_delay_ns,
-        "tasks": [
-            {
-                "name": t.name,
-                "period_ns": t.period_ns,
-                "offset_ns": t.offset_ns,
-                "wcet_ns": t.wcet_ns,
-                "bcet_ns": t.bcet_ns,
-                "trigger": t.trigger,
-                "on_message": t.on_message,
-                "sync_bus": t.sync_bus,
-            }
-            for t in n.tasks.values()
-        ],
+        "tx_queue": same_named(n.tx_queue, "policy depth on_full"),
+        "tasks": [same_named(t, TASK_KEYS) for t in n.tasks.values()],
         "identity": None
         if dev is None
         else {"vendor_id": dev.vendor_id, "product_code": dev.product_code, "revision": dev.revision},
@@ -256,26 +228,13 @@ def _message(m: model.Model, msg: model.Message, wcrt_ns: int | None, wcrt_unsyn
     return {
         **fd,
         **remote,
-        "name": msg.name,
-        "bus": msg.bus,
-        "producer": msg.producer,
+        **same_named(msg, "name bus producer id extended size kind period_ns interval_ns offset_ns deadline_ns"),
+        **same_named(msg, "jitter_ns window ftt_id implicit"),
         "consumers": list(msg.consumers),
-        "id": msg.id,
-        "extended": msg.extended,
-        "size": msg.size,
-        "kind": msg.kind,
-        "period_ns": msg.period_ns,
-        "interval_ns": msg.interval_ns,
-        "offset_ns": msg.offset_ns,
-        "deadline_ns": msg.deadline_ns,
-        "jitter_ns": msg.jitter_ns,
         "rate_hz": None if msg.rate_hz is None else [msg.rate_hz.numerator, msg.rate_hz.denominator],
-        "window": msg.window,
-        "ftt_id": msg.ftt_id,
         "udp": None if msg.udp_ports is None else {"src_port": msg.udp_ports[0], "dst_port": msg.udp_ports[1]},
         "pdo": _pdo(msg),
         "signals": [_signal(s) for s in msg.signals],
-        "implicit": msg.implicit,
         "wcrt_ns": wcrt_ns,  # the analysis' bound, for a simulator or master to compare against
         "wcrt_unsync_ns": wcrt_unsync_ns,  # the bound with the bus run as free-running CAN
         "sent_by": list(flows.sending_tasks(m, msg)),  # tasks that send it as they finish; else it runs free
@@ -287,33 +246,21 @@ def _pdo(msg: model.Message) -> dict[str, Any] | None:
     if p is None:
         return None
     return {
-        "kind": p.kind,
-        "number": p.number,
+        **same_named(p, "kind number transmission inhibit_100us event_timer_ms sync_start"),
         "node": p.device_node,
-        "transmission": p.transmission,
-        "inhibit_100us": p.inhibit_100us,
-        "event_timer_ms": p.event_timer_ms,
-        "sync_start": p.sync_start,
         "cob_id": cia301.pdo_cob_id(p.kind, msg.id, msg.extended),  # the DCF's value: the same function
-        "entries": [
-            {"index": e.index, "sub": e.sub, "bits": e.bits, "name": e.name, "data_type": e.data_type}
-            for e in p.entries
-        ],
+        "entries": [same_named(e, "index sub bits name data_type") for e in p.entries],
     }
 
 
 def _signal(s: model.Signal) -> dict[str, Any]:
     return {
-        "name": s.name,
-        "start_bit": s.start_bit,
-        "bits": s.bits,
-        "signed": s.signed,
+        **same_named(s, "name start_bit bits signed unit"),
         "float": s.is_float,
         "scale": float(s.scale),
         "offset": float(s.offset),
         "min": None if s.minimum is None else float(s.minimum),
         "max": None if s.maximum is None else float(s.maximum),
-        "unit": s.unit,
         # written only when used, so that runtime configurations without them stay as they were
         **({"byte_order": "big_endian"} if s.big_endian else {}),
         **({"mux": s.mux, "mux_values": list(s.mux_values)} if s.mux is not None else {}),
@@ -322,15 +269,7 @@ def _signal(s: model.Signal) -> dict[str, Any]:
 
 
 def _trigger(t: model.Trigger) -> dict[str, Any]:
-    return {
-        "name": t.name,
-        "bus": t.bus,
-        "ftt_id": t.ftt_id,
-        "period_ns": t.period_ns,
-        "interval_ns": t.interval_ns,
-        "offset_ns": t.offset_ns,
-        "tasks": list(t.tasks),
-    }
+    return {**same_named(t, "name bus ftt_id period_ns interval_ns offset_ns"), "tasks": list(t.tasks)}
 
 
 def _flow(f: model.Flow, row: dict[str, Any] | None) -> dict[str, Any]:

@@ -10,6 +10,7 @@ from typing import Any, Protocol
 from netcfg import links, model
 from netcfg.bus_analysis import (
     Analysis,
+    BusFrames,
     error_model,
     errors_section,
     frame_times,
@@ -20,7 +21,7 @@ from netcfg.bus_analysis import (
 )
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
-from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, flows, load
+from netcfg.timing import can_errors, can_fifo, can_offsets, can_rta, can_transactions, flows, load
 from netcfg.timing.frames import arbitration_key, bits_to_ns
 
 
@@ -33,15 +34,10 @@ class ArbitrationHooks(Protocol):
 
     def offsets_unused(self, bus: model.Bus) -> str | None: ...
 
+    def answers(self, m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]: ...
+
     def bound_messages(
-        self,
-        m: model.Model,
-        bus: model.Bus,
-        rows: list[dict[str, Any]],
-        timings: dict[str, load.FrameTiming],
-        worst: float,
-        diags: Collector,
-        acc: Analysis,
+        self, m: model.Model, bus: model.Bus, frames: BusFrames, diags: Collector, acc: Analysis
     ) -> dict[str, Any] | None: ...
 
     def check_tx_queues(self, m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None: ...
@@ -176,6 +172,52 @@ def bus_responses(
     )
 
 
+def command_anchors(
+    m: model.Model, bus: model.Bus, released: dict[str, tuple[str, int]], commands: set[str]
+) -> dict[str, tuple[str, int]]:
+    """The clock each periodic command is released on and its offset there: its sender's, at its offset
+    (`released`); a task's end, when the one task that sends it runs at its period (its other messages go with it);
+    else its own."""
+    out: dict[str, tuple[str, int]] = {}
+    for name in sorted(commands):
+        msg = m.messages[name]
+        if msg.kind != "periodic" or msg.period_ns is None or msg.period_ns != msg.interval_ns:
+            continue
+        senders = flows.sending_tasks(m, msg)
+        if name in released:
+            out[name] = released[name]
+        elif len(senders) == 1 and m.task(senders[0]).period_ns == msg.period_ns:
+            out[name] = (f"task {senders[0]}", 0)
+        else:
+            out[name] = (f"message {name}", 0)
+    return out
+
+
+def transaction_responses(
+    m: model.Model,
+    bus: model.Bus,
+    proto: ArbitrationHooks,
+    frames: list[can_rta.CanFrame],
+    timings: dict[str, load.FrameTiming],
+    tau: int,
+    released: dict[str, tuple[str, int]],
+    base: dict[str, can_rta.Response],
+) -> dict[str, can_rta.Response]:
+    """The bounds with each reply the protocol names held with its command as one transaction (can_transactions),
+    where every sender queues by priority; `base` where there is none (or a FIFO queue on the bus)."""
+    pairs = proto.answers(m, bus)
+    if not pairs or fifo_senders(m, bus) or proto.offsets_unused(bus) is not None:
+        return base
+    answers = {
+        reply: can_transactions.Answer(command, lead, timings[command].nominal_ns)
+        for reply, (command, lead) in pairs.items()
+    }
+    anchors = command_anchors(m, bus, released, {a.command for a in answers.values()})
+    return can_transactions.analyse(
+        frames, tau, released, anchors, answers, base, bus.clock_tolerance_ppm, error_model(bus)
+    )
+
+
 def tx_queue_rows(m: model.Model, bus: model.Bus, fifo: can_fifo.FifoAnalysis) -> list[dict[str, Any]]:
     """Each FIFO transmit queue on the bus: its largest bound and its backlog. Under the analysis's premise (each
     member sent within its period) at most one instance of each member is queued at a time, and with offsets only
@@ -276,10 +318,16 @@ def analyze_arbitrated(
                 m.source.at((*bus.path, "errors", "interval")),
             )
     released = {} if proto.offsets_unused(bus) is not None else offset_releases(m, bus)
-    fifo = bus_responses(m, bus, rta_frames(bus.messages, timings, acc), tau, released)
+    frames = rta_frames(bus.messages, timings, acc)
+    fifo = bus_responses(m, bus, frames, tau, released)
     plain = fifo.responses
     for msg in bus.messages:
         acc.plain[msg.name] = flows.Delivery(frame_ns[msg.name][0], acc.from_release(msg, plain[msg.name].wcrt_ns))
+    # the rows' bounds: replies held with their commands; flows and the holistic jitter keep the offset-free ones
+    # (a reply's transaction bound counts from its command, not from its own release as a flow's delivery does)
+    bounded = plain if acc.jitter_only or worst > 1 else transaction_responses(
+        m, bus, proto, frames, timings, tau, released, plain
+    )
     out: dict[str, Any] = {
         "name": bus.name,
         "protocol": bus.protocol,
@@ -292,12 +340,12 @@ def analyze_arbitrated(
         ),
         "messages": rows,
     }
-    section = proto.bound_messages(m, bus, rows, timings, worst, diags, acc)
+    section = proto.bound_messages(m, bus, BusFrames(rows, timings, worst), diags, acc)
     if section is not None:
         out.update(section)
     else:
         for row, msg in zip(rows, bus.messages):
-            r = plain[msg.name]
+            r = bounded[msg.name]
             # a message the spec allows to lose, that its queue can drop, is promised nothing
             set_verdict(row, r.wcrt_ns, None if r.limit == "dropped" and msg.may_be_lost else msg.deadline_ns)
             row["blocking_us"] = us(r.blocking_ns)

@@ -24,6 +24,7 @@ from pygls.lsp.server import LanguageServer
 from pygls.uris import from_fs_path, to_fs_path
 
 from netcfg import __version__
+from netcfg.gc_pause import gc_paused
 from netcfg.inputs import SPEC_SUFFIXES
 from netcfg.lsp import document as doc
 
@@ -81,13 +82,8 @@ def analyse_quietly(path: Path, text: str) -> Result:
     """analyse without the cyclic collector: a check makes ~10^5 objects that all live until it ends, and each
     collection during it only walks them (about a third of a warm 1,000-message check). The server collects once
     it is idle instead (collect_idle)."""
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
+    with gc_paused():
         return analyse(path, text)
-    finally:
-        if enabled:
-            gc.enable()
 
 
 _frozen = False

@@ -14,7 +14,7 @@ from netcfg.links.base import Link
 
 if TYPE_CHECKING:
     from netcfg import model, runtime
-    from netcfg.bus_analysis import Analysis
+    from netcfg.bus_analysis import Analysis, BusFrames
     from netcfg.diagnostics import Collector
     from netcfg.rules import BusRules
     from netcfg.sim.can_bus import CanBus
@@ -192,22 +192,21 @@ class Protocol:
         return None
 
     # -- hooks the arbitration analysis of a CAN bus calls (netcfg.links.arbitration)
+    def answers(self, m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]:
+        """Each message of the bus that a node sends in answer to another message of the bus -> (that message,
+        the shortest time from its frame's end to the answer's queueing): the arbitration analysis holds each pair
+        as one transaction (timing.can_transactions). None by default: every message is released on its own."""
+        return {}
+
     def overhead(self, bus: model.Bus) -> tuple[int, int] | None:
         """(time on the wire, period) in ns of a frame the protocol adds to the spec's messages every period."""
         return None
 
     def bound_messages(
-        self,
-        m: model.Model,
-        bus: model.Bus,
-        rows: list[dict[str, Any]],
-        timings: dict[str, FrameTiming],
-        worst: float,
-        diags: Collector,
-        acc: Analysis,
+        self, m: model.Model, bus: model.Bus, frames: BusFrames, diags: Collector, acc: Analysis
     ) -> dict[str, Any] | None:
-        """The protocol's own bounds of the bus's messages, written into `rows` with their verdicts, and its report
-        section; None: the arbitration analysis' bounds are the messages' (the caller writes them)."""
+        """The protocol's own bounds of the bus's messages, written into `frames.rows` with their verdicts, and its
+        report section; None: the arbitration analysis' bounds are the messages' (the caller writes them)."""
         return None
 
     def check_tx_queues(self, m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:

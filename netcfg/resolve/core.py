@@ -15,7 +15,7 @@ from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.protocols import PROTOCOLS, Protocol, over
 from netcfg.resolve.signals import last_byte, layout_signals
-from netcfg.rules import BusRules
+from netcfg.rules import BusRules, Release
 from netcfg.spec import schema
 from netcfg.spec.source import Path, SourceMap
 from netcfg.spec.suggest import did_you_mean, some_names
@@ -405,7 +405,7 @@ class Resolver:
         kind = m.type
         if pdo is not None:
             spec_jitter = (m.jitter.to_ns(ec) or 0) if m.jitter is not None else 0  # reported below if in EC
-            timing = rules.pdo_timing(pdo, bus, kind, period, mit, path, spec_jitter)
+            timing = rules.pdo_timing(pdo, bus, (kind, period, mit), path, spec_jitter)
             if timing is None:
                 return None
             kind, period, mit = timing
@@ -467,7 +467,7 @@ class Resolver:
                 (*path, "offset"),
             )
         self.check_offset(offset, period, path)
-        offset = rules.release_offset(m, kind, period, offset, offset_auto, path, ec)
+        offset = rules.release_offset(m, Release(kind, period, offset, offset_auto), path, ec)
         return kind, (period if kind == "periodic" else None), interval, offset, offset_auto, rate
 
     def claim_implicit_name(self, name: str, what: str) -> None:

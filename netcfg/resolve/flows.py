@@ -107,41 +107,32 @@ def check_flow_links(r: Resolver, flow: str, steps: list[model.FlowStep], path: 
     a task to a task on the same node."""
     ok = True
     for j in range(1, len(steps)):
-        before, after = steps[j - 1], steps[j]
-        where = (*path, "chain", j)
-        if before.kind == "message" and after.kind == "message":
-            r.err(
-                "flow-chain",
-                f"flow '{flow}': two message steps in a row; put the task that relays the data between them",
-                where,
-            )
+        for problem in _link_problems(r, steps[j - 1], steps[j]):
+            r.err("flow-chain", f"flow '{flow}': {problem}", (*path, "chain", j))
             ok = False
-        elif before.kind == "task" and after.kind == "message":
-            nodes = {r.split(".")[0] for r in before.refs}
-            for ref in after.refs:
-                msg = r.model.messages[ref]
-                if msg.producer not in nodes:
-                    r.err(
-                        "flow-chain",
-                        f"flow '{flow}': '{ref}' is produced by '{msg.producer}', not by {quoted_names(nodes)}",
-                        where,
-                    )
-                    ok = False
-        elif before.kind == "message" and after.kind == "task":
-            for ref in after.refs:
-                node = ref.split(".")[0]
-                if not any(node in r.model.messages[m].consumers for m in before.refs):
-                    r.err("flow-chain", f"flow '{flow}': '{node}' consumes none of {quoted_names(before.refs)}", where)
-                    ok = False
-        else:
-            nodes = {r.split(".")[0] for r in before.refs}
-            for ref in after.refs:
-                if ref.split(".")[0] not in nodes:
-                    r.err(
-                        "flow-chain",
-                        f"flow '{flow}': '{ref}' follows tasks of {quoted_names(nodes)} without a "
-                        "message in between; data crosses nodes only in messages",
-                        where,
-                    )
-                    ok = False
     return ok
+
+
+def _link_problems(r: Resolver, before: model.FlowStep, after: model.FlowStep) -> list[str]:
+    """What keeps step `before` from handing its data to step `after`, one line each."""
+    if before.kind == "message" and after.kind == "message":
+        return ["two message steps in a row; put the task that relays the data between them"]
+    if before.kind == "message":  # to a task
+        return [
+            f"'{node}' consumes none of {quoted_names(before.refs)}"
+            for node in (ref.split(".")[0] for ref in after.refs)
+            if not any(node in r.model.messages[m].consumers for m in before.refs)
+        ]
+    nodes = {ref.split(".")[0] for ref in before.refs}
+    if after.kind == "message":  # from a task
+        return [
+            f"'{ref}' is produced by '{producer}', not by {quoted_names(nodes)}"
+            for ref in after.refs
+            if (producer := r.model.messages[ref].producer) not in nodes
+        ]
+    return [  # a task to a task
+        f"'{ref}' follows tasks of {quoted_names(nodes)} without a message in between; data crosses nodes only in "
+        "messages"
+        for ref in after.refs
+        if ref.split(".")[0] not in nodes
+    ]

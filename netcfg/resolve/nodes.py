@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from netcfg import cia301, model
 from netcfg.protocols.canopen import resolve as canopen
+from netcfg.records import same_named
 from netcfg.resolve.actuators import is_actuator_device
 from netcfg.spec import schema
 from netcfg.spec.source import Path
@@ -100,21 +101,12 @@ def resolve_nodes(r: Resolver) -> None:
         for j, t in enumerate(n.tasks):
             tasks[t.name] = resolve_task(r, n.name, t, (*path, "tasks", j), ec)
         r.model.nodes[n.name] = model.Node(
-            description=n.description,
-            name=n.name,
-            node_id=n.node_id,
+            **same_named(n, "description name node_id role on_loss on_emcy on_reboot sdo_retries safe_stop ip"),
             buses=tuple(n.buses),
-            role=n.role,
             device=device,
             heartbeat_ns=hb or None,
             heartbeat_timeout_ns=hb_timeout,
-            on_loss=n.on_loss,
-            on_emcy=n.on_emcy,
-            on_reboot=n.on_reboot,
             sdo_timeout_ns=sdo_timeout,
-            sdo_retries=n.sdo_retries,
-            safe_stop=n.safe_stop,
-            ip=n.ip,
             tasks=tasks,
             path=path,
             tx_delay_ns=r.ns(n.tx_delay, (*path, "tx_delay"), None) or 0,
@@ -160,18 +152,15 @@ def resolve_task(r: Resolver, node: str, t: schema.Task, path: Path, ec: int | N
         sync_bus, period = canopen.sync_task(r, node, t, path, period)
         r.check_offset(offset, period, path, "the SYNC period")
     return model.Task(
-        description=t.description,
+        **same_named(t, "description name on_message priority"),
         node=node,
-        name=t.name,
         period_ns=period,
         offset_ns=offset,
         wcet_ns=wcet,
         bcet_ns=bcet,
         trigger=None,
-        on_message=t.on_message,
         path=path,
         sync_bus=sync_bus,
-        priority=t.priority,
     )
 
 

@@ -62,60 +62,6 @@ if TYPE_CHECKING:
     )
     from netcfg.runtime.loader import FORMAT, SUPPORTED_VERSIONS, RuntimeConfigError, load, parse, read_document
 
-# The names below load their module on first use (PEP 562): netcfg.runtime.codec alone (the DBC importer's
-# payload layout) then costs no dataclasses, hashing or difflib it does not use.
-_HOME: dict[str, str] = {"CodecError": "netcfg.runtime.codec"}
-_HOME.update(
-    dict.fromkeys(
-        (
-            "CAN_LINKS",
-            "FD_PADDING",
-            "Bus",
-            "CanopenParams",
-            "EcSlot",
-            "ErrorAssumption",
-            "EthernetParams",
-            "Flow",
-            "FlowStep",
-            "FttParams",
-            "Message",
-            "Node",
-            "NodeIdentity",
-            "Pdo",
-            "PdoEntry",
-            "RuntimeConfig",
-            "SdoWrite",
-            "Signal",
-            "SrtEntry",
-            "Switch",
-            "SwitchPort",
-            "Task",
-            "Trigger",
-            "UdpPorts",
-            "UnknownNameError",
-            "interpolation_period",
-            "raw_signal_name",
-        ),
-        "netcfg.runtime.config",
-    )
-)
-_HOME.update(
-    dict.fromkeys(
-        ("FORMAT", "SUPPORTED_VERSIONS", "RuntimeConfigError", "load", "parse", "read_document"),
-        "netcfg.runtime.loader",
-    )
-)
-
-
-def __getattr__(name: str) -> Any:
-    home = _HOME.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(home), name)
-    globals()[name] = value  # later look-ups find it directly
-    return value
-
-
 __all__ = [
     "FORMAT",
     "SUPPORTED_VERSIONS",
@@ -150,6 +96,23 @@ __all__ = [
     "raw_signal_name",
     "read_document",
 ]
+
+# The names below load their module on first use (PEP 562): netcfg.runtime.codec alone (the DBC importer's
+# payload layout) then costs no dataclasses, hashing or difflib it does not use. Every public name not the loader's
+# or the codec's is the config's.
+_LOADER_NAMES = ("FORMAT", "SUPPORTED_VERSIONS", "RuntimeConfigError", "load", "parse", "read_document")
+_HOME: dict[str, str] = dict.fromkeys((*__all__, "CAN_LINKS", "FD_PADDING"), "netcfg.runtime.config")
+_HOME.update(dict.fromkeys(_LOADER_NAMES, "netcfg.runtime.loader"))
+_HOME["CodecError"] = "netcfg.runtime.codec"
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(home), name)
+    globals()[name] = value  # later look-ups find it directly
+    return value
 
 
 def __dir__() -> list[str]:

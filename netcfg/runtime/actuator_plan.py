@@ -4,10 +4,12 @@ an actuator may stay silent before the master reports it lost.
 
 - A command's reply delay range is its reply task's BCET..WCET (netcfg.resolve.actuators made the task from the
   profile's `reply: delay_us`, or from the spec's `reply_delay`): the range the analysis used.
-- A reply is late when it comes later after its command than the reply's analysed worst-case response (runtime.json's
-  `wcrt_ns`, counted from the command's release, so it holds the command's own response, the reply delay range and
-  the reply's queueing and transmission); without an analysed bound (a file written without one), the command's
-  worst frame time is unknown here and the bound is the reply delay's upper end alone.
+- A reply is late when it comes later after its command's send than the reply's analysed worst-case response
+  (runtime.json's `wcrt_ns`) plus the command's own (its `wcrt_ns`). The reply's bound counts from its command's
+  earliest end at the latest (netcfg.timing.can_transactions; verify measures from the command's frame so), and the
+  master sends a command at or after its release, which is at most the command's worst case before that frame ends:
+  the sum is sound from the send, if looser than from the frame by the command's response above its best frame time.
+  Without an analysed bound (a file written without one) the bound is the reply delay's upper end alone.
 - An actuator is lost when nothing it sends (a reply or a cyclic message) has come for its node's `heartbeat_timeout`,
   or, without one, for 3 periods of the slowest message the master expects from it (3: as Lely's dcfgen's
   heartbeat_multiplier sets a CANopen consumer time from the producer's).
@@ -143,7 +145,10 @@ def plan_actuators(cfg: RuntimeConfig, bus: str, values: Mapping[tuple[str, str]
                 task = next((t for t in node.tasks if t.on_message == msg.name), None)
                 if task is not None:
                     delay = (task.bcet_ns, task.wcet_ns)
-                bound = reply_msg.wcrt_ns if reply_msg.wcrt_ns is not None else (delay[1] if delay else None)
+                if reply_msg.wcrt_ns is not None and msg.wcrt_ns is not None:
+                    bound = reply_msg.wcrt_ns + msg.wcrt_ns
+                else:
+                    bound = delay[1] if delay else None
                 expected.append(msg.period_ns)
             commands.append(CommandPlan(node.name, c.command, msg, msg.period_ns, c.reply, reply_msg, delay, bound,
                                         vals, frame))

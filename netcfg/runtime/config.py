@@ -79,11 +79,18 @@ class Signal(Field):
 
 
 @dataclass(frozen=True)
-class PdoEntry:
+class MappedObject:
+    """An object-dictionary entry a PDO maps: index, sub-index, length and name. CiA 301 PDOs and EtherCAT's
+    (CANopen over EtherCAT, ETG.2000: netcfg.protocols.ethercat.esi) address their objects alike."""
+
     index: int
     sub: int
     bits: int
     name: str
+
+
+@dataclass(frozen=True)
+class PdoEntry(MappedObject):  # the spec's model maps the same records (netcfg.model.Pdo)
     data_type: int  # CiA 301 data type code
 
 
@@ -207,7 +214,9 @@ class Message(_Carried):
 
 
 @dataclass(frozen=True)
-class Task:
+class TaskTiming:
+    """What a task is in time, as runtime.json and the spec's model (netcfg.model.Task) both hold it."""
+
     node: str
     name: str
     period_ns: int | None
@@ -216,11 +225,15 @@ class Task:
     bcet_ns: int
     trigger: str | None  # FTT-CAN trigger that activates it
     on_message: str | None  # event-driven: runs when this message arrives
-    sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
 
     @property
     def ref(self) -> str:
         return f"{self.node}.{self.name}"
+
+
+@dataclass(frozen=True)
+class Task(TaskTiming):
+    sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
 
 
 @dataclass(frozen=True)
@@ -417,13 +430,19 @@ class Bus(_Carried):
 
 
 @dataclass(frozen=True)
-class Trigger:
+class TriggerTiming:
+    """An FTT-CAN trigger in time, as runtime.json and the spec's model (netcfg.model.Trigger) both hold it."""
+
     name: str
     bus: str
     ftt_id: int
     period_ns: int
     interval_ns: int
     offset_ns: int | None
+
+
+@dataclass(frozen=True)
+class Trigger(TriggerTiming):
     tasks: tuple[str, ...]  # node.task refs
 
 

@@ -4,39 +4,16 @@ netcfg.runtime."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import dataclasses
+from collections.abc import Iterable, Mapping
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from netcfg.inputs import InputError, JsonInputError, parse_json, read_input_text
+from netcfg.runtime import config
 from netcfg.runtime.actuators import Actuator, ActuatorCommand
-from netcfg.runtime.config import (
-    DEFAULT_CLOCK_TOLERANCE_PPM,
-    Bus,
-    CanopenParams,
-    EcSlot,
-    ErrorAssumption,
-    EthernetParams,
-    Flow,
-    FlowStep,
-    FttParams,
-    Message,
-    Node,
-    NodeIdentity,
-    Pdo,
-    PdoEntry,
-    RuntimeConfig,
-    SdoWrite,
-    Signal,
-    SrtEntry,
-    Switch,
-    SwitchPort,
-    Task,
-    Trigger,
-    TxQueue,
-    UdpPorts,
-)
+from netcfg.runtime.config import RuntimeConfig
 from netcfg.runtime.schema import bus_link, check_document
 
 FORMAT = "netcfg-runtime"
@@ -169,18 +146,45 @@ def _problems(cfg: RuntimeConfig) -> list[str]:
 def _config(d: dict[str, Any], source: str) -> RuntimeConfig:
     buses = tuple(_bus(b) for b in d["buses"])
     carried = {b.name: (b.protocol, b.link) for b in buses}
-    return RuntimeConfig(
-        format=d["format"],
-        version=d["version"],
-        system=d["system"],
-        spec_sha256=d["spec_sha256"],
+    return _record(
+        RuntimeConfig,
+        d,
         buses=buses,
         nodes=tuple(_node(n) for n in d["nodes"]),
         messages=tuple(_message(m, *carried[m["bus"]]) for m in d["messages"]),
-        triggers=tuple(_trigger(t) for t in d["triggers"]),
+        triggers=tuple(_record(config.Trigger, t, tasks=_strs(t["tasks"])) for t in d["triggers"]),
         flows=tuple(_flow(f) for f in d["flows"]),
         source=source,
     )
+
+
+R = TypeVar("R")
+_REQUIRED = object()
+
+
+_KEYS: dict[type, tuple[tuple[str, Any], ...]] = {}
+
+
+def _keys(cls: type) -> tuple[tuple[str, Any], ...]:
+    """(field, default) of each field a record takes; _REQUIRED where it has no default."""
+    keys = _KEYS.get(cls)
+    if keys is None:
+        keys = _KEYS[cls] = tuple(
+            (f.name, _REQUIRED if f.default is dataclasses.MISSING else f.default)
+            for f in dataclasses.fields(cls)
+            if f.init
+        )
+    return keys
+
+
+def _record(cls: type[R], d: Mapping[str, Any], **given: Any) -> R:
+    """One of runtime.json's objects as the record cls: runtime.json names each key as the record's field, and a
+    field with a default is a key added later within version 1, so a file written before it may lack it (read as
+    that default). `given`: the fields read otherwise (nested records, tuples, renamed keys)."""
+    for key, default in _keys(cls):
+        if key not in given:
+            given[key] = d[key] if default is _REQUIRED else d.get(key, default)
+    return cls(**given)
 
 
 def _strs(items: Iterable[Any]) -> tuple[str, ...]:
@@ -191,80 +195,46 @@ def _opt_float(x: Any) -> float | None:
     return None if x is None else float(x)
 
 
-def _bus(d: dict[str, Any]) -> Bus:
-    co, ft, eth = d["canopen"], d["ftt"], d["ethernet"]
-    return Bus(
-        name=d["name"],
-        protocol=d["protocol"],
+def _bus(d: dict[str, Any]) -> config.Bus:
+    co, ft, eth, errors = d["canopen"], d["ftt"], d["ethernet"], d.get("errors")
+    return _record(
+        config.Bus,
+        d,
         link=bus_link(d),
-        bitrate=d["bitrate"],
-        data_bitrate=d.get("data_bitrate"),
-        clock_tolerance_ppm=d.get("clock_tolerance_ppm", DEFAULT_CLOCK_TOLERANCE_PPM),
-        ethercat=d.get("ethercat"),
-        errors=None if d.get("errors") is None else ErrorAssumption(d["errors"]["burst"], d["errors"]["interval_ns"]),
-        id_bits=d["id_bits"],
+        errors=None if errors is None else _record(config.ErrorAssumption, errors),
         nodes=_strs(d["nodes"]),
-        canopen=None
-        if co is None
-        else CanopenParams(
-            co["sync_period_ns"],
-            co["sync_window_ns"],
-            co["read_window_ns"],
-            co["sync_producer"],
-            co["sync_id"],
-            co.get("master_jitter_ns", 0),
-            co.get("sync_overflow", 0),
-            co.get("sync_completion_ns"),
-        ),
+        canopen=None if co is None else _record(config.CanopenParams, co),
         ftt=None if ft is None else _ftt(ft),
-        ethernet=None
-        if eth is None
-        else EthernetParams(
-            tuple(
-                Switch(
-                    s["name"],
-                    s["latency_ns"],
-                    tuple(SwitchPort(p["port"], p["to"], float(p["cable_m"]), p.get("queue")) for p in s["ports"]),
-                    s.get("queue"),
-                )
-                for s in eth["switches"]
-            ),
-            None if eth.get("nics") is None else tuple((n["node"], n["queue"]) for n in eth["nics"]),
-        ),
+        ethernet=None if eth is None else _ethernet(eth),
     )
 
 
-def _ftt(d: dict[str, Any]) -> FttParams:
-    return FttParams(
-        ec_ns=d["ec_ns"],
-        tm_size=d["tm_size"],
-        tm_id=d["tm_id"],
-        tm_ns=d["tm_ns"],
-        lsw_ns=d["lsw_ns"],
-        master=d["master"],
-        macro_cycle_ec=d["macro_cycle_ec"],
-        srt=tuple(
-            SrtEntry(
-                e["ftt_id"],
-                e["name"],
-                e["kind"],
-                _strs(e["targets"]),
-                e["period_ec"],
-                e["fastest_period_ec"],
-                e["init_ec"],
+def _ethernet(d: dict[str, Any]) -> config.EthernetParams:
+    return config.EthernetParams(
+        tuple(
+            _record(
+                config.Switch,
+                s,
+                ports=tuple(_record(config.SwitchPort, p, cable_m=float(p["cable_m"])) for p in s["ports"]),
             )
-            for e in d["srt"]
+            for s in d["switches"]
         ),
+        None if d.get("nics") is None else tuple((n["node"], n["queue"]) for n in d["nics"]),
+    )
+
+
+def _ftt(d: dict[str, Any]) -> config.FttParams:
+    return _record(
+        config.FttParams,
+        d,
+        srt=tuple(_record(config.SrtEntry, e, targets=_strs(e["targets"])) for e in d["srt"]),
         schedule=tuple(
-            EcSlot(
-                s["ec"],
-                tuple(s["ids"]),
-                _strs(s["messages"]),
-                _strs(s["triggers"]),
-                s["mask"],
-                s["sync_ns"],
-                s["async_ns"],
-                s.get("allowance_ns", 0),
+            _record(
+                config.EcSlot,
+                s,
+                ids=tuple(s["ids"]),
+                messages=_strs(s["messages"]),
+                triggers=_strs(s["triggers"]),
             )
             for s in d["schedule"]
         ),
@@ -272,47 +242,16 @@ def _ftt(d: dict[str, Any]) -> FttParams:
     )
 
 
-def _node(d: dict[str, Any]) -> Node:
-    return Node(
-        name=d["name"],
-        node_id=d["node_id"],
-        role=d["role"],
+def _node(d: dict[str, Any]) -> config.Node:
+    identity, sdo_init = d.get("identity"), d.get("sdo_init")
+    return _record(
+        config.Node,
+        d,
         buses=_strs(d["buses"]),
-        ip=d["ip"],
-        device=d["device"],
-        heartbeat_ns=d["heartbeat_ns"],
-        tx_delay_ns=d["tx_delay_ns"],
-        rx_delay_ns=d["rx_delay_ns"],
-        tasks=tuple(
-            Task(
-                d["name"],
-                t["name"],
-                t["period_ns"],
-                t["offset_ns"],
-                t["wcet_ns"],
-                t["bcet_ns"],
-                t["trigger"],
-                t["on_message"],
-                t.get("sync_bus"),
-            )
-            for t in d["tasks"]
-        ),
-        identity=_identity(d.get("identity")),
-        eds=d.get("eds"),
-        dcf=d.get("dcf"),
-        sdo_init=None
-        if d.get("sdo_init") is None
-        else tuple(SdoWrite(w["index"], w["sub"], w["data_type"], w["value"]) for w in d["sdo_init"]),
-        rpdo_count=d.get("rpdo_count"),
-        tpdo_count=d.get("tpdo_count"),
-        heartbeat_timeout_ns=d.get("heartbeat_timeout_ns"),
-        on_loss=d.get("on_loss", "stop_all"),
-        on_emcy=d.get("on_emcy", "stop_all"),
-        on_reboot=d.get("on_reboot", "stop_node"),
-        sdo_timeout_ns=d.get("sdo_timeout_ns", 500_000_000),
-        sdo_retries=d.get("sdo_retries", 0),
-        safe_stop=d.get("safe_stop", "quick_stop"),
-        tx_queue=TxQueue(**d["tx_queue"]) if d.get("tx_queue") else TxQueue(),
+        tasks=tuple(_record(config.Task, t, node=d["name"]) for t in d["tasks"]),
+        identity=None if identity is None else _record(config.NodeIdentity, identity),
+        sdo_init=None if sdo_init is None else tuple(_record(config.SdoWrite, w) for w in sdo_init),
+        tx_queue=config.TxQueue(**d["tx_queue"]) if d.get("tx_queue") else config.TxQueue(),
         actuator=_actuator(d.get("actuator")),
     )
 
@@ -320,61 +259,34 @@ def _node(d: dict[str, Any]) -> Node:
 def _actuator(d: dict[str, Any] | None) -> Actuator | None:
     if d is None:
         return None
-    return Actuator(
-        profile=d["profile"],
+    return _record(
+        Actuator,
+        d,
         parameters=tuple((str(k), v) for k, v in d["parameters"]),
-        commanded_by=d["commanded_by"],
-        commands=tuple(ActuatorCommand(c["command"], c["message"], c["reply"], c["reply_message"])
-                       for c in d["commands"]),
+        commands=tuple(_record(ActuatorCommand, c) for c in d["commands"]),
         cyclic=tuple((c["profile_message"], c["message"]) for c in d["cyclic"]),
     )
 
 
-def _identity(d: dict[str, Any] | None) -> NodeIdentity | None:
-    return None if d is None else NodeIdentity(d["vendor_id"], d["product_code"], d["revision"])
-
-
-def _message(d: dict[str, Any], protocol: str, link: str) -> Message:
-    pdo, udp, rate = d["pdo"], d["udp"], d["rate_hz"]
-    return Message(
-        name=d["name"],
-        bus=d["bus"],
+def _message(d: dict[str, Any], protocol: str, link: str) -> config.Message:
+    pdo, udp, rate, sent_by = d["pdo"], d["udp"], d["rate_hz"], d.get("sent_by")
+    return _record(
+        config.Message,
+        d,
         protocol=protocol,
         link=link,
-        producer=d["producer"],
         consumers=_strs(d["consumers"]),
-        id=d["id"],
         extended=bool(d["extended"]),
-        size=d["size"],
-        kind=d["kind"],
-        period_ns=d["period_ns"],
-        interval_ns=d["interval_ns"],
-        offset_ns=d["offset_ns"],
-        deadline_ns=d["deadline_ns"],
-        jitter_ns=d["jitter_ns"],
         rate_hz=None if rate is None else Fraction(rate[0], rate[1]),
-        window=d["window"],
-        ftt_id=d["ftt_id"],
         fd=bool(d.get("fd", False)),
         brs=bool(d.get("brs", False)),
-        frame_size=d.get("frame_size", 0),
         remote=bool(d.get("remote", False)),
-        udp=None if udp is None else UdpPorts(udp["src_port"], udp["dst_port"]),
+        udp=None if udp is None else _record(config.UdpPorts, udp),
         pdo=None
         if pdo is None
-        else Pdo(
-            kind=pdo["kind"],
-            number=pdo["number"],
-            node=pdo["node"],
-            transmission=pdo["transmission"],
-            inhibit_100us=pdo["inhibit_100us"],
-            event_timer_ms=pdo["event_timer_ms"],
-            sync_start=pdo["sync_start"],
-            entries=tuple(PdoEntry(e["index"], e["sub"], e["bits"], e["name"], e["data_type"]) for e in pdo["entries"]),
-            cob_id=pdo.get("cob_id"),
-        ),
+        else _record(config.Pdo, pdo, entries=tuple(_record(config.PdoEntry, e) for e in pdo["entries"])),
         signals=tuple(
-            Signal(
+            config.Signal(
                 name=s["name"],
                 start_bit=s["start_bit"],
                 bits=s["bits"],
@@ -392,26 +304,11 @@ def _message(d: dict[str, Any], protocol: str, link: str) -> Message:
             )
             for s in d["signals"]
         ),
-        implicit=d["implicit"],
-        wcrt_ns=d["wcrt_ns"],
-        sent_by=None if d.get("sent_by") is None else _strs(d["sent_by"]),
-        wcrt_unsync_ns=d.get("wcrt_unsync_ns"),
+        sent_by=None if sent_by is None else _strs(sent_by),
     )
 
 
-def _trigger(d: dict[str, Any]) -> Trigger:
-    return Trigger(
-        d["name"], d["bus"], d["ftt_id"], d["period_ns"], d["interval_ns"], d["offset_ns"], _strs(d["tasks"])
-    )
-
-
-def _flow(d: dict[str, Any]) -> Flow:
-    return Flow(
-        name=d["name"],
-        steps=tuple(FlowStep(s["kind"], _strs(s["refs"])) for s in d["steps"]),
-        deadline_ns=d["deadline_ns"],
-        latency_min_ns=d["latency_min_ns"],
-        latency_max_ns=d["latency_max_ns"],
-        unsync_latency_min_ns=d.get("unsync_latency_min_ns"),
-        unsync_latency_max_ns=d.get("unsync_latency_max_ns"),
+def _flow(d: dict[str, Any]) -> config.Flow:
+    return _record(
+        config.Flow, d, steps=tuple(_record(config.FlowStep, s, refs=_strs(s["refs"])) for s in d["steps"])
     )

@@ -31,6 +31,13 @@ and a distance d between two of its releases as at least shortest_real(d) real n
 larger than the offset-free one (both are sound), so without offsets the result is exactly can_rta.analyse's.
 Bit errors (can_rta's `errors`) add the same term E_m here: E_m(t) to the busy period, E_m(w_p + C_m) to w_p.
 A transaction whose unrolling passes MAX_JOBS jobs is analysed without offsets (its messages stay independent).
+
+With `latest` the candidate c is taken at its latest release, as Palencia and Gonzalez Harbour (1998, section 3) place
+the critical instant: the busy period starts as c is queued after its whole jitter, and the jobs counted are those
+whose latest release is not before it, -J_j + J_c <= d < x + J_c (their phase phi_ijk = T - (Phi_k + J_k - Phi_j)
+mod T); the union over c's jitter is not needed because every candidate is tried. With clocks, J_c is taken as
+shortest_real(J_c) there. can_transactions, whose replies carry a jitter of up to their commands' whole response,
+uses it; the static offsets of one sender keep the union (their bounds stay as they were).
 """
 
 from __future__ import annotations
@@ -141,7 +148,7 @@ class _Interference:
     so those are the jobs above such a message). Messages between the same two jobs of G share one, and the values
     it computed: the fixed points of neighbouring messages revisit the same windows."""
 
-    def __init__(self, tr: Transaction, count: int, ppm: int) -> None:
+    def __init__(self, tr: Transaction, count: int, ppm: int, latest: bool = False) -> None:
         self.period = tr.hyperperiod_ns
         self.ppm = ppm
         self.c = tr.c_ns[:count]
@@ -149,6 +156,8 @@ class _Interference:
         o = tr.offset_ns[:count]
         self.distance = (o[None, :] - o[:, None]) % self.period  # [candidate, job]
         self.jc = self.j[:, None]
+        # the jobs' jitter less the candidate's (its latest release: `latest`), [candidate, job]
+        self.lead = self.j[None, :] - (shortest_real(tr.j_ns[:count], ppm)[:, None] if latest else 0)
         self.at: dict[int, int] = {}
 
     def __call__(self, x: int) -> int:
@@ -156,7 +165,7 @@ class _Interference:
             return 0
         if (known := self.at.get(x)) is not None:
             return known
-        n = _counts(self.distance, self.j[None, :], self.period, longest_local(x + self.jc, self.ppm))
+        n = _counts(self.distance, self.lead, self.period, longest_local(x + self.jc, self.ppm))
         self.at[x] = value = int((n @ self.c).max())
         return value
 
@@ -167,10 +176,12 @@ def analyse(
     offsets: Mapping[str, tuple[str, int]],
     tolerance_ppm: int = 0,
     errors: ErrorModel | None = None,
+    latest: bool = False,
 ) -> dict[str, Response]:
     """Response time of every frame on one bus; `offsets` maps a message to (its sender, its offset) when it is
     released at that offset of its sender's clock (periodic, not sent by a task); `errors` the bit errors allowed
-    for. Never above can_rta.analyse. Senders' clocks are within +-tolerance_ppm of nominal."""
+    for. Never above can_rta.analyse. Senders' clocks are within +-tolerance_ppm of nominal. `latest`: each
+    candidate of a busy period's start at its latest release (Palencia and Gonzalez Harbour), else any."""
     plain = can_rta.analyse(frames, tau_ns, tolerance_ppm, errors)
     groups = transactions(frames, offsets)
     if not groups:
@@ -182,7 +193,9 @@ def analyse(
         r = plain[f.name]
         if r.wcrt_ns is None:
             continue
-        bound = _with_offsets(f, frames, groups, grouped, r.blocking_ns, tau_ns, tolerance_ppm, errors, interference)
+        bound = _with_offsets(
+            f, frames, groups, grouped, r.blocking_ns, tau_ns, tolerance_ppm, errors, interference, latest
+        )
         if bound is not None and bound < r.wcrt_ns:
             out[f.name] = replace(r, wcrt_ns=bound)
     return out
@@ -198,6 +211,7 @@ def _with_offsets(
     ppm: int,
     errors: ErrorModel | None = None,
     interference: dict[tuple[int, int], _Interference] | None = None,
+    latest: bool = False,
 ) -> int | None:
     import numpy as np
 
@@ -218,7 +232,7 @@ def _with_offsets(
         if tr is not own:
             count = int(np.searchsorted(tr.key, key, side="left"))  # its jobs above m
             if (known := shared.get((g, count))) is None:
-                known = shared[g, count] = _Interference(tr, count, ppm)
+                known = shared[g, count] = _Interference(tr, count, ppm, latest)
             others.append(known)
 
     def local(x: int) -> int:
@@ -276,8 +290,9 @@ def _with_offsets(
     worst = 0
     for c in np.flatnonzero(level):
         jc = int(own.j_ns[c])
+        shift = shortest_real(jc, ppm) if latest else 0  # the jobs counted are those not released before c
         dist = (own.offset_ns - own.offset_ns[c]) % period  # every own job's distance from c's nominal release
-        dist_hp, j_hp, c_hp = dist[hp], longest_local(own.j_ns[hp], ppm), own.c_ns[hp]
+        dist_hp, j_hp, c_hp = dist[hp], longest_local(own.j_ns[hp], ppm) - shift, own.c_ns[hp]
 
         def own_hp(
             x: int, dist_hp: np.ndarray = dist_hp, j_hp: np.ndarray = j_hp, c_hp: np.ndarray = c_hp, jc: int = jc
@@ -287,8 +302,8 @@ def _with_offsets(
         # m's instances around c: distances d + n*L, present in the busy period when d >= -J_m
         d_m = dist[mine]
 
-        def m_count(x: int, d_m: np.ndarray = d_m, jc: int = jc) -> int:
-            return int(_counts(d_m, np.full_like(d_m, local(m.j_ns)), period, np.int64(local(x + jc))).sum())
+        def m_count(x: int, d_m: np.ndarray = d_m, jc: int = jc, shift: int = shift) -> int:
+            return int(_counts(d_m, np.full_like(d_m, local(m.j_ns) - shift), period, np.int64(local(x + jc))).sum())
 
         busy = least_fixed_point(
             blocking + m.c_ns,
@@ -297,7 +312,7 @@ def _with_offsets(
         if busy is None:
             return None
         # the instances of m in the busy period, in release order
-        first = -((local(m.j_ns) + d_m) // period)
+        first = -((local(m.j_ns) - shift + d_m) // period)
         last = -(-(local(busy + jc) - d_m) // period) - 1
         instances = sorted(int(d + n * period) for d, a, b in zip(d_m, first, last) for n in range(int(a), int(b) + 1))
         for earlier, d in enumerate(instances):

@@ -9,7 +9,7 @@ from typing import Any
 from netcfg.runtime import RuntimeConfig
 from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker
 from netcfg.verify.fault_phases import FaultScan, add_fault_phases, excused_spans
-from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, PAYLOAD_COLUMNS, Batch, ChannelTable
+from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, Batch, ChannelTable
 from netcfg.verify.host_clock import HostClock, host_finding
 from netcfg.verify.logs import read_log
 from netcfg.verify.phases import Phase, cyclic_span, split, sync_ids
@@ -105,20 +105,13 @@ def check_frames(
     report. For a program that holds its frames already (the simulator's trace, netcfg.sim.trace.TraceFrame);
     times are taken to the microsecond, as a log file would carry them."""
     table = ChannelTable()
-    t: list[int] = []
-    ch: list[int] = []
-    ids: list[int] = []
-    flags: list[int] = []
-    lengths: list[int] = []
-    payload = bytearray()
-    for frame in frames:
-        t_ns, channel, can_id, extended, data = frame[:5]
-        t.append((t_ns + 500) // 1000)
-        ch.append(table.index(channel))
-        ids.append(can_id)
-        error, fd, brs = (bool(x) for x in (*frame[5:8], False, False, False)[:3])
-        flags.append((EXTENDED if extended else 0) | (ERROR if error else 0) | (FD if fd else 0) | (BRS if brs else 0))
-        lengths.append(len(data))
-        payload += bytes(data[:PAYLOAD_COLUMNS]).ljust(PAYLOAD_COLUMNS, b"\0")
-    batch = Batch.of_columns(t, ch, ids, flags, lengths, bytes(payload))
+
+    def rows() -> Iterator[tuple[int, int, int, int, int, bytes]]:
+        for frame in frames:
+            t_ns, channel, can_id, extended, data = frame[:5]
+            error, fd, brs = (bool(x) for x in (*frame[5:8], False, False, False)[:3])
+            flags = (EXTENDED if extended else 0) | (ERROR if error else 0) | (FD if fd else 0) | (BRS if brs else 0)
+            yield (t_ns + 500) // 1000, table.index(channel), can_id, flags, len(data), bytes(data)
+
+    batch = Batch.of_rows(rows())
     return _judge(cfg, lambda _first: (table, [batch]), None, window_us, False)

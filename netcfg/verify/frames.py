@@ -54,6 +54,16 @@ class Batch:
         )
 
     @staticmethod
+    def of_rows(rows: Iterable[tuple[int, int, int, int, int, bytes]]) -> Batch:
+        """A batch from one row a frame: (time in us, channel index, identifier, flags, payload length, payload)."""
+        table = list(rows)
+        if not table:
+            return Batch.empty()
+        t, ch, ids, flags, lengths, data = zip(*table)
+        payload = b"".join(d[:PAYLOAD_COLUMNS].ljust(PAYLOAD_COLUMNS, b"\0") for d in data)
+        return Batch.of_columns(list(t), list(ch), list(ids), list(flags), list(lengths), payload)
+
+    @staticmethod
     def empty() -> Batch:
         return Batch(
             np.empty(0, np.int64),

@@ -14,11 +14,11 @@ from netcfg.devices.eds import EdsError, cached_profile
 from netcfg.diagnostics import Position
 from netcfg.inputs import check_input_path
 from netcfg.links.canfd import OverCanLinks
-from netcfg.model import MessageKind
 from netcfg.protocols.canopen import pdo as pdo_map
+from netcfg.rules import Rate
 from netcfg.spec import schema
 from netcfg.spec.source import Path
-from netcfg.spec.suggest import did_you_mean, nodes_on_bus
+from netcfg.spec.suggest import did_you_mean
 from netcfg.spec.units import format_ns
 
 if TYPE_CHECKING:
@@ -58,25 +58,10 @@ class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CAN
                     f"{name} {format_ns(value)} is longer than the SYNC period {format_ns(period)}",
                     (*cpath, name),
                 )
-        producer = c.sync_producer
+        producer = self.section_master(
+            b, c.sync_producer, cpath, "sync_producer", "SYNC producer", "CANopen", "sync-producer"
+        )
         if producer is None:
-            ms = self.r.masters(b.name)
-            if len(ms) != 1:
-                self.r.err(
-                    "sync-producer",
-                    f"CANopen bus '{b.name}' needs one node with 'role: master' (found "
-                    f"{len(ms)}) or 'canopen: {{sync_producer: <node>}}'",
-                    cpath,
-                )
-                return
-            producer = ms[0]
-        elif producer not in self.r.spec_nodes or b.name not in self.r.spec_nodes[producer].buses:
-            self.r.err(
-                "unknown-node",
-                f"SYNC producer '{producer}' is not a node on bus '{b.name}'"
-                f"{did_you_mean(producer, nodes_on_bus(self.r.spec, b.name))}",
-                (*cpath, "sync_producer"),
-            )
             return
         # CiA 301 0x1019: 0 (no counter) or an overflow value 2..240; `true` takes the largest
         overflow = 240 if c.sync_counter is True else int(c.sync_counter)
@@ -106,19 +91,11 @@ class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CAN
     ) -> tuple[model.Pdo, tuple[model.Signal, ...]] | None:
         return pdo_map.resolve_pdo(self.r, m, sbus, bus, path)
 
-    def pdo_timing(
-        self,
-        pdo: model.Pdo,
-        bus: model.Bus,
-        kind: MessageKind | None,
-        period: int | None,
-        mit: int | None,
-        path: Path,
-        jitter: int = 0,
-    ) -> tuple[MessageKind | None, int | None, int | None] | None:
+    def pdo_timing(self, pdo: model.Pdo, bus: model.Bus, rate: Rate, path: Path, jitter: int = 0) -> Rate | None:
         # CANopen PDOs: the transmission type says when a TPDO goes out (CiA 301, 0x1800 sub 2).
         if pdo.kind != "tpdo" or bus.canopen is None:
-            return kind, period, mit
+            return rate
+        kind, period, mit = rate
         sync = bus.canopen.sync_period_ns
         tt = pdo.transmission
         if 1 <= tt <= 240 and period is not None and period != tt * sync:

@@ -40,7 +40,7 @@ from __future__ import annotations
 from typing import Any
 
 from netcfg import model
-from netcfg.bus_analysis import Analysis, set_verdict, us
+from netcfg.bus_analysis import Analysis, message_head, set_verdict, us
 from netcfg.diagnostics import Collector
 from netcfg.links import ethercat as link
 from netcfg.protocols.ethercat.cycle import CycleTiming, cycle_timing, segment_timing
@@ -167,15 +167,7 @@ def pdo_rows(
         best, worst, read = delivery(t, p, position[p.slave], cables, bus.bitrate)
         if acc is not None:
             acc.chained[msg.name] = acc.plain[msg.name] = Delivery(best, worst)
-        row: dict[str, Any] = {
-            "name": msg.name,
-            "id": msg.id,
-            "size": msg.size,
-            "kind": msg.kind,
-            "producer": msg.producer,
-            "consumers": list(msg.consumers),
-            "period_us": us(msg.period_ns),
-            "interval_us": us(msg.interval_ns),
+        row = message_head(msg, extended=False) | {
             "slave": p.slave,
             "direction": p.direction,
             "pdo": f"0x{(0x1A00 if p.direction == 'inputs' else 0x1600) + (msg.pdo.number if msg.pdo else 1) - 1:04X}",

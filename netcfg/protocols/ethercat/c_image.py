@@ -8,7 +8,7 @@ from typing import Any
 
 from netcfg import model
 from netcfg.protocols.ethercat.ros2 import channel_type
-from netcfg.protocols.ethercat.segment import Entry, Segment
+from netcfg.protocols.ethercat.segment import Entry, segments
 from netcfg.templating import render
 
 C_TYPES = {"bool": "uint8_t", "float": "float", "double": "double"}
@@ -29,10 +29,7 @@ def c_type(e: Entry) -> str:
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     files = {}
-    for bus in m.buses.values():
-        seg: Segment | None = bus.ethercat
-        if seg is None:
-            continue
+    for bus, seg in segments(m):
         prefix = f"ECAT_{ident(bus.name)}"
         slaves = []
         for s in seg.slaves:

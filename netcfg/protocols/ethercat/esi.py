@@ -22,6 +22,7 @@ from defusedxml import DefusedXmlException
 from defusedxml.ElementTree import DefusedXMLParser
 
 from netcfg.inputs import InputError, read_input_bytes
+from netcfg.runtime.config import MappedObject
 
 WHAT = "ESI"
 
@@ -43,11 +44,9 @@ class SyncManager:
 
 
 @dataclass(frozen=True)
-class PdoEntry:
-    index: int
-    sub: int
-    bits: int
-    name: str
+class PdoEntry(MappedObject):
+    """A PDO's mapped CoE object; its data type by ETG.2000's name (BOOL, INT, UDINT...), not a CiA 301 code."""
+
     data_type: str
     line: int
 

@@ -24,11 +24,7 @@ def render_cycle(bus: dict[str, Any], table: Any, num: Any) -> list[str]:
         )
     rows = [
         [
-            str(s["position"]),
-            s["node"],
-            s["device"],
-            str(s["out_bytes"]),
-            str(s["in_bytes"]),
+            *_slave(s),
             num(s["frame_passed_us"]),
             num(s["sync0_shift_us"]),
             "-" if s.get("sync0_margin_us") is None else num(s["sync0_margin_us"]),
@@ -59,17 +55,18 @@ def pdo_text(m: dict[str, Any], num: Any) -> str:
     )
 
 
+def _slave(s: dict[str, Any]) -> list[str]:
+    """The columns that name a slave in both tables: position, node, device, output and input bytes."""
+    return [str(s["position"]), s["node"], s["device"], str(s["out_bytes"]), str(s["in_bytes"])]
+
+
 def cycle_view(bus: dict[str, Any], num: Any) -> dict[str, Any]:
     """What report.md shows of the bus's cycle (templates/report.md.j2): the budget's figures, and per slave
     (headers, alignment, rows) for its table."""
     c = bus["cycle"]
     rows = [
         [
-            str(s["position"]),
-            s["node"],
-            s["device"],
-            str(s["out_bytes"]),
-            str(s["in_bytes"]),
+            *_slave(s),
             num(s.get("forwarding_us")),
             num(s.get("cable_m")),
             num(s["frame_passed_us"]),

@@ -12,9 +12,8 @@ from netcfg import model
 from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.inputs import check_input_path
 from netcfg.links.ethercat import BIT_RATES
-from netcfg.model import MessageKind
 from netcfg.protocols.ethercat.messages import object_ref
-from netcfg.rules import BusRules
+from netcfg.rules import BusRules, Rate
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.spec.suggest import did_you_mean
@@ -72,17 +71,9 @@ class EthercatRules(BusRules):
 
         return resolve_pdo(self.r, m, sbus, bus, path)
 
-    def pdo_timing(
-        self,
-        pdo: model.Pdo,
-        bus: model.Bus,
-        kind: MessageKind | None,
-        period: int | None,
-        mit: int | None,
-        path: Path,
-        jitter: int = 0,
-    ) -> tuple[MessageKind | None, int | None, int | None] | None:
+    def pdo_timing(self, pdo: model.Pdo, bus: model.Bus, rate: Rate, path: Path, jitter: int = 0) -> Rate | None:
         """A PDO rides every cycle: periodic at the bus's cycle (a period, if given, must be it)."""
+        kind, period, mit = rate
         seg = bus.ethercat
         if seg is None:
             return None

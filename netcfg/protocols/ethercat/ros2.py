@@ -10,7 +10,7 @@ from typing import Any
 
 from netcfg import model
 from netcfg.protocols.ethercat.runtime_section import startup_sdos
-from netcfg.protocols.ethercat.segment import AssignedPdo, Segment
+from netcfg.protocols.ethercat.segment import AssignedPdo, segments
 from netcfg.templating import render
 
 # CiA 402 objects and the ros2_control interfaces EcCiA402Drive gives them (its documentation's names)
@@ -99,10 +99,7 @@ def _pdos(pdos: list[AssignedPdo], interfaces: dict[int, str], key: str, scaled:
 
 def emit(m: model.Model, report: dict[str, Any]) -> dict[str, bytes]:
     files = {}
-    for bus in m.buses.values():
-        seg: Segment | None = bus.ethercat
-        if seg is None:
-            continue
+    for bus, seg in segments(m):
         for s in seg.slaves:
             view = {
                 "system": m.system,

@@ -3,9 +3,14 @@ its PDO assignment (0x1C12/0x1C13) and mappings, its DC settings, and the logica
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from netcfg.spec.source import Path
+
+if TYPE_CHECKING:
+    from netcfg import model
 
 
 @dataclass(frozen=True)
@@ -110,6 +115,14 @@ class Segment:
             self.inputs += _entries(s.node, s.tx, inp * 8)
             out += s.out_bytes
             inp += s.in_bytes
+
+
+def segments(m: model.Model) -> Iterator[tuple[model.Bus, Segment]]:
+    """Each EtherCAT bus of the model with its segment, in the spec's order."""
+    for bus in m.buses.values():
+        seg: Segment | None = bus.ethercat
+        if seg is not None:
+            yield bus, seg
 
 
 def _entries(slave: str, pdos: list[AssignedPdo], start_bit: int) -> list[Entry]:

@@ -15,7 +15,7 @@ from netcfg.protocols.base import OwnFrame, Protocol, Unsaid
 
 if TYPE_CHECKING:
     from netcfg import model, runtime
-    from netcfg.bus_analysis import Analysis
+    from netcfg.bus_analysis import Analysis, BusFrames
     from netcfg.diagnostics import Collector
     from netcfg.links.base import Link
     from netcfg.rules import BusRules
@@ -72,18 +72,11 @@ class Ftt(Protocol):
         return bus_tm_and_ec(bus)  # the trigger message, once per EC
 
     def bound_messages(
-        self,
-        m: model.Model,
-        bus: model.Bus,
-        rows: list[dict[str, Any]],
-        timings: dict[str, FrameTiming],
-        worst: float,
-        diags: Collector,
-        acc: Analysis,
+        self, m: model.Model, bus: model.Bus, frames: BusFrames, diags: Collector, acc: Analysis
     ) -> dict[str, Any] | None:
         from netcfg.protocols.ftt.analysis import bound_messages
 
-        return bound_messages(m, bus, rows, timings, worst, diags, acc)
+        return bound_messages(m, bus, frames, diags, acc)
 
     def check_tx_queues(self, m: model.Model, bus: model.Bus, rows: list[dict[str, Any]], diags: Collector) -> None:
         from netcfg.protocols.ftt.analysis import check_tx_queues

@@ -8,23 +8,18 @@ from __future__ import annotations
 from typing import Any
 
 from netcfg import model
-from netcfg.bus_analysis import Analysis, error_model, frame_times, set_verdict, us
+from netcfg.bus_analysis import Analysis, BusFrames, error_model, frame_times, set_verdict, us
 from netcfg.diagnostics import Collector
 from netcfg.timing import flows, ftt, load
 
 
 def bound_messages(
-    m: model.Model,
-    bus: model.Bus,
-    rows: list[dict[str, Any]],
-    timings: dict[str, load.FrameTiming],
-    worst: float,
-    diags: Collector,
-    acc: Analysis,
+    m: model.Model, bus: model.Bus, frames: BusFrames, diags: Collector, acc: Analysis
 ) -> dict[str, Any]:
-    """The windows' bounds of every message (written into `rows`), and the bus's load with its trigger message."""
-    section = analyze_ftt(m, bus, rows, frame_times(timings), diags, acc)
-    return {"ftt": section, "utilization_with_tm": round(worst + section["tm_overhead"], 6)}
+    """The windows' bounds of every message (written into `frames.rows`), and the bus's load with its trigger
+    message."""
+    section = analyze_ftt(m, bus, frames.rows, frame_times(frames.timings), diags, acc)
+    return {"ftt": section, "utilization_with_tm": round(frames.worst + section["tm_overhead"], 6)}
 
 
 def check_overload(

@@ -10,9 +10,10 @@ from typing import Literal
 from netcfg import model
 from netcfg.links.canfd import OverCanLinks
 from netcfg.model import MessageKind
+from netcfg.rules import Release
 from netcfg.spec import schema
 from netcfg.spec.source import Path
-from netcfg.spec.suggest import did_you_mean, nodes_on_bus, some_names
+from netcfg.spec.suggest import did_you_mean, some_names
 from netcfg.spec.units import Duration, format_ns
 from netcfg.timing.frames import arbitration_key
 
@@ -57,23 +58,8 @@ class FttRules(OverCanLinks):  # over classical CAN or CAN FD (`link: can-fd`)
                 f"EC of {format_ns(ec)}; shorten the LSW",
                 (*fpath, "lsw"),
             )
-        master = f.master
+        master = self.section_master(b, f.master, fpath, "master", "FTT-CAN master", "FTT-CAN", "ftt-master")
         if master is None:
-            ms = self.r.masters(b.name)
-            if len(ms) != 1:
-                self.r.err(
-                    "ftt-master",
-                    f"FTT-CAN bus '{b.name}' needs one node with 'role: master' (found "
-                    f"{len(ms)}) or 'ftt: {{master: <node>}}'",
-                    fpath,
-                )
-                return
-            master = ms[0]
-        elif master not in self.r.spec_nodes or b.name not in self.r.spec_nodes[master].buses:
-            hint = did_you_mean(master, nodes_on_bus(self.r.spec, b.name))
-            self.r.err(
-                "unknown-node", f"FTT-CAN master '{master}' is not a node on bus '{b.name}'{hint}", (*fpath, "master")
-            )
             return
         bus.ftt = model.FttBus(
             ec_ns=ec,
@@ -91,16 +77,8 @@ class FttRules(OverCanLinks):  # over classical CAN or CAN FD (`link: can-fd`)
     def carries_messages(self, bus: model.Bus) -> bool:
         return bus.ftt is not None
 
-    def release_offset(
-        self,
-        m: schema.Message,
-        kind: MessageKind,
-        period: int | None,
-        offset: int | None,
-        offset_auto: bool,
-        path: Path,
-        ec: int | None,
-    ) -> int | None:
+    def release_offset(self, m: schema.Message, release: Release, path: Path, ec: int | None) -> int | None:
+        kind, period, offset, offset_auto = release
         if ec and kind == "periodic" and (m.window or "sync") == "sync":
             for key, value in (("period", period), ("offset", offset)):
                 if value is not None and value % ec:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from netcfg import model
+from netcfg.records import same_named
 from netcfg.templating import render
 from netcfg.timing import ftt
 
@@ -82,18 +83,8 @@ def _entry(m: model.Model, e: ftt.SrtEntry) -> EntryView:
         destination = tuple(dict.fromkeys(t.split(".", 1)[0] for t in e.targets))
         description = _description(m.triggers.get(e.name)) or "activates " + ", ".join(e.targets)
     return EntryView(
-        ftt_id=e.ftt_id,
-        name=e.name,
-        kind=e.kind,
-        producer=e.producer,
+        **same_named(e, "ftt_id name kind producer targets size can_id c_bits period_ec fastest_period_ec init_ec"),
         destination=destination,
-        targets=e.targets,
-        size=e.size,
-        can_id=e.can_id,
-        c_bits=e.c_bits,
-        period_ec=e.period_ec,
-        fastest_period_ec=e.fastest_period_ec,
-        init_ec=e.init_ec,
         deadline_us=None if e.deadline_ns is None else e.deadline_ns // 1000,
         description=description,
     )
