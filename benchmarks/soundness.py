@@ -371,6 +371,8 @@ def ftt_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
     """FTT-CAN: synchronous messages with periods, ranges and offsets in ECs, asynchronous ones with identifiers
     anywhere (above or below the trigger message's), triggers, the master's parameters (LSW, TM id, id base)."""
     f = Fields(draw, held)
+    # FTT-CAN over the CAN FD link one time in three: payloads up to 64 bytes, classical frames beside FD ones
+    fd = f.feature("ftt-can over can-fd", 0.35)
     ec_ms = f(st.integers(2, 10))
     ftt: dict[str, Any] = {"ec": f"{ec_ms} ms", "tm_size": f(st.integers(1, 8)),
                            "windows": f(st.sampled_from(["async-first", "sync-first"]))}
@@ -390,8 +392,14 @@ def ftt_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
     for i in range(count):
         producer = f(st.sampled_from(nodes[1:]))
         consumer = f(st.sampled_from([n for n in nodes[1:] if n != producer]))
-        msg: dict[str, Any] = {"name": f"m{i}", "producer": producer, "consumers": [consumer],
-                               "size": f(st.integers(0, 8))}
+        msg: dict[str, Any] = {"name": f"m{i}", "producer": producer, "consumers": [consumer]}
+        classical = not fd
+        if fd:
+            f.opt(msg, "messages[].fd", st.booleans(), 0.3)
+            classical = msg.get("fd") is False
+            if not classical:
+                f.opt(msg, "messages[].brs", st.booleans(), 0.3)
+        msg["size"] = f(st.integers(0, 8) if classical else st.sampled_from(FD_SIZES))
         if f.chance(0.5):
             period = f(st.integers(1, 6))
             msg |= {"ftt_id": ftt_id, "period": f"{period} EC", "offset": f"{f(st.integers(0, period - 1))} EC"}
@@ -419,7 +427,11 @@ def ftt_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
         messages.append(msg)
     bus: dict[str, Any] = {"name": "bus", "protocol": "ftt-can",
                            "bitrate": f(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])), "ftt": ftt}
-    f.opt(bus, "buses[].link", st.just("can"), 0.1)
+    if fd:
+        bus["link"] = "can-fd"
+        bus["data_bitrate"] = f(st.sampled_from(["1 Mbit/s", "2 Mbit/s", "5 Mbit/s", "8 Mbit/s"]))
+    else:
+        f.opt(bus, "buses[].link", st.just("can"), 0.1)
     spec: dict[str, Any] = {
         "system": "random_ftt",
         "buses": [bus],
@@ -623,7 +635,14 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
     bus: dict[str, Any] = {"name": "can0", "protocol": "canopen",
                            "bitrate": f(st.sampled_from(["250 kbit/s", "500 kbit/s", "1 Mbit/s"])),
                            "canopen": canopen}
-    f.opt(bus, "buses[].link", st.just("can"), 0.1)
+    # CANopen FD (link: can-fd) one time in three: TPDOs mapping up to 12 objects (the EPOS4's, 48 bytes),
+    # SYNC and heartbeats as CAN FD frames, some PDOs classical (fd: false) or without bit-rate switch
+    fd = f.feature("canopen over can-fd", 0.35)
+    if fd:
+        bus["link"] = "can-fd"
+        bus["data_bitrate"] = f(st.sampled_from(["1 Mbit/s", "2 Mbit/s", "5 Mbit/s", "8 Mbit/s"]))
+    else:
+        f.opt(bus, "buses[].link", st.just("can"), 0.1)
     master: dict[str, Any] = {"name": "master", "role": "master", "node_id": 127, "buses": ["can0"],
                               "tx_queue": _tx_queue(f)}
     _node_delays(f, master)
@@ -676,6 +695,14 @@ def canopen_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[st
             tpdo: dict[str, Any] = {"tpdo": k, "transmission": f(TPDO_EVERY_NTH if every_nth else TPDO_TYPES),
                                     "map": [entry]}
             msg: dict[str, Any] = {"name": f"{d}_tx{k}", "producer": d, "consumers": ["master"], "pdo": tpdo}
+            if fd and f.chance(0.6):  # a CANopen FD PDO beyond 8 bytes: more 32-bit objects, each named apart,
+                # up to the device's mapping entries (the EPOS4 EDS's 12, the cia402 profile's and drive_et's 8)
+                extra = f(st.integers(1, 11 if node["device"] == "epos4" else 7))
+                tpdo["map"] += [{"object": [0x6064, 0x606C][j % 2], "name": f"x{j}"} for j in range(extra)]
+            elif fd:
+                f.opt(msg, "messages[].fd", st.booleans(), 0.3)
+            if fd and msg.get("fd") is not False:
+                f.opt(msg, "messages[].brs", st.booleans(), 0.2)
             if tpdo["transmission"] >= 254:  # event-driven: how often it goes says its event timer or the message
                 if eds:
                     f.opt(tpdo, "messages[].pdo.event_timer", ms(1, 200), 0.6)

@@ -11,6 +11,7 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
+from netcfg import protocols
 from netcfg.check import analyse_spec
 from netcfg.emit import Background, Files, emit_all
 from netcfg.emit.dbc import unsaid
@@ -41,6 +42,7 @@ def build(spec: Path, out: Path | None, worker: Background | None = None) -> tup
         from netcfg.emit import ros2_control  # after emit_all, which has imported it
 
         report["notes"] += ros2_control.unsaid(model)
+        report["notes"] += [note for bus in model.buses.values() for note in protocols.of(bus).build_notes(bus)]
     finally:
         worker.close()
     target = out if out is not None else Path("generated") / model.system

@@ -158,6 +158,7 @@ class FttBus:
     tm_id: int
     master: str
     sync_first: bool = False  # the synchronous window follows the trigger message (default: it closes the EC)
+    tm_fd: bool = False  # the trigger message is a CAN FD frame with bit-rate switch (on a CAN FD link)
 
 
 @dataclass(frozen=True)

@@ -133,6 +133,11 @@ class BusRules:
         self.r.err("wrong-section", f"PDOs exist on CANopen buses; '{sbus.name}' is {self.name}", (*path, "pdo"))
         return None
 
+    def link_rules(self, bus: model.Bus) -> BusRules:
+        """The rules that judge a message's frame on `bus` (its payload, CAN FD format): the protocol's own, or its
+        link's where the protocol runs over more than one (netcfg.links.canfd.OverCanLinks)."""
+        return self
+
     def check_payload(self, m: schema.Message, size: int, path: Path) -> None:
         """The payload fits one frame of the protocol."""
 

@@ -276,6 +276,11 @@ def _run_master(
         print(f"netcfg: {args.source}: {text}; `netcfg run` drives a CANopen bus", file=sys.stderr)
         return 2
     assert co_bus.canopen is not None
+    from netcfg import protocols
+
+    if (not_driven := protocols.of(co_bus).run_refused(co_bus)) is not None:
+        print(f"netcfg: {args.source}: {not_driven}", file=sys.stderr)
+        return 1
     slaves = {n.name for n in canopen_slaves(cfg, co_bus)}
     for node in (d.node for k in NODE_KINDS for d in drills[k]):
         if node not in slaves:

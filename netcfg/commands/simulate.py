@@ -129,6 +129,13 @@ def simulate_command(args: argparse.Namespace) -> int:
         trace=args.log is not None,
     )
     cfg = runtime.parse(doc, str(args.source))
+    if args.canopen == "sdo":  # SDO mode runs the live master's SDO set-up and reads
+        from netcfg import protocols
+
+        for b in cfg.buses:
+            if (refused := protocols.of(b).run_refused(b)) is not None:
+                print(f"netcfg: {args.source}: --canopen sdo: {refused}", file=sys.stderr)
+                return 2
     max_events = getattr(args, "max_events", None) or DEFAULT_MAX_EVENTS
     problem = work_problem(cfg, duration, max_events) or fault_problem(cfg, faults)
     if problem:

@@ -396,7 +396,8 @@ def _own_frames(m: model.Model, bus: model.Bus) -> list[cdb.Message]:
         if f.name in m.messages or any(x.name == f.name for x in bus.messages):
             continue  # the name is taken by a spec message; leave the frame out rather than rename it
         out.append(
-            cdb.Message(
+            dbc_frames.message(
+                f.fd,
                 frame_id=f.id,
                 name=f.name,
                 length=f.size,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from netcfg import model
 from netcfg.links.can import MAX_CAN_BITRATE, CanRules, ClassicalCan
-from netcfg.rules import BusRules
+from netcfg.rules import BusRules, Resolution
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_LENGTHS, CANFD_MAX_PAYLOAD, canfd_padded_size
@@ -72,6 +72,24 @@ class CanFdRules(CanRules):
         if not fd and m.brs:
             self.r.err("brs", "bit-rate switch exists only in CAN FD frames; drop 'brs' or 'fd: false'", (*path, "brs"))
         return fd, fd and m.brs is not False
+
+
+class OverCanLinks(CanRules):
+    """The rules of a protocol that runs over either CAN link: on a bus whose link is CAN FD (`link: can-fd`), the
+    CAN FD link's rules judge its bit rates, payloads and frame formats; elsewhere classical CAN's."""
+
+    def __init__(self, r: Resolution) -> None:
+        super().__init__(r)
+        self._fd = CanFdRules(r)
+
+    def link_rules(self, bus: model.Bus) -> BusRules:
+        return self._fd if bus.link == CanFd.name else self
+
+    def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
+        if bus.link == CanFd.name:
+            self._fd.resolve_bus(b, bus, path)
+        else:
+            super().resolve_bus(b, bus, path)
 
 
 class CanFd(ClassicalCan):

@@ -38,6 +38,7 @@ class OwnFrame:
     period_ns: int
     field: str  # the one unsigned field spanning its payload
     comment: str
+    fd: bool = False  # a CAN FD frame with bit-rate switch (FTT-CAN's trigger message on a CAN FD link)
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,16 @@ class Protocol:
         """runtime.json's keys of the protocol's own on the bus's entry (netcfg.emit.runtime_json), e.g. FTT-CAN's
         `ftt` (its schedule); {}: none (every bus has `ftt: null`)."""
         return {}
+
+    def build_notes(self, bus: model.Bus) -> tuple[str, ...]:
+        """What the files `netcfg build` writes for the bus cannot carry of it under this protocol over its link
+        (build prints them with the DBC's notes); (): nothing."""
+        return ()
+
+    def run_refused(self, bus: runtime.Bus) -> str | None:
+        """Why `netcfg run`'s live master (and the simulator's SDO mode, which runs it) cannot drive the bus, as the
+        error to print; None: it can."""
+        return None
 
     # -- what netcfg.verify expects of a recorded log of a bus of this protocol (runtime.json's bus)
     def log_frames(self, bus: runtime.Bus) -> tuple[runtime.Message, ...]:

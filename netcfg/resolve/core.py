@@ -332,7 +332,7 @@ class Resolver:
         if size is None:
             self.err("size", f"message '{m.name}' needs a payload: 'size: <bytes>', 'signals:' or a PDO map", path)
             return None
-        rules.check_payload(m, size, path)
+        rules.link_rules(bus).check_payload(m, size, path)
         # --- when it is sent
         timing = self.resolve_timing(m, bus, pdo, path, ec)
         if timing is None:
@@ -362,7 +362,7 @@ class Resolver:
                     (*path, "id"),
                 )
         rules.check_fields(m, path)
-        fd, brs = rules.frame_format(m, path)
+        fd, brs = rules.link_rules(bus).frame_format(m, path)
         return model.Message(
             name=m.name,
             bus=sbus.name,

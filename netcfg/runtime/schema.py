@@ -338,6 +338,9 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
                 out.append(f"{kind}: duplicate name {item['name']!r}")
             seen.add(item["name"])
     protocol = {b["name"]: b["protocol"] for b in doc["buses"]}
+    # the buses over the CAN FD link, which carries CAN FD frames (a bus of neither link nor earlier protocol is
+    # refused below)
+    fd_link = {b["name"] for b in doc["buses"] if b.get("link", EARLIER_LINKS.get(b["protocol"])) == "can-fd"}
     for b in doc["buses"]:
         where = f"bus {b['name']!r}"
         section = {"canopen": "canopen", "ftt-can": "ftt", "ethernet-udp": "ethernet", "ethercat": "ethercat"}.get(
@@ -347,8 +350,8 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
             out.append(f"{where}: a {b['protocol']} bus needs its '{section}' section")
         if "link" not in b and b["protocol"] not in EARLIER_LINKS:
             out.append(f"{where}: a {b['protocol']} bus needs its 'link' (rebuild the file with netcfg build)")
-        if b["protocol"] == "can-fd" and "data_bitrate" not in b:
-            out.append(f"{where}: a can-fd bus needs its data_bitrate")
+        if b["name"] in fd_link and "data_bitrate" not in b:
+            out.append(f"{where}: a bus over can-fd needs its data_bitrate")
         ftt = b["ftt"]
         if ftt is not None and ftt["ec_ns"] <= ftt["tm_ns"]:
             out.append(f"{where}: the elementary cycle ({ftt['ec_ns']} ns) must be longer than its trigger message "
@@ -363,11 +366,12 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
         where = f"message {m['name']!r}"
         proto = protocol.get(m["bus"])
         fd = m.get("fd", False)
-        limit = MAX_PAYLOAD[proto] if proto is not None and (fd or proto != "can-fd") else 8
+        on_fd = m["bus"] in fd_link
+        limit = FD_LENGTHS[-1] if fd and on_fd else MAX_PAYLOAD[proto] if proto not in (None, "can-fd") else 8
         if proto is not None and m["size"] > limit:
             out.append(f"{where}: {m['size']} bytes do not fit a {proto} frame (at most {limit})")
-        if fd and proto not in (None, "can-fd"):
-            out.append(f"{where}: a CAN FD frame on {proto} bus {m['bus']!r}")
+        if fd and proto is not None and not on_fd:
+            out.append(f"{where}: a CAN FD frame on {proto} bus {m['bus']!r}, which is not over can-fd")
         frame_size = m.get("frame_size", m["size"])
         if (frame_size not in FD_LENGTHS or frame_size < m["size"]) if fd else frame_size != m["size"]:
             out.append(f"{where}: a frame of {frame_size} bytes cannot carry {m['size']}")
@@ -380,6 +384,7 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
             if min(touched) < 0 or max(touched) >= m["size"]:
                 out.append(f"{where}: signal {s['name']!r} (bits {s['start_bit']}..{s['start_bit'] + s['bits'] - 1}) "
                            f"does not fit its {m['size']}-byte payload")
-        if m["pdo"] is not None and sum(e["bits"] for e in m["pdo"]["entries"]) > 64:
-            out.append(f"{where}: its PDO maps more than 64 bits")
+        pdo_bits = 8 * (FD_LENGTHS[-1] if on_fd else 8)  # CiA 301's 8 bytes; CANopen FD's (CiA 1301) 64
+        if m["pdo"] is not None and sum(e["bits"] for e in m["pdo"]["entries"]) > pdo_bits:
+            out.append(f"{where}: its PDO maps more than {pdo_bits} bits")
     return out

@@ -141,7 +141,8 @@ class Bus(SpecModel):
         None,
         description="the physical bus the protocol runs over, where it differs from the protocol's own (can, can-fd, "
         "ethernet, ethercat; default: can for can, canopen and ftt-can, can-fd for can-fd, ethernet for ethernet-udp, "
-        "ethercat for ethercat). `protocol: can` with `link: can-fd` is the can-fd protocol",
+        "ethercat for ethercat). `protocol: can` with `link: can-fd` is the can-fd protocol; canopen (CANopen "
+        "FD) and ftt-can run over can-fd too",
     )
     bitrate: BitRateField = Field(description="bit rate, or link speed for Ethernet; on CAN FD the arbitration rate")
     data_bitrate: BitRateField | None = Field(

@@ -37,7 +37,7 @@ from math import lcm
 from netcfg import model
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
-from netcfg.timing.frames import arbitration_key, frame_bits
+from netcfg.timing.frames import FdFrameBits, arbitration_key, frame_bits
 from netcfg.timing.ftt_schedule import EcSlot, Schedule, SrtEntry
 from netcfg.timing.load import frame_timing
 
@@ -54,9 +54,15 @@ def macro_cycle(periods: list[int]) -> int:
     return lcm(*periods) if periods else 1
 
 
-def tm_time_ns(tm_size: int, extended: bool, bitrate: int) -> int:
-    """Worst-case transmission time of the trigger message: a data frame of tm_size bytes."""
-    return frame_bits(tm_size, extended).ns(bitrate)
+def tm_bits(tm_size: int, extended: bool, fd: bool = False) -> FdFrameBits:
+    """The trigger message's worst-case bits at each rate: a data frame of tm_size bytes, classical, or CAN FD with
+    bit-rate switch (fd; netcfg.protocols.ftt.tm says when)."""
+    return frame_bits(tm_size, extended, fd, fd)
+
+
+def tm_time_ns(tm_size: int, extended: bool, bitrate: int, fd: bool = False, data_bitrate: int | None = None) -> int:
+    """Worst-case transmission time of the trigger message (tm_bits) at the bus's rates."""
+    return tm_bits(tm_size, extended, fd).ns(bitrate, data_bitrate)
 
 
 def srt(bus: model.Bus, ftt: model.FttBus, triggers: list[model.Trigger]) -> list[SrtEntry]:
@@ -212,7 +218,7 @@ def _schedule(
     """The schedule of `ecs` ECs, EC k carrying what is `due` in it: the synchronous messages in identifier order
     (CAN arbitration), the triggers by FTT id."""
     ec = ftt.ec_ns
-    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate)
+    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate, ftt.tm_fd, bus.data_bitrate)
     by_can_id = sorted(
         (e for e in entries if e.kind == "message"), key=lambda e: arbitration_key(e.can_id or 0, e.extended)
     )

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from netcfg import links
 from netcfg.links.can import CLASSICAL_CAN
+from netcfg.links.canfd import CAN_FD
 from netcfg.protocols.base import Protocol, Unsaid
 
 if TYPE_CHECKING:
@@ -19,13 +21,45 @@ if TYPE_CHECKING:
     from netcfg.timing.load import FrameTiming
 
 
+# what netcfg does not do of CANopen FD (CiA 1301), said where a command meets it
+USDO_REFUSAL = (
+    "bus '{bus}' is CANopen FD (link: can-fd): netcfg's live master configures devices by SDO (CiA 301), which "
+    "CANopen FD (CiA 1301) replaces by the universal SDO (USDO), and netcfg has no USDO client; configure the devices "
+    "with a CANopen FD tool, then hold their traffic against the analysis with netcfg verify (or simulate in PDO "
+    "mode), or run the bus over link: can"
+)
+
+
 class Canopen(Protocol):
+    def over(self, link: Link) -> Protocol | str:
+        """CANopen runs over either CAN link: over CAN FD it is CANopen FD's process data (CiA 1301): PDOs of up to
+        64 bytes in CAN FD frames (resolve.py, pdo.py); what it does not do of CANopen FD is refused where it is met
+        (run_refused, build_notes)."""
+        twin = next((p for p in (CANOPEN, CANOPEN_FD) if p.link is link), None)
+        return twin if twin is not None else self.not_over(link)
+
     def not_over(self, link: Link) -> str:
         return (
-            f"CANopen over {link.name} is not modelled: CANopen FD (CiA 1301) has PDOs of up to 64 bytes and USDO "
-            "in place of SDO, while netcfg's CANopen (its PDO checks, EDS/DCF and live master) is CiA 301's on "
-            "classical CAN; write link: can"
+            f"CANopen over {link.name} is not modelled: CANopen runs over CAN (CiA 301, link: can) or CAN FD "
+            "(CANopen FD, CiA 1301, link: can-fd)"
         )
+
+    def build_notes(self, bus: model.Bus) -> tuple[str, ...]:
+        if not links.of(bus).data_phase:
+            return ()
+        return (
+            f"canopen/ (bus {bus.name}, CANopen FD): the EDS/DCF and concise DCF files are CiA 306's, with each "
+            "PDO's communication and mapping objects as CiA 301 defines them (a mapping object holds up to 64 "
+            "entries, CiA 301 7.5.2.36, and a CANopen FD PDO up to 64 bytes); CANopen FD's own objects (the USDO "
+            "server and client parameters, the extended EMCY) and CANopen FD's device-description keys are not "
+            "written: complete them with the device's CANopen FD tool",
+            f"canopen/bus.yml (bus {bus.name}, CANopen FD): ros2_canopen's master configures its devices by SDO, "
+            "which CANopen FD replaces by USDO: the file describes the bus's PDOs and COB-IDs, and its master "
+            "cannot configure CANopen FD devices",
+        )
+
+    def run_refused(self, bus: runtime.Bus) -> str | None:
+        return USDO_REFUSAL.format(bus=bus.name) if bus.link == CAN_FD.name else None
 
     def rules(self) -> type[BusRules]:
         from netcfg.protocols.canopen.resolve import CanopenRules
@@ -74,3 +108,4 @@ class Canopen(Protocol):
 
 
 CANOPEN = Canopen("canopen", CLASSICAL_CAN)
+CANOPEN_FD = Canopen("canopen", CAN_FD)  # CANopen FD (CiA 1301): the same protocol over the CAN FD link

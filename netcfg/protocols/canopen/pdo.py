@@ -7,10 +7,11 @@ from __future__ import annotations
 import re
 from typing import TYPE_CHECKING, Literal
 
-from netcfg import cia301, model
+from netcfg import cia301, links, model
 from netcfg.devices import DATA_TYPES
 from netcfg.spec import schema
 from netcfg.spec.source import Path
+from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_MAX_PAYLOAD
 
 if TYPE_CHECKING:
     from netcfg.rules import Resolution
@@ -44,6 +45,12 @@ def parse_object_ref(r: Resolution, ref: int | str, path: Path) -> tuple[int, in
         )
         return None
     return index, sub
+
+
+def max_pdo_bytes(bus: model.Bus) -> int:
+    """A PDO's largest payload on the bus: 8 bytes (CiA 301) on classical CAN, 64 (CANopen FD, CiA 1301) on CAN FD,
+    the link's largest frame either way."""
+    return CANFD_MAX_PAYLOAD if links.of(bus).data_phase else CAN_MAX_PAYLOAD
 
 
 def resolve_pdo(
@@ -196,8 +203,10 @@ def resolve_pdo(
         names[name] = k
         entries.append(model.PdoEntry(index, sub, obj.bits, name, obj.data_type))
     total = sum(e.bits for e in entries)
-    if total > 64:
-        r.err("pdo-length", f"the PDO map holds {total} bits; a CAN frame carries at most 64", (*ppath, "map"))
+    limit = 8 * max_pdo_bytes(bus)
+    if total > limit:
+        frame = "CAN FD frame (CANopen FD, CiA 1301)" if limit > 64 else "CAN frame"
+        r.err("pdo-length", f"the PDO map holds {total} bits; a {frame} carries at most {limit}", (*ppath, "map"))
     if not entries and not p.map:
         r.err("pdo-length", "a PDO needs at least one mapped object", (*ppath, "map"))
     if len(entries) != len(p.map):

@@ -8,12 +8,12 @@ import dataclasses
 import pathlib
 from typing import TYPE_CHECKING
 
-from netcfg import cia301, model
+from netcfg import cia301, links, model
 from netcfg.devices import DATA_TYPE_CODES, DeviceProfile, ObjectEntry, builtin_profile, builtin_profile_names
 from netcfg.devices.eds import EdsError, cached_profile
 from netcfg.diagnostics import Position
 from netcfg.inputs import check_input_path
-from netcfg.links.can import CanRules
+from netcfg.links.canfd import OverCanLinks
 from netcfg.protocols.canopen import pdo as pdo_map
 from netcfg.rules import Rate
 from netcfg.spec import schema
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from netcfg.rules import Resolution
 
 
-class CanopenRules(CanRules):
+class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CANopen FD, CiA 1301)
     name = "canopen"
     section = "canopen"
     device_nodes = True
@@ -200,6 +200,7 @@ class CanopenRules(CanRules):
                 continue
             co = bus.canopen
             size = 1 if co.sync_overflow else 0  # the counter byte
+            fd = fd_services(bus)
             others = tuple(n for n in bus.nodes if n != co.sync_producer)
             cpath: Path = (*bus.path, "canopen")
             sync = model.Message(
@@ -219,6 +220,8 @@ class CanopenRules(CanRules):
                 jitter_ns=0,
                 path=cpath,
                 implicit="SYNC",
+                fd=fd,
+                brs=fd,
             )
             self.r.claim_implicit_name(sync.name, "the SYNC of bus " + bus.name)
             bus.messages.insert(0, sync)
@@ -249,8 +252,18 @@ class CanopenRules(CanRules):
                         jitter_ns=0,
                         path=(*node.path, "heartbeat"),
                         implicit="heartbeat",
+                        fd=fd,
+                        brs=fd,
                     )
                 )
+
+
+def fd_services(bus: model.Bus) -> bool:
+    """Whether netcfg's own CANopen frames on the bus (SYNC, heartbeats) are CAN FD frames with bit-rate switch: on
+    a CANopen FD bus (link: can-fd) they are, as a PDO is unless it says fd: false. A CANopen FD device's controller
+    runs in CAN FD mode; whether CiA 1301 lets these services go as classical frames too is not decided here (the
+    standard's clause could not be consulted), and either way the analysis and the simulator time them as sent."""
+    return links.of(bus).data_phase
 
 
 def load_device(r: Resolution, n: schema.Node, path: Path, on_canopen: bool) -> DeviceProfile | None:

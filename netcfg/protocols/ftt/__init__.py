@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.can import CLASSICAL_CAN
+from netcfg.links.canfd import CAN_FD
 from netcfg.protocols.base import OwnFrame, Protocol, Unsaid
 
 if TYPE_CHECKING:
@@ -26,10 +27,16 @@ if TYPE_CHECKING:
 
 
 class Ftt(Protocol):
+    def over(self, link: Link) -> Protocol | str:
+        """FTT-CAN runs over either CAN link: on CAN FD every frame of the EC, trigger message included (tm.py), is
+        timed at the link's two rates."""
+        twin = next((p for p in (FTT, FTT_FD) if p.link is link), None)
+        return twin if twin is not None else self.not_over(link)
+
     def not_over(self, link: Link) -> str:
         return (
-            f"FTT-CAN over {link.name} is not modelled: the elementary cycle's trigger message and windows are "
-            "analysed and simulated for classical frames; write link: can"
+            f"FTT-CAN over {link.name} is not modelled: its trigger message and windows are CAN frames arbitrating "
+            "by identifier; write link: can or link: can-fd"
         )
 
     def rules(self) -> type[BusRules]:
@@ -90,6 +97,7 @@ class Ftt(Protocol):
                 period_ns=bus.ftt.ec_ns,
                 field="ec_schedule",  # bit i (little-endian over the tm_size bytes) announces FTT id i
                 comment="FTT-CAN trigger message: bit i of ec_schedule = FTT id i due in this elementary cycle",
+                fd=bus.ftt.tm_fd,
             ),
         )
 
@@ -153,3 +161,4 @@ class Ftt(Protocol):
 
 
 FTT = Ftt("ftt-can", CLASSICAL_CAN)
+FTT_FD = Ftt("ftt-can", CAN_FD)  # the same protocol over the CAN FD link (`link: can-fd`)

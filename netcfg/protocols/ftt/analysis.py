@@ -11,7 +11,6 @@ from netcfg import model
 from netcfg.bus_analysis import Analysis, BusFrames, error_model, frame_times, set_verdict, us
 from netcfg.diagnostics import Collector
 from netcfg.timing import flows, ftt, load
-from netcfg.timing.frames import frame_bits
 
 
 def bound_messages(
@@ -39,7 +38,8 @@ def check_overload(
 def bus_tm_and_ec(bus: model.Bus) -> tuple[int, int]:
     """FTT-CAN: the trigger message's worst-case time and the EC, in ns."""
     assert bus.ftt is not None
-    return ftt.tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate), bus.ftt.ec_ns
+    f = bus.ftt
+    return ftt.tm_time_ns(f.tm_size, bus.id_bits == 29, bus.bitrate, f.tm_fd, bus.data_bitrate), f.ec_ns
 
 
 def analyze_ftt(
@@ -67,7 +67,7 @@ def analyze_ftt(
             "(multiples of each other)",
             m.source.at((*bus.path, "ftt")),
         )
-        tm_ns = ftt.tm_time_ns(bus.ftt.tm_size, bus.id_bits == 29, bus.bitrate)
+        tm_ns = bus_tm_and_ec(bus)[0]
         return {
             "ec_us": us(bus.ftt.ec_ns),
             "tm_us": us(tm_ns),
@@ -124,7 +124,7 @@ def analyze_ftt(
     tm_ns = sched.tm_ns
     return {
         "ec_us": us(bus.ftt.ec_ns),
-        "tm_bits": frame_bits(bus.ftt.tm_size, bus.id_bits == 29).total,
+        "tm_bits": ftt.tm_bits(bus.ftt.tm_size, bus.id_bits == 29, bus.ftt.tm_fd).total,
         "tm_us": us(tm_ns),
         "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
         "lsw_us": us(sched.lsw_ns),

@@ -3,6 +3,7 @@ master's trigger message (TM), once per elementary cycle, from whose start a syn
 
 from __future__ import annotations
 
+from netcfg.protocols.ftt.tm import tm_fd
 from netcfg.runtime import Bus, Message
 from netcfg.timing.frames import frame_bits
 
@@ -21,6 +22,8 @@ def trigger_message(bus: Bus) -> Message:
         id=ftt.tm_id,
         extended=False,
         size=ftt.tm_size,
+        fd=tm_fd(bus.link),
+        brs=tm_fd(bus.link),
         kind="periodic",
         period_ns=ftt.ec_ns,
         interval_ns=ftt.ec_ns,
@@ -44,4 +47,5 @@ def response_reference(bus: Bus) -> tuple[int, int]:
     frame is surely late."""
     ftt = bus.ftt
     assert ftt is not None
-    return ftt.tm_id, frame_bits(ftt.tm_size, False, stuffing="nominal").ns(bus.bitrate) // 1000
+    fd = tm_fd(bus.link)
+    return ftt.tm_id, frame_bits(ftt.tm_size, False, fd, fd, "nominal").ns(bus.bitrate, bus.data_bitrate) // 1000

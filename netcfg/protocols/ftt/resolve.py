@@ -8,7 +8,7 @@ import dataclasses
 from typing import Literal
 
 from netcfg import model
-from netcfg.links.can import CanRules
+from netcfg.links.canfd import OverCanLinks
 from netcfg.model import MessageKind
 from netcfg.rules import Release
 from netcfg.spec import schema
@@ -18,7 +18,7 @@ from netcfg.spec.units import Duration, format_ns
 from netcfg.timing.frames import arbitration_key
 
 
-class FttRules(CanRules):
+class FttRules(OverCanLinks):  # over classical CAN or CAN FD (`link: can-fd`)
     name = "ftt-can"
     section = "ftt"
     explicit_ids = False  # synchronous messages take sync_id_base + their FTT id
@@ -43,9 +43,14 @@ class FttRules(CanRules):
             return
         ec = f.ec.ns
         lsw = self.r.ns(f.lsw, (*fpath, "lsw"), ec)
-        from netcfg.timing.ftt import tm_time_ns  # here: resolving a spec without FTT-CAN loads no FTT-CAN analysis
+        # here: resolving a spec without FTT-CAN loads no FTT-CAN analysis
+        from netcfg.protocols.ftt.tm import tm_fd
+        from netcfg.timing.ftt import tm_time_ns
 
-        tm_ns = tm_time_ns(f.tm_size, b.id_bits == 29, b.bitrate)
+        fd = tm_fd(bus.link)
+        if fd and bus.data_bitrate is None:
+            return  # the CAN FD link's rules said the bus needs its data bit rate
+        tm_ns = tm_time_ns(f.tm_size, b.id_bits == 29, b.bitrate, fd, bus.data_bitrate)
         if lsw is not None and lsw + tm_ns > ec:
             self.r.err(
                 "lsw",
@@ -63,6 +68,7 @@ class FttRules(CanRules):
             tm_id=f.tm_id,
             master=master,
             sync_first=f.windows == "sync-first",
+            tm_fd=fd,
         )
 
     def resolve_items(self) -> None:
