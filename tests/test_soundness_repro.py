@@ -471,10 +471,15 @@ def test_a_late_tm_starts_the_ec_it_was_sent_for() -> None:
     [
         ("12", "af2", "unsynchronised.latency_max_us", 14_201.2),  # its header: 11,200.9 + 12,001.2 - 9,000.9 us
         ("15", "fj", "latency_min_us", 6_320),  # its header: 14,586 - 7,270 - 996 us
-        ("16", "af1", "latency_max_us", 8_127),  # its header: 8,000 + 95 + 1 + 126 - 95 us
+        # its header's 8,000 + 95 + 1 + 126 - 95 us, and the start's TM up to 16 us early (4 bytes, ISO 11898-1: 79
+        # bits without stuff bits, 95 at worst, at 1 Mbit/s): the start may come that much sooner
+        ("16", "af1", "latency_max_us", 8_127 + 16),
         ("17", "fj", "unsynchronised.latency_min_us", 550),  # its header: 47 + 503 us
-        ("18", "fj", "latency_min_us", 1_536),  # its header: 2,000 + 340 - 532 - (340 + 464 - 532) us
-        ("19", "f0", "latency_max_us", 8_940),  # its header: 8,353 + 928 - 341 us
+        # its header's 2,000 + 340 - 532 - (340 + 464 - 532) us, less join's TM up to 56 us early (3 bytes: 71 bits
+        # without stuff bits, 85 at worst, at 250 kbit/s): the flow's last start may come that much sooner
+        ("18", "fj", "latency_min_us", 1_536 - 56),
+        # its header's 8,353 + 928 - 341 us, and s0's TM up to 56 us early (3 bytes at 250 kbit/s, as spec 18's)
+        ("19", "f0", "latency_max_us", 8_940 + 56),
     ],
 )
 def test_wide_ftt_can_specs_figures(name: str, flow: str, analysis: str, expected: float) -> None:

@@ -160,7 +160,12 @@ def synchronised(
                     else:
                         task = m.task(ref)
                         if task.trigger is not None:
-                            a_lo, a_hi = next_activation(task, lo), next_activation(task, hi)
+                            # its TM may end up to tm_early_ns before its worst-case end, so the data ready at hi
+                            # may miss a TM that ended early, unless it came in a frame, which cannot end within a
+                            # frame's time of the TM's end (the bus carried the TM); an early start of the flow's
+                            # last task is taken at the end
+                            a_lo = next_activation(task, lo)
+                            a_hi = next_activation(task, hi + miss_margin(i))
                         elif task.on_message in prev_inst and len(prev_inst) > 1:
                             # started by one of several synchronous items: by that message's first frame once
                             # the others' data of this path is in
@@ -187,6 +192,18 @@ def synchronised(
             else:
                 runs.append((start, lo, hi, got, uses))
         return freshest(runs, s.macro_cycle * ec, hold)  # None if no start's data is ever used
+
+    def miss_margin(i: int) -> int:
+        """How much sooner than at its worst a TM may end with the data of step i - 1 not yet in: its whole
+        earliness after a task, which ends whenever; after frames, only what the shortest of them leaves of it;
+        none for the first step, whose start is the activation itself."""
+        if not i:
+            return 0
+        before = flow.steps[i - 1]
+        if before.kind != "message":
+            return s.tm_early_ns
+        shortest = min(ftt.frame_ns.get(ref, (0, 0))[0] for ref in before.refs)
+        return max(0, s.tm_early_ns - shortest)
 
     def last_uses(task: model.Task, lo: int, hi: int) -> Uses:
         """The activations of the flow's last task, triggered, that this start's data may reach between its fastest
@@ -235,7 +252,12 @@ def synchronised(
     # the first step's start may come late: a triggered task's with its trigger message, resent after bit errors,
     # and a synchronous message's too when that TM ends after its window's start (queued at the TM's end)
     late = s.tm_delay_ns if first.kind == "task" else max(s.window_delay(k) for k in range(s.macro_cycle))
-    if not late:
+    # ... and a triggered task's start may come early, with a TM shorter than its worst case: the first step's,
+    # which makes the flow longer, and the last step's, which makes it shorter
+    early = s.tm_early_ns if first.kind == "task" else 0
+    if flow.steps[-1].kind == "task" and any(m.task(r).trigger is not None for r in flow.steps[-1].refs):
+        lat_lo = max(0, lat_lo - s.tm_early_ns)
+    if not late and not early:
         return (lat_lo, lat_hi), got_range
 
     def anchored(until: int) -> bool:
@@ -254,8 +276,9 @@ def synchronised(
 
     if anchored(len(flow.steps) - 1):
         lat_lo = max(0, lat_lo - late)  # an age is never negative, however late the start
+        lat_hi += early  # nor shorter, however early
     if got_range is not None:
         delivered = max(i for i, step in enumerate(flow.steps) if step.kind == "message")
         if anchored(delivered):
-            got_range = (max(0, got_range[0] - late), got_range[1])
+            got_range = (max(0, got_range[0] - late), got_range[1] + early)
     return (lat_lo, lat_hi), got_range

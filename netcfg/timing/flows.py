@@ -325,8 +325,8 @@ def _release(rates: Rates, kind: str, ref: str, ftt: FttTimes | None, ppm: int) 
                 early = min(s.window_start(k) for k in ecs)
                 late = max(s.window_start(k) + s.window_delay(k) for k in ecs)
             else:
-                early = s.tm_ns + start_delay(m, m.task(ref))
-                late = early + s.tm_delay_ns
+                nominal = s.tm_ns + start_delay(m, m.task(ref))  # at the TM's end: shorter stuffed, or resent
+                early, late = nominal - s.tm_early_ns, nominal + s.tm_delay_ns
             return _Release(("ftt", ""), period * s.ec_ns, init * s.ec_ns, early, late, period * s.ec_ns + late - early)
     if kind == "message":
         msg = m.messages[ref]

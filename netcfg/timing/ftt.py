@@ -37,7 +37,7 @@ from math import lcm
 from netcfg import model
 from netcfg.timing.can_errors import ErrorModel
 from netcfg.timing.clocks import PPM, longest_local, shortest_real
-from netcfg.timing.frames import FdFrameBits, arbitration_key, frame_bits
+from netcfg.timing.frames import FdFrameBits, Stuffing, arbitration_key, frame_bits
 from netcfg.timing.ftt_schedule import EcSlot, Schedule, SrtEntry
 from netcfg.timing.load import frame_timing
 
@@ -54,15 +54,18 @@ def macro_cycle(periods: list[int]) -> int:
     return lcm(*periods) if periods else 1
 
 
-def tm_bits(tm_size: int, extended: bool, fd: bool = False) -> FdFrameBits:
-    """The trigger message's worst-case bits at each rate: a data frame of tm_size bytes, classical, or CAN FD with
-    bit-rate switch (fd; netcfg.protocols.ftt.tm says when)."""
-    return frame_bits(tm_size, extended, fd, fd)
+def tm_bits(tm_size: int, extended: bool, fd: bool = False, stuffing: Stuffing = "worst") -> FdFrameBits:
+    """The trigger message's bits at each rate (worst-case stuffing unless told): a data frame of tm_size bytes,
+    classical, or CAN FD with bit-rate switch (fd; netcfg.protocols.ftt.tm says when)."""
+    return frame_bits(tm_size, extended, fd, fd, stuffing)
 
 
-def tm_time_ns(tm_size: int, extended: bool, bitrate: int, fd: bool = False, data_bitrate: int | None = None) -> int:
-    """Worst-case transmission time of the trigger message (tm_bits) at the bus's rates."""
-    return tm_bits(tm_size, extended, fd).ns(bitrate, data_bitrate)
+def tm_time_ns(
+    tm_size: int, extended: bool, bitrate: int, fd: bool = False, data_bitrate: int | None = None,
+    stuffing: Stuffing = "worst",
+) -> int:
+    """Transmission time of the trigger message (tm_bits) at the bus's rates: its worst case unless told."""
+    return tm_bits(tm_size, extended, fd, stuffing).ns(bitrate, data_bitrate)
 
 
 def srt(bus: model.Bus, ftt: model.FttBus, triggers: list[model.Trigger]) -> list[SrtEntry]:
@@ -227,7 +230,11 @@ def _schedule(
         msgs = [e for e in by_can_id if due(e, k)]
         trigs = [e for e in entries if e.kind == "trigger" and due(e, k)]
         slots.append(_slot(k, msgs, trigs, ec, tm, ftt.sync_first, errors))
-    return Schedule(ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm))
+    # a TM with fewer stuff bits than its worst case ends earlier, and so do the starts it triggers
+    shortest = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate, ftt.tm_fd, bus.data_bitrate, "nominal")
+    return Schedule(
+        ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm), tm - shortest
+    )
 
 
 def ec_schedule_mask(slot: EcSlot) -> int:

@@ -55,6 +55,7 @@ class Schedule:
     slots: tuple[EcSlot, ...]  # one per EC of the macro-cycle
     sync_first: bool = False  # the synchronous window right after the TM, the asynchronous one closing the EC
     tm_delay_ns: int = 0  # how much later than tm_ns the TM may end, sent again after bit errors
+    tm_early_ns: int = 0  # how much earlier than tm_ns the TM may end: fewer stuff bits than its worst case
 
     @property
     def macro_cycle(self) -> int:
