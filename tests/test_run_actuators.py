@@ -422,3 +422,23 @@ def test_run_counts_a_reply_late_from_the_commands_send(tmp_path: Path) -> None:
     for node in ("shoulder", "elbow", "wrist"):
         reply, command = rows[f"{node}_feedback"]["wcrt_ns"], rows[f"{node}_mit_command"]["wcrt_ns"]
         assert got[(node, "mit_command")] == reply + command
+
+
+def test_a_command_the_host_sent_late_is_named_the_hosts(tmp_path: Path) -> None:
+    """A log a host stamped (host_clock: 20 commands each answered 50 us later, closer than a CAN frame can follow
+    another: 8 bytes at 1 Mbit/s take 111 us without a stuff bit) in which the master skipped its command at 200 ms:
+    one period of the shoulder's 20 ms missing, and its answer with it. On a host's log that is the master's host
+    sending late, as a late SYNC is (host_late), not a gap of the bus."""
+    spec = arm(tmp_path)
+    log = tmp_path / "host.log"
+    command, feedback = "001#7FFF7FF000000000", "011#117FFF7FF7FF0000"
+    lines = []
+    for k in range(20):
+        if k == 10:
+            continue
+        t = 1.0 + 0.020 * k
+        lines += [f"({t:.6f}) can0 {command}", f"({t + 50e-6:.6f}) can0 {feedback}"]
+    log.write_text("\n".join(lines) + "\n")
+    got = json.loads(cli("verify", str(spec), str(log), "--format", "json").stdout)
+    kinds = {v["kind"] for v in got["violations"] if v["message"] in ("shoulder_mit_command", "shoulder_feedback")}
+    assert "host_late" in kinds and "gap" not in kinds, got["violations"]

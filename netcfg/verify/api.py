@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from netcfg.runtime import RuntimeConfig
+from netcfg.runtime.actuator_plan import reply_commands
 from netcfg.verify.checker import DEFAULT_WINDOW_US, Checker
 from netcfg.verify.fault_phases import FaultScan, add_fault_phases, excused_spans
 from netcfg.verify.frames import BRS, ERROR, EXTENDED, FD, Batch, ChannelTable
@@ -59,6 +60,12 @@ def _judge(
         clock = HostClock(probe.buses)
         span = cyclic_span(cfg, _scanned(batches, scan, clock, probe))
         faults = scan.finish(span)
+    elif reply_commands(cfg):  # an actuator master's log: replies timed from their commands, on whose clock?
+        first, batches = read(True)
+        probe = Checker(cfg, first.names, bus, window_us, strict)
+        clock = HostClock(probe.buses)
+        for batch in batches:
+            _stamps(batch, clock, probe)
     channels, batches = read(False)
     checker = Checker(cfg, channels.names, bus, window_us, strict)
     if clock is not None and clock.host:
@@ -90,9 +97,14 @@ def _scanned(batches: Iterable[Batch], scan: FaultScan, clock: HostClock, probe:
     """The first read: the fault phases' evidence and whose clock stamped the log, batch by batch."""
     for batch in batches:
         scan.take(batch)
-        keep = (batch.flags & ERROR) == 0
-        clock.take(batch.t_us[keep], probe.buses_of(batch.channel)[keep], batch.flags[keep], batch.length[keep])
+        _stamps(batch, clock, probe)
         yield batch
+
+
+def _stamps(batch: Batch, clock: HostClock, probe: Checker) -> None:
+    """The batch's frames (error frames aside) to the judge of whose clock stamped the log."""
+    keep = (batch.flags & ERROR) == 0
+    clock.take(batch.t_us[keep], probe.buses_of(batch.channel)[keep], batch.flags[keep], batch.length[keep])
 
 
 def check_frames(

@@ -10,7 +10,8 @@ response measured from the SYNC holds the host's latency as well as the bus's, s
 bound is not evidence against the bus: verify then reports it as the host's lateness (`host_late`, a warning with
 its measured excess) instead of a `late` violation. A gap or a shortfall of frames in the SYNC cycle (the SYNC,
 the master's RxPDOs, the synchronous TPDOs that answer the SYNC) is still a violation, the master's host having
-sent late what the analysis assumed on time (its master_jitter), but named so: `host_late`, not `gap` or `rate`.
+sent late what the analysis assumed on time (its master_jitter), but named so: `host_late`, not `gap` or `rate`. So
+is one on an actuator bus: a command the master's host sent late, or the reply that answers it.
 Everything else (a drive's own heartbeat, load, sizes) is judged as before.
 """
 
@@ -23,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from netcfg.runtime import Bus, RuntimeConfig
+from netcfg.runtime.actuator_plan import reply_commands
 from netcfg.timing.frames import frame_bits
 from netcfg.verify.frames import ERROR, EXTENDED, FD, REMOTE
 
@@ -38,12 +40,17 @@ HostFinding = Callable[[str, "MessageState | None", str], tuple[str, str, bool]]
 def host_finding(cfg: RuntimeConfig) -> HostFinding:
     """How the checker names a finding on a log a host stamped (module docstring)."""
     masters = {b.canopen.sync_producer for b in cfg.buses if b.canopen is not None}
+    commanders = {cfg.message(command).producer for command in reply_commands(cfg).values()}
 
     def name(kind: str, st: MessageState | None, detail: str) -> tuple[str, str, bool]:
         if kind == "late":
             return "host_late", f"{detail} (a host's timestamps: its latency is in the response)", True
         if kind in ("gap", "rate") and st is not None and (st.msg.producer in masters or st.response_ref == "sync"):
             return "host_late", f"{detail} (the SYNC cycle: the master's host sent late)", False
+        if kind in ("gap", "rate") and st is not None and (
+            st.msg.producer in commanders or st.response_ref == "command"
+        ):
+            return "host_late", f"{detail} (an actuator's command: the master's host sent it late)", False
         return kind, detail, False
 
     return name
