@@ -124,6 +124,18 @@ class Fields:
             obj[path.rsplit(".", 1)[-1]] = self.draw(strategy)
 
 
+def _classical(f: Fields, msg: dict[str, Any], fd: bool) -> bool:
+    """Whether a message on a bus (CAN FD when fd) is a classical frame: on CAN FD sometimes `fd: false`, and an FD
+    frame sometimes without bit-rate switch."""
+    if not fd:
+        return True
+    f.opt(msg, "messages[].fd", st.booleans(), 0.3)
+    if msg.get("fd") is False:
+        return True
+    f.opt(msg, "messages[].brs", st.booleans(), 0.3)
+    return False
+
+
 def _names(prefix: str, n: int) -> list[str]:
     return [f"{prefix}{i}" for i in range(n)]
 
@@ -261,12 +273,7 @@ def can_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
         f.opt(msg, "messages[].may_be_lost", st.booleans(), 0.05)  # a lost frame of it is no violation then
         f.opt(msg, "messages[].tune", st.fixed_dictionaries({"id": st.sampled_from(["fixed", "free"]),
                                                              "offset": st.sampled_from(["fixed", "free"])}), 0.05)
-        classical = not fd
-        if fd:
-            f.opt(msg, "messages[].fd", st.booleans(), 0.3)
-            classical = msg.get("fd") is False
-            if not classical:
-                f.opt(msg, "messages[].brs", st.booleans(), 0.3)
+        classical = _classical(f, msg, fd)
         if size is None and f.feature("messages[].signals", 0.25):
             msg["signals"] = f(signals(8 if classical else 64))
         else:
@@ -393,12 +400,7 @@ def ftt_spec(draw: st.DrawFn, held: frozenset[str] = frozenset()) -> dict[str, A
         producer = f(st.sampled_from(nodes[1:]))
         consumer = f(st.sampled_from([n for n in nodes[1:] if n != producer]))
         msg: dict[str, Any] = {"name": f"m{i}", "producer": producer, "consumers": [consumer]}
-        classical = not fd
-        if fd:
-            f.opt(msg, "messages[].fd", st.booleans(), 0.3)
-            classical = msg.get("fd") is False
-            if not classical:
-                f.opt(msg, "messages[].brs", st.booleans(), 0.3)
+        classical = _classical(f, msg, fd)
         msg["size"] = f(st.integers(0, 8) if classical else st.sampled_from(FD_SIZES))
         if f.chance(0.5):
             period = f(st.integers(1, 6))
