@@ -159,6 +159,7 @@ class FttBus:
     master: str
     sync_first: bool = False  # the synchronous window follows the trigger message (default: it closes the EC)
     tm_fd: bool = False  # the trigger message is a CAN FD frame with bit-rate switch (on a CAN FD link)
+    tm_extended: bool = False  # its identifier is a 29-bit one (netcfg.protocols.ftt.tm.TM_EXTENDED: never)
 
 
 @dataclass(frozen=True)

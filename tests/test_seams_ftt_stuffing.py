@@ -39,3 +39,23 @@ def test_a_flow_between_triggered_tasks_spans_the_tms_shorter_lengths() -> None:
 def test_flows_hold_with_exactly_stuffed_frames() -> None:
     result = summary(run_once(runtime_config(SPEC), SimOptions(duration_ns=2 * S, seed=0, stuffing="exact"))[1])
     assert [v for v in result["violations"] if v.startswith("flow")] == []
+
+
+def test_the_trigger_message_is_a_standard_frame_on_a_29_bit_bus(tmp_path: Path) -> None:
+    """netcfg.protocols.ftt.tm: the TM's identifier is standard on every bus, as seed 002's CAN 2.0A frame. On CAMBADA
+    with 29-bit identifiers the analysis times the same 105-bit, 420 us frame as on the 11-bit bus (an extended
+    identifier would add 20 bits before stuffing), and the simulator sends that frame: its TM takes 420 us at
+    worst-case stuffing, the figure check reports."""
+    from conftest import check_data, load_spec, runtime_config_of
+
+    data = load_spec("cambada.yaml")
+    bus_spec = next(b for b in data["buses"] if b["name"] == "lowlevel")
+    bus_spec["id_bits"] = 29
+    bus_spec["ftt"].pop("lsw", None)  # the longer extended frames need the whole EC after the TM
+    report = check_data(tmp_path, data)
+    bus = next(b for b in report["buses"] if b["name"] == "lowlevel")
+    assert bus["ftt"]["tm_us"] == TM_WORST_US
+    cfg = runtime_config_of(tmp_path / "cambada29.yaml", data)
+    result = summary(run_once(cfg, SimOptions(duration_ns=S // 10, seed=0))[1])
+    tm = next(m for m in result["messages"] if m["name"] == "lowlevel_TM")
+    assert tm["response_us"]["max"] == TM_WORST_US

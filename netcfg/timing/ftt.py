@@ -221,7 +221,7 @@ def _schedule(
     """The schedule of `ecs` ECs, EC k carrying what is `due` in it: the synchronous messages in identifier order
     (CAN arbitration), the triggers by FTT id."""
     ec = ftt.ec_ns
-    tm = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate, ftt.tm_fd, bus.data_bitrate)
+    tm = tm_time_ns(ftt.tm_size, ftt.tm_extended, bus.bitrate, ftt.tm_fd, bus.data_bitrate)
     by_can_id = sorted(
         (e for e in entries if e.kind == "message"), key=lambda e: arbitration_key(e.can_id or 0, e.extended)
     )
@@ -231,7 +231,7 @@ def _schedule(
         trigs = [e for e in entries if e.kind == "trigger" and due(e, k)]
         slots.append(_slot(k, msgs, trigs, ec, tm, ftt.sync_first, errors))
     # a TM with fewer stuff bits than its worst case ends earlier, and so do the starts it triggers
-    shortest = tm_time_ns(ftt.tm_size, bus.id_bits == 29, bus.bitrate, ftt.tm_fd, bus.data_bitrate, "nominal")
+    shortest = tm_time_ns(ftt.tm_size, ftt.tm_extended, bus.bitrate, ftt.tm_fd, bus.data_bitrate, "nominal")
     return Schedule(
         ec, tm, ftt.lsw_ns, tuple(entries), tuple(slots), ftt.sync_first, tm_delay(errors, tm), tm - shortest
     )

@@ -90,7 +90,7 @@ class Ftt(Protocol):
             OwnFrame(  # the trigger message, at every EC start; its payload is the EC-schedule
                 name=f"{bus.name}_TM",
                 id=bus.ftt.tm_id,
-                extended=bus.id_bits == 29,
+                extended=bus.ftt.tm_extended,
                 size=bus.ftt.tm_size,
                 sender=master,
                 receivers=tuple(sorted(n for n in bus.nodes if n != master)),

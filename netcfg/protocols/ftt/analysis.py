@@ -39,7 +39,7 @@ def bus_tm_and_ec(bus: model.Bus) -> tuple[int, int]:
     """FTT-CAN: the trigger message's worst-case time and the EC, in ns."""
     assert bus.ftt is not None
     f = bus.ftt
-    return ftt.tm_time_ns(f.tm_size, bus.id_bits == 29, bus.bitrate, f.tm_fd, bus.data_bitrate), f.ec_ns
+    return ftt.tm_time_ns(f.tm_size, f.tm_extended, bus.bitrate, f.tm_fd, bus.data_bitrate), f.ec_ns
 
 
 def analyze_ftt(
@@ -124,7 +124,7 @@ def analyze_ftt(
     tm_ns = sched.tm_ns
     return {
         "ec_us": us(bus.ftt.ec_ns),
-        "tm_bits": ftt.tm_bits(bus.ftt.tm_size, bus.id_bits == 29, bus.ftt.tm_fd).total,
+        "tm_bits": ftt.tm_bits(bus.ftt.tm_size, bus.ftt.tm_extended, bus.ftt.tm_fd).total,
         "tm_us": us(tm_ns),
         "tm_overhead": round(tm_ns / bus.ftt.ec_ns, 6),
         "lsw_us": us(sched.lsw_ns),

@@ -3,7 +3,7 @@ master's trigger message (TM), once per elementary cycle, from whose start a syn
 
 from __future__ import annotations
 
-from netcfg.protocols.ftt.tm import tm_fd
+from netcfg.protocols.ftt.tm import TM_EXTENDED, tm_fd
 from netcfg.runtime import Bus, Message
 from netcfg.timing.frames import frame_bits
 
@@ -20,7 +20,7 @@ def trigger_message(bus: Bus) -> Message:
         producer=ftt.master,
         consumers=(),
         id=ftt.tm_id,
-        extended=False,
+        extended=TM_EXTENDED,
         size=ftt.tm_size,
         fd=tm_fd(bus.link),
         brs=tm_fd(bus.link),
@@ -48,4 +48,4 @@ def response_reference(bus: Bus) -> tuple[int, int]:
     ftt = bus.ftt
     assert ftt is not None
     fd = tm_fd(bus.link)
-    return ftt.tm_id, frame_bits(ftt.tm_size, False, fd, fd, "nominal").ns(bus.bitrate, bus.data_bitrate) // 1000
+    return ftt.tm_id, frame_bits(ftt.tm_size, TM_EXTENDED, fd, fd, "nominal").ns(bus.bitrate, bus.data_bitrate) // 1000

@@ -44,13 +44,13 @@ class FttRules(OverCanLinks):  # over classical CAN or CAN FD (`link: can-fd`)
         ec = f.ec.ns
         lsw = self.r.ns(f.lsw, (*fpath, "lsw"), ec)
         # here: resolving a spec without FTT-CAN loads no FTT-CAN analysis
-        from netcfg.protocols.ftt.tm import tm_fd
+        from netcfg.protocols.ftt.tm import TM_EXTENDED, tm_fd
         from netcfg.timing.ftt import tm_time_ns
 
         fd = tm_fd(bus.link)
         if fd and bus.data_bitrate is None:
             return  # the CAN FD link's rules said the bus needs its data bit rate
-        tm_ns = tm_time_ns(f.tm_size, b.id_bits == 29, b.bitrate, fd, bus.data_bitrate)
+        tm_ns = tm_time_ns(f.tm_size, TM_EXTENDED, b.bitrate, fd, bus.data_bitrate)
         if lsw is not None and lsw + tm_ns > ec:
             self.r.err(
                 "lsw",
@@ -68,6 +68,7 @@ class FttRules(OverCanLinks):  # over classical CAN or CAN FD (`link: can-fd`)
             tm_id=f.tm_id,
             master=master,
             sync_first=f.windows == "sync-first",
+            tm_extended=TM_EXTENDED,
             tm_fd=fd,
         )
 
@@ -119,15 +120,15 @@ class FttRules(OverCanLinks):  # over classical CAN or CAN FD (`link: can-fd`)
     def reserved_ids(self, bus: model.Bus) -> dict[tuple[bool, int], str]:
         taken: dict[tuple[bool, int], str] = {}
         if bus.ftt is not None:
-            taken[(False, bus.ftt.tm_id)] = "the FTT-CAN trigger message"
+            taken[(bus.ftt.tm_extended, bus.ftt.tm_id)] = "the FTT-CAN trigger message"
         return taken
 
     def check_message_id(self, bus: model.Bus, m: model.Message) -> None:
         """The trigger message outranks every other frame: the analyses (and the FTT-CAN papers) start each EC's
         windows when it ends, so a frame that wins arbitration against it would delay every EC it is queued at.
-        The TM is taken as a standard frame (as the simulator and the live master send it), which for an extended
+        The TM is a standard frame on every bus (netcfg.protocols.ftt.tm), which for an extended
         bus is the stricter reading too."""
-        if bus.ftt is None or arbitration_key(m.id, m.extended) > arbitration_key(bus.ftt.tm_id, False):
+        if bus.ftt is None or arbitration_key(m.id, m.extended) > arbitration_key(bus.ftt.tm_id, bus.ftt.tm_extended):
             return
         tm = f"0x{bus.ftt.tm_id:03X}"
         if self.r.smap.has((*m.path, "id")):

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from netcfg.protocols.ftt.tm import tm_fd
+from netcfg.protocols.ftt.tm import TM_EXTENDED, tm_fd
 from netcfg.runtime import Bus, EcSlot, Task
 from netcfg.sim.can_bus import CanBus
 from netcfg.sim.engine import NEVER, PPB
@@ -38,7 +38,7 @@ class FttMaster:
         self._phase, self._drift, self._ec_ns = self.clock.phase_ns, self.clock.drift_ppb, ftt.ec_ns
         self.tm_name = f"{bus.name}_TM"
         fd = tm_fd(bus.link)  # the trigger message's frame format on this link, as the analysis timed it
-        self.tm = can.add_source(self.tm_name, ftt.tm_id, False, ftt.tm_size, ftt.master, fd=fd, brs=fd)
+        self.tm = can.add_source(self.tm_name, ftt.tm_id, TM_EXTENDED, ftt.tm_size, ftt.master, fd=fd, brs=fd)
         sc.msg_source[self.tm_name] = (can, self.tm)
         self.owned = {m for slot in ftt.schedule for m in slot.messages}
         self.fail_at = NEVER

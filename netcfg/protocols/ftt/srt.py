@@ -104,7 +104,7 @@ def srt_view(m: model.Model, bus: model.Bus) -> SrtView:
         ec_ns=sched.ec_ns,
         ec_us=us(sched.ec_ns),
         tm_id=bus.ftt.tm_id,
-        tm_extended=bus.id_bits == 29,
+        tm_extended=bus.ftt.tm_extended,
         tm_size=bus.ftt.tm_size,
         tm_bits=tm_bits,
         mask_width=next(w for w in (8, 16, 32, 64) if w >= tm_bits),
