@@ -170,7 +170,7 @@ def pdo_rows(
         row = message_head(msg, extended=False) | {
             "slave": p.slave,
             "direction": p.direction,
-            "pdo": f"0x{(0x1A00 if p.direction == 'inputs' else 0x1600) + (msg.pdo.number if msg.pdo else 1) - 1:04X}",
+            "pdo": f"0x{p.index:04X}",
             "logical": p.logical,
             # its bytes in the cycle's frame: their bits and their time on the wire, their share of the cycle
             "frame_bits_worst": 8 * p.length,

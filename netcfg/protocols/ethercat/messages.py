@@ -59,6 +59,7 @@ class PdoMessage:
     direction: str  # "inputs" (a TxPDO, slave to master) or "outputs" (an RxPDO, master to slave)
     logical: int  # its first byte in the logical image (outputs, then inputs)
     length: int
+    index: int  # its mapping object in the slave's dictionary (0x1A00.., 0x1600..)
 
 
 def _data_type(name: str, bits: int) -> int:
@@ -194,6 +195,7 @@ def pdo_messages(bus: model.Bus, seg: Segment) -> list[PdoMessage]:
                 "inputs" if pdo.direction == "tx" else "outputs",
                 logical_address(seg, slave, pdo),
                 -(-pdo.bits // 8),
+                pdo.index,
             )
         )
     return out
