@@ -279,10 +279,23 @@ def test_sync_counter_and_supervision_settings_are_checked(tmp_path: Path, capsy
 # --- the whole run ------------------------------------------------------------------------------------------------
 
 
-def run_json(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, dict[str, Any]]:
-    code = main(["run", *args, "--format", "json"])
-    out = capsys.readouterr().out
-    return code, json.loads(out)
+def host_was_late(doc: dict[str, Any]) -> bool:
+    """The run says its own host was late: it let a SYNC instant pass, sent one later than the analysed master
+    jitter, or (the simulated drives being threads of the same process, answering at SYNC) read a cycle's TPDOs
+    after the window closed. A stall of the machine running the test (a loaded CI runner), which the master reports
+    as it should; not a fault of the master."""
+    return any((doc.get("sync_gaps"), doc.get("cycle", {}).get("overruns"), doc.get("read", {}).get("overruns")))
+
+
+def run_json(capsys: pytest.CaptureFixture[str], *args: str, attempts: int = 3) -> tuple[int, dict[str, Any]]:
+    """A live run on the wall clock; run again (at most `attempts` times) only when the run itself reports that the
+    host was late, so a test judges the master on a host that kept its time."""
+    for _ in range(attempts):
+        code = main(["run", *args, "--format", "json"])
+        doc = json.loads(capsys.readouterr().out)
+        if not host_was_late(doc):
+            break
+    return code, doc
 
 
 def nodes_of(doc: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -474,8 +487,12 @@ def test_run_usage_errors(capsys: pytest.CaptureFixture[str], tmp_path: Path) ->
 
 def test_text_output_has_no_live_view_when_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> None:
     """Under pytest stdout is no terminal: the status line (carriage returns) stays off, the summary is plain."""
-    assert main(["run", str(GENERATED / "runtime.json"), "--simulated-drives", "--cycles", "5"]) == 0
-    out = capsys.readouterr().out
+    for _ in range(3):  # again only while the host was late (the summary's own count of it), as run_json does
+        code = main(["run", str(GENERATED / "runtime.json"), "--simulated-drives", "--cycles", "5"])
+        out = capsys.readouterr().out
+        if "missed" not in out and "window overruns 0" in out:
+            break
+    assert code == 0
     assert "\r" not in out and out.splitlines()[-1] == "ok"
     assert "CANopen set-up of bus can0: 6/6 nodes ok" in out and "5 cycles on can0, ended by cycles" in out
 
