@@ -59,13 +59,18 @@ class Protocol:
     # the protocol adds nothing to the link's frames (no SYNC, no schedule, no identifier scheme of its own)
     carries_actuators = False
 
-    def __init__(self, name: str, link: Link) -> None:
+    def __init__(self, name: str, link: Link, twin_of: Protocol | None = None) -> None:
         self.name = name  # as the spec's `protocol:` says it
         self.link = link  # the link that name stands for
+        # the same protocol over each link it runs on (CANopen over CAN and CAN FD): one list its twins share
+        self.family: list[Protocol] = twin_of.family if twin_of is not None else []
+        self.family.append(self)
 
     def over(self, link: Link) -> Protocol | str:
-        """The protocol as it runs over `link` (a spec's `link:`), or why netcfg does not model it there."""
-        return self if link is self.link else self.not_over(link)
+        """The protocol as it runs over `link` (a spec's `link:`): its twin on that link, or why netcfg does not
+        model it there."""
+        twin = next((p for p in self.family if p.link is link), None)
+        return twin if twin is not None else self.not_over(link)
 
     def not_over(self, link: Link) -> str:
         """Why netcfg does not model the protocol over `link` (the error at a spec's `link:` key)."""

@@ -31,13 +31,6 @@ USDO_REFUSAL = (
 
 
 class Canopen(Protocol):
-    def over(self, link: Link) -> Protocol | str:
-        """CANopen runs over either CAN link: over CAN FD it is CANopen FD's process data (CiA 1301): PDOs of up to
-        64 bytes in CAN FD frames (resolve.py, pdo.py); what it does not do of CANopen FD is refused where it is met
-        (run_refused, build_notes)."""
-        twin = next((p for p in (CANOPEN, CANOPEN_FD) if p.link is link), None)
-        return twin if twin is not None else self.not_over(link)
-
     def not_over(self, link: Link) -> str:
         return (
             f"CANopen over {link.name} is not modelled: CANopen runs over CAN (CiA 301, link: can) or CAN FD "
@@ -108,4 +101,6 @@ class Canopen(Protocol):
 
 
 CANOPEN = Canopen("canopen", CLASSICAL_CAN)
-CANOPEN_FD = Canopen("canopen", CAN_FD)  # CANopen FD (CiA 1301): the same protocol over the CAN FD link
+# CANopen FD's process data (CiA 1301): the same protocol over the CAN FD link, PDOs of up to 64 bytes in CAN FD
+# frames (resolve.py, pdo.py); what it does not do of CANopen FD is refused where it is met (run_refused, build_notes)
+CANOPEN_FD = Canopen("canopen", CAN_FD, twin_of=CANOPEN)

@@ -27,12 +27,6 @@ if TYPE_CHECKING:
 
 
 class Ftt(Protocol):
-    def over(self, link: Link) -> Protocol | str:
-        """FTT-CAN runs over either CAN link: on CAN FD every frame of the EC, trigger message included (tm.py), is
-        timed at the link's two rates."""
-        twin = next((p for p in (FTT, FTT_FD) if p.link is link), None)
-        return twin if twin is not None else self.not_over(link)
-
     def not_over(self, link: Link) -> str:
         return (
             f"FTT-CAN over {link.name} is not modelled: its trigger message and windows are CAN frames arbitrating "
@@ -161,4 +155,6 @@ class Ftt(Protocol):
 
 
 FTT = Ftt("ftt-can", CLASSICAL_CAN)
-FTT_FD = Ftt("ftt-can", CAN_FD)  # the same protocol over the CAN FD link (`link: can-fd`)
+# the same protocol over the CAN FD link (`link: can-fd`): every frame of the EC, trigger message included (tm.py),
+# is timed at the link's two rates
+FTT_FD = Ftt("ftt-can", CAN_FD, twin_of=FTT)

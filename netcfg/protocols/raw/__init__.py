@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from netcfg.links.base import Link
 from netcfg.links.can import CLASSICAL_CAN
 from netcfg.links.canfd import CAN_FD
 from netcfg.protocols.base import Protocol, Unsaid
@@ -18,11 +17,6 @@ if TYPE_CHECKING:
 
 class Raw(Protocol):
     carries_actuators = True  # raw frames are what an actuator's own protocol sends
-
-    def over(self, link: Link) -> Protocol | str:
-        """Raw frames go over either CAN link: `protocol: can` with `link: can-fd` is the can-fd protocol."""
-        twin = next((p for p in (CAN, CAN_FD_RAW) if p.link is link), None)
-        return twin if twin is not None else super().over(link)
 
     def answers(self, m: model.Model, bus: model.Bus) -> dict[str, tuple[str, int]]:
         """Each actuator reply on the bus -> (its command, the shortest way from the command's frame end to the
@@ -56,4 +50,5 @@ class Raw(Protocol):
 
 
 CAN = Raw("can", CLASSICAL_CAN)
-CAN_FD_RAW = Raw("can-fd", CAN_FD)
+# raw frames go over either CAN link: `protocol: can` with `link: can-fd` is the can-fd protocol
+CAN_FD_RAW = Raw("can-fd", CAN_FD, twin_of=CAN)
