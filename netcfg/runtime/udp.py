@@ -111,17 +111,22 @@ def loopback_hosts(cfg: RuntimeConfig, net: str = "127.0.0") -> dict[str, str]:
 class UdpEndpoint:
     """The sockets of one node on one Ethernet/UDP bus: sends what the node produces, receives what it consumes."""
 
+    default_node: str | None = None  # the node a subclass stands for when none is named
+
     def __init__(
         self,
         cfg: RuntimeConfig,
-        node: str,
+        node: str | None = None,
         host_map: Mapping[str, str] | None = None,
         *,
         port_offset: int = 0,
         bus: str | None = None,
     ) -> None:
+        name = node if node is not None else self.default_node
+        if name is None:
+            raise ValueError("name the node whose sockets these are")
         self.cfg = cfg
-        self.node: Node = cfg.node(node)
+        self.node: Node = cfg.node(name)
         self.bus = bus if bus is not None else self._only_udp_bus()
         if not cfg.bus(self.bus).is_udp:
             raise ValueError(f"bus '{self.bus}' is {cfg.bus(self.bus).protocol}, not {UDP}")
@@ -129,15 +134,15 @@ class UdpEndpoint:
         self.port_offset = port_offset
         self.counters = Counters()
         on_bus = cfg.messages_on(self.bus)
-        self.produces = tuple(m for m in on_bus if m.producer == node)
-        self.consumes = tuple(m for m in on_bus if node in m.consumers)
+        self.produces = tuple(m for m in on_bus if m.producer == name)
+        self.consumes = tuple(m for m in on_bus if name in m.consumers)
         for m in self.produces + self.consumes:
             if m.udp is None:
                 raise ValueError(f"message '{m.name}' on bus '{self.bus}' has no UDP ports in {cfg.source}")
         local = sorted(
             {m.udp.dst_port for m in self.consumes if m.udp} | {m.udp.src_port for m in self.produces if m.udp}
         )
-        self.host = self.address(node)
+        self.host = self.address(name)
         # select() rather than epoll: epoll waits in whole milliseconds, too coarse to pace a 1 kHz loop
         self._selector = selectors.SelectSelector()
         self._sockets: dict[int, socket.socket] = {}
@@ -288,16 +293,7 @@ class UdpEndpoint:
 class PcEndpoint(UdpEndpoint):
     """The PC (ROS computer) side: sends the 0x31 commands, receives the 0x42 encoder frames."""
 
-    def __init__(
-        self,
-        cfg: RuntimeConfig,
-        node: str = "pc",
-        host_map: Mapping[str, str] | None = None,
-        *,
-        port_offset: int = 0,
-        bus: str | None = None,
-    ) -> None:
-        super().__init__(cfg, node, host_map, port_offset=port_offset, bus=bus)
+    default_node = "pc"
 
     def __enter__(self) -> PcEndpoint:
         return self
