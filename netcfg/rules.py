@@ -7,7 +7,7 @@ protocol names its rules (`netcfg.protocols.Protocol.rules`).
 from __future__ import annotations
 
 from pathlib import Path as FsPath
-from typing import TYPE_CHECKING, Literal, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple, Protocol
 
 from netcfg import model
 from netcfg.model import MessageKind
@@ -86,6 +86,15 @@ class BusRules:
     # -- buses
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
         """Check the bus's own settings and fill its protocol section in the model."""
+
+    def required_section(self, b: schema.Bus, title: str, example: str, path: Path) -> Any:
+        """The bus's own section (self.section) where the protocol cannot do without it, or None and the error
+        naming what to write (`example`)."""
+        assert self.section is not None
+        found = getattr(b, self.section)
+        if found is None:
+            self.r.err("missing-section", f"{title} bus '{b.name}' needs '{self.section}: {example}'", path)
+        return found
 
     def resolve_items(self) -> None:
         """What the protocol adds once every message is resolved (implicit messages, triggers, topology)."""

@@ -35,10 +35,9 @@ class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CAN
         self.resolve_canopen(b, bus, path)
 
     def resolve_canopen(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
-        if b.canopen is None:
-            self.r.err("missing-section", f"CANopen bus '{b.name}' needs 'canopen: {{sync_period: 20 ms}}'", path)
+        c: schema.CanopenParams | None = self.required_section(b, "CANopen", "{sync_period: 20 ms}", path)
+        if c is None:
             return
-        c = b.canopen
         cpath = (*path, "canopen")
         period = self.r.ns(c.sync_period, (*cpath, "sync_period"), None)
         window = self.r.ns(c.sync_window, (*cpath, "sync_window"), None)

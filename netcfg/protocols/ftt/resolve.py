@@ -33,10 +33,9 @@ class FttRules(OverCanLinks):  # over classical CAN or CAN FD (`link: can-fd`)
         return b.ftt.ec.to_ns(None) if b.ftt is not None else None
 
     def resolve_ftt(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
-        if b.ftt is None:
-            self.r.err("missing-section", f"FTT-CAN bus '{b.name}' needs 'ftt: {{ec: 5 ms, tm_size: 5}}'", path)
+        f: schema.FttParams | None = self.required_section(b, "FTT-CAN", "{ec: 5 ms, tm_size: 5}", path)
+        if f is None:
             return
-        f = b.ftt
         fpath = (*path, "ftt")
         if f.ec.ns is None or f.ec.ns == 0:
             self.r.err("ec", "the elementary cycle needs a length in time units, e.g. 'ec: 5 ms'", (*fpath, "ec"))
