@@ -35,6 +35,7 @@ from typing import Any
 import can
 
 from netcfg.runtime import RuntimeConfig
+from netcfg.runtime.bench import Bench
 from netcfg.runtime.canopen_master import canopen_bus, canopen_slaves
 from netcfg.runtime.clock import Clock, SystemClock
 from netcfg.runtime.drive_responses import ResponseScheduler
@@ -43,7 +44,7 @@ from netcfg.runtime.simulated_drive import DriveModel, SimulatedDrive, follow_ve
 __all__ = ["DriveBench", "DriveModel", "ResponseScheduler", "SimulatedDrive", "follow_velocity"]
 
 
-class DriveBench:
+class DriveBench(Bench[SimulatedDrive]):
     """The configured CANopen slaves of a runtime config as SimulatedDrives on python-can `channel`, built from
     `<canopen_dir>/<node>.eds`, or without canopen_dir from the EDS runtime.json names (node.eds, beside it).
 
@@ -77,11 +78,9 @@ class DriveBench:
     ) -> None:
         bus = canopen_bus(cfg, bus_name)
         wanted = set(nodes) if nodes is not None else None
-        self.channel, self.interface = channel, interface
+        super().__init__(channel, interface)
         self.separate_connections = separate_connections
-        self._notifier: can.Notifier | None = None
         self._clock: Clock = drive_options.get("clock") or SystemClock()
-        self.scheduler: ResponseScheduler | None = None
         self.drives: dict[str, SimulatedDrive] = {}
         self._buses: list[can.BusABC] = []
         for node in canopen_slaves(cfg, bus):
@@ -110,20 +109,14 @@ class DriveBench:
         self._buses.append(bus)
         for drive in self.drives.values():
             drive.attach(bus, listen=False, scheduler=scheduler)
-        self._notifier = can.Notifier(bus, [self._dispatch], timeout=0.05)
+        self._serve(bus)
         return self
 
-    def _dispatch(self, msg: can.Message) -> None:
-        for drive in self.drives.values():
-            drive.on_frame(msg)
+    def devices(self) -> Mapping[str, SimulatedDrive]:
+        return self.drives
 
     def stop(self) -> None:
-        if self._notifier is not None:
-            self._notifier.stop(timeout=2.0)
-            self._notifier = None
-        if self.scheduler is not None:  # before the buses close: no delayed answer is sent on a closed bus
-            self.scheduler.close()
-            self.scheduler = None
+        self._stop_serving()
         for drive in self.drives.values():
             drive.detach(join=False)
         for drive in self.drives.values():
@@ -132,11 +125,3 @@ class DriveBench:
             bus.shutdown()
         self._buses.clear()
 
-    def __enter__(self) -> DriveBench:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def __getitem__(self, name: str) -> SimulatedDrive:
-        return self.drives[name]

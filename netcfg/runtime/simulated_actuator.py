@@ -27,6 +27,7 @@ import can
 
 from netcfg.links import pycan_frames
 from netcfg.runtime.actuators import ActuatorCodec, MessageCodec
+from netcfg.runtime.bench import Bench
 from netcfg.runtime.config import Node, RuntimeConfig
 from netcfg.runtime.drive_responses import ResponseScheduler
 
@@ -145,7 +146,7 @@ def _raw_or_name(m: MessageCodec, field: str, value: Any) -> Any:
     return float(value)
 
 
-class ActuatorBench:
+class ActuatorBench(Bench[SimulatedActuator]):
     """The actuator nodes of one bus of a runtime config as SimulatedActuators on python-can `channel`, sharing one
     connection and one answering thread (as netcfg.runtime.drives.DriveBench serves its drives).
 
@@ -155,46 +156,30 @@ class ActuatorBench:
 
     def __init__(self, cfg: RuntimeConfig, bus_name: str, *, channel: str, interface: str = "virtual",
                  seed: int = 0) -> None:
-        self.channel, self.interface = channel, interface
+        super().__init__(channel, interface)
         rng = random.Random(seed)
         self.actuators = {
             n.name: SimulatedActuator(cfg, n, random.Random(rng.getrandbits(64)))
             for n in cfg.nodes if n.actuator is not None and bus_name in n.buses
         }
         self._bus: can.BusABC | None = None
-        self._notifier: can.Notifier | None = None
-        self.scheduler: ResponseScheduler | None = None
 
     def start(self) -> ActuatorBench:
         self.scheduler = ResponseScheduler(name=f"{self.channel}-actuators")
         self._bus = can.Bus(interface=self.interface, channel=self.channel)
         for a in self.actuators.values():
             a.attach(self._bus, self.scheduler)
-        self._notifier = can.Notifier(self._bus, [self._dispatch], timeout=0.05)
+        self._serve(self._bus)
         return self
 
-    def _dispatch(self, msg: can.Message) -> None:
-        for a in self.actuators.values():
-            a.on_frame(msg)
+    def devices(self) -> Mapping[str, SimulatedActuator]:
+        return self.actuators
 
     def stop(self) -> None:
-        if self._notifier is not None:
-            self._notifier.stop(timeout=2.0)
-            self._notifier = None
-        if self.scheduler is not None:
-            self.scheduler.close()
-            self.scheduler = None
+        self._stop_serving()
         for a in self.actuators.values():
             a.bus = None
         if self._bus is not None:
             self._bus.shutdown()
             self._bus = None
 
-    def __enter__(self) -> ActuatorBench:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def __getitem__(self, name: str) -> SimulatedActuator:
-        return self.actuators[name]
