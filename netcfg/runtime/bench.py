@@ -4,7 +4,6 @@ ResponseScheduler for their delayed answers, and the order they stop in."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any, Generic, Protocol, TypeVar
 
 import can
@@ -21,13 +20,11 @@ B = TypeVar("B", bound="Bench[Any]")
 
 
 class Bench(Generic[D]):
-    def __init__(self, channel: str, interface: str) -> None:
+    def __init__(self, channel: str, interface: str, devices: dict[str, D]) -> None:
         self.channel, self.interface = channel, interface
+        self.devices = devices  # by node name
         self._notifier: can.Notifier | None = None
         self.scheduler: ResponseScheduler | None = None
-
-    def devices(self) -> Mapping[str, D]:
-        raise NotImplementedError
 
     def start(self: B) -> B:
         raise NotImplementedError
@@ -40,7 +37,7 @@ class Bench(Generic[D]):
         self._notifier = can.Notifier(bus, [self._dispatch], timeout=0.05)
 
     def _dispatch(self, msg: can.Message) -> None:
-        for device in self.devices().values():
+        for device in self.devices.values():
             device.on_frame(msg)
 
     def _stop_serving(self) -> None:
@@ -60,4 +57,4 @@ class Bench(Generic[D]):
         self.stop()
 
     def __getitem__(self, name: str) -> D:
-        return self.devices()[name]
+        return self.devices[name]

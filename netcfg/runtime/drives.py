@@ -78,10 +78,10 @@ class DriveBench(Bench[SimulatedDrive]):
     ) -> None:
         bus = canopen_bus(cfg, bus_name)
         wanted = set(nodes) if nodes is not None else None
-        super().__init__(channel, interface)
+        super().__init__(channel, interface, {})
+        self.drives = self.devices
         self.separate_connections = separate_connections
         self._clock: Clock = drive_options.get("clock") or SystemClock()
-        self.drives: dict[str, SimulatedDrive] = {}
         self._buses: list[can.BusABC] = []
         for node in canopen_slaves(cfg, bus):
             name = node.name
@@ -111,9 +111,6 @@ class DriveBench(Bench[SimulatedDrive]):
             drive.attach(bus, listen=False, scheduler=scheduler)
         self._serve(bus)
         return self
-
-    def devices(self) -> Mapping[str, SimulatedDrive]:
-        return self.drives
 
     def stop(self) -> None:
         self._stop_serving()

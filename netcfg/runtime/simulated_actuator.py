@@ -156,12 +156,12 @@ class ActuatorBench(Bench[SimulatedActuator]):
 
     def __init__(self, cfg: RuntimeConfig, bus_name: str, *, channel: str, interface: str = "virtual",
                  seed: int = 0) -> None:
-        super().__init__(channel, interface)
         rng = random.Random(seed)
-        self.actuators = {
+        super().__init__(channel, interface, {
             n.name: SimulatedActuator(cfg, n, random.Random(rng.getrandbits(64)))
             for n in cfg.nodes if n.actuator is not None and bus_name in n.buses
-        }
+        })
+        self.actuators = self.devices
         self._bus: can.BusABC | None = None
 
     def start(self) -> ActuatorBench:
@@ -171,9 +171,6 @@ class ActuatorBench(Bench[SimulatedActuator]):
             a.attach(self._bus, self.scheduler)
         self._serve(self._bus)
         return self
-
-    def devices(self) -> Mapping[str, SimulatedActuator]:
-        return self.actuators
 
     def stop(self) -> None:
         self._stop_serving()
