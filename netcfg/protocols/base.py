@@ -58,6 +58,7 @@ class Protocol:
     # a node speaking an actuator's own protocol (netcfg.devices.actuator_profile) may sit on a bus of it: only where
     # the protocol adds nothing to the link's frames (no SYNC, no schedule, no identifier scheme of its own)
     carries_actuators = False
+    dbc_never_says: tuple[Unsaid, ...] = ()  # what a DBC cannot say of any bus of the protocol
 
     def __init__(self, name: str, link: Link, twin_of: Protocol | None = None) -> None:
         self.name = name  # as the spec's `protocol:` says it
@@ -134,8 +135,9 @@ class Protocol:
         return {}
 
     def dbc_unsaid(self, m: model.Model, bus: model.Bus) -> tuple[Unsaid, ...]:
-        """What of the bus's timing under this protocol a DBC cannot say (netcfg.emit.dbc.unsaid)."""
-        return ()
+        """What of the bus's timing under this protocol a DBC cannot say (netcfg.emit.dbc.unsaid): by default what
+        it can never say on any bus of it (dbc_never_says)."""
+        return self.dbc_never_says
 
     def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
         """runtime.json's keys of the protocol's own on the bus's entry (netcfg.emit.runtime_json), e.g. FTT-CAN's

@@ -31,6 +31,14 @@ USDO_REFUSAL = (
 
 
 class Canopen(Protocol):
+    dbc_never_says = (
+        Unsaid(
+            "the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the DBC bounds each "
+            "frame as check of the spec does, but does not judge the cycle",
+            True,
+        ),
+    )
+
     def not_over(self, link: Link) -> str:
         return (
             f"CANopen over {link.name} is not modelled: CANopen runs over CAN (CiA 301, link: can) or CAN FD "
@@ -65,14 +73,6 @@ class Canopen(Protocol):
     def identifiers_fixed(self, bus: model.Bus) -> str | None:
         return "CiA 301 COB-IDs, the predefined connection set its devices expect"
 
-    def dbc_unsaid(self, m: model.Model, bus: model.Bus) -> tuple[Unsaid, ...]:
-        return (
-            Unsaid(
-                "the CANopen SYNC cycle (its synchronous window, the master's cycle): check of the DBC bounds each "
-                "frame as check of the spec does, but does not judge the cycle",
-                True,
-            ),
-        )
 
     def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
         # a synchronous TPDO's response counts from the SYNC before it (netcfg.timing.canopen_sync)

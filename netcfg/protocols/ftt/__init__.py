@@ -27,6 +27,14 @@ if TYPE_CHECKING:
 
 
 class Ftt(Protocol):
+    dbc_never_says = (
+        Unsaid(
+            "the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames as free-running "
+            "CAN, trigger message included, so its bounds are not the bus's",
+            False,
+        ),
+    )
+
     def not_over(self, link: Link) -> str:
         return (
             f"FTT-CAN over {link.name} is not modelled: its trigger message and windows are CAN frames arbitrating "
@@ -100,14 +108,6 @@ class Ftt(Protocol):
         assert sched is not None  # the analysis built it
         return {e.name: e for e in sched.entries}
 
-    def dbc_unsaid(self, m: model.Model, bus: model.Bus) -> tuple[Unsaid, ...]:
-        return (
-            Unsaid(
-                "the FTT-CAN elementary cycle and its windows: check of the DBC analyses its frames as free-running "
-                "CAN, trigger message included, so its bounds are not the bus's",
-                False,
-            ),
-        )
 
     def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
         from netcfg.protocols.ftt.runtime_section import runtime_section
