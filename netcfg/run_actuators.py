@@ -4,7 +4,9 @@
 The JSON document: {"ok", "system", "bus", "period_ms", "cycles", "ended_by", "actuators": {name: {"profile",
 "state", "enabled", "commands", "replies", "missing", "late", "reply_delay_us": {"min", "mean", "max"} | null,
 "reply_bound_us", "loss_timeout_ms", "heard": {message: frames}, "last": {message: {field: SI value}}, "states",
-"errors", "lost_at_s", "stopped_at_s", "safe_stop"}}, "events": [{"t_s", "node", "kind", "detail", "action"}],
+"errors", "lost_at_s", "stopped_at_s", "safe_stop"}}, "sends": {"late_max_us", "late_mean_us", "missed_releases"}
+(how late after its release the host sent each command; a release sent a whole period or more late is missed),
+"events": [{"t_s", "node", "kind", "detail", "action"}],
 "drills": [{"t_s", "what"}], "unknown_frames", "simulated": {name: frames sent} | null}: one bus's; a run of
 several buses prints {"ok", "system", "buses": [one such document per bus]}.
 """
@@ -205,12 +207,18 @@ def result_document(run: ActuatorRun, system: str, simulated: Mapping[str, int] 
         }
     return {
         "ok": run.ok, "system": system, "bus": run.bus, "period_ms": run.period_ns / 1e6, "cycles": run.cycles,
-        "ended_by": run.ended_by, "actuators": actuators,
+        "ended_by": run.ended_by, "actuators": actuators, "sends": _sends(run),
         "events": [{"t_s": e.t_s, "node": e.node, "kind": e.kind, "detail": e.detail, "action": e.action}
                    for e in run.events],
         "drills": [{"t_s": t, "what": what} for t, what in run.drills],
         "unknown_frames": run.unknown_frames, "simulated": dict(simulated) if simulated is not None else None,
     }
+
+
+def _sends(run: ActuatorRun) -> dict[str, Any]:
+    most, total, n = run.send_late_us
+    return {"late_max_us": round(most, 1) if n else None, "late_mean_us": round(total / n, 1) if n else None,
+            "missed_releases": run.missed_releases}
 
 
 def _number(v: float) -> float:
@@ -235,6 +243,10 @@ def result_text(doc: Mapping[str, Any]) -> str:
         states = ", ".join(f"{k} {v}" for k, v in a["states"].items())
         if states:
             lines.append(f"  {name}: {states}")
+    s = doc["sends"]
+    if s["late_max_us"] is not None:
+        lines.append(f"  commands sent after their release: mean {s['late_mean_us']:.0f} us, max "
+                     f"{s['late_max_us']:.0f} us; releases missed (sent a period or more late): {s['missed_releases']}")
     for d in doc["drills"]:
         lines.append(f"drill: {d['t_s']:.3f} s {d['what']}")
     for e in doc["events"]:

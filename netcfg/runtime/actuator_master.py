@@ -103,6 +103,10 @@ class ActuatorRun:
     cycles: int = 0
     ended_by: str = "cycles"  # cycles | stop_all:<node> | stop() | signal SIGINT ...
     unknown_frames: int = 0
+    # how late after its release each command went out: [largest, sum, count] in us, and the releases sent a whole
+    # period or more late (the host missed its cycle: as a missed SYNC is to a CANopen master)
+    send_late_us: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    missed_releases: int = 0
 
     @property
     def ok(self) -> bool:
@@ -241,7 +245,8 @@ class ActuatorMaster:
                 continue
             for i, c in enumerate(commands):
                 if due[i] <= now:
-                    self._command(c)
+                    if self._command(c):
+                        self._sent_late(self.clock.now() - due[i], c.period_ns / 1e9)
                     due[i] += c.period_ns / 1e9
             if now >= cycle_mark:
                 self.result.cycles += 1
@@ -253,15 +258,22 @@ class ActuatorMaster:
         elif self.result.ended_by == "cycles":
             self.result.ended_by = self._stop_reason
 
-    def _command(self, c: CommandPlan) -> None:
+    def _sent_late(self, late_s: float, period_s: float) -> None:
+        r = self.result.send_late_us
+        r[0], r[1], r[2] = max(r[0], late_s * 1e6), r[1] + late_s * 1e6, r[2] + 1
+        self.result.missed_releases += int(late_s >= period_s)
+
+    def _command(self, c: CommandPlan) -> bool:
+        """Send the command (False: its actuator is stopped, nothing sent)."""
         out = self.result.actuators[c.node]
         if out.state == STOPPED:
-            return
+            return False
         sent = self._send(c.frame)
         out.commands += 1
         if c.reply is not None:
             wait_ns = self.plans[c.node].loss_timeout_ns or LOSS_MULTIPLIER * c.period_ns
             self._pending.setdefault((c.node, c.reply), []).append(_Pending(sent, self.clock.now() + wait_ns / 1e9))
+        return True
 
     def _decode(self, msg: can.Message) -> tuple[str, Decoded] | None:
         if msg.is_error_frame or msg.is_remote_frame:  # a remote frame is a request, sent by a host
