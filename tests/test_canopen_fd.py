@@ -101,3 +101,21 @@ def test_build_writes_the_64_byte_mapping_and_says_what_it_leaves_out(tmp_path: 
     assert od[0x1A00][0].default == 8
     assert [od[0x1A00][k].default for k in range(1, 9)] == [(0x2100 + k) << 16 | 0 << 8 | 64 for k in range(8)]
     assert "USDO" in proc.stderr and "CANopen FD" in proc.stderr
+
+
+def test_a_drive_s_emcy_and_boot_up_are_can_fd_frames_too(tmp_path: Path) -> None:
+    """A drill's EMCY (0x80 + node id, 8 bytes: error code 0x2310 little-endian, 10 23, error register 0x01, CiA 301
+    7.2.7), a reboot's boot-up (0x700 + node id, one byte 0x00, CiA 301 7.2.8.3.2.1) and the master's NMT answer to
+    the EMCY (id 0, enter pre-operational 0x80 and the node id) go as the bus's SYNC and heartbeats do: CAN FD with
+    bit-rate switch, written '##1' in the log (python-can's candump format: '##', then the flags nibble, BRS = 1).
+    The sensor sends no heartbeat, so its boot-up is a source of its own."""
+    path, log = tmp_path / "spec.yaml", tmp_path / "sim.log"
+    runtime_config_of(path, _spec())
+    proc = cli("simulate", str(path), "--duration", "1s", "--fault", "emcy:sensor@300ms", "--fault",
+               "reset:sensor@600ms+20ms", "--log", str(log))
+    assert proc.returncode in (0, 1), proc.stderr
+    frames = [line.split()[2] for line in log.read_text().splitlines()]
+    assert "081##11023010000000000" in frames, [f for f in frames if f.startswith("081")]
+    assert "701##100" in frames, [f for f in frames if f.startswith("701")]
+    assert "000##18001" in frames, [f for f in frames if f.startswith("000")]
+    assert not [f for f in frames if "##" not in f]  # not one classical frame on the CANopen FD bus

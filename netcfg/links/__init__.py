@@ -11,10 +11,9 @@ without the compiler, hands its frames to python-can through it.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
-    from netcfg import model
     from netcfg.links.base import Link
 
     LINKS: dict[str, Link]
@@ -35,7 +34,14 @@ def _registry() -> dict[str, Link]:
     return _LINKS
 
 
-def of(bus: model.Bus) -> Link:
+class OnALink(Protocol):
+    """A bus as the model or runtime.json has it: both name its link."""
+
+    @property
+    def link(self) -> str: ...
+
+
+def of(bus: OnALink) -> Link:
     return (_LINKS or _registry())[bus.link]
 
 

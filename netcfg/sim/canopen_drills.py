@@ -32,7 +32,9 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import can
 
+from netcfg import links
 from netcfg.cia301 import NMT_BOOT_UP, NMT_STATE_PRE_OPERATIONAL
+from netcfg.links import pycan_frames
 from netcfg.runtime.drills import Drill
 from netcfg.runtime.supervision import BUS_OFF_TEXT, Event, Supervisor, bus_back, sync_gap
 from netcfg.sim.engine import NEVER
@@ -115,8 +117,15 @@ class DrillPlayer:
     def __bool__(self) -> bool:
         return bool(self.drills)
 
+    @property
+    def _fd(self) -> bool:
+        """The services the drills add (EMCY, boot-up, NMT) go as the bus's SYNC and heartbeats do: CAN FD with
+        bit-rate switch on a CANopen FD bus (netcfg.protocols.canopen.resolve.fd_services, the same rule)."""
+        return links.of(self.m.bus).data_phase
+
     def add(self, drill: Drill) -> None:
         sc, can_bus = self.m.sc, self.m.can
+        fd = self._fd
         self.drills.append(drill)
         if not self._listening:  # the drives hear the master's NMT commands
             can_bus.monitor(self._heard)
@@ -124,7 +133,7 @@ class DrillPlayer:
         if drill.kind == "emcy":
             node = sc.cfg.node(str(drill.node))
             assert node.node_id is not None
-            src = can_bus.add_source(f"{node.name}_emcy", EMCY_BASE + node.node_id, False, 8, node.name)
+            src = can_bus.add_source(f"{node.name}_emcy", EMCY_BASE + node.node_id, False, 8, node.name, fd=fd, brs=fd)
             payload = drill.code.to_bytes(2, "little") + bytes([EMCY_REGISTER]) + bytes(5)
             sc.sim.at(drill.at_ns, self._emcy, (drill, src, payload))
         elif drill.kind == "reset":
@@ -133,7 +142,7 @@ class DrillPlayer:
             node = sc.cfg.node(str(drill.node))
             assert node.node_id is not None
             src = sc.msg_source[beat.name][1] if beat is not None else can_bus.add_source(
-                f"{node.name}_boot_up", 0x700 + node.node_id, False, 1, node.name
+                f"{node.name}_boot_up", 0x700 + node.node_id, False, 1, node.name, fd=fd, brs=fd
             )
             period = beat.interval_ns or 0 if beat is not None else 0
             sc.sim.at(drill.at_ns, self._note, drill)
@@ -240,7 +249,7 @@ class DrillPlayer:
 
     def _nmt(self, node_id: int) -> None:
         assert self._pybus is not None
-        frame = can.Message(arbitration_id=NMT_ID, is_extended_id=False, data=[NMT_PRE_OPERATIONAL, node_id])
+        frame = pycan_frames.message(NMT_ID, False, bytes([NMT_PRE_OPERATIONAL, node_id]), fd=self._fd, brs=self._fd)
         with contextlib.suppress(can.CanError):  # bus-off: the node keeps its PDOs until its own timeouts
             self._pybus.send(frame)
 
