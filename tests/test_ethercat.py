@@ -318,3 +318,21 @@ def test_outputs(tmp_path: Path) -> None:
     (tmp_path / "main.c").write_text(main)
     subprocess.run([gcc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-c", "main.c"], cwd=tmp_path,
                    check=True)
+
+
+def test_a_message_s_id_is_its_logical_address() -> None:
+    """runtime.json of the gateway example: the process image holds the outputs, then the inputs (SOEM's IOmap,
+    netcfg.protocols.ethercat.analysis); the gateway's RxPDO (gw_valve, 2 bytes) is at byte 0, its TxPDO (gw_torque)
+    after the 2 output bytes, at 2. A message's id is that address, the same as its slave's FMMU says."""
+    import json
+
+    from tests.conftest import ROOT
+
+    doc = json.loads((ROOT / "generated" / "ethercat_can_gateway" / "runtime.json").read_text())
+    (bus,) = [b for b in doc["buses"] if b["link"] == "ethercat"]
+    ids = {m["name"]: m["id"] for m in doc["messages"] if m["bus"] == bus["name"]}
+    assert ids == {"gw_valve": 0, "gw_torque": 2}
+    (slave,) = bus["ethercat"]["slaves"]
+    fmmu = {f["direction"]: f["logical"] for f in slave["fmmu"]}
+    direction = {m["name"]: m["direction"] for m in bus["ethercat"]["messages"]}
+    assert all(ids[name] == fmmu[direction[name]] for name in ids)

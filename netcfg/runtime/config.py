@@ -123,7 +123,9 @@ class Message(_Carried):
     link: str  # the bus's link: decides between CAN frames and UDP datagrams
     producer: str
     consumers: tuple[str, ...]
-    id: int  # CAN identifier, or the 1-byte application message id on Ethernet (seed 001, Table 6.1)
+    # CAN identifier; the 1-byte application message id on Ethernet (seed 001, Table 6.1); on EtherCAT the PDO's
+    # logical address (its byte offset in the process image, as its slave's FMMU has it)
+    id: int
     extended: bool
     size: int
     kind: str  # "periodic" | "sporadic" | "on-demand"
