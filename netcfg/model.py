@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from netcfg.timing.ftt_schedule import Schedule
 from netcfg.runtime.config import (  # the same records in runtime.json: defined once, there
     FlowStep,
-    PdoEntry,
+    PdoParameters,
     TaskTiming,
     TriggerTiming,
     TxQueue,
@@ -24,6 +24,7 @@ from netcfg.runtime.config import (  # the same records in runtime.json: defined
 from netcfg.spec.source import Path, SourceMap
 
 Protocol = Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat"]
+Pdo = PdoParameters  # a message's PDO: runtime.json's Pdo adds the COB-ID, which the model has as the message's id
 MessageKind = Literal["periodic", "sporadic", "on-demand"]
 
 
@@ -65,18 +66,6 @@ class Node:
     # the actuator's vendor ros2_control plugin, as its profile describes it (netcfg.devices.actuator_ros2); None: the
     # profile has none (or the node is no actuator)
     ros2_control: dict[str, Any] | None = None
-
-
-@dataclass(frozen=True)
-class Pdo:
-    kind: Literal["tpdo", "rpdo"]
-    number: int
-    device_node: str  # the node whose TPDO/RPDO slot this is
-    transmission: int
-    inhibit_100us: int | None
-    event_timer_ms: int | None
-    sync_start: int | None
-    entries: tuple[PdoEntry, ...]
 
 
 @dataclass(frozen=True)

@@ -218,7 +218,7 @@ def test_allex2_pdo_codecs_agree_with_canopen_reading_our_dcf(tmp_path: Path) ->
     assert model is not None
     write({**c_header.emit(model, report), **canopen_dcf.emit(model, report)}, tmp_path)
     messages = [m for bus in model.buses.values() for m in bus.messages if m.pdo is not None and m.signals]
-    messages = [m for m in messages if m.pdo is not None and m.pdo.device_node == "hip_l"]
+    messages = [m for m in messages if m.pdo is not None and m.pdo.node == "hip_l"]
     assert len(messages) >= 3  # seed 000: 1 RxPDO + 2 TxPDO per drive
     node_id = model.nodes["hip_l"].node_id
     assert node_id is not None

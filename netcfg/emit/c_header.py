@@ -382,7 +382,7 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
         sigs = ()
     pdo = None
     if msg.pdo is not None:
-        pdo = f"{msg.pdo.kind.upper()} {msg.pdo.number} of {msg.pdo.device_node}"
+        pdo = f"{msg.pdo.kind.upper()} {msg.pdo.number} of {msg.pdo.node}"
     return MessageView(
         **same_named(msg, "name producer consumers id extended size kind period_ns interval_ns offset_ns deadline_ns"),
         **same_named(msg, "window implicit fd brs frame_size remote"),

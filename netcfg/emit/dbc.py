@@ -374,7 +374,7 @@ def _message_comment(m: model.Model, msg: model.Message) -> str | None:
     elif msg.implicit == "heartbeat":
         parts.append(f"CANopen heartbeat of {msg.producer}")
     if msg.pdo is not None:
-        node = m.nodes[msg.pdo.device_node]
+        node = m.nodes[msg.pdo.node]
         parts.append(
             f"{msg.pdo.kind.upper()}{msg.pdo.number} of {node.name} (node {node.node_id}), "
             f"transmission type {msg.pdo.transmission}"

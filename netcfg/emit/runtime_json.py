@@ -247,7 +247,7 @@ def _pdo(msg: model.Message) -> dict[str, Any] | None:
         return None
     return {
         **same_named(p, "kind number transmission inhibit_100us event_timer_ms sync_start"),
-        "node": p.device_node,
+        "node": p.node,
         "cob_id": cia301.pdo_cob_id(p.kind, msg.id, msg.extended),  # the DCF's value: the same function
         "entries": [same_named(e, "index sub bits name data_type") for e in p.entries],
     }

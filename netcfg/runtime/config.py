@@ -95,8 +95,11 @@ class PdoEntry(MappedObject):  # the spec's model maps the same records (netcfg.
 
 
 @dataclass(frozen=True)
-class Pdo:
-    kind: str  # "tpdo" | "rpdo"
+class PdoParameters:
+    """A PDO slot's communication and mapping parameters (CiA 301 0x14xx/0x18xx, 0x16xx/0x1Axx): the spec's model
+    holds a message's PDO as this (netcfg.model.Pdo), runtime.json as the Pdo below."""
+
+    kind: Literal["tpdo", "rpdo"]
     number: int
     node: str  # the node whose TPDO/RPDO slot this is
     transmission: int
@@ -104,8 +107,12 @@ class Pdo:
     event_timer_ms: int | None
     sync_start: int | None
     entries: tuple[PdoEntry, ...]
+
+
+@dataclass(frozen=True)
+class Pdo(PdoParameters):
     # the 32-bit value of the slot's COB-ID (0x14xx/0x18xx sub 1), CiA 301 flag bits included, as the node's DCF
-    # has it; None in files written before it
+    # has it (the model's is its message's id); None in files written before it
     cob_id: int | None = None
 
 

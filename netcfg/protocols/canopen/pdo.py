@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Literal
 
 from netcfg import cia301, links, model
 from netcfg.devices import DATA_TYPES
+from netcfg.runtime.config import PdoEntry
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_MAX_PAYLOAD
@@ -139,7 +140,7 @@ def resolve_pdo(
                 f"the event timer only acts with transmission type 254/255, not {tt}",
                 (*ppath, "event_timer"),
             )
-    entries: list[model.PdoEntry] = []
+    entries: list[PdoEntry] = []
     names: dict[str, int] = {}
     for k, item in enumerate(p.map):
         epath = (*ppath, "map", k)
@@ -153,7 +154,7 @@ def resolve_pdo(
                 r.err("pdo-dummy", "dummy entries (0x0001-0x0007) only pad RPDOs", epath)
             bits = DATA_TYPES[index][1]
             name = f"pad{k}"
-            entries.append(model.PdoEntry(index, sub, bits, name, index))
+            entries.append(PdoEntry(index, sub, bits, name, index))
             continue
         obj = None
         for h, dev in devices:
@@ -201,7 +202,7 @@ def resolve_pdo(
                 epath,
             )
         names[name] = k
-        entries.append(model.PdoEntry(index, sub, obj.bits, name, obj.data_type))
+        entries.append(PdoEntry(index, sub, obj.bits, name, obj.data_type))
     total = sum(e.bits for e in entries)
     limit = 8 * max_pdo_bytes(bus)
     if total > limit:
@@ -214,7 +215,7 @@ def resolve_pdo(
     pdo = model.Pdo(
         kind=kind,
         number=number,
-        device_node=device_node,
+        node=device_node,
         transmission=tt,
         inhibit_100us=inhibit_100us,
         event_timer_ms=timer_ms,

@@ -106,7 +106,7 @@ class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CAN
             )
         timing = cia301.tpdo_timing(tt, sync, pdo.event_timer_ms, pdo.inhibit_100us, kind, period, mit, jitter)
         if timing[0] == "sporadic" and timing[2] is None and pdo.event_timer_ms:
-            node = self.r.model.nodes.get(pdo.device_node)
+            node = self.r.model.nodes.get(pdo.node)
             dev = node.device if node is not None else None
             if dev is not None and not dev.tpdo_event_timer:
                 return None  # a timer the device lacks is reported at the PDO
@@ -130,7 +130,7 @@ class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CAN
     def message_id(self, m: schema.Message, pdo: model.Pdo | None, path: Path) -> int | None:
         ident = m.id
         if pdo is not None and ident is None:
-            node = self.r.spec_nodes[pdo.device_node]
+            node = self.r.spec_nodes[pdo.node]
             if node.node_id is None or node.node_id not in cia301.NODE_IDS:
                 return None  # a missing or wrong node id is reported at the node; the default follows once it is fixed
             ident = cia301.default_pdo_cob_id(pdo.kind, pdo.number, node.node_id)
@@ -147,7 +147,7 @@ class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CAN
         if m.implicit == "heartbeat":
             return m.producer
         if m.pdo is not None and not self.r.smap.has((*m.path, "id")):
-            return m.pdo.device_node  # the CiA 301 default COB-ID of its device's PDO
+            return m.pdo.node  # the CiA 301 default COB-ID of its device's PDO
         return None
 
     def reserved_ids(self, bus: model.Bus) -> dict[tuple[bool, int], str]:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 
 from netcfg import model
 from netcfg.links import ethercat as link
+from netcfg.runtime.config import PdoEntry
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 
@@ -149,7 +150,7 @@ def resolve_pdo(
             )
             return None
     entries = tuple(
-        model.PdoEntry(e[0], e[1], e[2], e[3], _data_type(e[4], e[2])) for e in pdo.entries if e[0] != 0
+        PdoEntry(e[0], e[1], e[2], e[3], _data_type(e[4], e[2])) for e in pdo.entries if e[0] != 0
     )
     if not entries:
         r.err("pdo", f"message '{m.name}': PDO 0x{index:04X} of slave '{slave.node}' maps nothing", ppath)
@@ -166,7 +167,7 @@ def logical_address(seg: Segment, slave: Slave, pdo: AssignedPdo) -> int:
 
 
 def find_pdo(seg: Segment, pdo: model.Pdo) -> tuple[Slave, AssignedPdo] | None:
-    slave = next((s for s in seg.slaves if s.node == pdo.device_node), None)
+    slave = next((s for s in seg.slaves if s.node == pdo.node), None)
     if slave is None:
         return None
     index = FIRST[pdo.kind] + pdo.number - 1
