@@ -10,7 +10,8 @@ a free identifier high enough, or else a slower rate of one named interferer.
 from __future__ import annotations
 
 import difflib
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Any
 
 from netcfg import links, model, protocols
@@ -115,14 +116,7 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
         if errors is not None:
             largest = max(f.c_ns for f in frames if f.priority_key <= me.priority_key)
             out["error_term_us"] = _us(r.error_ns)
-            out["error_term"] = {
-                "burst": errors.burst,
-                "interval_us": _us(errors.interval_ns),
-                "window_us": _us(w + me.c_ns),
-                "errors": errors.errors_in(w + me.c_ns),
-                "error_frame_us": _us(errors.error_frame_ns),
-                "largest_frame_us": _us(largest),
-            }
+            out["error_term"] = _error_term(errors, w + me.c_ns, largest)
         out["interferers"] = _interferers([f for f in frames if f.priority_key < me.priority_key], w, tau, ppm)
     promised = not (msg.may_be_lost and with_offsets[name].limit == "dropped")  # as check's verdict: none
     out["meets"] = None if me.d_ns is None or not promised else bound is not None and bound <= me.d_ns
@@ -130,9 +124,9 @@ def explain(m: model.Model, name: str) -> dict[str, Any]:
     if out["meets"] in (None, True):
         out["fix"] = None
     elif queue is not None:
-        out["fix"] = _priority_queue(m, bus, given, me, queue, tau)
+        out["fix"] = _priority_queue(_Trials(m, bus, given, me, tau), queue)
     else:
-        out["fix"] = one_change(m, bus, given, me, tau)
+        out["fix"] = one_change(_Trials(m, bus, given, me, tau))
     return out
 
 
@@ -180,17 +174,22 @@ def _fifo_terms(
     out["w_us"] = _us(w)
     if errors is not None:  # E(w + C_MIN), the largest frame of the bus resent (can_fifo)
         out["error_term_us"] = _us(b.error_ns)
-        out["error_term"] = {
-            "burst": errors.burst,
-            "interval_us": _us(errors.interval_ns),
-            "window_us": _us(b.queue_ns),
-            "errors": errors.errors_in(b.queue_ns),
-            "error_frame_us": _us(errors.error_frame_ns),
-            "largest_frame_us": _us(max(f.c_ns for f in frames)),
-        }
+        out["error_term"] = _error_term(errors, b.queue_ns, max(f.c_ns for f in frames))
     above = [f for f in frames if f.priority_key < lowest.priority_key and f.name not in q.members]
     out["interferers"] = _interferers(above, w, tau, ppm)
     return out
+
+
+def _error_term(errors: ErrorModel, window_ns: int, largest_ns: int) -> dict[str, Any]:
+    """E(window): the errors the model allows in the window, each an error frame and the largest frame resent."""
+    return {
+        "burst": errors.burst,
+        "interval_us": _us(errors.interval_ns),
+        "window_us": _us(window_ns),
+        "errors": errors.errors_in(window_ns),
+        "error_frame_us": _us(errors.error_frame_ns),
+        "largest_frame_us": _us(largest_ns),
+    }
 
 
 def _interferers(above: list[can_rta.CanFrame], w: int, tau: int, ppm: int) -> list[dict[str, Any]]:
@@ -213,25 +212,61 @@ def _interferers(above: list[can_rta.CanFrame], w: int, tau: int, ppm: int) -> l
     return out
 
 
-def _priority_queue(
-    m: model.Model,
-    bus: model.Bus,
-    frames: list[can_rta.CanFrame],
-    me: can_rta.CanFrame,
-    q: can_fifo.FifoQueue,
-    tau: int,
-) -> dict[str, Any] | None:
+@dataclass(frozen=True)
+class _Trials:
+    """A message that misses its deadline, on its bus as check analysed it: each change explain tries is a variant
+    of the bus (other frames, offsets or queues), bounded by the same FIFO and offset-aware analyses."""
+
+    m: model.Model
+    bus: model.Bus
+    frames: list[can_rta.CanFrame]
+    me: can_rta.CanFrame
+    tau: int
+
+    @cached_property
+    def fifo_of(self) -> dict[str, str]:
+        return fifo_senders(self.m, self.bus)
+
+    @cached_property
+    def release(self) -> dict[str, tuple[str, int]]:
+        return release_offsets(self.m, self.bus)
+
+    @cached_property
+    def errors(self) -> ErrorModel | None:
+        return error_model(self.bus)
+
+    def offsets(self, fifo_of: dict[str, str]) -> dict[str, tuple[str, int]]:
+        """The release offsets of the frames no FIFO of `fifo_of` queues (a FIFO member's are its queue's inputs)."""
+        return {n: o for n, o in self.release.items() if n not in fifo_of}
+
+    def fifo_inputs(self) -> dict[str, int]:
+        return fifo_inputs(self.m, self.bus, self.release)[0]
+
+    def bound(
+        self,
+        frames: list[can_rta.CanFrame],
+        offsets: dict[str, tuple[str, int]],
+        fifo_of: dict[str, str],
+        fifo_offsets: dict[str, int] | None = None,
+    ) -> int | None:
+        """The message's bound in this variant of the bus, or None when it still misses its deadline."""
+        ppm, errors, tau = self.bus.clock_tolerance_ppm, self.errors, self.tau
+        res = can_fifo.analyse(
+            frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors,
+            fifo_offsets,
+        ).responses
+        f = next(f for f in frames if f.name == self.me.name)
+        r = res[f.name].wcrt_ns
+        return r if r is not None and f.d_ns is not None and r <= f.d_ns else None
+
+
+def _priority_queue(t: _Trials, q: can_fifo.FifoQueue) -> dict[str, Any] | None:
     """A FIFO member's bound does not depend on its identifier; the change that matters is the queue itself."""
-    fifo_of = {n: node for n, node in fifo_senders(m, bus).items() if node != q.node}
-    offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
-    ppm = bus.clock_tolerance_ppm
-    errors = error_model(bus)
-    kept = {n: o for n, o in fifo_inputs(m, bus, release_offsets(m, bus))[0].items() if n in fifo_of}
-    res = can_fifo.analyse(
-        frames, tau, fifo_of, lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors), ppm, errors, kept
-    )
-    r = res.responses[me.name].wcrt_ns
-    if r is None or me.d_ns is None or r > me.d_ns:
+    me = t.me
+    fifo_of = {n: node for n, node in t.fifo_of.items() if node != q.node}
+    kept = {n: o for n, o in t.fifo_inputs().items() if n in fifo_of}
+    r = t.bound(t.frames, t.offsets(fifo_of), fifo_of, kept)
+    if r is None or me.d_ns is None:
         return None
     return {
         "kind": "queue",
@@ -249,47 +284,18 @@ def _blocking(frames: list[can_rta.CanFrame], me: can_rta.CanFrame) -> dict[str,
     return {"by": worst.name, "us": _us(worst.c_ns)}
 
 
-def _meets(
-    frames: list[can_rta.CanFrame],
-    name: str,
-    tau: int,
-    offsets: dict[str, tuple[str, int]],
-    ppm: int,
-    errors: ErrorModel | None = None,
-    fifo_of: dict[str, str] | None = None,
-    fifo_offsets: dict[str, int] | None = None,
-) -> int | None:
-    """The bound of `name` in this variant of the bus, or None when it still misses its deadline."""
-    res = can_fifo.analyse(
-        frames,
-        tau,
-        fifo_of or {},
-        lambda fs: can_offsets.analyse(fs, tau, offsets, ppm, errors),
-        ppm,
-        errors,
-        fifo_offsets,
-    ).responses
-    f = next(f for f in frames if f.name == name)
-    r = res[name].wcrt_ns
-    return r if r is not None and f.d_ns is not None and r <= f.d_ns else None
-
-
-def one_change(
-    m: model.Model, bus: model.Bus, frames: list[can_rta.CanFrame], me: can_rta.CanFrame, tau: int
-) -> dict[str, Any] | None:
+def one_change(t: _Trials) -> dict[str, Any] | None:
     """A free identifier for the message that makes it meet its deadline (the largest such, the least change in
-    priority), else a longer period for the one interferer that needs the smallest slow-down."""
-    fifo_of = fifo_senders(m, bus)
-    offsets = {n: o for n, o in release_offsets(m, bus).items() if n not in fifo_of}
-    fifo_offsets = fifo_inputs(m, bus, release_offsets(m, bus))[0]
-    errors = error_model(bus)
+    priority), else an offset, else a longer period for the one interferer that needs the smallest slow-down."""
+    frames, me = t.frames, t.me
+    fifo_of, offsets, fifo_offsets = t.fifo_of, t.offsets(t.fifo_of), t.fifo_inputs()
     taken = {(f.extended, f.id) for f in frames}
     others = [f for f in frames if f.name != me.name]
     for ident in range(me.id - 1, -1, -1):
         if (me.extended, ident) in taken:
             continue
         trial = [*others, replace(me, id=ident)]
-        r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of, fifo_offsets)
+        r = t.bound(trial, offsets, fifo_of, fifo_offsets)
         if r is not None:
             above = [f for f in others if f.priority_key > trial[-1].priority_key and f.priority_key < me.priority_key]
             passed = min(above, key=lambda f: f.priority_key).name if above else None
@@ -303,7 +309,7 @@ def one_change(
             }
         if ident < me.id - 4096:  # far enough: the rest of the range only adds priority it does not need
             break
-    offset = _offset_change(m, bus, frames, me, tau, offsets)
+    offset = _offset_change(t, offsets)
     if offset is not None:
         return offset
     best: dict[str, Any] | None = None
@@ -312,7 +318,7 @@ def one_change(
         for factor in (2, 3, 4, 5, 10, 20, 50, 100):
             period = f.t_ns * factor
             trial = [replace(g, t_ns=period, d_ns=max(g.d_ns or 0, period)) if g is f else g for g in frames]
-            r = _meets(trial, me.name, tau, offsets, bus.clock_tolerance_ppm, errors, fifo_of, fifo_offsets)
+            r = t.bound(trial, offsets, fifo_of, fifo_offsets)
             if r is not None:
                 if best is None or factor < best["factor"]:
                     best = {
@@ -328,27 +334,21 @@ def one_change(
     return best
 
 
-def _offset_change(
-    m: model.Model,
-    bus: model.Bus,
-    frames: list[can_rta.CanFrame],
-    me: can_rta.CanFrame,
-    tau: int,
-    offsets: dict[str, tuple[str, int]],
-) -> dict[str, Any] | None:
+def _offset_change(t: _Trials, offsets: dict[str, tuple[str, int]]) -> dict[str, Any] | None:
     """An offset for the message, against the offsets its sender's other messages already have."""
-    msg = m.messages[me.name]
+    me = t.me
+    msg = t.m.messages[me.name]
     producer = msg.producer
     if not me.t_ns or not any(n != me.name and p == producer for n, (p, _) in offsets.items()):
         return None
     trial = {**offsets, me.name: (producer, 0)}
-    if me.name not in release_offsets(m, bus) and (msg.kind != "periodic" or msg.period_ns != msg.interval_ns):
+    if me.name not in t.release and (msg.kind != "periodic" or msg.period_ns != msg.interval_ns):
         return None
     step = round_step(me.t_ns // 64, 1000)
     best: tuple[int, int] | None = None  # (bound, offset): the offset that leaves the most slack
     for o in range(0, me.t_ns, step):
         trial[me.name] = (producer, o)
-        r = _meets(frames, me.name, tau, trial, bus.clock_tolerance_ppm, error_model(bus), fifo_senders(m, bus))
+        r = t.bound(t.frames, trial, t.fifo_of)
         if r is not None and (best is None or r < best[0]):
             best = (r, o)
     if best is None:
