@@ -16,11 +16,11 @@ if TYPE_CHECKING:
     from netcfg.timing.ftt_schedule import Schedule
 from netcfg.runtime.config import (  # the same records in runtime.json: defined once, there
     FlowStep,
-    PdoParameters,
     TaskTiming,
     TriggerTiming,
     TxQueue,
 )
+from netcfg.runtime.pdos import PdoParameters
 from netcfg.spec.source import Path, SourceMap
 
 Protocol = Literal["can", "can-fd", "canopen", "ftt-can", "ethernet-udp", "ethercat"]

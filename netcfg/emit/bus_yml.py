@@ -34,7 +34,7 @@ from netcfg.emit.bus_yml_spec import SPEC_NOTE, spec_notes
 from netcfg.importers.bus_yml_keys import default_timing, safe_name
 from netcfg.model import Bus, Joint, Message, Model, Node
 from netcfg.resolve import snake
-from netcfg.runtime.config import PdoEntry
+from netcfg.runtime.pdos import PdoEntry
 from netcfg.templating import render
 
 TEMPLATE = "bus_yml.j2"

@@ -45,8 +45,6 @@ if TYPE_CHECKING:
         Message,
         Node,
         NodeIdentity,
-        Pdo,
-        PdoEntry,
         RuntimeConfig,
         SdoWrite,
         Signal,
@@ -61,6 +59,7 @@ if TYPE_CHECKING:
         raw_signal_name,
     )
     from netcfg.runtime.loader import FORMAT, SUPPORTED_VERSIONS, RuntimeConfigError, load, parse, read_document
+    from netcfg.runtime.pdos import Pdo, PdoEntry
 
 __all__ = [
     "FORMAT",
@@ -98,12 +97,13 @@ __all__ = [
 ]
 
 # The names below load their module on first use (PEP 562): netcfg.runtime.codec alone (the DBC importer's
-# payload layout) then costs no dataclasses, hashing or difflib it does not use. Every public name not the loader's
-# or the codec's is the config's.
+# payload layout) then costs no dataclasses, hashing or difflib it does not use. Every public name not the loader's,
+# the codec's or the PDO records' is the config's.
 _LOADER_NAMES = ("FORMAT", "SUPPORTED_VERSIONS", "RuntimeConfigError", "load", "parse", "read_document")
 _HOME: dict[str, str] = dict.fromkeys((*__all__, "CAN_LINKS", "FD_PADDING"), "netcfg.runtime.config")
 _HOME.update(dict.fromkeys(_LOADER_NAMES, "netcfg.runtime.loader"))
 _HOME["CodecError"] = "netcfg.runtime.codec"
+_HOME.update(dict.fromkeys(("Pdo", "PdoEntry"), "netcfg.runtime.pdos"))
 
 
 def __getattr__(name: str) -> Any:

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from netcfg.inputs import InputError, JsonInputError, parse_json, read_input_text
-from netcfg.runtime import config
+from netcfg.runtime import config, pdos
 from netcfg.runtime.actuators import Actuator, ActuatorCommand
 from netcfg.runtime.config import RuntimeConfig
 from netcfg.runtime.schema import bus_link, check_document
@@ -284,7 +284,7 @@ def _message(d: dict[str, Any], protocol: str, link: str) -> config.Message:
         udp=None if udp is None else _record(config.UdpPorts, udp),
         pdo=None
         if pdo is None
-        else _record(config.Pdo, pdo, entries=tuple(_record(config.PdoEntry, e) for e in pdo["entries"])),
+        else _record(pdos.Pdo, pdo, entries=tuple(_record(pdos.PdoEntry, e) for e in pdo["entries"])),
         signals=tuple(
             config.Signal(
                 name=s["name"],

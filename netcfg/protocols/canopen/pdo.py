@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Literal
 
 from netcfg import cia301, links, model
 from netcfg.devices import DATA_TYPES
-from netcfg.runtime.config import PdoEntry
+from netcfg.runtime.pdos import PdoEntry
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 from netcfg.timing.frames import CAN_MAX_PAYLOAD, CANFD_MAX_PAYLOAD

@@ -22,7 +22,7 @@ from defusedxml import DefusedXmlException
 from defusedxml.ElementTree import DefusedXMLParser
 
 from netcfg.inputs import InputError, read_input_bytes
-from netcfg.runtime.config import MappedObject
+from netcfg.runtime.pdos import MappedObject
 
 WHAT = "ESI"
 

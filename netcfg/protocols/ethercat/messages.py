@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 from netcfg import model
 from netcfg.links import ethercat as link
-from netcfg.runtime.config import PdoEntry
+from netcfg.runtime.pdos import PdoEntry
 from netcfg.spec import schema
 from netcfg.spec.source import Path
 
