@@ -88,6 +88,9 @@ class Signal:
     mux_values: tuple[int, ...] = ()  # ... holds one of these raw values
     choices: tuple[tuple[int, str], ...] = ()  # value names (DBC VAL_), by raw value
     is_multiplexer: bool = False  # another signal of the message names this one as its mux
+    # MIT packing over [lo, hi] (netcfg.runtime.actuators.span_to_raw): raw = trunc((x - lo) * (2^bits - 1) /
+    # (hi - lo)); scale and offset are its linear map (what a DBC can say of it)
+    span: tuple[float, float] | None = None
 
 
 @dataclass

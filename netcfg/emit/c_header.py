@@ -82,6 +82,7 @@ class SignalView:
     set_lo: int | None = None  # "scaled", float setter: bounds on the rounded raw held in an int64_t / uint64_t
     set_hi: int | None = None
     fixed: FixedPoint | None = None  # "scaled": the exact rational scale and offset, when they fit int64_t
+    span: tuple[str, str, str] | None = None  # MIT-packed: lo, hi and 2^bits - 1 as C double literals
 
 
 @dataclass(frozen=True)
@@ -262,6 +263,7 @@ def signal_view(
         mux_depth=_depth(sig, by_name),
         enum_type=f"msg_{message}_{sig.name}" if sig.choices else None,
         enum=_enum(message, sig, taken if taken is not None else set()) if sig.choices else (),
+        span=None if sig.span is None else (_double(sig.span[0]), _double(sig.span[1]), _double((1 << sig.bits) - 1)),
     )
 
 

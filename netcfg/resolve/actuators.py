@@ -363,8 +363,9 @@ def _limits(profile: str, mc: MessageCodec) -> str:
     span = [f.name for f in mc.payload if f.encoding == "span"]
     const = [f.name for f in mc.payload if f.const is not None]
     if span:
-        words.append(f"{', '.join(span)} MIT-packed: the device and netcfg.runtime.actuators truncate to the count "
-                     "below, a signal's factor rounds to the nearest (at most one count apart)")
+        words.append(f"{', '.join(span)} MIT-packed: the device, netcfg.runtime.actuators and the C header's setters "
+                     "truncate to the count below, a DBC signal's factor rounds to the nearest (at most one count "
+                     "apart)")
     if const:
         words.append(f"constant {', '.join(const)} written by the codec, not signals")
     if mc.fixed is not None:
@@ -385,4 +386,5 @@ def _signal(f: Any, plain: dict[str, Any]) -> model.Signal:
         name=f.name, start_bit=f.layout.start_bit, bits=f.bits, signed=v.signed, is_float=v.is_float, scale=scale,
         offset=offset, minimum=f.lo, maximum=f.hi, unit=None if unit == "1" else unit,
         big_endian=f.layout.big_endian, choices=tuple(sorted(f.choices.items())),
+        span=(f.lo, f.hi) if f.encoding == "span" else None,
     )
