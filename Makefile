@@ -24,7 +24,10 @@ test: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks docs/gen
 	$(BIN)/mypy
 	$(BIN)/mkdocs build --strict --quiet  # the site builds without a warning (a few seconds)
-	$(BIN)/python -m pytest  # tests/test_layers.py runs the layer contracts (lint-imports) too
+	# one worker per core (tests/test_layers.py runs the layer contracts, lint-imports, too); then the live masters on
+	# the wall clock alone, with the cores to themselves (tests/conftest.py LIVE_MODULES)
+	$(BIN)/python -m pytest -n auto --dist loadfile -m "not live"
+	$(BIN)/python -m pytest -m live
 
 lint: $(BIN)/.installed
 	$(BIN)/ruff check netcfg tests benchmarks docs/gen

@@ -23,6 +23,21 @@ SPECS = ROOT / "specs"
 SHARED = ROOT.parent / "shared"
 EPOS4_EDS = SHARED / "devices" / "maxon_epos4_50-5.eds"
 
+# The modules whose tests run a master on the wall clock (python-can's virtual bus, the simulated drives and
+# actuators as threads of the test's own process) and judge it against the analysis' bounds. They are marked `live`:
+# `make test` runs them after the others, alone, so that no other test shares the cores with them; the others run
+# one worker per core (pytest-xdist).
+LIVE_MODULES = frozenset({
+    "test_actuator_remote", "test_canopen_master", "test_closure_run_verify", "test_fault_drills", "test_run",
+    "test_run_actuators", "test_udp_runtime", "test_verify_fault_phases",
+})
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.path.stem in LIVE_MODULES:
+            item.add_marker(pytest.mark.live)
+
 
 def check(path: Path) -> dict[str, Any]:
     from netcfg.check import check as run
