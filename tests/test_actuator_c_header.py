@@ -1,7 +1,10 @@
 """The C header of an actuator bus against the vendor's own code, byte for byte: examples/arm_damiao.yaml's
 controller.h, compiled with gcc -std=c99 -Wall -Wextra -Wpedantic -Werror, packs 1,000 random in-range MIT
 commands as damiao-motor's DaMiaoMotor.send_cmd_mit sends them (and as netcfg's Python codec encodes them), and
-reads 1,000 random feedback frames as its decode_sensor_feedback does.
+reads 1,000 random feedback frames as its decode_sensor_feedback does. An ODrive axis's host.h packs 1,000 random
+Set_Input_Pos and Set_Input_Vel commands as cantools encodes them with odrive-can's own
+odrive-cansimple-0.6.10.dbc (its Vel_FF and Torque_FF are int16 at factor 0.001: the header rounds half to even as
+cantools and the Python codec do).
 
 The MIT packing is damiao-motor's float_to_uint, raw = int((x - lo) * (2^bits - 1) / (hi - lo)), truncated, in
 binary64; its reading uint_to_float, raw * (hi - lo) / (2^bits - 1) + lo. The header's setters and getters of
@@ -14,11 +17,15 @@ from __future__ import annotations
 
 import random
 import shutil
+import struct
 import subprocess
 from pathlib import Path
 
+import cantools
 import damiao_motor.core.motor as dm
+import odrive_can
 import pytest
+import yaml
 from conftest import ROOT, cli
 from test_actuator_vendors import CaptureBus, N
 
@@ -133,3 +140,96 @@ def test_the_header_reads_feedback_as_damiao_motor(driver: Path) -> None:
         theirs = dm.DaMiaoMotor(1, 0x11, CaptureBus(), motor_type="4310").decode_sensor_feedback(  # type: ignore[arg-type]
             data)
         assert [float(x) for x in line.split()] == [theirs["pos"], theirs["vel"], theirs["torq"]], data.hex()
+
+
+ODRIVE_DRIVER = r"""
+#define NETCFG_FLOAT_ACCESSORS
+#include "host.h"
+#include <stdio.h>
+
+static void hex(const uint8_t *d, int n)
+{
+    int i;
+    for (i = 0; i < n; i++) {
+        printf("%02x", d[i]);
+    }
+    printf("\n");
+}
+
+/* "p POS VEL_FF TORQUE_FF": Set_Input_Pos; "v VEL TORQUE_FF": Set_Input_Vel; packed, in hex, or "refused" */
+int main(void)
+{
+    char kind;
+    while (scanf(" %c", &kind) == 1) {
+        double a, b, c;
+        if (kind == 'p') {
+            struct msg_axis_set_input_pos m;
+            uint8_t d[MSG_AXIS_SET_INPUT_POS_SIZE];
+            if (scanf("%lf %lf %lf", &a, &b, &c) != 3) {
+                return 2;
+            }
+            memset(&m, 0, sizeof m);
+            m.input_pos = (float)a;
+            if (!(msg_axis_set_input_pos_vel_ff_set(&m, b) && msg_axis_set_input_pos_torque_ff_set(&m, c)
+                  && msg_axis_set_input_pos_pack(d, &m))) {
+                printf("refused\n");
+                continue;
+            }
+            hex(d, MSG_AXIS_SET_INPUT_POS_SIZE);
+        } else {
+            struct msg_axis_set_input_vel m;
+            uint8_t d[MSG_AXIS_SET_INPUT_VEL_SIZE];
+            if (scanf("%lf %lf", &a, &b) != 2) {
+                return 2;
+            }
+            m.input_vel = (float)a;
+            m.input_torque_ff = (float)b;
+            if (!msg_axis_set_input_vel_pack(d, &m)) {
+                printf("refused\n");
+                continue;
+            }
+            hex(d, MSG_AXIS_SET_INPUT_VEL_SIZE);
+        }
+    }
+    return 0;
+}
+"""
+
+
+def odrive_spec(node: int) -> dict[str, object]:
+    axis = {"name": "axis", "node_id": node, "buses": ["can0"], "device": "odrive-cansimple",
+            "actuator": {"commands": [{"message": "set_input_pos", "rate": "100 Hz"},
+                                      {"message": "set_input_vel", "rate": "100 Hz"}]}}
+    return {"system": "odrive_c", "buses": [{"name": "can0", "protocol": "can", "bitrate": "1 Mbit/s"}],
+            "nodes": [{"name": "host", "role": "master", "buses": ["can0"]}, axis]}
+
+
+def test_the_header_packs_odrive_commands_as_the_vendor_dbc(tmp_path: Path) -> None:
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed")
+    node = 3
+    spec = tmp_path / "odrive.yaml"
+    spec.write_text(yaml.safe_dump(odrive_spec(node), sort_keys=False))
+    proc = cli("build", str(spec), "-o", str(tmp_path / "build"))
+    assert proc.returncode == 0, proc.stderr
+    (tmp_path / "driver.c").write_text(ODRIVE_DRIVER)
+    exe = tmp_path / "driver"
+    gcc = subprocess.run([*GCC, "-I", str(tmp_path / "build" / "c"), str(tmp_path / "driver.c"), "-o", str(exe)],
+                         capture_output=True, text=True)
+    assert gcc.returncode == 0, gcc.stderr
+    db = cantools.database.load_file(str(Path(odrive_can.__file__).parent / "dbc" / "odrive-cansimple-0.6.10.dbc"))
+    assert isinstance(db, cantools.database.can.Database)
+    pos, vel = db.get_message_by_name(f"Axis{node}_Set_Input_Pos"), db.get_message_by_name(f"Axis{node}_Set_Input_Vel")
+    rng = random.Random(37)
+    lines, theirs = [], []
+    for i in range(N):
+        a, b, c = rng.uniform(-100, 100), rng.uniform(-32.7, 32.7), rng.uniform(-32.7, 32.7)  # int16 * 0.001: +-32.767
+        a32 = struct.unpack("<f", struct.pack("<f", a))[0]  # the float the frame carries
+        if i % 2 == 0:
+            lines.append(f"p {a!r} {b!r} {c!r}")
+            theirs.append(pos.encode({"Input_Pos": a32, "Vel_FF": b, "Torque_FF": c}).hex())
+        else:
+            b32 = struct.unpack("<f", struct.pack("<f", b))[0]
+            lines.append(f"v {a!r} {b!r}")
+            theirs.append(vel.encode({"Input_Vel": a32, "Input_Torque_FF": b32}).hex())
+    assert run(exe, lines) == theirs
