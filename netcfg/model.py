@@ -126,6 +126,9 @@ class Message:
     # a remote frame (RTR recessive, ISO 11898-1): no data field (size 0), it asks for the data frame of its identifier,
     # which wins arbitration over it; the one case two messages of a bus share an identifier (links.can)
     remote: bool = False
+    # the payload a frame starts from before its signals are written, where it is not zeros: an actuator profile's
+    # constant fields and padding (netcfg.runtime.actuators.MessageCodec.base)
+    base_payload: bytes | None = None
 
     @property
     def frame_size(self) -> int:

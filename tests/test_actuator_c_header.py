@@ -15,6 +15,7 @@ velocity +-30 rad/s, torque +-10 Nm, kp 0..500, kd 0..5 (the profile's defaults,
 
 from __future__ import annotations
 
+import math
 import random
 import shutil
 import struct
@@ -232,4 +233,74 @@ def test_the_header_packs_odrive_commands_as_the_vendor_dbc(tmp_path: Path) -> N
             b32 = struct.unpack("<f", struct.pack("<f", b))[0]
             lines.append(f"v {a!r} {b!r}")
             theirs.append(vel.encode({"Input_Vel": a32, "Input_Torque_FF": b32}).hex())
+    assert run(exe, lines) == theirs
+
+
+MOTEUS_DRIVER = r"""
+#include "host.h"
+#include <stdio.h>
+
+/* "POS VEL FF_TORQUE KP_SCALE KD_SCALE MAX_TORQUE" (the profile's units, revolutions): the position command with
+   its query, packed as one CAN FD frame, in hex, or "refused" */
+int main(void)
+{
+    double x[6];
+    while (scanf("%lf %lf %lf %lf %lf %lf", &x[0], &x[1], &x[2], &x[3], &x[4], &x[5]) == 6) {
+        struct msg_joint_position_query m;
+        uint8_t d[MSG_JOINT_POSITION_QUERY_FRAME_SIZE];
+        int i;
+        m.position = (float)x[0];
+        m.velocity = (float)x[1];
+        m.feedforward_torque = (float)x[2];
+        m.kp_scale = (float)x[3];
+        m.kd_scale = (float)x[4];
+        m.maximum_torque = (float)x[5];
+        if (!msg_joint_position_query_pack(d, &m)) {
+            printf("refused\n");
+            continue;
+        }
+        for (i = 0; i < MSG_JOINT_POSITION_QUERY_FRAME_SIZE; i++) {
+            printf("%02x", d[i]);
+        }
+        printf("\n");
+    }
+    return 0;
+}
+"""
+
+
+def test_the_header_packs_moteus_position_commands_as_moteus(tmp_path: Path) -> None:
+    """moteus's register subframes (write the mode, write six float32 registers from 0x020, read back) are constant
+    fields of the profile's message and its padding 0x50 the protocol's no-op: the header's pack starts from that
+    frame and writes the six floats into it, as moteus's Controller.make_position(query=True) frames it."""
+    import moteus
+    from test_actuator_vendors import _moteus_frame
+
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed")
+    node, host = 1, 0
+    joint = {"name": "joint", "node_id": node, "buses": ["fd0"], "device": "moteus",
+             "actuator": {"commands": [{"message": "position_query", "rate": "100 Hz"}]}}
+    spec = tmp_path / "moteus.yaml"
+    spec.write_text(yaml.safe_dump({
+        "system": "moteus_c",
+        "buses": [{"name": "fd0", "protocol": "can-fd", "bitrate": "1 Mbit/s", "data_bitrate": "5 Mbit/s"}],
+        "nodes": [{"name": "host", "role": "master", "buses": ["fd0"]}, joint]}, sort_keys=False))
+    proc = cli("build", str(spec), "-o", str(tmp_path / "build"))
+    assert proc.returncode == 0, proc.stderr
+    (tmp_path / "driver.c").write_text(MOTEUS_DRIVER)
+    exe = tmp_path / "driver"
+    gcc = subprocess.run([*GCC, "-I", str(tmp_path / "build" / "c"), str(tmp_path / "driver.c"), "-o", str(exe)],
+                         capture_output=True, text=True)
+    assert gcc.returncode == 0, gcc.stderr
+    rng = random.Random(4)
+    lines, theirs = [], []
+    for i in range(N):
+        x = [rng.uniform(-100, 100) if i % 20 else math.nan, rng.uniform(-50, 50), rng.uniform(-20, 20),
+             rng.uniform(0, 1), rng.uniform(0, 1), rng.uniform(0, 30)]  # NaN: hold the present position
+        lines.append(" ".join(repr(v) for v in x))
+        cmd = moteus.Controller(id=node, source_can_id=host).make_position(
+            position=x[0], velocity=x[1], feedforward_torque=x[2], kp_scale=x[3], kd_scale=x[4],
+            maximum_torque=x[5], query=True)
+        theirs.append(_moteus_frame(cmd)[2].hex())
     assert run(exe, lines) == theirs

@@ -306,6 +306,7 @@ class MessageView:
     frame_size: int = 0
     dlc: int = 0
     remote: bool = False  # a remote frame (RTR): no data, DLC dlc (the length of the data frame it asks for)
+    base: tuple[str, ...] | None = None  # the bytes pack starts from (constant fields, padding), C rows; None: zeros
 
 
 @dataclass(frozen=True)
@@ -400,6 +401,15 @@ def message_view(msg: model.Message, node: str, bus: model.Bus, ftt_views: dict[
         pack_order=tuple(sorted(sigs, key=lambda s: s.mux_depth)),
         description=_description(msg),
         dlc=canfd_dlc(msg.size) if msg.fd else _requested_size(msg, bus) if msg.remote else msg.size,
+        # a CAN FD frame's bytes beyond the payload are zeros, as everywhere (runtime Message.to_can)
+        base=None if msg.base_payload is None else _byte_rows(msg.base_payload.ljust(msg.frame_size, b"\0")),
+    )
+
+
+def _byte_rows(data: bytes, per_row: int = 12) -> tuple[str, ...]:
+    """A C initializer's rows: "0x01, 0x00, ..." (each row ends with a comma, as C99 allows of the last)."""
+    return tuple(
+        " ".join(f"0x{b:02X}," for b in data[k : k + per_row]) for k in range(0, len(data), per_row)
     )
 
 

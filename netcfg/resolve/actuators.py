@@ -351,6 +351,7 @@ class _Actuator:
             interval_ns=period, offset_ns=None, offset_auto=False, deadline_ns=period, jitter_ns=0, path=path,
             signals=tuple(_signal(f, fields[f.name]) for f in mc.payload if f.const is None), description=description,
             fd=fd, brs=fd, fixed_by=f"actuator profile {self.profile.name}", remote=mc.is_remote,
+            base_payload=mc.base if any(mc.base) else None,
         )
         self.r.model.messages[name] = msg
         bus.messages.append(msg)
@@ -367,7 +368,7 @@ def _limits(profile: str, mc: MessageCodec) -> str:
                      "truncate to the count below, a DBC signal's factor rounds to the nearest (at most one count "
                      "apart)")
     if const:
-        words.append(f"constant {', '.join(const)} written by the codec, not signals")
+        words.append(f"constant {', '.join(const)} written by the codec and a C header's pack, not signals")
     if mc.fixed is not None:
         words.append(f"fixed payload {mc.fixed.hex(' ').upper()}")
     return "; ".join(words)

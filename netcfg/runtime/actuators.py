@@ -252,6 +252,20 @@ class MessageCodec:
                     touched[op.index] = 1
         self._untouched = [i for i, t in enumerate(touched) if not t]
 
+    @property
+    def base(self) -> bytes:
+        """The payload before its fields are written: a fixed frame as it is; else the constant fields in place and
+        the padding where no field is, zeros under the other fields (what encode() ORs them into, and a C header's
+        pack starts from)."""
+        if self.fixed is not None or self.is_remote:
+            return self.fixed or b""
+        consts = {f.name: (f.layout, f.const) for f in self.payload if f.const is not None}
+        packed = bytearray(encode_fields([layout for layout, _ in consts.values()], self.size,
+                                         {name: value for name, (_, value) in consts.items()}))
+        for i in self._untouched:
+            packed[i] = self.pad
+        return bytes(packed)
+
     def _frame_extended(self, arbitration_id: int) -> bool:
         return arbitration_id > 0x7FF if self.extended == "auto" else bool(self.extended)
 
