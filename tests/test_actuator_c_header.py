@@ -87,19 +87,23 @@ int main(void)
 """
 
 
-@pytest.fixture(scope="module")
-def driver(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def compiled(folder: Path, spec: Path, source: str) -> Path:
+    """`netcfg build` of the spec into folder, and the driver `source` compiled against its C headers."""
     if shutil.which("gcc") is None:
         pytest.skip("gcc is not installed")
-    out = tmp_path_factory.mktemp("arm_damiao")
-    proc = cli("build", str(ROOT / "examples" / "arm_damiao.yaml"), "-o", str(out / "build"))
+    proc = cli("build", str(spec), "-o", str(folder / "build"))
     assert proc.returncode == 0, proc.stderr
-    (out / "driver.c").write_text(DRIVER)
-    exe = out / "driver"
-    gcc = subprocess.run([*GCC, "-I", str(out / "build" / "c"), str(out / "driver.c"), "-o", str(exe)],
+    (folder / "driver.c").write_text(source)
+    exe = folder / "driver"
+    gcc = subprocess.run([*GCC, "-I", str(folder / "build" / "c"), str(folder / "driver.c"), "-o", str(exe)],
                          capture_output=True, text=True)
     assert gcc.returncode == 0, gcc.stderr
     return exe
+
+
+@pytest.fixture(scope="module")
+def driver(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return compiled(tmp_path_factory.mktemp("arm_damiao"), ROOT / "examples" / "arm_damiao.yaml", DRIVER)
 
 
 def run(exe: Path, lines: list[str]) -> list[str]:
@@ -206,18 +210,10 @@ def odrive_spec(node: int) -> dict[str, object]:
 
 
 def test_the_header_packs_odrive_commands_as_the_vendor_dbc(tmp_path: Path) -> None:
-    if shutil.which("gcc") is None:
-        pytest.skip("gcc is not installed")
     node = 3
     spec = tmp_path / "odrive.yaml"
     spec.write_text(yaml.safe_dump(odrive_spec(node), sort_keys=False))
-    proc = cli("build", str(spec), "-o", str(tmp_path / "build"))
-    assert proc.returncode == 0, proc.stderr
-    (tmp_path / "driver.c").write_text(ODRIVE_DRIVER)
-    exe = tmp_path / "driver"
-    gcc = subprocess.run([*GCC, "-I", str(tmp_path / "build" / "c"), str(tmp_path / "driver.c"), "-o", str(exe)],
-                         capture_output=True, text=True)
-    assert gcc.returncode == 0, gcc.stderr
+    exe = compiled(tmp_path, spec, ODRIVE_DRIVER)
     db = cantools.database.load_file(str(Path(odrive_can.__file__).parent / "dbc" / "odrive-cansimple-0.6.10.dbc"))
     assert isinstance(db, cantools.database.can.Database)
     pos, vel = db.get_message_by_name(f"Axis{node}_Set_Input_Pos"), db.get_message_by_name(f"Axis{node}_Set_Input_Vel")
@@ -276,8 +272,6 @@ def test_the_header_packs_moteus_position_commands_as_moteus(tmp_path: Path) -> 
     import moteus
     from test_actuator_vendors import _moteus_frame
 
-    if shutil.which("gcc") is None:
-        pytest.skip("gcc is not installed")
     node, host = 1, 0
     joint = {"name": "joint", "node_id": node, "buses": ["fd0"], "device": "moteus",
              "actuator": {"commands": [{"message": "position_query", "rate": "100 Hz"}]}}
@@ -286,13 +280,7 @@ def test_the_header_packs_moteus_position_commands_as_moteus(tmp_path: Path) -> 
         "system": "moteus_c",
         "buses": [{"name": "fd0", "protocol": "can-fd", "bitrate": "1 Mbit/s", "data_bitrate": "5 Mbit/s"}],
         "nodes": [{"name": "host", "role": "master", "buses": ["fd0"]}, joint]}, sort_keys=False))
-    proc = cli("build", str(spec), "-o", str(tmp_path / "build"))
-    assert proc.returncode == 0, proc.stderr
-    (tmp_path / "driver.c").write_text(MOTEUS_DRIVER)
-    exe = tmp_path / "driver"
-    gcc = subprocess.run([*GCC, "-I", str(tmp_path / "build" / "c"), str(tmp_path / "driver.c"), "-o", str(exe)],
-                         capture_output=True, text=True)
-    assert gcc.returncode == 0, gcc.stderr
+    exe = compiled(tmp_path, spec, MOTEUS_DRIVER)
     rng = random.Random(4)
     lines, theirs = [], []
     for i in range(N):
