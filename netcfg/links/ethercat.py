@@ -10,13 +10,8 @@ payload less the EtherCAT header): 1,486 bytes of data in one datagram, the figu
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from netcfg.links.base import Link
 from netcfg.timing.ethernet import PROPAGATION_M_PER_S
-
-if TYPE_CHECKING:
-    from netcfg.rules import BusRules
 
 PREAMBLE_SFD = 8
 ETHERNET_HEADER = 14
@@ -59,12 +54,7 @@ def split_image(total: int) -> list[int]:
 class EtherCat(Link):
     name = "ethercat"
     title = "EtherCAT"
-    arbitrates = False
-
-    def rules(self) -> type[BusRules]:
-        from netcfg.rules import BusRules
-
-        return BusRules
+    arbitrates = False  # the base Link's rules (BusRules): EtherCAT asks nothing of a bus beyond them
 
     def offsets_unused(self) -> str | None:
         return "EtherCAT's process data travels in the master's cyclic frame: it has no release offset of its own"
