@@ -50,7 +50,6 @@ int main(void)
             double p, v, kp, kd, t;
             struct msg_shoulder_mit_command c;
             uint8_t d[MSG_SHOULDER_MIT_COMMAND_SIZE];
-            int i;
             if (scanf("%lf %lf %lf %lf %lf", &p, &v, &kp, &kd, &t) != 5) {
                 return 2;
             }
@@ -62,10 +61,7 @@ int main(void)
                 printf("refused\n");
                 continue;
             }
-            for (i = 0; i < MSG_SHOULDER_MIT_COMMAND_SIZE; i++) {
-                printf("%02x", d[i]);
-            }
-            printf("\n");
+            print_frame(d, MSG_SHOULDER_MIT_COMMAND_SIZE);
         } else {
             unsigned int b[MSG_SHOULDER_FEEDBACK_SIZE];
             uint8_t d[MSG_SHOULDER_FEEDBACK_SIZE];
@@ -87,13 +83,30 @@ int main(void)
 """
 
 
+# what every driver prints: a packed frame, in hex, on a line of its own
+PRINT_FRAME = r"""
+#include <stdint.h>
+#include <stdio.h>
+
+static void print_frame(const uint8_t *d, int n)
+{
+    int i;
+    for (i = 0; i < n; i++) {
+        printf("%02x", d[i]);
+    }
+    printf("\n");
+}
+"""
+
+
 def compiled(folder: Path, spec: Path, source: str) -> Path:
-    """`netcfg build` of the spec into folder, and the driver `source` compiled against its C headers."""
+    """`netcfg build` of the spec into folder, and the driver `source` (after PRINT_FRAME) compiled against its C
+    headers."""
     if shutil.which("gcc") is None:
         pytest.skip("gcc is not installed")
     proc = cli("build", str(spec), "-o", str(folder / "build"))
     assert proc.returncode == 0, proc.stderr
-    (folder / "driver.c").write_text(source)
+    (folder / "driver.c").write_text(PRINT_FRAME + source)
     exe = folder / "driver"
     gcc = subprocess.run([*GCC, "-I", str(folder / "build" / "c"), str(folder / "driver.c"), "-o", str(exe)],
                          capture_output=True, text=True)
@@ -152,15 +165,6 @@ ODRIVE_DRIVER = r"""
 #include "host.h"
 #include <stdio.h>
 
-static void hex(const uint8_t *d, int n)
-{
-    int i;
-    for (i = 0; i < n; i++) {
-        printf("%02x", d[i]);
-    }
-    printf("\n");
-}
-
 /* "p POS VEL_FF TORQUE_FF": Set_Input_Pos; "v VEL TORQUE_FF": Set_Input_Vel; packed, in hex, or "refused" */
 int main(void)
 {
@@ -180,7 +184,7 @@ int main(void)
                 printf("refused\n");
                 continue;
             }
-            hex(d, MSG_AXIS_SET_INPUT_POS_SIZE);
+            print_frame(d, MSG_AXIS_SET_INPUT_POS_SIZE);
         } else {
             struct msg_axis_set_input_vel m;
             uint8_t d[MSG_AXIS_SET_INPUT_VEL_SIZE];
@@ -193,7 +197,7 @@ int main(void)
                 printf("refused\n");
                 continue;
             }
-            hex(d, MSG_AXIS_SET_INPUT_VEL_SIZE);
+            print_frame(d, MSG_AXIS_SET_INPUT_VEL_SIZE);
         }
     }
     return 0;
@@ -244,7 +248,6 @@ int main(void)
     while (scanf("%lf %lf %lf %lf %lf %lf", &x[0], &x[1], &x[2], &x[3], &x[4], &x[5]) == 6) {
         struct msg_joint_position_query m;
         uint8_t d[MSG_JOINT_POSITION_QUERY_FRAME_SIZE];
-        int i;
         m.position = (float)x[0];
         m.velocity = (float)x[1];
         m.feedforward_torque = (float)x[2];
@@ -255,10 +258,7 @@ int main(void)
             printf("refused\n");
             continue;
         }
-        for (i = 0; i < MSG_JOINT_POSITION_QUERY_FRAME_SIZE; i++) {
-            printf("%02x", d[i]);
-        }
-        printf("\n");
+        print_frame(d, MSG_JOINT_POSITION_QUERY_FRAME_SIZE);
     }
     return 0;
 }
@@ -292,3 +292,50 @@ def test_the_header_packs_moteus_position_commands_as_moteus(tmp_path: Path) -> 
             maximum_torque=x[5], query=True)
         theirs.append(_moteus_frame(cmd)[2].hex())
     assert run(exe, lines) == theirs
+
+
+RMD_DRIVER = r"""
+#define NETCFG_FLOAT_ACCESSORS
+#include "host.h"
+#include <stdio.h>
+
+/* "MAX_SPEED ANGLE" (deg/s, an integer; deg): the RMD-X position command (0xA4) packed, in hex, or "refused" */
+int main(void)
+{
+    unsigned int speed;
+    double angle;
+    while (scanf("%u %lf", &speed, &angle) == 2) {
+        struct msg_joint_position_command m;
+        uint8_t d[MSG_JOINT_POSITION_COMMAND_SIZE];
+        m.max_speed = (uint16_t)speed;
+        if (!(msg_joint_position_command_angle_set(&m, angle) && msg_joint_position_command_pack(d, &m))) {
+            printf("refused\n");
+            continue;
+        }
+        print_frame(d, MSG_JOINT_POSITION_COMMAND_SIZE);
+    }
+    return 0;
+}
+"""
+
+
+def test_the_header_writes_an_rmd_command_code(tmp_path: Path) -> None:
+    """MyActuator RMD-X V3 (the protocol document the profile names): the absolute position command is 0xA4 in
+    byte 0, maxSpeed uint16 in bytes 2-3 (1 dps/LSB), angleControl int32 in bytes 4-7 (0.01 degree/LSB), little-endian.
+    By hand, 500 dps to 90.00 degrees: A4 00 F4 01 28 23 00 00 (500 = 0x01F4, 9000 = 0x2328). No vendor package
+    is among the dependencies, so 1,000 random commands are held against netcfg's Python codec, in the document's
+    units."""
+    joint = {"name": "joint", "node_id": 1, "buses": ["can0"], "device": "myactuator-rmd-x8",
+             "actuator": {"commands": [{"message": "position_command", "rate": "100 Hz"}]}}
+    spec = tmp_path / "rmd.yaml"
+    spec.write_text(yaml.safe_dump({
+        "system": "rmd_c", "buses": [{"name": "can0", "protocol": "can", "bitrate": "1 Mbit/s"}],
+        "nodes": [{"name": "host", "role": "master", "buses": ["can0"]}, joint]}, sort_keys=False))
+    exe = compiled(tmp_path, spec, RMD_DRIVER)
+    assert run(exe, ["500 90"]) == ["a400f40128230000"]
+    codec = ActuatorCodec(builtin_actuator_profile("myactuator-rmd-x8").plain, node_id=1)
+    rng = random.Random(8)
+    commands = [(rng.randrange(0, 65536), rng.randrange(-36_000_000, 36_000_000) / 100) for _ in range(N)]
+    ours = run(exe, [f"{s} {a!r}" for s, a in commands])
+    assert ours == [codec.encode("position_command", max_speed=s, angle=a, units="wire").data.hex()
+                    for s, a in commands]
