@@ -73,7 +73,6 @@ class Canopen(Protocol):
     def identifiers_fixed(self, bus: model.Bus) -> str | None:
         return "CiA 301 COB-IDs, the predefined connection set its devices expect"
 
-
     def response_reference(self, bus: runtime.Bus) -> tuple[int, int] | None:
         # a synchronous TPDO's response counts from the SYNC before it (netcfg.timing.canopen_sync)
         return None if bus.canopen is None else (bus.canopen.sync_id, 0)

@@ -100,10 +100,9 @@ class EthercatRules(BusRules):
             self.r.err(
                 "bitrate", f"EtherCAT runs at 100 Mbit/s (or 1 Gbit/s), not {bus.bitrate:,} bit/s", (*path, "bitrate")
             )
-        sec = b.ethercat
+        sec: schema.EthercatParams | None = self.required_section(b, "EtherCAT", "{cycle: ..., slaves: [...]}", path)
         epath = (*path, "ethercat")
         if sec is None:
-            self.r.err("missing", f"EtherCAT bus '{b.name}' needs 'ethercat: {{cycle: ..., slaves: [...]}}'", path)
             return
         cycle = sec.cycle.to_ns(None) or 0
         if cycle <= 0:

@@ -108,7 +108,6 @@ class Ftt(Protocol):
         assert sched is not None  # the analysis built it
         return {e.name: e for e in sched.entries}
 
-
     def runtime_section(self, bus: model.Bus) -> dict[str, Any]:
         from netcfg.protocols.ftt.runtime_section import runtime_section
 
