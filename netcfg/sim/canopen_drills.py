@@ -32,9 +32,9 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import can
 
-from netcfg import links
 from netcfg.cia301 import NMT_BOOT_UP, NMT_STATE_PRE_OPERATIONAL
 from netcfg.links import pycan_frames
+from netcfg.protocols.canopen.services import fd_services
 from netcfg.runtime.drills import Drill
 from netcfg.runtime.supervision import BUS_OFF_TEXT, Event, Supervisor, bus_back, sync_gap
 from netcfg.sim.engine import NEVER
@@ -119,9 +119,8 @@ class DrillPlayer:
 
     @property
     def _fd(self) -> bool:
-        """The services the drills add (EMCY, boot-up, NMT) go as the bus's SYNC and heartbeats do: CAN FD with
-        bit-rate switch on a CANopen FD bus (netcfg.protocols.canopen.resolve.fd_services, the same rule)."""
-        return links.of(self.m.bus).data_phase
+        """The services the drills add (EMCY, boot-up, NMT) go as the bus's SYNC and heartbeats do."""
+        return fd_services(self.m.bus)
 
     def add(self, drill: Drill) -> None:
         sc, can_bus = self.m.sc, self.m.can

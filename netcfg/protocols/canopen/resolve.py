@@ -8,13 +8,14 @@ import dataclasses
 import pathlib
 from typing import TYPE_CHECKING
 
-from netcfg import cia301, links, model
+from netcfg import cia301, model
 from netcfg.devices import DATA_TYPE_CODES, DeviceProfile, ObjectEntry, builtin_profile, builtin_profile_names
 from netcfg.devices.eds import EdsError, cached_profile
 from netcfg.diagnostics import Position
 from netcfg.inputs import check_input_path
 from netcfg.links.canfd import OverCanLinks
 from netcfg.protocols.canopen import pdo as pdo_map
+from netcfg.protocols.canopen.services import fd_services
 from netcfg.rules import Rate
 from netcfg.spec import schema
 from netcfg.spec.source import Path
@@ -255,14 +256,6 @@ class CanopenRules(OverCanLinks):  # over classical CAN (CiA 301) or CAN FD (CAN
                         brs=fd,
                     )
                 )
-
-
-def fd_services(bus: model.Bus) -> bool:
-    """Whether netcfg's own CANopen frames on the bus (SYNC, heartbeats) are CAN FD frames with bit-rate switch: on
-    a CANopen FD bus (link: can-fd) they are, as a PDO is unless it says fd: false. A CANopen FD device's controller
-    runs in CAN FD mode; whether CiA 1301 lets these services go as classical frames too is not decided here (the
-    standard's clause could not be consulted), and either way the analysis and the simulator time them as sent."""
-    return links.of(bus).data_phase
 
 
 def load_device(r: Resolution, n: schema.Node, path: Path, on_canopen: bool) -> DeviceProfile | None:
