@@ -115,6 +115,17 @@ def test_classical_frame_and_no_brs_on_an_fd_bus(tmp_path: Path) -> None:
     assert fast["wcrt_us"] == pytest.approx(CLASSICAL8_US + 147.0 + FD8_US)
 
 
+def test_arbitration_phase_is_bounded_by_classical_cans_rate(tmp_path: Path) -> None:
+    """ISO 11898-1: the arbitration phase of a CAN FD frame runs at most 1 Mbit/s, as classical CAN; the data phase
+    may be faster. 2 Mbit/s as `bitrate` is one error, pointing at `data_bitrate`."""
+    data = fd_spec([{"name": "m", "id": 1, "size": 8}])
+    data["buses"][0]["bitrate"] = "2 Mbit/s"
+    report = check_data(tmp_path, data)
+    (error,) = report["errors"]
+    assert error["code"] == "bitrate"
+    assert "arbitration phase runs at most 1 Mbit/s" in error["message"] and "'data_bitrate'" in error["message"]
+
+
 def test_data_bitrate_uses_the_unit_grammar(tmp_path: Path) -> None:
     """data_bitrate reads like bitrate (one unit grammar): 8-byte FD frame = 34 us + 113 / 2 us = 90.5 us."""
     for text in ("2 Mbit/s", "2000 kbit/s", "2 Mbps"):

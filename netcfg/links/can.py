@@ -16,12 +16,15 @@ MAX_CAN_BITRATE = 1_000_000  # classical CAN, ISO 11898-1
 
 class CanRules(BusRules):
     name = "can"
+    # what the 1 Mbit/s bound is called, and what the error adds: CAN FD bounds its arbitration phase alone
+    bounded_rate = "classical CAN runs"
+    faster_rate = ""
 
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
         if b.bitrate > MAX_CAN_BITRATE:
             self.r.err(
                 "bitrate",
-                f"classical CAN runs at most 1 Mbit/s; bus '{b.name}' says {b.bitrate} bit/s",
+                f"{self.bounded_rate} at most 1 Mbit/s; bus '{b.name}' says {b.bitrate} bit/s{self.faster_rate}",
                 (*path, "bitrate"),
             )
 

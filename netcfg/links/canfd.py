@@ -4,7 +4,7 @@ next valid length, classical frames (`fd: false`) on the same bus. Identifiers f
 from __future__ import annotations
 
 from netcfg import model
-from netcfg.links.can import MAX_CAN_BITRATE, CanRules, ClassicalCan
+from netcfg.links.can import CanRules, ClassicalCan
 from netcfg.rules import BusRules, Resolution
 from netcfg.spec import schema
 from netcfg.spec.source import Path
@@ -14,15 +14,11 @@ from netcfg.timing.load import FrameTiming
 
 class CanFdRules(CanRules):
     name = "can-fd"
+    bounded_rate = "the CAN FD arbitration phase runs"
+    faster_rate = " (the faster rate is 'data_bitrate')"
 
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
-        if b.bitrate > MAX_CAN_BITRATE:
-            self.r.err(
-                "bitrate",
-                f"the CAN FD arbitration phase runs at most 1 Mbit/s; bus '{b.name}' says {b.bitrate} bit/s "
-                "(the faster rate is 'data_bitrate')",
-                (*path, "bitrate"),
-            )
+        super().resolve_bus(b, bus, path)
         if b.data_bitrate is None:
             self.r.err(
                 "data-bitrate",
