@@ -63,6 +63,7 @@ from netcfg.protocols.canopen.dcf_objects import (
 from netcfg.protocols.canopen.dcf_sections import (
     MANUFACTURER,
     FileView,
+    Identity,
     Known,
     Texts,
     file_view,
@@ -214,11 +215,9 @@ def _device_view(
         node=node,
         bus=bus,
         description=f"{node.name}: {dev.name} on CANopen bus {bus.name} of {model.system}, configured by netcfg",
-        vendor_name=dev.vendor_name,
-        vendor_number=dev.vendor_id or 0,
-        product_name=dev.product_name or dev.name,
-        product_number=dev.product_code or 0,
-        revision_number=dev.revision or 0,
+        identity=Identity(
+            dev.product_name or dev.name, dev.vendor_name, dev.vendor_id or 0, dev.product_code or 0, dev.revision or 0
+        ),
         master=node.role == "master",
         dummies=dummies,
         comments=comments,
@@ -363,9 +362,7 @@ def _master_view(model: Model, bus: Bus, node: Node, texts: Texts) -> FileView:
         node=node,
         bus=bus,
         description=f"{node.name}: CANopen master of bus {bus.name} of {model.system}, configured by netcfg",
-        vendor_number=0,
-        product_name=f"{node.name} CANopen master",
-        product_number=0,
+        identity=Identity(f"{node.name} CANopen master"),
         master=True,
         dummies=set(),
         comments=comments,

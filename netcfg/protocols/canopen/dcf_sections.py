@@ -52,6 +52,17 @@ class Commissioning:
 
 
 @dataclass(frozen=True)
+class Identity:
+    """Who made the device and what it is: the file's [DeviceInfo] (its 0x1018 identity, CiA 306 4.6.2.1)."""
+
+    product_name: str
+    vendor_name: str = ""
+    vendor_number: int = 0
+    product_number: int = 0
+    revision_number: int = 0
+
+
+@dataclass(frozen=True)
 class FileView:
     description: str
     vendor_name: str
@@ -112,12 +123,8 @@ def file_view(
     node: Node,
     bus: Bus,
     description: str,
-    vendor_number: int,
-    product_name: str,
-    product_number: int,
+    identity: Identity,
     master: bool,
-    vendor_name: str = "",
-    revision_number: int = 0,
     dummies: set[int],
     comments: list[str],
     known: Known,
@@ -138,11 +145,11 @@ def file_view(
     groups = tuple((name, tuple(indices)) for name, indices in lists.items())
     return FileView(
         description=ini_text(description),
-        vendor_name=ini_text(vendor_name),
-        vendor_number=f"0x{vendor_number:08X}",
-        product_name=ini_text(product_name),
-        product_number=f"0x{product_number:08X}",
-        revision_number=f"0x{revision_number:08X}",
+        vendor_name=ini_text(identity.vendor_name),
+        vendor_number=f"0x{identity.vendor_number:08X}",
+        product_name=ini_text(identity.product_name),
+        product_number=f"0x{identity.product_number:08X}",
+        revision_number=f"0x{identity.revision_number:08X}",
         # the device's own rates are not in its profile: the one the bus runs at is the one known to work
         baudrates=tuple((rate, int(rate == kbit)) for rate in STANDARD_RATES),
         boot_master=int(master),
