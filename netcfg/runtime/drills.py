@@ -81,7 +81,6 @@ class Drill:
             return f"sdo-abort:{self.node}:0x{obj[0]:04X}{sub}=0x{self.code:08X}"
         return f"{self.kind}:{self.node}@{_s(self.at_ns)}"
 
-
     def description(self) -> str:
         """What the drill does, as the drills' lines of `run` and `simulate` say it."""
         if self.kind == "kill":
