@@ -26,6 +26,7 @@ from netcfg.runtime.actuator_master import ActuatorMaster, ActuatorRun, Actuator
 from netcfg.runtime.actuator_plan import plan_actuators
 from netcfg.runtime.codec import CodecError
 from netcfg.runtime.config import RuntimeConfig
+from netcfg.runtime.drills import Drill
 
 Arm = Callable[[Callable[[str], None]], None]
 
@@ -53,8 +54,7 @@ def run_actuator_buses(
     cycles: int | None,
     duration_s: float | None,
     settings: list[str],
-    kills: list[tuple[str, float]],
-    faults: list[tuple[str, float]],
+    drills: list[Drill],
     log: Path | None,
     stop_on_signals: Callable[[], AbstractContextManager[Arm]],
     fmt: str,
@@ -81,7 +81,8 @@ def run_actuator_buses(
     except (ValueError, CodecError) as exc:
         print(f"netcfg: {exc}", file=sys.stderr)
         return 2
-    for node, _ in [*kills, *faults]:
+    for d in drills:
+        node = str(d.node)
         if node not in bus_of:
             where = f"bus '{bus_names[0]}'" if len(bus_names) == 1 else f"buses {', '.join(bus_names)}"
             print(f"netcfg: '{node}' is not an actuator of {where} ({', '.join(sorted(bus_of))})", file=sys.stderr)
@@ -125,13 +126,11 @@ def run_actuator_buses(
                 return 2
             opened.append(bus)
             buses[b] = bus
-        for node, at in kills:
-            if bus_of[node] in benches:
-                plans[bus_of[node]].drills.append((at, f"{node} killed", benches[bus_of[node]][node].kill))
-        for node, at in faults:
-            if bus_of[node] in benches:
-                plans[bus_of[node]].drills.append((at, f"{node} reports an error",
-                                                   partial(benches[bus_of[node]][node].fault)))
+        for d in drills:  # a kill silences the simulated actuator, a fault sets its error fields
+            b = bus_of[str(d.node)]
+            if b in benches:
+                actuator = benches[b][str(d.node)]
+                plans[b].drills.append((d.at_s, d.description(), actuator.kill if d.kind == "kill" else actuator.fault))
         with stop_on_signals() as arm:
             arm(partial(_stop_others, list(masters.values()), None))
             results = _run_all(masters, buses, plans)

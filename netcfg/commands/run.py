@@ -232,7 +232,7 @@ def _run_actuators(args: argparse.Namespace, cfg: Any, bus_names: list[str], dri
     return run_actuator_buses(
         cfg, bus_names, interface=interface, channels=channels, simulated=args.simulated_drives, cycles=args.cycles,
         duration_s=duration_s, settings=args.set,
-        kills=[(d.node or "", d.at_s) for d in drills["kill"]], faults=[(d.node or "", d.at_s) for d in faults],
+        drills=[*drills["kill"], *faults],
         log=args.log, stop_on_signals=_stop_on_signals, fmt=args.format,
     )
 

@@ -17,6 +17,7 @@ Times are instants from the start in the one unit grammar of specs and the comma
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from netcfg.spec.units import format_ns, parse_instant_option
@@ -68,36 +69,46 @@ class Drill:
         return (self.until_ns - self.at_ns) / 1e9
 
     def text(self) -> str:
-        """The drill as `simulate --fault` writes it."""
-        if self.kind in ("stall", "bus-off"):
-            return f"{self.kind}:{_s(self.at_ns)}..{_s(self.until_ns)}"
-        if self.kind == "reset":
-            return f"reset:{self.node}@{_s(self.at_ns)}+{_s(self.until_ns - self.at_ns)}"
-        if self.kind == "emcy":
-            return f"emcy:{self.node}@{_s(self.at_ns)}=0x{self.code:04X}"
-        if self.kind == "sdo-abort":
-            obj = self.obj if isinstance(self.obj, tuple) else (self.obj, None)
-            sub = "" if obj[1] is None else f":{obj[1]}"
-            return f"sdo-abort:{self.node}:0x{obj[0]:04X}{sub}=0x{self.code:08X}"
-        return f"{self.kind}:{self.node}@{_s(self.at_ns)}"
+        """The drill as `simulate --fault` writes it: KIND:ARG, ARG as `run --KIND` takes it."""
+        return f"{self.kind}:{_FORMS[self.kind][0](self)}"
 
     def description(self) -> str:
         """What the drill does, as the drills' lines of `run` and `simulate` say it."""
-        if self.kind == "kill":
-            return f"{self.node} killed"
-        if self.kind == "emcy":
-            return f"{self.node} sends EMCY 0x{self.code:04X}"
-        if self.kind == "reset":
-            return f"{self.node} reboots, silent for {1e3 * self.outage_s:g} ms"
-        if self.kind == "stall":
-            return f"the master's loop stalls until {self.until_s:g} s: no SYNC, no RxPDO"
-        if self.kind == "bus-off":
-            return f"the master's CAN controller goes bus-off until {self.until_s:g} s"
-        return f"{self.node} aborts every SDO write to {self.text().split(':', 2)[2]}"
+        return _FORMS[self.kind][1](self)
 
 
 def _s(ns: int) -> str:
     return format_ns(ns).replace(" ", "")
+
+
+def _span(d: Drill) -> str:
+    return f"{_s(d.at_ns)}..{_s(d.until_ns)}"
+
+
+def _abort_object(d: Drill) -> str:
+    index, sub = d.obj if isinstance(d.obj, tuple) else (d.obj, None)
+    return f"0x{index:04X}" + ("" if sub is None else f":{sub}")
+
+
+# each kind's ARG as parse_drill reads it, and its sentence: one entry to write for a new kind
+_FORMS: dict[str, tuple[Callable[[Drill], str], Callable[[Drill], str]]] = {
+    "kill": (lambda d: f"{d.node}@{_s(d.at_ns)}", lambda d: f"{d.node} killed"),
+    "fault": (lambda d: f"{d.node}@{_s(d.at_ns)}", lambda d: f"{d.node} reports an error"),
+    "emcy": (
+        lambda d: f"{d.node}@{_s(d.at_ns)}=0x{d.code:04X}",
+        lambda d: f"{d.node} sends EMCY 0x{d.code:04X}",
+    ),
+    "reset": (
+        lambda d: f"{d.node}@{_s(d.at_ns)}+{_s(d.until_ns - d.at_ns)}",
+        lambda d: f"{d.node} reboots, silent for {1e3 * d.outage_s:g} ms",
+    ),
+    "sdo-abort": (
+        lambda d: f"{d.node}:{_abort_object(d)}=0x{d.code:08X}",
+        lambda d: f"{d.node} aborts every SDO write to {_abort_object(d)}=0x{d.code:08X}",
+    ),
+    "stall": (_span, lambda d: f"the master's loop stalls until {d.until_s:g} s: no SYNC, no RxPDO"),
+    "bus-off": (_span, lambda d: f"the master's CAN controller goes bus-off until {d.until_s:g} s"),
+}
 
 
 def split_drill(text: str) -> tuple[str, str] | None:
