@@ -211,9 +211,7 @@ def _device_view(
             if slot is not None:
                 comments.append(pdo_comment(kind, n, slot))
     return file_view(
-        od,
-        node=node,
-        bus=bus,
+        od, node, bus,
         description=f"{node.name}: {dev.name} on CANopen bus {bus.name} of {model.system}, configured by netcfg",
         identity=Identity(
             dev.product_name or dev.name, dev.vendor_name, dev.vendor_id or 0, dev.product_code or 0, dev.revision or 0
@@ -358,14 +356,10 @@ def _master_view(model: Model, bus: Bus, node: Node, texts: Texts) -> FileView:
             map_entries(mapping, mapped)
             comments.append(pdo_comment(kind, n, m))
     return file_view(
-        od,
-        node=node,
-        bus=bus,
+        od, node, bus,
         description=f"{node.name}: CANopen master of bus {bus.name} of {model.system}, configured by netcfg",
         identity=Identity(f"{node.name} CANopen master"),
         master=True,
-        dummies=set(),
         comments=comments,
-        known={},
         texts=texts,
     )

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import re
 import unicodedata
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -119,17 +119,19 @@ def shared_text(index: int, obj: Obj) -> str:
 
 def file_view(
     od: Dictionary,
-    *,
     node: Node,
     bus: Bus,
+    *,
     description: str,
     identity: Identity,
     master: bool,
-    dummies: set[int],
     comments: list[str],
-    known: Known,
     texts: Texts,
+    dummies: Collection[int] = (),  # the dummy-mapping types the device offers (0x0002-0x0007)
+    known: Known | None = None,
 ) -> FileView:
+    """The file of `node` on `bus` that `od` describes, as its sections. `known`: objects whose texts are already
+    written (a profile's own), reused as they are."""
     assert node.node_id is not None
     kbit = bus.bitrate // 1000
     lists: dict[str, list[str]] = {"MandatoryObjects": [], "OptionalObjects": [], "ManufacturerObjects": []}
@@ -137,7 +139,7 @@ def file_view(
     for index in sorted(od):
         group = "MandatoryObjects" if index in MANDATORY else "OptionalObjects"
         lists["ManufacturerObjects" if index in MANUFACTURER else group].append(f"0x{index:04X}")
-        cached = known.get(index)
+        cached = known.get(index) if known else None
         if cached is not None and cached[0] is od[index]:
             sections.append(cached[1])
         else:
