@@ -170,9 +170,39 @@ def test_sync0_before_the_frame_has_passed(tmp_path: Path) -> None:
     ]
     report = check_data(tmp_path, spec(tmp_path, slaves, sync0_shift="25 us"))
     (found,) = [m for c, m, _ in errors(report) if c == "dc-shift"]
-    # 120 bytes: a 172-byte frame, 13.76 us on the wire, then 1 us a slave: d10 is passed at 24.76 us, d11 later
-    assert "'d10'" not in found and "'d11'" in found and "slave 'd19' only 33.76 us" in found
-    assert "shift SYNC0 to 34 us or later" in found
+    # 120 bytes: a 172-byte frame, 13.76 us on the wire, then 2 us a slave (a CoE drive without an ESI: an RJ45
+    # one): d4 is passed at 23.76 us, inside 25 us less the 0.1 us of DC precision, d5 at 25.76 us, d19 at 53.76
+    assert "'d4'" not in found and "'d5'" in found and "slave 'd19' only 53.76 us" in found
+    assert "shift SYNC0 to 54 us or later" in found  # 53.76 + 0.1, up to the next us
+
+
+@pytest.mark.parametrize(
+    ("physics", "forwarding_us"),
+    [
+        ("YY", 2.0),  # RJ45 in and out: Beckhoff EK1101, "propagation delay 1 us typ.", out and back
+        ("KK", 0.31),  # an E-bus terminal: ethercrab's largest captured one-way step, 155 ns, twice
+        ("K ", 0.31),  # E-bus, port 1 unused: the end of a line
+        ("KY", 2.0),  # E-bus in, RJ45 on (an extension): a PHY in the line
+        (None, 2.0),  # no Physics attribute: as a CoE drive without an ESI, an RJ45 slave
+    ],
+)
+def test_forwarding_delay_follows_the_ports_physics(tmp_path: Path, physics: str | None, forwarding_us: float) -> None:
+    text = (ESI_DIR / "soes_linux_lan9252demo.xml").read_text()
+    assert text.count('Physics="YY"') == 1
+    text = text.replace(' Physics="YY"', "" if physics is None else f' Physics="{physics}"')
+    data = spec(tmp_path, [{"node": "io", "esi": {"file": "io.xml"}}])
+    (tmp_path / "io.xml").write_text(text)
+    (bus,) = check_data(tmp_path, data)["buses"]
+    assert bus["slaves"][0]["forwarding_us"] == forwarding_us
+
+
+def test_a_given_forwarding_delay_wins(tmp_path: Path) -> None:
+    slaves = [
+        {"node": "io", "esi": {"file": "io.xml"}, "forwarding_delay": "1400 ns"},  # twice SOEM #618's 700 ns step
+        {"node": "d", "profile": "cia402"},
+    ]
+    (bus,) = check_data(tmp_path, spec(tmp_path, slaves))["buses"]
+    assert [s["forwarding_us"] for s in bus["slaves"]] == [1.4, 2.0]
 
 
 def test_cycle_too_short(tmp_path: Path) -> None:
@@ -203,13 +233,13 @@ def test_gigabit_and_other_rates(tmp_path: Path) -> None:
 # for a transfer of 125 byte over 100Mb/s Ethernet".
 RATE = 100_000_000
 TERMINALS_FULL = link.MAX_DATAGRAM_DATA  # 1,486 bytes of 8-channel terminals: 11,888 I/O, "almost 12,000"
-# The one per-slave delay a vendor document gives: Beckhoff's EK1101 coupler, technical data (EK110x, EK15xx
-# documentation, "Technical data"): "Propagation delay 1 us typ." (an RJ45 slave; the analysis' default). Beckhoff's
-# ESC datasheet (Hardware Data Sheet Section I - Technology, version 2.5, 2025-07, chapter 9.1.2, Table 30) defines
-# an ESC's processing delay tP (through its EtherCAT processing unit) and forwarding delay tF (alongside it), and
-# leaves their figures to Section III (the ET1100, ET1200 and IP core hardware descriptions), which netcfg could not
-# consult: no E-bus terminal's own figure is cited here.
-SOURCED_NS = 1_000
+# The sourced per-slave delays (netcfg.links.ethercat): an RJ45 slave's from Beckhoff's EK1101 coupler, technical
+# data (EK110x, EK15xx documentation): "Propagation delay 1 us typ.", out and back; an E-bus terminal's from the DC
+# receive times ethercrab keeps of real lines (src/dc.rs, test propagation_delay_calc_fork: one-way steps of 145
+# and 155 ns), twice the largest. Beckhoff's ESC datasheet (Hardware Data Sheet Section I - Technology, version 2.5,
+# 2025-07, chapter 9.1.2, Table 30) defines an ESC's processing delay tP and forwarding delay tF and leaves their
+# figures to Section III (the ET1100, ET1200 and IP core hardware descriptions), which netcfg could not consult.
+RJ45_NS, EBUS_NS = 2 * 1_000, 2 * 155
 # What Beckhoff's full-frame figure leaves for one terminal: fitted, once, on the figure with the most terminals, and
 # named as fitted; the 1,000-I/O figure is then a prediction of the fitted model.
 TERMINAL_NS = (300_000 - link.wire_ns(link.frame_bytes([TERMINALS_FULL]), RATE)) // TERMINALS_FULL
@@ -219,15 +249,22 @@ def within(value_ns: float, figure_us: float) -> bool:
     return abs(value_ns / 1000 - figure_us) <= 0.1 * figure_us
 
 
-def test_one_full_frame_with_the_sourced_delay() -> None:
-    """The sourced figure does not reproduce Beckhoff's 300 us: 1,538 bytes on the wire (123.04 us) and 1,486
-    terminals at the coupler's 1 us make 1,609.04 us, 5.4 times the figure. Beckhoff's figure needs a terminal to
-    forward about eight times faster than an RJ45 coupler (E-bus terminals have no PHYs; their ESCs' delays are in
-    the datasheets' Section III), and the wire alone (123.04 us) is not it either."""
-    t = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [SOURCED_NS] * TERMINALS_FULL, [0.0] * TERMINALS_FULL)
-    assert t.latency_ns == 123_040 + 1_486 * 1_000 == 1_609_040
-    assert not within(t.latency_ns, 300)
-    assert not within(t.wire_ns, 300)
+def test_the_defaults_are_the_sourced_delays() -> None:
+    assert link.default_forwarding_ns("YY") == RJ45_NS and link.default_forwarding_ns("KK") == EBUS_NS
+
+
+def test_one_full_frame_with_the_sourced_delays() -> None:
+    """The sourced figures do not reproduce Beckhoff's 300 us: 1,538 bytes on the wire (123.04 us), then 1,486
+    8-channel terminals at the E-bus 310 ns make 583.70 us, and 743 16-channel ones 353.37 us (18 % over); at an
+    RJ45 slave's 2 us, 3,095.04 us. Beckhoff's figure needs a terminal to forward in 119 ns (8 channels) or 238 ns
+    (16), under the delays measured on real lines; the wire alone (123.04 us) is not it either."""
+    t = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [EBUS_NS] * TERMINALS_FULL, [0.0] * TERMINALS_FULL)
+    assert t.latency_ns == 123_040 + 1_486 * 310 == 583_700
+    half = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [EBUS_NS] * (TERMINALS_FULL // 2), [0.0] * (TERMINALS_FULL // 2))
+    assert half.latency_ns == 123_040 + 743 * 310 == 353_370
+    rj45 = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [RJ45_NS] * TERMINALS_FULL, [0.0] * TERMINALS_FULL)
+    assert rj45.latency_ns == 123_040 + 1_486 * 2_000 == 3_095_040
+    assert not any(within(x, 300) for x in (t.latency_ns, half.latency_ns, rj45.latency_ns, t.wire_ns))
 
 
 def test_one_full_frame() -> None:
@@ -235,7 +272,7 @@ def test_one_full_frame() -> None:
     t = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [TERMINAL_NS] * TERMINALS_FULL, [0.0] * TERMINALS_FULL)
     assert t.frames == (1486,) and t.wire_ns == 123_040  # 1,538 x 80 ns
     assert within(t.latency_ns, 300)
-    assert TERMINAL_NS == 119  # (300 - 123.04) us / 1,486: the fitted figure, an eighth of the coupler's 1 us
+    assert TERMINAL_NS == 119  # (300 - 123.04) us / 1,486: the fitted figure, 38 % of the E-bus default
 
 
 def test_thousand_distributed_io() -> None:
@@ -243,8 +280,10 @@ def test_thousand_distributed_io() -> None:
     t = cycle_timing(125, RATE, [TERMINAL_NS] * 125, [0.0] * 125)
     assert link.frame_bytes([125]) == 177 and t.wire_ns == 14_160  # the transfer of 125 bytes
     assert within(t.latency_ns, 30), t.latency_ns  # 14.16 + 125 x 0.119 = 29.04 us: the fitted model predicts it
-    sourced = cycle_timing(125, RATE, [SOURCED_NS] * 125, [0.0] * 125)
-    assert sourced.latency_ns == 14_160 + 125_000 and not within(sourced.latency_ns, 30)  # 139.16 us at 1 us each
+    sourced = cycle_timing(125, RATE, [EBUS_NS] * 125, [0.0] * 125)
+    assert sourced.latency_ns == 14_160 + 125 * 310 and not within(sourced.latency_ns, 30)  # 52.91 us at 310 ns each
+    sixteen = cycle_timing(125, RATE, [EBUS_NS] * 63, [0.0] * 63)  # 63 16-channel terminals: 33.69 us, 12 % over
+    assert sixteen.latency_ns == 14_160 + 63 * 310 and not within(sixteen.latency_ns, 30)
 
 
 def test_hundred_servo_axes() -> None:

@@ -25,16 +25,17 @@ EXAMPLE = SPECS / "ethercat_can_gateway.yaml"
 #   LRW datagram of 6 bytes: 8 + 14 + 2 + 10 + 6 + 2 + 4 = 46 bytes, padded to a 64-byte Ethernet frame, 84 bytes
 #   with preamble and gap: 6,720 ns at 80 ns a byte;
 # - the gateway's 2 m of cable at 0.7 c: 9.53 ns one way;
-# - the frame back at the master: 50,000 (jitter) + 6,720 + 1,000 (its forwarding, the default) + 19 (cables out
-#   and back) = 57,739 ns; past the gateway: 50,000 + 6,720 + 1,000 + 9.53 = 57,730 ns;
+# - the frame back at the master: 50,000 (jitter) + 6,720 + 2,000 (its forwarding, the default of an ESI whose
+#   Physics is "YY": an RJ45 slave) + 19 (cables out and back) = 58,739 ns; past the gateway: 50,000 + 6,720 + 2,000
+#   + 9.53 = 58,730 ns;
 # - the TxPDO read as the datagram's byte 2 of data (its inputs follow the 2 bytes of outputs) leaves the master:
 #   (8 + 14 + 2 + 10 + 2) x 80 = 2,880 ns after the send; at the master at the earliest 6,720 - 2,880 + 9.53
 #   = 3,849 ns later;
 # - the RxPDO copied at the send: at the gateway at the earliest after the wire and the cable, 6,720 + 9.53 = 6,729.
 WIRE_NS = 84 * 80
 CABLE_NS = 2 / (0.7 * 299_792_458) * 1e9
-LATENCY_NS = 50_000 + WIRE_NS + 1_000 + round(2 * CABLE_NS)
-PASSED_NS = round(50_000 + WIRE_NS + 1_000 + CABLE_NS)
+LATENCY_NS = 50_000 + WIRE_NS + 2_000 + round(2 * CABLE_NS)
+PASSED_NS = round(50_000 + WIRE_NS + 2_000 + CABLE_NS)
 READ_NS = (8 + 14 + 2 + 10 + 2) * 80
 PERIOD_REAL_NS = 1_000_100  # 1 ms on a clock 100 ppm slow (the default clock tolerance)
 
@@ -44,7 +45,7 @@ def test_the_segment_by_hand() -> None:
     report = check(EXAMPLE)
     assert report["ok"], report["errors"]
     ecat = next(b for b in report["buses"] if b["name"] == "ecat0")
-    assert ecat["cycle"]["latency_us"] * 1000 == LATENCY_NS == 57_739
+    assert ecat["cycle"]["latency_us"] * 1000 == LATENCY_NS == 58_739
     rows = {m["name"]: m for m in ecat["messages"]}
     torque, valve = rows["gw_torque"], rows["gw_valve"]
     # the identifier is the PDO's logical address: outputs first, then inputs (SOEM's IOmap, segment.lay_out)
@@ -55,7 +56,7 @@ def test_the_segment_by_hand() -> None:
     assert torque["best_us"] * 1000 == int(WIRE_NS - READ_NS + CABLE_NS) == 3_849
     assert torque["wcrt_ns"] == LATENCY_NS
     assert valve["best_us"] * 1000 == int(WIRE_NS + CABLE_NS) == 6_729
-    assert valve["wcrt_ns"] == PASSED_NS == 57_730
+    assert valve["wcrt_ns"] == PASSED_NS == 58_730
     assert torque["schedulable"] and valve["schedulable"]  # both within their deadline, the 1 ms cycle
 
 
@@ -67,15 +68,15 @@ def test_the_flows_by_hand() -> None:
     frame already on the bus, then its own 190 us: 95 bits at 2 us); the gateway's copy task samples it within
     one of its 1 ms periods (1,000.1 us in real time at 100 ppm) and ends 80 us later (its WCET, the first of two
     tasks of one rate on the gateway); the TxPDO waits for the next cycle's frame (up to one cycle, 1,000.1 us)
-    and reaches the master 57.739 us after that cycle starts; the control task samples it within its period
-    (1,000.1 us): 100 + 340 + 1,000.1 + 80 + 1,000.1 + 57.739 + 1,000.1 = 3,578.039 us.
+    and reaches the master 58.739 us after that cycle starts; the control task samples it within its period
+    (1,000.1 us): 100 + 340 + 1,000.1 + 80 + 1,000.1 + 58.739 + 1,000.1 = 3,579.039 us.
     At the earliest: the task's BCET 30, the frame's nominal 158 us (79 bits, no stuff bits), the copy's BCET 20
     and the PDO's earliest 3.849 us after its read: 211.849 us.
 
     command_to_valve, at the latest: the control task's 200 us, the next cycle (1,000.1), the RxPDO past the
-    gateway 57.73 us into it, the gateway's second copy task sampling it (1,000.1) and ending 160 us later (80 of
+    gateway 58.73 us into it, the gateway's second copy task sampling it (1,000.1) and ending 160 us later (80 of
     its own after the first task's 80), its frame 0x201 340 us from its queueing (its 150 us after 0x181's 190
-    us), and the valve's task starting as it arrives: 200 + 1,000.1 + 57.73 + 1,000.1 + 160 + 340 = 2,757.93 us.
+    us), and the valve's task starting as it arrives: 200 + 1,000.1 + 58.73 + 1,000.1 + 160 + 340 = 2,758.93 us.
     At the earliest: 50 + 6.729 + 20 + 126 (0x201's 63 bits) = 202.729 us.
 
     Were a PDO sent as the task before it ends (as a CAN frame is), each maximum would be a cycle shorter."""
@@ -83,9 +84,9 @@ def test_the_flows_by_hand() -> None:
     flows = {f["name"]: f for f in report["flows"]}
     cycle_wait = PERIOD_REAL_NS
     hi = 100_000 + 340_000 + PERIOD_REAL_NS + 80_000 + cycle_wait + LATENCY_NS + PERIOD_REAL_NS
-    assert flows["torque_to_control"]["latency_ns"] == [30_000 + 158_000 + 20_000 + 3_849, hi] == [211_849, 3_578_039]
+    assert flows["torque_to_control"]["latency_ns"] == [30_000 + 158_000 + 20_000 + 3_849, hi] == [211_849, 3_579_039]
     hi = 200_000 + cycle_wait + PASSED_NS + PERIOD_REAL_NS + 160_000 + 340_000
-    assert flows["command_to_valve"]["latency_ns"] == [50_000 + 6_729 + 20_000 + 126_000, hi] == [202_729, 2_757_930]
+    assert flows["command_to_valve"]["latency_ns"] == [50_000 + 6_729 + 20_000 + 126_000, hi] == [202_729, 2_758_930]
 
 
 def test_no_task_sends_a_pdo() -> None:

@@ -26,13 +26,14 @@ AXIS = [{"index": 0x1600, "map": [0x6040, 0x607A]}, {"index": 0x1A00, "map": [0x
 WIRE_NS = 84 * 80
 CABLES_M = (10.0, 20.0)
 PROP_NS = [m / C * 1e9 for m in CABLES_M]  # 47.65 and 95.30 ns
-# the analysis (no jitter, 1 us a slave): back at the master after the wire, both slaves and the cables both ways;
-# the frame has passed the second slave after the wire, both slaves' delays and the cables out to it
-LATENCY_BOUND = round(WIRE_NS + 2 * 1000 + 2 * sum(PROP_NS))  # 9,006 ns
-PASSED_BOUND = round(WIRE_NS + 2 * 1000 + sum(PROP_NS))  # 8,863 ns
-# the simulator: each slave's 1 us split in half out and back, each pass shorter by up to one 40 ns receive clock
-LATENCY_RANGE = (WIRE_NS + 2 * 1000 - 4 * 40 + 2 * sum(PROP_NS), LATENCY_BOUND)
-PASSED_RANGE = (WIRE_NS + 2 * 500 - 2 * 40 + sum(PROP_NS), WIRE_NS + 2 * 500 + sum(PROP_NS))
+FWD_NS = 2 * 1000  # a CoE drive without an ESI: an RJ45 slave, EK1101's "propagation delay 1 us typ." out and back
+# the analysis (no jitter): back at the master after the wire, both slaves and the cables both ways; the frame has
+# passed the second slave after the wire, both slaves' delays and the cables out to it
+LATENCY_BOUND = round(WIRE_NS + 2 * FWD_NS + 2 * sum(PROP_NS))  # 11,006 ns
+PASSED_BOUND = round(WIRE_NS + 2 * FWD_NS + sum(PROP_NS))  # 10,863 ns
+# the simulator: each slave's delay split in half out and back, each pass shorter by up to one 40 ns receive clock
+LATENCY_RANGE = (WIRE_NS + 2 * FWD_NS - 4 * 40 + 2 * sum(PROP_NS), LATENCY_BOUND)
+PASSED_RANGE = (WIRE_NS + FWD_NS - 2 * 40 + sum(PROP_NS), WIRE_NS + FWD_NS + sum(PROP_NS))  # 8.78-8.86 us
 WKC = 2 * (2 + 1)  # LRW: +2 per slave whose outputs are written, +1 per slave whose inputs are read
 
 
@@ -66,7 +67,7 @@ def test_the_runtime_section_carries_the_bounds(tmp_path: Path) -> None:
     assert ec["frames"] == [{"data_bytes": 24, "wire_bytes": 84}]
     assert ec["latency_ns"] == LATENCY_BOUND and ec["slaves"][1]["frame_passed_ns"] == PASSED_BOUND
     assert [s["cable_m"] for s in ec["slaves"]] == list(CABLES_M)
-    assert [s["forwarding_ns"] for s in ec["slaves"]] == [1000, 1000]
+    assert [s["forwarding_ns"] for s in ec["slaves"]] == [FWD_NS, FWD_NS]
 
 
 def test_the_cycle_as_calculated(tmp_path: Path) -> None:
@@ -80,7 +81,7 @@ def test_the_cycle_as_calculated(tmp_path: Path) -> None:
     passed = rep["slaves"]["d1"]["frame_passed_us"]
     assert PASSED_RANGE[0] / 1000 <= passed["max"] <= PASSED_RANGE[1] / 1000
     assert passed["analysed"] == PASSED_BOUND / 1000
-    # SYNC0 at 500 us, within distributed clocks' 100 ns of the reference: at least 500 - 0.1 - 7.863 us after
+    # SYNC0 at 500 us, within distributed clocks' 100 ns of the reference: at least 500 - 0.1 - 8.863 us after
     dc = rep["slaves"]["d1"]
     assert -100 <= dc["sync0_error_ns"]["min"] <= dc["sync0_error_ns"]["max"] <= 100
     assert dc["sync0_margin_us"] >= (500_000 - 100 - PASSED_RANGE[1]) / 1000
@@ -131,13 +132,13 @@ def test_figures_beyond_the_bounds_are_violations(tmp_path: Path) -> None:
 
 
 def test_sync0_before_the_frame_has_passed(tmp_path: Path) -> None:
-    def early(section: dict[str, Any]) -> None:  # d1 latches 7.5 us in, before the frame has passed it (7.78 us on)
+    def early(section: dict[str, Any]) -> None:  # d1 latches 7.5 us in, before the frame has passed it (8.78 us on)
         section["slaves"][1]["dc"]["sync0_shift_ns"] = 7_500
 
     doc = simulate(with_section(two_axes(tmp_path), early))
     rep = segment(doc)
     assert rep["slaves"]["d1"]["sync0_margin_us"] < 0
-    # the analysis did not promise this shift (7.5 us - 0.1 < 8.863 us): a finding, not a violation of it
+    # the analysis did not promise this shift (7.5 us - 0.1 < 10.863 us): a finding, not a violation of it
     assert doc["violations"] == [] and any("SYNC0 fired before the frame had passed" in f for f in doc["findings"])
 
     def promised(section: dict[str, Any]) -> None:  # a bound that would have let it pass: now the analysis is wrong

@@ -25,6 +25,24 @@ MAX_PAYLOAD = 1500  # the Ethernet payload: the EtherCAT header and its datagram
 MAX_DATAGRAM_DATA = MAX_PAYLOAD - ECAT_HEADER - DATAGRAM_HEADER - WORKING_COUNTER  # 1,486 bytes
 BIT_RATES = (100_000_000, 1_000_000_000)  # 100BASE-TX; EtherCAT G at 1 Gbit/s
 
+# What a slave adds to the frame's round trip when the spec gives no forwarding_delay, by the physics of the ports
+# its line uses (ETG.2000 Device@Physics: a letter a port, Y 100BASE-TX, H 100BASE-TX with fast hot connect, K E-bus):
+# - an RJ45 slave, with a PHY at each port: Beckhoff's EK1101 coupler, technical data, "propagation delay 1 us typ.",
+#   once on the way out and once back. It bounds what SOEM's slaveinfo measures on RJ45 slaves (its pdelay, one way,
+#   steps of 700-760 ns between neighbours in SOEM issues #288, #487 and #618: 1.41-1.52 us a round trip);
+# - an E-bus terminal, without PHYs: the largest step in the DC receive times ethercrab keeps of real lines
+#   (src/dc.rs, test propagation_delay_calc_fork: EK1100 -> EK1122 145 ns, EK1122 -> EL9560 and EK1914 -> EL1008
+#   155 ns one way), twice.
+MII_FORWARDING_NS = 2 * 1_000
+EBUS_FORWARDING_NS = 2 * 155
+
+
+def default_forwarding_ns(physics: str | None) -> int:
+    """A slave's forwarding delay from its ESI's Physics: an E-bus one when ports 0 and 1 (the way in and on) are
+    E-bus or unused, an RJ45 one otherwise and without an ESI (a CoE drive is an RJ45 slave)."""
+    line = (physics or "")[:2].replace(" ", "")
+    return EBUS_FORWARDING_NS if line and set(line) == {"K"} else MII_FORWARDING_NS
+
 
 def frame_bytes(datagrams: list[int]) -> int:
     """Bytes one frame of datagrams (their data sizes) occupies on the wire, preamble to inter-frame gap."""

@@ -46,7 +46,7 @@ if TYPE_CHECKING:
 
 RX_CLOCK_NS = 40  # 100BASE-TX's MII receive clock, 25 MHz: a nibble every 40 ns
 MISMATCHES_SHOWN = 5
-DEFAULT_FORWARDING_NS = 1000  # a runtime.json written before the key: the analysis' default
+DEFAULT_FORWARDING_NS = 1000  # a runtime.json written before the key: the analysis' default of its time
 CHUNK = 20_000  # cycles computed at once: a long run's arrays stay a few MB
 
 

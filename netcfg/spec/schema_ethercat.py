@@ -32,8 +32,8 @@ class EthercatSlave(SpecModel):
     cable: Float = Field(0.0, ge=0, le=100, description="metres of cable from the previous device (100BASE-TX: <= 100)")
     forwarding_delay: DurationField | None = Field(
         None,
-        description="what the slave adds to the frame's round trip (default 1 us, an EtherCAT coupler's typical "
-        "propagation delay)",
+        description="what the slave adds to the frame's round trip (default by its ESI's Physics: 2 us an RJ45 "
+        "slave, twice an EtherCAT coupler's typical propagation delay; 310 ns an E-bus terminal)",
     )
     esi: EthercatEsi | None = Field(None, description="the slave's ESI file and device in it")
     profile: Name | None = Field(None, description="a built-in CoE profile instead of an ESI: cia402, epos4")

@@ -12,12 +12,13 @@ The model, per cycle:
 - The bus is busy for the frames' wire time (the shortest cycle its bandwidth allows: Beckhoff's "100 servo
   axes every 100 us" is this figure).
 - A frame comes back to the master after its wire time, the master's send jitter, each slave's forwarding delay
-  (default 1 us: Beckhoff EK1101 technical data, "propagation delay 1 us typ.", an RJ45 slave; an E-bus terminal
-  is far faster: set it per slave) and the cables out and back at 0.7 c. This latency is what the cycle must
-  hold (Beckhoff's "1,000 distributed digital I/O in about 30 us" and "about 12,000 I/O in one frame in 300 us"
-  are this figure; they need about 0.12 us a terminal, a figure fitted to them, since the E-bus ESCs' own delays
-  are in the ESC datasheets' Section III, which is not cited here: at the coupler's 1 us the full frame takes
-  1,609 us).
+  and the cables out and back at 0.7 c. A slave's forwarding delay defaults by the physics of its ports
+  (netcfg.links.ethercat.default_forwarding_ns): 2 us for an RJ45 slave (Beckhoff EK1101 technical data,
+  "propagation delay 1 us typ.", out and back; SOEM's measured 1.41-1.52 us lie under it), 310 ns for an E-bus
+  terminal (the largest step of the DC receive times ethercrab keeps of real lines, twice). This latency is what
+  the cycle must hold (Beckhoff's "1,000 distributed digital I/O in about 30 us" and "about 12,000 I/O in one
+  frame in 300 us" are this figure; they need about 0.12 us an 8-channel terminal, a figure fitted to them: at
+  the E-bus default the full frame of 8-channel terminals takes 584 us, of 16-channel ones 353 us).
 - The end of the last frame has passed slave k after the jitter, the wire time, and the forwarding delays and
   cables up to k: SYNC0 (each slave's shift after the cycle start) must come later, or the slave latches outputs
   from the frame that is still passing. A slave's SYNC0 may come early by the precision of distributed clocks
@@ -54,7 +55,8 @@ ASSUMES = [
     "one LRW datagram per frame carries the process image (outputs then inputs), several frames back to back when "
     f"it exceeds {link.MAX_DATAGRAM_DATA} bytes; the master sends a cycle's first frame at most its master_jitter "
     "late and waits for the last one to come back within the cycle",
-    "each slave adds its forwarding delay to the round trip once (default 1 us, an RJ45 coupler's); cables at 0.7 c",
+    "each slave adds its forwarding delay to the round trip once (default 2 us an RJ45 slave, 310 ns an E-bus one, by "
+    "its ESI's Physics); cables at 0.7 c",
     f"every DC slave's SYNC0 within {DC_PRECISION_NS} ns of the reference clock (the master's cycle locked to it)",
     "no frame is lost (a lost frame is a working-counter mismatch the master must detect) and mailbox traffic goes "
     "in the room the cyclic frames leave",

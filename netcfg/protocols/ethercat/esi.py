@@ -107,6 +107,7 @@ class EsiDevice:
     op_modes: list[OpMode] = field(default_factory=list)
     objects: dict[tuple[int, int], OdEntry] = field(default_factory=dict)
     pdo_assign: bool = False  # <Mailbox><CoE PdoAssign="true">: the master may write 0x1C12/0x1C13
+    physics: str = ""  # <Device Physics>: its ports' physical layers, a letter each (Y 100BASE-TX, K E-bus)
 
     def pdo(self, index: int) -> Pdo | None:
         return next((p for p in (*self.rx_pdos, *self.tx_pdos) if p.index == index), None)
@@ -213,6 +214,7 @@ def _device(r: _Reader, d: ET.Element, vendor_id: int) -> EsiDevice:
         product_code=r.number(kind, kind.get("ProductCode"), "ProductCode"),
         revision=r.number(kind, kind.get("RevisionNo", "0"), "RevisionNo"),
         line=r.line(d),
+        physics=d.get("Physics", ""),
     )
     for n, sm in enumerate(d.findall("Sm")):
         size = sm.get("DefaultSize")

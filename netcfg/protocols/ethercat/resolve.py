@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from netcfg import model
 from netcfg.devices import DeviceProfile, builtin_profile, builtin_profile_names
 from netcfg.inputs import check_input_path
-from netcfg.links.ethercat import BIT_RATES
+from netcfg.links import ethercat as link
 from netcfg.protocols.ethercat.messages import object_ref
 from netcfg.rules import BusRules, Rate
 from netcfg.spec import schema
@@ -22,7 +22,6 @@ if TYPE_CHECKING:  # imported where used: a spec without an EtherCAT segment doe
     from netcfg.protocols.ethercat import esi as esi_file
     from netcfg.protocols.ethercat.segment import Segment, Slave
 
-DEFAULT_FORWARDING_NS = 1_000  # Beckhoff EK1101 technical data: "propagation delay 1 us typ."
 DC_SYNC0 = 0x0300  # register 0x0980: cyclic unit and SYNC0 active (ETG.1020), what CiA 402 drives' ESIs give
 # the sync managers of a CoE slave without an ESI (ETG.2000's usual layout: two mailboxes, outputs, inputs)
 PROFILE_SMS = (
@@ -96,7 +95,7 @@ class EthercatRules(BusRules):
         return next((x for seg in segs if (x := message_id(seg, pdo)) is not None), None)
 
     def resolve_bus(self, b: schema.Bus, bus: model.Bus, path: Path) -> None:
-        if bus.bitrate not in BIT_RATES:
+        if bus.bitrate not in link.BIT_RATES:
             self.r.err(
                 "bitrate", f"EtherCAT runs at 100 Mbit/s (or 1 Gbit/s), not {bus.bitrate:,} bit/s", (*path, "bitrate")
             )
@@ -184,7 +183,7 @@ class EthercatRules(BusRules):
             return None
         from netcfg.protocols.ethercat.segment import Slave
 
-        forwarding = s.forwarding_delay.to_ns(None) if s.forwarding_delay else DEFAULT_FORWARDING_NS
+        forwarding = s.forwarding_delay.to_ns(None) if s.forwarding_delay else link.default_forwarding_ns(None)
         slave = Slave(
             s.node,
             s.position,
@@ -222,6 +221,8 @@ class EthercatRules(BusRules):
             self.r.err("esi", str(exc), (*spath, "esi"))
             return None
         slave.vendor_id, slave.product_code, slave.revision = dev.vendor_id, dev.product_code, dev.revision
+        if s.forwarding_delay is None:
+            slave.forwarding_ns = link.default_forwarding_ns(dev.physics)
         slave.device, slave.source = dev.type_name, e.file
         assign = dev.objects.get((0x1C12, 1))
         slave.assign_writable = dev.pdo_assign or (assign is not None and "w" in assign.access)
