@@ -196,6 +196,18 @@ def test_forwarding_delay_follows_the_ports_physics(tmp_path: Path, physics: str
     assert bus["slaves"][0]["forwarding_us"] == forwarding_us
 
 
+def test_an_unknown_physics_is_a_warning_and_the_slower_default(tmp_path: Path) -> None:
+    text = (ESI_DIR / "soes_linux_lan9252demo.xml").read_text().replace('Physics="YY"', 'Physics="KX"')
+    data = spec(tmp_path, [{"node": "io", "esi": {"file": "io.xml"}}])
+    (tmp_path / "io.xml").write_text(text)
+    report = check_data(tmp_path, data)
+    assert report["ok"] and report["buses"][0]["slaves"][0]["forwarding_us"] == 2.0
+    (warning,) = [w for w in report["warnings"] if w["code"] == "esi-physics"]
+    assert "'X' in Physics=\"KX\"" in warning["message"] and "io.xml:" in warning["message"] and warning["line"]
+    data["buses"][0]["ethercat"]["slaves"][0]["forwarding_delay"] = "310 ns"  # said otherwise: nothing to warn of
+    assert not [w for w in check_data(tmp_path, data)["warnings"] if w["code"] == "esi-physics"]
+
+
 def test_a_given_forwarding_delay_wins(tmp_path: Path) -> None:
     slaves = [
         {"node": "io", "esi": {"file": "io.xml"}, "forwarding_delay": "1400 ns"},  # twice SOEM #618's 700 ns step

@@ -35,6 +35,7 @@ BIT_RATES = (100_000_000, 1_000_000_000)  # 100BASE-TX; EtherCAT G at 1 Gbit/s
 #   155 ns one way), twice.
 MII_FORWARDING_NS = 2 * 1_000
 EBUS_FORWARDING_NS = 2 * 155
+PHYSICS_LETTERS = "YHK "  # the port types the defaults know; any other counts as RJ45, the slower
 
 
 def default_forwarding_ns(physics: str | None) -> int:

@@ -223,6 +223,16 @@ class EthercatRules(BusRules):
         slave.vendor_id, slave.product_code, slave.revision = dev.vendor_id, dev.product_code, dev.revision
         if s.forwarding_delay is None:
             slave.forwarding_ns = link.default_forwarding_ns(dev.physics)
+            unknown = sorted(set(dev.physics) - set(link.PHYSICS_LETTERS))
+            if unknown:
+                self.r.warn(
+                    "esi-physics",
+                    f"slave '{s.node}': {dev.type_name} ({e.file}:{dev.line}) has ports of physics "
+                    f"{', '.join(repr(x) for x in unknown)} in Physics=\"{dev.physics}\", which netcfg does not know "
+                    f"(Y 100BASE-TX, H with hot connect, K E-bus): its forwarding delay is taken as an RJ45 slave's "
+                    f"{link.MII_FORWARDING_NS / 1000:g} us; set forwarding_delay to say otherwise",
+                    (*spath, "esi"),
+                )
         slave.device, slave.source = dev.type_name, e.file
         assign = dev.objects.get((0x1C12, 1))
         slave.assign_writable = dev.pdo_assign or (assign is not None and "w" in assign.access)
