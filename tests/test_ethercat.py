@@ -183,6 +183,7 @@ def test_sync0_before_the_frame_has_passed(tmp_path: Path) -> None:
         ("KK", 0.31),  # an E-bus terminal: ethercrab's largest captured one-way step, 155 ns, twice
         ("K ", 0.31),  # E-bus, port 1 unused: the end of a line
         ("KY", 2.0),  # E-bus in, RJ45 on (an extension): a PHY in the line
+        ("KKY", 0.31),  # E-bus in and on, an RJ45 branch on port 2 (a junction's): not on the line's way
         (None, 2.0),  # no Physics attribute: as a CoE drive without an ESI, an RJ45 slave
     ],
 )
@@ -205,6 +206,11 @@ def test_an_unknown_physics_is_a_warning_and_the_slower_default(tmp_path: Path) 
     (warning,) = [w for w in report["warnings"] if w["code"] == "esi-physics"]
     assert "'X' in Physics=\"KX\"" in warning["message"] and "io.xml:" in warning["message"] and warning["line"]
     data["buses"][0]["ethercat"]["slaves"][0]["forwarding_delay"] = "310 ns"  # said otherwise: nothing to warn of
+    assert not [w for w in check_data(tmp_path, data)["warnings"] if w["code"] == "esi-physics"]
+    del data["buses"][0]["ethercat"]["slaves"][0]["forwarding_delay"]
+    (tmp_path / "io.xml").write_text(text.replace('Physics="KX"', 'Physics="KKX"'))  # X on port 2 decides nothing
+    report = check_data(tmp_path, data)
+    assert report["buses"][0]["slaves"][0]["forwarding_us"] == 0.31
     assert not [w for w in check_data(tmp_path, data)["warnings"] if w["code"] == "esi-physics"]
 
 
@@ -294,7 +300,8 @@ def test_thousand_distributed_io() -> None:
     assert within(t.latency_ns, 30), t.latency_ns  # 14.16 + 125 x 0.119 = 29.04 us: the fitted model predicts it
     sourced = cycle_timing(125, RATE, [EBUS_NS] * 125, [0.0] * 125)
     assert sourced.latency_ns == 14_160 + 125 * 310 and not within(sourced.latency_ns, 30)  # 52.91 us at 310 ns each
-    sixteen = cycle_timing(125, RATE, [EBUS_NS] * 63, [0.0] * 63)  # 63 16-channel terminals: 33.69 us, 12 % over
+    # 63 16-channel terminals (1,008 I/O, the 1,000 in whole terminals): 33.69 us, 12 % over
+    sixteen = cycle_timing(125, RATE, [EBUS_NS] * 63, [0.0] * 63)
     assert sixteen.latency_ns == 14_160 + 63 * 310 and not within(sixteen.latency_ns, 30)
 
 

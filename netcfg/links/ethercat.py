@@ -29,13 +29,13 @@ BIT_RATES = (100_000_000, 1_000_000_000)  # 100BASE-TX; EtherCAT G at 1 Gbit/s
 # its line uses (ETG.2000 Device@Physics: a letter a port, Y 100BASE-TX, H 100BASE-TX with fast hot connect, K E-bus):
 # - an RJ45 slave, with a PHY at each port: Beckhoff's EK1101 coupler, technical data, "propagation delay 1 us typ.",
 #   once on the way out and once back. It bounds what SOEM's slaveinfo measures on RJ45 slaves (its pdelay, one way,
-#   steps of 700-760 ns between neighbours in SOEM issues #288, #487 and #618: 1.41-1.52 us a round trip);
+#   steps of 700-760 ns between neighbours in SOEM issues #288, #487 and #618: 1.40-1.52 us a round trip);
 # - an E-bus terminal, without PHYs: the largest step in the DC receive times ethercrab keeps of real lines
 #   (src/dc.rs, test propagation_delay_calc_fork: EK1100 -> EK1122 145 ns, EK1122 -> EL9560 and EK1914 -> EL1008
 #   155 ns one way), twice.
 MII_FORWARDING_NS = 2 * 1_000
 EBUS_FORWARDING_NS = 2 * 155
-PHYSICS_LETTERS = "YHK "  # the port types the defaults know; any other counts as RJ45, the slower
+PHYSICS_LETTERS = "YHK "  # the port types the defaults know; any other on ports 0 and 1 counts as RJ45, the slower
 
 
 def default_forwarding_ns(physics: str | None) -> int:

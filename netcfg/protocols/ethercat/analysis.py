@@ -14,7 +14,7 @@ The model, per cycle:
 - A frame comes back to the master after its wire time, the master's send jitter, each slave's forwarding delay
   and the cables out and back at 0.7 c. A slave's forwarding delay defaults by the physics of its ports
   (netcfg.links.ethercat.default_forwarding_ns): 2 us for an RJ45 slave (Beckhoff EK1101 technical data,
-  "propagation delay 1 us typ.", out and back; SOEM's measured 1.41-1.52 us lie under it), 310 ns for an E-bus
+  "propagation delay 1 us typ.", out and back; SOEM's measured 1.40-1.52 us lie under it), 310 ns for an E-bus
   terminal (the largest step of the DC receive times ethercrab keeps of real lines, twice). This latency is what
   the cycle must hold (Beckhoff's "1,000 distributed digital I/O in about 30 us" and "about 12,000 I/O in one
   frame in 300 us" are this figure; they need about 0.12 us an 8-channel terminal, a figure fitted to them: at

@@ -223,7 +223,7 @@ class EthercatRules(BusRules):
         slave.vendor_id, slave.product_code, slave.revision = dev.vendor_id, dev.product_code, dev.revision
         if s.forwarding_delay is None:
             slave.forwarding_ns = link.default_forwarding_ns(dev.physics)
-            unknown = sorted(set(dev.physics) - set(link.PHYSICS_LETTERS))
+            unknown = sorted(set(dev.physics[:2]) - set(link.PHYSICS_LETTERS))  # the ports that decide it
             if unknown:
                 self.r.warn(
                     "esi-physics",
