@@ -1,21 +1,22 @@
 """Bringing an EtherCAT segment up with SOEM through pysoem, from runtime.json's `ethercat` section of the bus: the
-line the master found checked against the spec's, each slave's configuration hook (pysoem's `config_func`, which
-SOEM runs as the slave goes from PRE-OP to SAFE-OP, before it maps the process image), SYNC0 started once the
-distributed clocks are measured, and the image SOEM mapped checked against the one netcfg laid out:
+line the master found checked against the spec's, and each slave's configuration hook (pysoem's `config_func`, which
+SOEM runs as the slave goes from PRE-OP to SAFE-OP, before it maps the process image): its start-up SDOs, then its
+SYNC0 at the spec's cycle and shift, so that a DC slave has SYNC0 running when it checks for it on entering
+SAFE-OP; then the image SOEM mapped checked against the one netcfg laid out:
 
     import pysoem
     from netcfg import runtime
-    from netcfg.runtime.ethercat_setup import check_image, configure, start_sync0
+    from netcfg.runtime.ethercat_setup import check_image, configure
 
+    # netcfg build specs/allex2_ethercat.yaml -o build/allex2_ethercat
     segment = runtime.load("build/allex2_ethercat/runtime.json").bus("ecat0").ethercat
     master = pysoem.Master()
     master.open("eth0")
     master.config_init()
+    master.config_dc()           # the clocks measured and aligned before any slave starts SYNC0
     configure(master, segment)   # SetupError if the line differs from the spec's
-    master.config_map()          # runs each slave's hook: the PDO mappings and assignments
+    master.config_map()          # runs each slave's hook, then asks every slave for SAFE-OP
     check_image(master, segment)
-    master.config_dc()
-    start_sync0(master, segment)
 
 netcfg needs no pysoem itself: a master is anything with pysoem's `slaves` and slave methods (SlaveLike).
 """
@@ -25,8 +26,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
-__all__ = ["SYNC0_ONLY", "MasterLike", "SetupError", "SlaveLike", "check_image", "check_line", "configure",
-           "sdo_data", "start_sync0"]
+__all__ = ["SYNC0_ONLY", "MasterLike", "SetupError", "SlaveLike", "check_image", "check_line", "configure", "sdo_data"]
 
 SYNC0_ONLY = 0x0300  # AssignActivate: cyclic unit and SYNC0 (registers 0x0980, 0x0981), what SOEM's ecx_dcsync0 sets
 
@@ -36,7 +36,7 @@ class SetupError(ValueError):
 
 
 class SlaveLike(Protocol):
-    """The part of pysoem's CdefSlave this module uses (pysoem 1.1, src/pysoem/pysoem.pyx)."""
+    """The part of pysoem's CdefSlave this module uses (pysoem 1.1.13, src/pysoem/pysoem.pyx)."""
 
     man: int  # the identity SOEM read from the slave's EEPROM (SII): vendor id, product code, revision
     id: int
@@ -65,24 +65,29 @@ def sdo_data(sdo: Mapping[str, int]) -> bytes:
 
 
 def check_line(found: Sequence[SlaveLike], segment: Mapping[str, Any]) -> list[str]:
-    """What differs between the slaves the master found and the segment's, position by position. An identity the
-    spec does not know (0: a built-in profile without an ESI has no product code) is not compared."""
+    """What differs between the slaves the master found and the segment's, position by position: vendor id and
+    product code, where the spec knows them (0: a built-in profile without an ESI has no product code). The revision
+    is not compared: a slave's firmware is often newer than its ESI, and SOEM does not compare it either."""
     expected = segment["slaves"]
     problems = []
     if len(found) != len(expected):
         problems.append(f"the master found {len(found)} slave(s); the segment has {len(expected)}")
     for k, (slave, s) in enumerate(zip(found, expected)):
-        for what, key, got in (("vendor id", "vendor_id", slave.man), ("product code", "product_code", slave.id),
-                               ("revision", "revision", slave.rev)):
+        for what, key, got in (("vendor id", "vendor_id", slave.man), ("product code", "product_code", slave.id)):
             if s[key] and got != s[key]:
                 problems.append(f"slave {k} ({s['node']}, {s['device']}): {what} 0x{got:08X} on the wire, "
                                 f"0x{s[key]:08X} in the spec ({slave.name!r} is at its place)")
+        act = s["dc"]["assign_activate"]
+        if act not in (0, SYNC0_ONLY):
+            problems.append(f"slave {k} ({s['node']}): AssignActivate 0x{act:04X} is not SYNC0 alone "
+                            f"(0x{SYNC0_ONLY:04X}), the one SOEM's dc_sync without SYNC1 sets; the spec gives no SYNC1")
     return problems
 
 
 def configure(master: MasterLike, segment: Mapping[str, Any]) -> None:
-    """After config_init: check the line, then give each slave its hook, which writes its start-up SDOs (the PDO
-    mappings, then the assignments 0x1C12/0x1C13, each cleared, filled and counted) in runtime.json's order."""
+    """After config_init and config_dc: check the line, then give each slave its hook, which writes its start-up
+    SDOs (the PDO mappings, then the assignments 0x1C12/0x1C13, each cleared, filled and counted) in runtime.json's
+    order and then starts its SYNC0, if it has DC settings."""
     found = master.slaves or []
     problems = check_line(found, segment)
     if problems:
@@ -93,10 +98,13 @@ def configure(master: MasterLike, segment: Mapping[str, Any]) -> None:
 
 def _hook(slave: SlaveLike, s: Mapping[str, Any]) -> Any:
     writes = [(sdo["index"], sdo["sub"], sdo_data(sdo)) for sdo in s["sdo"]]
+    dc = s["dc"]
 
     def config_func(_position: int) -> None:  # pysoem passes the slave's position; the slave is bound here
         for index, sub, data in writes:
             slave.sdo_write(index, sub, data)
+        if dc["assign_activate"]:
+            slave.dc_sync(True, dc["sync0_cycle_ns"], dc["sync0_shift_ns"])
 
     return config_func
 
@@ -113,15 +121,3 @@ def check_image(master: MasterLike, segment: Mapping[str, Any]) -> None:
                                 f"{size.get(direction, 0)}")
     if problems:
         raise SetupError("; ".join(problems))
-
-
-def start_sync0(master: MasterLike, segment: Mapping[str, Any]) -> None:
-    """After config_dc: SYNC0 on every slave whose DC settings ask for it, at the segment's cycle and its shift."""
-    for slave, s in zip(master.slaves or [], segment["slaves"]):
-        dc = s["dc"]
-        if not dc["assign_activate"]:
-            continue
-        if dc["assign_activate"] != SYNC0_ONLY:
-            raise SetupError(f"slave {s['node']}: AssignActivate 0x{dc['assign_activate']:04X} asks for more than "
-                             f"SYNC0 (0x{SYNC0_ONLY:04X}), which is what SOEM's dc_sync without SYNC1 activates")
-        slave.dc_sync(True, dc["sync0_cycle_ns"], dc["sync0_shift_ns"])
