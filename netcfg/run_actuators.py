@@ -130,7 +130,8 @@ def run_actuator_buses(
             b = bus_of[str(d.node)]
             if b in benches:
                 actuator = benches[b][str(d.node)]
-                plans[b].drills.append((d.at_s, d.description(), actuator.kill if d.kind == "kill" else actuator.fault))
+                action = {"kill": actuator.kill, "fault": actuator.fault}[d.kind]  # ACTUATOR_KINDS, as parsed
+                plans[b].drills.append((d.at_s, d.description(), action))
         with stop_on_signals() as arm:
             arm(partial(_stop_others, list(masters.values()), None))
             results = _run_all(masters, buses, plans)
