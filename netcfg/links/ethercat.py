@@ -35,7 +35,8 @@ BIT_RATES = (100_000_000, 1_000_000_000)  # 100BASE-TX; EtherCAT G at 1 Gbit/s
 #   155 ns one way), twice.
 MII_FORWARDING_NS = 2 * 1_000
 EBUS_FORWARDING_NS = 2 * 155
-PHYSICS_LETTERS = "YHK "  # the port types the defaults know; any other on ports 0 and 1 counts as RJ45, the slower
+# the port types the defaults know; any other letter on ports 0 and 1 counts as RJ45, the slower (' ': unused)
+PHYSICS = {"Y": "100BASE-TX", "H": "100BASE-TX with fast hot connect", "K": "E-bus"}
 
 
 def default_forwarding_ns(physics: str | None) -> int:
@@ -43,6 +44,11 @@ def default_forwarding_ns(physics: str | None) -> int:
     E-bus or unused, an RJ45 one otherwise and without an ESI (a CoE drive is an RJ45 slave)."""
     line = (physics or "")[:2].replace(" ", "")
     return EBUS_FORWARDING_NS if line and set(line) == {"K"} else MII_FORWARDING_NS
+
+
+def unknown_physics(physics: str) -> list[str]:
+    """The letters of ports 0 and 1 (the ones that decide the default) that are no port type netcfg knows."""
+    return sorted(set(physics[:2]) - set(PHYSICS) - {" "})
 
 
 def frame_bytes(datagrams: list[int]) -> int:

@@ -127,7 +127,7 @@ def file_view(
     master: bool,
     comments: list[str],
     texts: Texts,
-    dummies: Collection[int] = (),  # the dummy-mapping types the device offers (0x0002-0x0007)
+    dummies: Collection[int] = (),  # the dummy-mapping types the device offers (0x0001-0x0007)
     known: Known | None = None,
 ) -> FileView:
     """The file of `node` on `bus` that `od` describes, as its sections. `known`: objects whose texts are already

@@ -223,13 +223,14 @@ class EthercatRules(BusRules):
         slave.vendor_id, slave.product_code, slave.revision = dev.vendor_id, dev.product_code, dev.revision
         if s.forwarding_delay is None:
             slave.forwarding_ns = link.default_forwarding_ns(dev.physics)
-            unknown = sorted(set(dev.physics[:2]) - set(link.PHYSICS_LETTERS))  # the ports that decide it
+            unknown = link.unknown_physics(dev.physics)
             if unknown:
+                known = ", ".join(f"{k} {v}" for k, v in link.PHYSICS.items())
                 self.r.warn(
                     "esi-physics",
                     f"slave '{s.node}': {dev.type_name} ({e.file}:{dev.line}) has ports of physics "
                     f"{', '.join(repr(x) for x in unknown)} in Physics=\"{dev.physics}\", which netcfg does not know "
-                    f"(Y 100BASE-TX, H with hot connect, K E-bus): its forwarding delay is taken as an RJ45 slave's "
+                    f"({known}): its forwarding delay is taken as an RJ45 slave's "
                     f"{link.MII_FORWARDING_NS / 1000:g} us; set forwarding_delay to say otherwise",
                     (*spath, "esi"),
                 )
