@@ -149,7 +149,7 @@ def activation(m: model.Model, task: model.Task, acc: Analysis) -> tuple[int | N
             return task.period_ns, loop.jitter_ns
         sync = acc.canopen[task.sync_bus].sync  # the SYNC frame may be held up by arbitration (or a FIFO queue)
         return task.period_ns, None if sync.worst_ns is None else sync.worst_ns - sync.best_ns
-    return task.period_ns, 0
+    return task.period_ns, task.cycle_jitter_ns  # a cycle its node keeps starts up to that late (else 0)
 
 
 def analyze_node(m: model.Model, node: model.Node, acc: Analysis, diags: Collector) -> dict[str, Any]:
@@ -200,6 +200,17 @@ def analyze_node(m: model.Model, node: model.Node, acc: Analysis, diags: Collect
     return {"name": node.name, "scheduling": node.scheduling, "utilization": round(load_, 6), "tasks": rows}
 
 
+def flow_buses(m: model.Model, flow: model.Flow) -> list[str]:
+    """The buses a flow's steps are on, in its order: its messages' and the cycles its tasks run on."""
+    out: list[str] = []
+    for s in flow.steps:
+        for r in s.refs:
+            bus = m.messages[r].bus if s.kind == "message" else m.task(r).sync_bus
+            if bus is not None and bus not in out:
+                out.append(bus)
+    return out
+
+
 def analyze_flow(m: model.Model, flow: model.Flow, acc: Analysis, diags: Collector) -> dict[str, Any]:
     unsync, delivery = flows.unsynchronised(m, flow, acc.plain, acc.task_ns)
     sync = None
@@ -232,6 +243,10 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: Analysis, diags: Collect
         )
         if co_bus is not None:
             sync = flows.synchronised_canopen(m, flow, co_bus, acc.canopen[co_bus], acc.chained, acc.task_ns)
+        else:
+            cyc = next((b for b in flow_buses(m, flow) if b in acc.cycle_flows), None)
+            if cyc is not None:
+                sync = acc.cycle_flows[cyc](m, flow, acc)
     lo: int
     hi: int | None
     if sync:

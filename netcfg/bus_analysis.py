@@ -4,6 +4,7 @@ of the report and its verdict, the deadline errors, and the bit-error model's te
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -11,6 +12,8 @@ from netcfg import model
 from netcfg.diagnostics import Collector
 from netcfg.spec.units import format_ns
 from netcfg.timing import can_errors, can_rta, flows, load
+
+FlowBounds = tuple[tuple[int, int], tuple[int, int] | None]  # a flow's (latency, last delivery) range, in ns
 
 
 def us(ns: float | int | None) -> float | None:
@@ -37,6 +40,9 @@ class Analysis:
         self.plain: dict[str, flows.Delivery] = {}  # the same bus as plain, unsynchronised CAN
         self.ftt: dict[str, flows.FttTimes] = {}
         self.canopen: dict[str, flows.SyncTimes] = {}
+        # a bus whose own cycle flows may keep step with (an EtherCAT master's): its flow model, which gives a flow's
+        # (latency, last delivery) in step with that cycle, or None for a flow not in step with it
+        self.cycle_flows: dict[str, Callable[[model.Model, model.Flow, Analysis], FlowBounds | None]] = {}
         self.task_ns: dict[str, int | None] = {}  # node.task -> worst-case response time on its processor
         self.task_wcrt: dict[str, int | None] = {}  # the same from the task's nominal release (jitter included)
         self.extra_jitter: dict[str, int] = {}  # message -> release jitter its sending task's response adds

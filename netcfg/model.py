@@ -32,7 +32,8 @@ MessageKind = Literal["periodic", "sporadic", "on-demand"]
 class Task(TaskTiming):
     path: Path
     description: str | None = None
-    sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
+    sync_bus: str | None = None  # runs on this bus's cycle (CANopen: each SYNC; EtherCAT: its master's cycle)
+    cycle_jitter_ns: int = 0  # ... whose start its node keeps up to this late (an EtherCAT master's send jitter)
     priority: int | None = None  # on its node's processor, 0 the highest; None: rate-monotonic
 
 

@@ -36,7 +36,7 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "signal_scale_zero.yaml": (15, "value-error", "scale of 0"),
     "name_cpp_keyword.yaml": (15, "value-error", "C or C++ keyword"),
     "signal_overlap.yaml": (16, "signal-overlap", "overlaps signal 'a'"),
-    "sync_task_not_on_canopen.yaml": (10, "task-sync", "exactly one CANopen bus"),
+    "sync_task_not_on_canopen.yaml": (10, "task-sync", "exactly one bus with a cycle for it"),
     "name_taken_by_sync.yaml": (12, "duplicate-name", "taken by the SYNC of bus can0"),
     "canopen_master_overruns_cycle.yaml": (13, "master-cycle", "ends up to 2.5 ms after SYNC"),
     "canopen_master_jitter_negative.yaml": (7, "value-error", "cannot read '-5 us' as a duration"),

@@ -54,6 +54,15 @@ class Unsaid:
 JointEntries = dict[str, dict[str, tuple[str, str, int, bool]]]
 
 
+@dataclass(frozen=True)
+class TaskCycle:
+    """A bus's cycle that tasks may run on: every `period_ns`, each task its offset after the cycle's start."""
+
+    period_ns: int
+    name: str  # as messages say it: "SYNC", "EtherCAT cycle"
+    jitter_ns: int = 0  # how late the node itself may start a cycle (an EtherCAT master's send jitter)
+
+
 class Protocol:
     # a node speaking an actuator's own protocol (netcfg.devices.actuator_profile) may sit on a bus of it: only where
     # the protocol adds nothing to the link's frames (no SYNC, no schedule, no identifier scheme of its own)
@@ -81,6 +90,11 @@ class Protocol:
         """Whether a task on a message's producer sends it as it finishes (netcfg.resolve.flows' sent_by); False
         where the protocol's own cycle carries every message, taking the data it finds when it passes."""
         return True
+
+    def task_cycle(self, bus: model.Bus, node: str) -> TaskCycle | None:
+        """The cycle a task of `node` may run on (`sync: true`, its offset after each cycle's start), or None where
+        the bus gives that node none."""
+        return None
 
     def rules(self) -> type[BusRules]:
         """The resolver's hooks for a bus of this protocol: the link's rules unless the protocol adds its own."""

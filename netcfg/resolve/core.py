@@ -510,12 +510,17 @@ class Resolver:
                         )
                     if task.trigger is not None:
                         self.err("task-trigger", f"task '{task.ref}' is both event-driven and triggered", task.path)
-                elif task.period_ns is None and task.trigger is None:
+                elif task.period_ns is None and task.trigger is None and not self._on_a_cycle(task):
                     self.err(
                         "task-period",
                         f"task '{task.ref}' has no period, no trigger and no 'on_message'; say what activates it",
                         task.path,
                     )
+
+    def _on_a_cycle(self, task: model.Task) -> bool:
+        """The spec puts the task on its bus's cycle (`sync: true`): without one, that is the error said."""
+        _, i, _, j = task.path
+        return bool(self.spec.nodes[int(i)].tasks[int(j)].sync)
 
     def check_identifiers(self) -> None:
         for bus in self.model.buses.values():

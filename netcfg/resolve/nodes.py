@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from netcfg import cia301, model
+from netcfg import cia301, model, protocols
 from netcfg.protocols.canopen import resolve as canopen
 from netcfg.records import same_named
 from netcfg.resolve.actuators import is_actuator_device
@@ -147,10 +147,9 @@ def resolve_task(r: Resolver, node: str, t: schema.Task, path: Path, ec: int | N
                 )
     if t.on_message is not None and t.period is not None:
         r.err("task-period", "an event-driven task ('on_message') has no period", (*path, "period"))
-    sync_bus = None
+    sync_bus, jitter = None, 0
     if t.sync:
-        sync_bus, period = canopen.sync_task(r, node, t, path, period)
-        r.check_offset(offset, period, path, "the SYNC period")
+        sync_bus, period, jitter = cycle_task(r, node, t, path, period, offset)
     return model.Task(
         **same_named(t, "description name on_message priority"),
         node=node,
@@ -161,7 +160,41 @@ def resolve_task(r: Resolver, node: str, t: schema.Task, path: Path, ec: int | N
         trigger=None,
         path=path,
         sync_bus=sync_bus,
+        cycle_jitter_ns=jitter,
     )
+
+
+def cycle_task(
+    r: Resolver, node: str, t: schema.Task, path: Path, period: int | None, offset: int
+) -> tuple[str | None, int | None, int]:
+    """A task that runs on its bus's cycle (`sync: true`) takes the cycle's period from the one bus of its node that
+    has a cycle for it (its protocol's task_cycle: a CANopen bus's SYNC, an EtherCAT segment's cycle on its
+    master)."""
+    cycles = [
+        (name, cycle)
+        for name in r.spec_nodes[node].buses
+        if (bus := r.model.buses.get(name)) is not None and (cycle := protocols.of(bus).task_cycle(bus, node))
+    ]
+    if len(cycles) != 1:
+        r.err(
+            "task-sync",
+            f"task '{node}.{t.name}' runs on its bus's cycle ('sync: true'), so its node must be on exactly one bus "
+            f"with a cycle for it, a CANopen bus (SYNC) or an EtherCAT bus it is the master or a DC slave of (it is on "
+            f"{len(cycles)}): drop 'sync' and give a period",
+            (*path, "sync"),
+        )
+        return None, period, 0
+    name, cycle = cycles[0]
+    if t.on_message is not None:
+        r.err("task-sync", f"a task runs either on {cycle.name} or on a message, not both", (*path, "sync"))
+    if period is not None and period != cycle.period_ns:
+        r.err(
+            "task-period",
+            f"a task on {cycle.name} runs every {cycle.name} ({format_ns(cycle.period_ns)}); drop its period",
+            (*path, "period"),
+        )
+    r.check_offset(offset, cycle.period_ns, path, f"the {cycle.name} period")
+    return name, cycle.period_ns, cycle.jitter_ns
 
 
 def _tx_queue(q: schema.TxQueue) -> model.TxQueue:

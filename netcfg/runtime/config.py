@@ -205,7 +205,7 @@ class TaskTiming:
 
 @dataclass(frozen=True)
 class Task(TaskTiming):
-    sync_bus: str | None = None  # CANopen: runs on every SYNC of this bus, offset_ns after it
+    sync_bus: str | None = None  # runs on this bus's cycle (CANopen: each SYNC; EtherCAT: its master's cycle)
 
 
 @dataclass(frozen=True)

@@ -384,7 +384,8 @@ def check_document(doc: Any, strict: bool = False) -> list[str]:
             if min(touched) < 0 or max(touched) >= m["size"]:
                 out.append(f"{where}: signal {s['name']!r} (bits {s['start_bit']}..{s['start_bit'] + s['bits'] - 1}) "
                            f"does not fit its {m['size']}-byte payload")
-        pdo_bits = 8 * (FD_LENGTHS[-1] if on_fd else 8)  # CiA 301's 8 bytes; CANopen FD's (CiA 1301) 64
+        # CiA 301's 8 bytes; CANopen FD's (CiA 1301) 64; an EtherCAT PDO's, what its message's frame carries
+        pdo_bits = 8 * max(limit, FD_LENGTHS[-1] if on_fd else 8)
         if m["pdo"] is not None and sum(e["bits"] for e in m["pdo"]["entries"]) > pdo_bits:
             out.append(f"{where}: its PDO maps more than {pdo_bits} bits")
     return out

@@ -37,8 +37,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from netcfg.runtime import Bus
-from netcfg.sim.engine import NEVER
+from netcfg.runtime import Bus, Task
+from netcfg.sim.engine import NEVER, TASKS
 from netcfg.timing.ethernet import PROPAGATION_M_PER_S
 
 if TYPE_CHECKING:
@@ -129,6 +129,9 @@ class EthercatSegment:
         self.result = self._summary(n, cycle, len(frames))
         for p in self._pdos:
             self._deliver(p["name"])
+        if sc.synchronised:  # unsynchronised, they run free at the cycle's period (SimRun.free_running_tasks)
+            for task in sc.tasks_on_sync(name):
+                self._cycle_task(task, n * cycle)
 
     def _cycle_at(self, at_ns: int, n: int) -> int | None:
         """The first cycle starting at or after at_ns (None: after the run)."""
@@ -311,6 +314,33 @@ class EthercatSegment:
 
         if ends:
             sc.sim.at(ends[0], deliver)
+
+    def _cycle_task(self, task: Task, until: int) -> None:
+        """A task on the cycle (`sync: true`), started every period until the master's last cycle: the master's a
+        draw in [0, master_jitter] after the cycle's start and its offset (its wake-up, as for the frames), a DC
+        slave's at its SYNC0 (the shift, and distributed clocks' error as for its SYNC0 check) and its offset."""
+        sc, period = self.sc, int(task.period_ns or self.ec["cycle_ns"])
+        rng = sc.random(f"ethercat {self.bus.name} task {task.ref}")
+        k = np.arange(-(-until // period), dtype=np.int64) * period + task.offset_ns
+        j = next((i for i, s in enumerate(self.slaves) if s["node"] == task.node), None)
+        if j is None:
+            at = k + rng.uniform(0, self.ec["master_jitter_ns"], len(k))
+        else:
+            precision = float(self.ec.get("dc_precision_ns", 0))
+            error = self._dc_offset[j] + rng.uniform(-precision / 2, precision / 2, len(k))
+            at = k + int(self.slaves[j]["dc"]["sync0_shift_ns"]) + error
+        starts = np.rint(at).astype(np.int64).tolist()
+        n = 0
+
+        def fire(_: object) -> None:
+            nonlocal n
+            sc.run_task(task)
+            n += 1
+            if n < len(starts):
+                sc.sim.at(starts[n], fire, None, TASKS)
+
+        if starts:
+            sc.sim.at(starts[0], fire, None, TASKS)
 
     def records(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
         """The PDO messages' deliveries from each cycle's start (results.collect holds them to their wcrt_ns, the

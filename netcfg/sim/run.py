@@ -93,6 +93,11 @@ class SimRun(Protocol):
         """Ethernet message -> its network."""
         ...
 
+    @property
+    def synchronised(self) -> bool:
+        """The buses run their protocol (mode "auto"), not as free-running CAN ("unsync")."""
+        ...
+
     def alive(self, node: str) -> bool: ...
 
     def random(self, source: str) -> np.random.Generator:

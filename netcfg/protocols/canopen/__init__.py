@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 from netcfg import links
 from netcfg.links.can import CLASSICAL_CAN
 from netcfg.links.canfd import CAN_FD
-from netcfg.protocols.base import Protocol, Unsaid
+from netcfg.protocols.base import Protocol, TaskCycle, Unsaid
 
 if TYPE_CHECKING:
     from netcfg import model, runtime
@@ -61,6 +61,10 @@ class Canopen(Protocol):
 
     def run_refused(self, bus: runtime.Bus) -> str | None:
         return USDO_REFUSAL.format(bus=bus.name) if bus.link == CAN_FD.name else None
+
+    def task_cycle(self, bus: model.Bus, node: str) -> TaskCycle | None:
+        """Every node on the bus receives its SYNC: a task there may run on it."""
+        return None if bus.canopen is None else TaskCycle(bus.canopen.sync_period_ns, "SYNC")
 
     def rules(self) -> type[BusRules]:
         from netcfg.protocols.canopen.resolve import CanopenRules

@@ -345,28 +345,3 @@ def device_has_heartbeat(r: Resolution, dev: DeviceProfile | None, hb_ns: int, p
         path,
     )
     return False
-
-
-def sync_task(
-    r: Resolution, node: str, t: schema.Task, path: Path, period: int | None
-) -> tuple[str | None, int | None]:
-    """A SYNC-driven task takes its period from its node's CANopen bus."""
-    buses = [b for b in r.spec_nodes[node].buses if b in r.model.buses and r.model.buses[b].canopen]
-    if len(buses) != 1:
-        r.err(
-            "task-sync",
-            f"task '{node}.{t.name}' runs on SYNC, so its node must be on exactly one CANopen "
-            f"bus (it is on {len(buses)})",
-            (*path, "sync"),
-        )
-        return None, period
-    if t.on_message is not None:
-        r.err("task-sync", "a task runs either on SYNC or on a message, not both", (*path, "sync"))
-    sync_period = r.model.buses[buses[0]].canopen.sync_period_ns  # type: ignore[union-attr]
-    if period is not None and period != sync_period:
-        r.err(
-            "task-period",
-            f"a SYNC task runs every SYNC ({format_ns(sync_period)}); drop its period",
-            (*path, "period"),
-        )
-    return buses[0], sync_period

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from netcfg.links.ethercat import ETHERCAT
-from netcfg.protocols.base import JointEntries, Protocol
+from netcfg.protocols.base import JointEntries, Protocol, TaskCycle
 
 if TYPE_CHECKING:
     from netcfg import model, runtime
@@ -20,6 +20,19 @@ class EtherCatProtocol(Protocol):
         from netcfg.protocols.ethercat.resolve import EthercatRules
 
         return EthercatRules
+
+    def task_cycle(self, bus: model.Bus, node: str) -> TaskCycle | None:
+        """The master sends each cycle's frames on its own clock, and a DC slave's SYNC0 fires on the cycle's: a task
+        of either may run in step with them (netcfg.protocols.ethercat.analysis.task_starts)."""
+        from netcfg.protocols.ethercat.analysis import task_starts
+
+        seg = bus.ethercat
+        if seg is None:
+            return None
+        if node == seg.master:
+            return TaskCycle(seg.cycle_ns, "EtherCAT cycle", seg.master_jitter_ns)
+        early, late = task_starts(seg).get(node, (0, -1))
+        return TaskCycle(seg.sync0_cycle_ns, "SYNC0", late - early) if late >= early else None
 
     def sent_as_tasks_end(self, bus: model.Bus) -> bool:
         """A PDO rides the master's cyclic frame: a task writes its data, the next frame takes it."""

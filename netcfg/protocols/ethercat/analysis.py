@@ -153,15 +153,29 @@ def analyze_segment(m: model.Model, bus: model.Bus, diags: Collector, acc: Analy
     return row
 
 
+def task_starts(seg: Segment) -> dict[str, tuple[int, int]]:
+    """When each node's tasks on the cycle (`sync: true`) start, earliest and latest from the cycle's start before
+    their offsets: the master's within its send jitter, a DC slave's at its SYNC0, within distributed clocks'
+    precision either way."""
+    out = {seg.master: (0, seg.master_jitter_ns)} if seg.master is not None else {}
+    for s in seg.slaves:
+        if s.assign_activate:
+            shift = s.sync0_shift_ns if s.sync0_shift_ns is not None else seg.sync0_shift_ns
+            out[s.node] = (shift - DC_PRECISION_NS, shift + DC_PRECISION_NS)
+    return out
+
+
 def pdo_rows(
     m: model.Model, bus: model.Bus, seg: Segment, t: CycleTiming, diags: Collector, acc: Analysis | None
 ) -> list[dict[str, Any]]:
     """Each PDO message's delivery (netcfg.protocols.ethercat.messages) for the flows, and its row: its worst case
     from the cycle's start against its deadline."""
+    from netcfg.protocols.ethercat.flow import CycleFlows, pdo_window
     from netcfg.protocols.ethercat.messages import delivery, pdo_messages
     from netcfg.timing.flows import Delivery
 
     rows = []
+    windows = {}
     position = {s.node: k for k, s in enumerate(seg.slaves)}
     cables = [s.cable_m for s in seg.slaves]
     for p in pdo_messages(bus, seg):
@@ -169,6 +183,7 @@ def pdo_rows(
         best, worst, read = delivery(t, p, position[p.slave], cables, bus.bitrate)
         if acc is not None:
             acc.chained[msg.name] = acc.plain[msg.name] = Delivery(best, worst)
+            windows[msg.name] = pdo_window(t, seg, p, best, worst, read)
         row = message_head(msg, extended=False) | {
             "slave": p.slave,
             "direction": p.direction,
@@ -198,4 +213,6 @@ def pdo_rows(
                 m.source.at((*msg.path, "deadline")),
             )
         rows.append(row)
+    if acc is not None:
+        acc.cycle_flows[bus.name] = CycleFlows(bus.name, seg.cycle_ns, task_starts(seg), windows)
     return rows

@@ -1,0 +1,175 @@
+"""Flows in step with an EtherCAT master's cycle: the master keeps the cycle on its own clock, so a task of its that
+runs on it (`sync: true`) starts a fixed offset after each cycle's start, and each PDO of the segment is taken by
+the cycle's frame within a fixed window of that start. A flow made of such tasks, the segment's PDOs, tasks their
+messages start and messages their tasks send as they end is walked cycle by cycle: each step takes the first cycle
+that surely (at worst) or possibly (at best) finds its data in.
+
+Per cycle k, which starts at k * cycle (its frames sent up to the master's jitter J later):
+
+- a task on the cycle starts between k * cycle + offset and J later (its node's wake-up latency, as for the frame);
+- an RxPDO (the master's outputs) is copied into the frame as the master sends it: the frame takes data ready by
+  its send, between k * cycle and J later, and delivers it to the slave by the slave's frame-passed bound;
+- a TxPDO (a slave's inputs) is read as the datagram passes the slave: at the earliest its read offset and the
+  cables to the slave after k * cycle, at the latest J and the forwarding delays up to the slave later still; it
+  is at the master by the segment's latency.
+
+A flow with a free-running task, a join, or a message with a rate of its own keeps the free-running bound
+(netcfg.timing.flows.unsynchronised): its phase against the cycle is not known.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from netcfg import model
+from netcfg.links import ethercat as link
+from netcfg.timing.flow_steps import (
+    Delivery,
+    Run,
+    TaskTimes,
+    freshest,
+    queue_delay,
+    sent_by_producer,
+    start_delay,
+    task_response,
+)
+
+if TYPE_CHECKING:
+    from netcfg.bus_analysis import Analysis, FlowBounds
+    from netcfg.protocols.ethercat.cycle import CycleTiming
+    from netcfg.protocols.ethercat.messages import PdoMessage
+    from netcfg.protocols.ethercat.segment import Segment
+
+@dataclass(frozen=True)
+class PdoWindow:
+    """When a cycle's frame takes a PDO's data and when it delivers it, from the cycle's start."""
+
+    take_lo: int  # the earliest instant the frame takes the data (outputs: the send; inputs: the read at the slave)
+    take_hi: int  # the latest
+    best_ns: int  # the earliest delivery, from the take
+    worst_ns: int  # the latest delivery, from the cycle's start
+
+
+@dataclass(frozen=True)
+class CycleFlows:
+    """An EtherCAT segment's cycle as flows in step with it need it (netcfg.protocols.ethercat.analysis fills it)."""
+
+    bus: str
+    cycle_ns: int
+    starts: dict[str, tuple[int, int]]  # node -> when its tasks' cycle starts, earliest and latest from k * cycle
+    pdos: dict[str, PdoWindow]
+
+    def __call__(self, m: model.Model, flow: model.Flow, acc: Analysis) -> FlowBounds | None:
+        return synchronised_ethercat(m, flow, self, acc.chained, acc.task_ns)
+
+
+def pdo_window(t: CycleTiming, seg: Segment, p: PdoMessage, best: int, worst: int, read: int) -> PdoWindow:
+    """A PDO's window from its delivery (netcfg.protocols.ethercat.messages.delivery: best from the take, worst from
+    the cycle's start, the read's offset from the send)."""
+    if p.direction == "outputs":
+        return PdoWindow(0, t.jitter_ns, best, worst)
+    k = next(i for i, s in enumerate(seg.slaves) if s.node == p.slave)
+    cables = round(sum(link.propagation_ns(s.cable_m) for s in seg.slaves[: k + 1]))
+    forwarding = sum(s.forwarding_ns for s in seg.slaves[: k + 1])
+    return PdoWindow(read + cables, t.jitter_ns + read + cables + forwarding, best, worst)
+
+
+def synchronised_ethercat(
+    m: model.Model, flow: model.Flow, cf: CycleFlows, chained: dict[str, Delivery], task_ns: TaskTimes | None
+) -> FlowBounds | None:
+    """(latency, last message's delivery) of a flow in step with the cycle over two cycles' starts (freshest), or
+    None when some step is not in step with it."""
+    cycle = cf.cycle_ns
+    if not _in_step(m, flow, cf, chained, task_ns):
+        return None
+
+    def instants(task: model.Task) -> tuple[int, int]:
+        """The earliest and latest start of a task on the cycle, from k * cycle: its node's cycle and its offset."""
+        early, late = cf.starts[task.node]
+        return early + task.offset_ns, late + task.offset_ns
+
+    def first_cycle(r: int, at: int) -> int:
+        """The first cycle k >= 0 whose instant k * cycle + at is at or after r."""
+        return max(0, -(-(r - at) // cycle))
+
+    head = flow.steps[0].refs[0]
+    runs: list[Run] = []
+    for k0 in range(2):
+        if flow.steps[0].kind == "task":
+            early, late = instants(m.task(head))
+            start, spread = k0 * cycle + early, late - early
+        else:
+            first = cf.pdos[head]
+            start, spread = k0 * cycle + first.take_lo, first.take_hi - first.take_lo
+        lo, hi = start + spread, start  # the best case from the latest start, the worst from the earliest
+        got: tuple[int, int] | None = None
+        prev: model.FlowStep | None = None
+        for i, step in enumerate(flow.steps):
+            ref = step.refs[0]
+            if step.kind == "message":
+                w: PdoWindow | None = cf.pdos.get(ref)
+                if w is None:  # another bus's, sent as the task before it ends
+                    d, tx = chained[ref], queue_delay(m, m.messages[ref], prev)
+                    assert d.worst_ns is not None  # (_in_step)
+                    lo, hi = lo + tx + d.best_ns, hi + tx + d.worst_ns
+                elif i == 0:  # the start's own cycle's frame
+                    lo, hi = lo + w.best_ns, k0 * cycle + w.worst_ns
+                else:
+                    k_lo, k_hi = first_cycle(lo, w.take_hi), first_cycle(hi, w.take_lo)
+                    lo, hi = max(lo, k_lo * cycle + w.take_lo) + w.best_ns, k_hi * cycle + w.worst_ns
+                got = (lo, hi)
+            else:
+                task = m.task(ref)
+                if i == 0:
+                    a_lo, a_hi = lo, hi
+                elif task.sync_bus == cf.bus:
+                    early, late = instants(task)
+                    k_lo, k_hi = first_cycle(lo, late), first_cycle(hi, early)
+                    a_lo, a_hi = max(lo, k_lo * cycle + early), k_hi * cycle + late
+                else:  # started by the message before it
+                    a_lo, a_hi = lo + start_delay(m, task), hi + start_delay(m, task)
+                busy = task_response(task, task_ns)
+                assert busy is not None  # (_in_step)
+                last = i == len(flow.steps) - 1
+                lo, hi = (a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy)
+            prev = step
+        # runs hold ends relative to the start taken: the best case's, which began `spread` later, is moved back
+        runs.append((start, lo - spread, hi, None if got is None else (got[0] - spread, got[1]), None))
+    return freshest(runs, cycle)
+
+
+def _in_step(
+    m: model.Model, flow: model.Flow, cf: CycleFlows, chained: dict[str, Delivery], task_ns: TaskTimes | None
+) -> bool:
+    """Every step one item in step with the cycle: a task on it or one the message before it starts, the
+    segment's PDOs, another bus's messages sent as the task before them ends; the first a task on the cycle or a
+    TxPDO (inputs, whose read starts the flow)."""
+    first = flow.steps[0]
+    if any(len(s.refs) != 1 for s in flow.steps):
+        return False
+    head = first.refs[0]
+    if first.kind == "task" and m.task(head).sync_bus != cf.bus:
+        return False  # (a task on the cycle is checked below)
+    if first.kind == "message" and (head not in cf.pdos or m.messages[head].producer == _master(m, cf)):
+        return False
+    prev: model.FlowStep | None = None
+    for i, step in enumerate(flow.steps):
+        ref = step.refs[0]
+        if step.kind == "task":
+            task = m.task(ref)
+            on_cycle = task.sync_bus == cf.bus and task.period_ns == cf.cycle_ns and task.node in cf.starts
+            started = task.on_message is not None and prev is not None and task.on_message in prev.refs
+            if not (on_cycle or started) or task_response(task, task_ns) is None:
+                return False
+        elif ref not in cf.pdos:
+            d = chained.get(ref)
+            if i == 0 or d is None or d.worst_ns is None or not sent_by_producer(m, m.messages[ref], prev):
+                return False
+        prev = step
+    return True
+
+
+def _master(m: model.Model, cf: CycleFlows) -> str | None:
+    seg = m.buses[cf.bus].ethercat
+    return None if seg is None else seg.master

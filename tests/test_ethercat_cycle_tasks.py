@@ -1,0 +1,144 @@
+"""Tasks on an EtherCAT cycle (`sync: true`): the master's a fixed offset after each cycle's start, a DC slave's at
+its SYNC0. A flow through them and the segment's PDOs is walked cycle by cycle (netcfg.protocols.ethercat.flow),
+checked here against a hand calculation of that walk and against the simulator, which starts those tasks the same
+way (netcfg.sim.ethercat); the resolver's errors for a task that has no cycle to run on."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from netcfg.sim.montecarlo import run_once
+from netcfg.sim.results import summary
+from netcfg.sim.scenario import SimOptions
+from tests.conftest import check_data, runtime_config_of
+from tests.test_ethercat import errors, spec
+
+C = 0.7 * 299_792_458  # cables at 0.7 c (netcfg.timing.ethernet)
+AXIS = [{"index": 0x1600, "map": [0x6040, 0x607A]}, {"index": 0x1A00, "map": [0x6041, 0x6064]}]  # 6 bytes each way
+CYCLE, JITTER, SHIFT, DC = 1_000_000, 20_000, 500_000, 100  # DC: distributed clocks' precision, 100 ns
+OFFSET, BCET, WCET = 100_000, 10_000, 50_000  # the master's control task
+
+
+def loop_spec(tmp_path: Path, **control: Any) -> dict[str, Any]:
+    """Two CiA 402 axes (no ESI: RJ45 slaves, 2 us each) on 10 m and 20 m of cable; d1's position to the master's
+    control task on the cycle, its target back to d1, latched by d1's task at SYNC0."""
+    slaves = [{"node": f"d{i}", "profile": "cia402", "pdos": AXIS, "cable": m} for i, m in enumerate((10.0, 20.0))]
+    data = spec(tmp_path, slaves, sync0_shift="500 us", master_jitter="20 us")
+    nodes = {n["name"]: n for n in data["nodes"]}
+    nodes["pc"]["tasks"] = [{"name": "control", "sync": True, "offset": "100 us", "bcet": "10 us", "wcet": "50 us",
+                             **control}]
+    nodes["d1"]["tasks"] = [{"name": "latch", "sync": True, "wcet": "10 us"}]
+    data["messages"] = [
+        {"name": "d1_pos", "bus": "ecat", "producer": "d1", "consumers": ["pc"], "pdo": {"tpdo": 1, "map": [0x6064]}},
+        {"name": "d1_target", "bus": "ecat", "producer": "pc", "consumers": ["d1"],
+         "pdo": {"rpdo": 1, "map": [0x607A]}},
+    ]
+    data["flows"] = [{"name": "loop", "chain": ["d1_pos", "pc.control", "d1_target", "d1.latch"]}]
+    return data
+
+
+# The walk by hand. The image is 12 bytes out, then 12 in (d1's inputs at logical 18); one frame, 84 bytes on the
+# wire, 6,720 ns. Cables to d1: 30 m at 0.7 c, 142.95 ns.
+CABLES = 30 / C * 1e9
+READ = (8 + 14 + 2 + 10 + 18) * 80  # preamble and SFD, Ethernet, EtherCAT and datagram headers, 18 bytes: 4,160 ns
+# d1's inputs are read between the read and the cables after the cycle's start and J and both slaves' 2 us later
+TAKE_LO = READ + round(CABLES)  # 4,303
+TAKE_HI = JITTER + TAKE_LO + 2 * 2000  # 28,303
+IN_BEST = int(6720 - READ + CABLES)  # from the read: the rest of the frame and the cables back, 2,702
+IN_WORST = JITTER + 6720 + 2 * 2000 + round(2 * CABLES)  # back at the master: 31,006
+OUT_BEST = int(6720 + CABLES)  # the RxPDO from the send to d1: 6,862
+OUT_WORST = round(JITTER + 6720 + 2 * 2000 + CABLES)  # the frame has passed d1: 30,863
+RESPONSE = WCET  # alone on the master: its response from its activation is its WCET
+# Cycle 0: the read starts the flow between TAKE_LO and TAKE_HI; at the master by 31.006 us, before the control
+# task's earliest start (100 us): it runs in cycle 0, starts by 120 us (its offset and J), ends by 170 us. The next
+# frame (cycle 1, sent at 1,000 us at the earliest) takes the target and delivers it by 1,030.863 us; d1's SYNC0
+# comes at 1,500 us +- 0.1 us, when the latch takes it. At best the same cycles, from the latest read.
+LATENCY = (CYCLE + SHIFT - DC - TAKE_HI, CYCLE + SHIFT + DC - TAKE_LO)  # 1,471.597 - 1,495.797 us
+# the target at d1: from the latest read, the earliest send of cycle 1 (its data ready at 110 us) and the RxPDO's
+# best; from the earliest read, cycle 1's latest delivery
+DELIVERY = (CYCLE + OUT_BEST - TAKE_HI, CYCLE + OUT_WORST - TAKE_LO)  # 978.559 - 1,026.56 us
+
+
+def test_the_walk_by_hand(tmp_path: Path) -> None:
+    report = check_data(tmp_path, loop_spec(tmp_path))
+    assert not report["errors"], report["errors"]
+    (ecat,) = report["buses"]
+    rows = {m["name"]: m for m in ecat["messages"]}
+    assert rows["d1_pos"]["read_offset_ns"] == READ
+    assert (rows["d1_pos"]["best_us"], rows["d1_pos"]["wcrt_us"]) == (IN_BEST / 1000, IN_WORST / 1000)
+    assert (rows["d1_target"]["best_us"], rows["d1_target"]["wcrt_us"]) == (OUT_BEST / 1000, OUT_WORST / 1000)
+    (flow,) = report["flows"]
+    assert flow["mode"] == "synchronised"
+    assert tuple(flow["latency_ns"]) == LATENCY == (1_471_597, 1_495_797)
+    sync = flow["synchronised"]
+    assert (sync["delivery_min_us"], sync["delivery_max_us"]) == (DELIVERY[0] / 1000, DELIVERY[1] / 1000)
+    # free-running, the control task, the frame and the latch may each find the data just missed: over a cycle more
+    assert flow["unsynchronised"]["latency_ns"][1] > LATENCY[1] + CYCLE
+
+
+def test_the_tasks_jitter_is_their_cycles(tmp_path: Path) -> None:
+    """The processor analysis activates a task on the cycle up to its cycle's jitter late: the master's send jitter
+    (20 us), a DC slave's twice distributed clocks' precision (SYNC0 up to 100 ns either way)."""
+    report = check_data(tmp_path, loop_spec(tmp_path))
+    tasks = {(n["name"], t["name"]): t for n in report["nodes"] for t in n["tasks"]}
+    assert tasks[("pc", "control")]["jitter_us"] == JITTER / 1000
+    assert tasks[("pc", "control")]["wcrt_us"] == (JITTER + RESPONSE) / 1000
+    assert tasks[("d1", "latch")]["jitter_us"] == 2 * DC / 1000
+    assert tasks[("d1", "latch")]["interval_us"] == CYCLE / 1000
+
+
+def simulated_loop(tmp_path: Path, mode: str = "auto") -> dict[str, Any]:
+    cfg = runtime_config_of(tmp_path / "spec.yaml", loop_spec(tmp_path))
+    (flow,) = summary(run_once(cfg, SimOptions(duration_ns=2_000_000_000, seed=3, mode=mode))[1])["flows"]
+    return flow  # type: ignore[no-any-return]
+
+
+def test_the_simulator_keeps_to_the_walk(tmp_path: Path) -> None:
+    """The simulator starts the master's task a draw in [0, J] after its offset and d1's at its SYNC0 (its DC error
+    within 100 ns): every latency it sees lies in the walk's range, and over 2,000 cycles they spread over most of
+    it (the reads' and the starts' draws)."""
+    flow = simulated_loop(tmp_path)
+    lo, hi = flow["latency_us"]["min"] * 1000, flow["latency_us"]["max"] * 1000
+    assert flow["within_analysis"] and LATENCY[0] <= lo <= hi <= LATENCY[1]
+    assert hi - lo > 0.8 * (LATENCY[1] - LATENCY[0])
+
+
+def test_unsynchronised_the_tasks_run_free(tmp_path: Path) -> None:
+    """`--mode unsync`: the tasks run on their nodes' clocks at the cycle's period, held to the free-running bound."""
+    flow = simulated_loop(tmp_path, "unsync")
+    assert flow["within_analysis"]
+    assert flow["analysis_us"]["max"] > (LATENCY[1] + CYCLE) / 1000
+
+
+@pytest.mark.parametrize(
+    ("change", "code", "words"),
+    [
+        ({"period": "2 ms"}, "task-period", "runs every EtherCAT cycle (1 ms); drop its period"),
+        ({"offset": "1 ms"}, "offset", "smaller than the EtherCAT cycle period 1 ms"),
+        ({"on_message": "d1_pos"}, "task-sync", "either on EtherCAT cycle or on a message"),
+    ],
+)
+def test_a_master_task_on_the_cycle_is_checked(tmp_path: Path, change: dict[str, Any], code: str, words: str) -> None:
+    found = errors(check_data(tmp_path, loop_spec(tmp_path, **change)))
+    assert [(c, words in text) for c, text, _ in found] == [(code, True)], found
+
+
+def test_a_slave_without_sync0_has_no_cycle_for_its_tasks(tmp_path: Path) -> None:
+    data = loop_spec(tmp_path)
+    data["buses"][0]["ethercat"]["slaves"][1]["assign_activate"] = 0  # free run: no SYNC0
+    found = errors(check_data(tmp_path, data))
+    assert [c for c, _, _ in found] == ["task-sync"]
+    assert "an EtherCAT bus it is the master or a DC slave of (it is on 0)" in found[0][1]
+
+
+def test_a_pdo_over_64_bits_reaches_the_simulator(tmp_path: Path) -> None:
+    """An EtherCAT PDO is no CAN frame: runtime.json's loader takes d1's 80-bit TxPDO (statusword, position and
+    velocity actual values: 16 + 32 + 32 bits), which it once refused as over CiA 301's 8 bytes."""
+    data = loop_spec(tmp_path)
+    data["buses"][0]["ethercat"]["slaves"][1]["pdos"][1]["map"] = [0x6041, 0x6064, 0x606C]
+    cfg = runtime_config_of(tmp_path / "spec.yaml", data)
+    pdo = next(m for m in cfg.messages if m.name == "d1_pos").pdo
+    assert pdo is not None and sum(e.bits for e in pdo.entries) == 80
