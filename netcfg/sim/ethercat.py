@@ -295,7 +295,7 @@ class EthercatSegment:
         data taken at the capture), and the tasks it starts run."""
         sc = self.sc
         trackers = sc.trackers_of(name)
-        tasks = [(t, sc.cfg.node(t.node).rx_delay_ns) for t in sc.tasks_on_message(name)]
+        tasks = sc.tasks_on_message(name)  # at the delivery: a node's rx_delay is its CAN controller's, not this
         if not trackers and not tasks:
             return
         _, capture, end = self._delivered(name)
@@ -306,8 +306,8 @@ class EthercatSegment:
             nonlocal k
             for tr in trackers:
                 tr.message_delivered(name, captures[k], ends[k])
-            for task, rx_delay in tasks:
-                sc.run_task(task, ends[k] + rx_delay)
+            for task in tasks:
+                sc.run_task(task)
             k += 1
             if k < len(ends):
                 sc.sim.at(ends[k], deliver)
