@@ -12,8 +12,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from netcfg import model
+from netcfg import model, protocols
 from netcfg.report_text import num
+
+
+def cycle_name(m: model.Model, task: model.Task) -> str:
+    """What a task on its bus's cycle runs on, as its protocol names it ("SYNC", "EtherCAT cycle", "SYNC0")."""
+    bus = m.buses[task.sync_bus or ""]
+    cycle = protocols.of(bus).task_cycle(bus, task.node)
+    return cycle.name if cycle is not None else "the cycle"
 
 
 def explain_flow(m: model.Model, report: dict[str, Any], name: str) -> dict[str, Any]:
@@ -29,9 +36,9 @@ def explain_flow(m: model.Model, report: dict[str, Any], name: str) -> dict[str,
                 task = m.task(ref)
                 figures = tasks.get(ref, {})
                 started = (
-                    f"every {num(task.period_ns / 1000)} us" if task.period_ns
+                    f"on {cycle_name(m, task)} of {task.sync_bus}" if task.sync_bus
+                    else f"every {num(task.period_ns / 1000)} us" if task.period_ns
                     else f"on {task.on_message}" if task.on_message
-                    else f"on SYNC of {task.sync_bus}" if task.sync_bus
                     else f"on trigger {task.trigger}" if task.trigger
                     else "-"
                 )
