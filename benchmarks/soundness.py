@@ -579,11 +579,15 @@ def _add_ecat_gateway(f: Fields, spec: dict[str, Any], slaves: list[dict[str, An
     def period() -> int:
         return f(st.one_of(st.sampled_from([cycle_us, 2 * cycle_us, cycle_us // 2]), st.integers(200, 20_000)))
 
-    def task(node: str, name: str, every: int | None, on: str | None = None) -> None:
+    def task(node: str, name: str, every: int | None, on: str | None = None, on_cycle: bool = False) -> None:
         wcet = f(st.integers(1, max(1, min(every or cycle_us, cycle_us) // 4)))
         t: dict[str, Any] = {"name": name, "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 3)} us"}
         if on is not None:
             t["on_message"] = on
+        elif on_cycle:  # the master's cycle or the slave's SYNC0, its offset after
+            t["sync"] = True
+            if f.chance(0.7):
+                t["offset"] = f"{f(st.integers(0, cycle_us - 1))} us"
         else:
             t["period"] = f"{every} us"
             if f.chance(0.4):
@@ -602,15 +606,21 @@ def _add_ecat_gateway(f: Fields, spec: dict[str, Any], slaves: list[dict[str, An
         {"name": "eout", "producer": "master", "consumers": [g["node"]],
          "pdo": {"rpdo": rx - 0x1600 + 1, "map": [0x6040] if f.chance(0.5) else []}},
     ]
+    # tasks on the cycle: the master's, and the gateway's at its SYNC0 (a DC slave: not in free run)
+    ctl_on_cycle = f.feature("ethercat master task on the cycle", 0.6)
+    dc = g.get("assign_activate", 0x0300) != 0 and g.get("opmode") != "FreeRun"
+    down_on_cycle = dc and f.feature("ethercat slave task at SYNC0", 0.6)
     task("sensor", "s", p_in)
     task(g["node"], "up", period(), "cin" if f.chance(0.3) else None)
-    task(g["node"], "down", p_out if f.chance(0.6) else period())
-    task("master", "ctl", period(), "ein" if f.chance(0.2) else None)
+    task(g["node"], "down", p_out if f.chance(0.6) else period(), on_cycle=down_on_cycle)
+    task("master", "ctl", period(), "ein" if not ctl_on_cycle and f.chance(0.2) else None, on_cycle=ctl_on_cycle)
     task("act", "use", period(), "cout" if f.chance(0.5) else None)
     spec["flows"] = [
         {"name": "gw_in", "chain": ["sensor.s", "cin", f"{g['node']}.up", "ein", "master.ctl"]},
         {"name": "gw_out", "chain": ["master.ctl", "eout", f"{g['node']}.down", "cout", "act.use"]},
     ]
+    if f.feature("ethercat loop through the master", 0.6):  # the gateway's inputs back to its outputs
+        spec["flows"].append({"name": "loop", "chain": ["ein", "master.ctl", "eout", f"{g['node']}.down"]})
 
 
 TPDO_TYPES = st.one_of(st.integers(1, 3), st.sampled_from([0, 254, 255]))

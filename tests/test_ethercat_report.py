@@ -35,7 +35,11 @@ def test_report_md_shows_the_cycle() -> None:
     row = (f"| 5 | ankle_r | epos4 | 10 | 16 | {SLAVES_US / 6:g} | 0.6 | {PASSED_LAST_US:.2f} | 500 | {MARGIN_US:.2f} "
            "| 0x0300 | ok |")
     assert row in md
-    assert "| message | id |" not in md  # no CAN message table for a segment without messages
+    # the PDOs the hip's loop follows: TxPDO 0x1A00 at logical byte 60 (after the 60 output bytes), back with the
+    # frame; RxPDO 0x1600 at byte 0, at hip_l once the frame has passed it (the jitter, the wire, its 2 us, 0.5 m)
+    assert f"| hip_l_actual | 0x3C | 10 | 1,000 | 80 | 0.08 % | {LATENCY_US:.3f} |" in md
+    passed_hip_us = JITTER_US + WIRE_US + SLAVES_US / 6 + CABLES_M[0] / C * 1e6
+    assert f"| hip_l_target | 0x0 | 10 | 1,000 | 80 | 0.08 % | {passed_hip_us:.3f} |" in md
 
 
 def test_check_text_shows_the_same_figures() -> None:

@@ -178,3 +178,9 @@ def test_lost_frames_and_incomplete_sync_cycles_are_violations() -> None:
     # seam 11 with m2 marked may_be_lost: its 20 dropped frames are what the spec allows
     allowed = {"lost": 20, "messages": [{"name": "m2", "lost": 20}], "protocols": {}}
     assert soundness._promises_broken(allowed, frozenset({"m2"})) == []
+
+
+def test_ethercat_draws_tasks_on_the_cycle() -> None:
+    """A field an older protocol already draws can gain a meaning on a new one: `sync` on an EtherCAT master's task
+    and a DC slave's is drawn by the EtherCAT strategy itself, not only by CANopen's."""
+    assert True in drawn(("ethercat",), examples=60).get("nodes[].tasks[].sync", set())
