@@ -5,6 +5,7 @@ way (netcfg.sim.ethercat); the resolver's errors for a task that has no cycle to
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,8 @@ OFFSET, BCET, WCET = 100_000, 10_000, 50_000  # the master's control task
 def loop_spec(tmp_path: Path, **control: Any) -> dict[str, Any]:
     """Two CiA 402 axes (no ESI: RJ45 slaves, 2 us each) on 10 m and 20 m of cable; d1's position to the master's
     control task on the cycle, its target back to d1, latched by d1's task at SYNC0."""
-    slaves = [{"node": f"d{i}", "profile": "cia402", "pdos": AXIS, "cable": m} for i, m in enumerate((10.0, 20.0))]
+    slaves = [{"node": f"d{i}", "profile": "cia402", "pdos": copy.deepcopy(AXIS), "cable": m}
+              for i, m in enumerate((10.0, 20.0))]
     data = spec(tmp_path, slaves, sync0_shift="500 us", master_jitter="20 us")
     nodes = {n["name"]: n for n in data["nodes"]}
     nodes["pc"]["tasks"] = [{"name": "control", "sync": True, "offset": "100 us", "bcet": "10 us", "wcet": "50 us",
@@ -55,7 +57,8 @@ RESPONSE = WCET  # alone on the master: its response from its activation is its 
 # Cycle 0: the read starts the flow between TAKE_LO and TAKE_HI; at the master by 31.006 us, before the control
 # task's earliest start (100 us): it runs in cycle 0, starts by 120 us (its offset and J), ends by 170 us. The next
 # frame (cycle 1, sent at 1,000 us at the earliest) takes the target and delivers it by 1,030.863 us; d1's SYNC0
-# comes at 1,500 us +- 0.1 us, when the latch takes it. At best the same cycles, from the latest read.
+# comes at 1,500 us +- 0.1 us, when the latch takes it. At best the same cycles: the earliest SYNC0, less the
+# latest read.
 LATENCY = (CYCLE + SHIFT - DC - TAKE_HI, CYCLE + SHIFT + DC - TAKE_LO)  # 1,471.597 - 1,495.797 us
 # the target at d1: from the latest read, the earliest send of cycle 1 (its data ready at 110 us) and the RxPDO's
 # best; from the earliest read, cycle 1's latest delivery
@@ -142,3 +145,25 @@ def test_a_pdo_over_64_bits_reaches_the_simulator(tmp_path: Path) -> None:
     cfg = runtime_config_of(tmp_path / "spec.yaml", data)
     pdo = next(m for m in cfg.messages if m.name == "d1_pos").pdo
     assert pdo is not None and sum(e.bits for e in pdo.entries) == 80
+
+
+def test_the_best_case_does_not_follow_the_latest_read(tmp_path: Path) -> None:
+    """The master's wake-up and its frame's send are drawn apart: with the control task at offset 0 and a BCET (30 us)
+    over the jitter, a cycle whose frame left early and came back by ~10 us finds its task still to start (up to
+    20 us late), which takes that cycle's position and ends in time for the next frame: d1's SYNC0 one cycle on. A
+    walk from the latest read alone misses that cycle: it would have the best case a cycle later, 2,471.597 us (the
+    defect a random segment showed). Both paths go from the earliest read; the best case is the earliest end less
+    the latest read.
+
+    By hand: read at 4.303 us, back by 7.005 at the earliest; the task may start then (its window 0-20 us), ends
+    after 30 us; cycle 1's frame takes the target (sent at 1,000 us at the earliest); SYNC0 at 1,499.9 us. Less the
+    latest read (28.303 us): 1,471.597 us. At worst the position is back at 31.006 us, after the task's latest start
+    (20 us): cycle 1's task, ending by 1,070 us, after cycle 1's earliest send: cycle 2's frame, SYNC0 by 2,500.1 us,
+    from the earliest read: 2,495.797 us."""
+    data = loop_spec(tmp_path, offset="0 us", bcet="30 us")
+    (flow,) = check_data(tmp_path, data)["flows"]
+    assert tuple(flow["latency_ns"]) == (CYCLE + SHIFT - DC - TAKE_HI, 2 * CYCLE + SHIFT + DC - TAKE_LO)
+    cfg = runtime_config_of(tmp_path / "spec.yaml", data)
+    (run,) = summary(run_once(cfg, SimOptions(duration_ns=2_000_000_000, seed=3))[1])["flows"]
+    assert run["within_analysis"]
+    assert run["latency_us"]["min"] * 1000 < 2 * CYCLE + SHIFT - DC - TAKE_HI  # the cycle a latest-read walk misses

@@ -2,7 +2,10 @@
 runs on it (`sync: true`) starts a fixed offset after each cycle's start, and each PDO of the segment is taken by
 the cycle's frame within a fixed window of that start. A flow made of such tasks, the segment's PDOs, tasks their
 messages start and messages their tasks send as they end is walked cycle by cycle: each step takes the first cycle
-that surely (at worst) or possibly (at best) finds its data in.
+that surely (at worst) or possibly (at best) finds its data in. Both paths start at the flow's earliest start (a
+later one never ends earlier), and the windows of later steps do not move with it (the master's wake-up and its
+frame's send are drawn apart): the worst case is the latest end from the earliest start, the best case the earliest
+end less the latest start, and never less than the steps' own best times.
 
 Per cycle k, which starts at k * cycle (its frames sent up to the master's jitter J later):
 
@@ -102,7 +105,13 @@ def synchronised_ethercat(
         else:
             first = cf.pdos[head]
             start, spread = k0 * cycle + first.take_lo, first.take_hi - first.take_lo
-        lo, hi = start + spread, start  # the best case from the latest start, the worst from the earliest
+        # Both paths from the earliest start: every step takes the first cycle whose window holds its data, so a
+        # later start never ends earlier; the later steps' windows do not move with the start (the master's wake-up
+        # and its frame's send are drawn apart), so the best case is the earliest end less the latest start, and the
+        # worst the latest end from the earliest start. No start gets through faster than its steps' own best
+        # times, without a wait (`floor`), which holds the best case where the spread would take it lower.
+        lo = hi = start
+        floor = 0
         got: tuple[int, int] | None = None
         prev: model.FlowStep | None = None
         for i, step in enumerate(flow.steps):
@@ -113,29 +122,34 @@ def synchronised_ethercat(
                     d, tx = chained[ref], queue_delay(m, m.messages[ref], prev)
                     assert d.worst_ns is not None  # (_in_step)
                     lo, hi = lo + tx + d.best_ns, hi + tx + d.worst_ns
+                    floor += tx + d.best_ns
                 elif i == 0:  # the start's own cycle's frame
                     lo, hi = lo + w.best_ns, k0 * cycle + w.worst_ns
+                    floor += w.best_ns
                 else:
                     k_lo, k_hi = first_cycle(lo, w.take_hi), first_cycle(hi, w.take_lo)
                     lo, hi = max(lo, k_lo * cycle + w.take_lo) + w.best_ns, k_hi * cycle + w.worst_ns
-                got = (lo, hi)
+                    floor += w.best_ns
+                got = (max(lo - spread, start + floor), hi)
             else:
                 task = m.task(ref)
                 if i == 0:
-                    a_lo, a_hi = lo, hi
+                    a_lo, a_hi = lo, hi + spread  # the flow's start itself: it may start up to `spread` late
                 elif task.sync_bus == cf.bus:
                     early, late = instants(task)
                     k_lo, k_hi = first_cycle(lo, late), first_cycle(hi, early)
                     a_lo, a_hi = max(lo, k_lo * cycle + early), k_hi * cycle + late
                 else:  # started by the message before it
                     a_lo, a_hi = lo + start_delay(m, task), hi + start_delay(m, task)
+                    floor += start_delay(m, task)
                 busy = task_response(task, task_ns)
                 assert busy is not None  # (_in_step)
                 last = i == len(flow.steps) - 1
                 lo, hi = (a_lo, a_hi) if last else (a_lo + task.bcet_ns, a_hi + busy)
+                floor += 0 if last else task.bcet_ns
             prev = step
-        # runs hold ends relative to the start taken: the best case's, which began `spread` later, is moved back
-        runs.append((start, lo - spread, hi, None if got is None else (got[0] - spread, got[1]), None))
+        # runs hold ends relative to the start taken: the best case's is measured from the latest start
+        runs.append((start, max(lo - spread, start + floor), hi, got, None))
     return freshest(runs, cycle)
 
 
