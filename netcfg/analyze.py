@@ -247,6 +247,11 @@ def analyze_flow(m: model.Model, flow: model.Flow, acc: Analysis, diags: Collect
             cyc = next((b for b in flow_buses(m, flow) if b in acc.cycle_flows), None)
             if cyc is not None:
                 sync = acc.cycle_flows[cyc](m, flow, acc)
+            if sync and unsync[1] is not None:
+                # a run in step with the cycle is one of the free-running ones, so both bound it: the tighter holds
+                # (the walk counts a first task's start jitter at worst, the free-running model from its start)
+                (s_lo, s_hi), got = sync
+                sync = ((max(s_lo, unsync[0]), min(s_hi, unsync[1])), got)
     lo: int
     hi: int | None
     if sync:

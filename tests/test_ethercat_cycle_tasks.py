@@ -167,3 +167,53 @@ def test_the_best_case_does_not_follow_the_latest_read(tmp_path: Path) -> None:
     (run,) = summary(run_once(cfg, SimOptions(duration_ns=2_000_000_000, seed=3))[1])["flows"]
     assert run["within_analysis"]
     assert run["latency_us"]["min"] * 1000 < 2 * CYCLE + SHIFT - DC - TAKE_HI  # the cycle a latest-read walk misses
+
+
+def test_a_slave_s_shift_lies_inside_the_sync0_cycle(tmp_path: Path) -> None:
+    """As the bus's own shift must: a SYNC0 1.5 ms after a 1 ms SYNC0 cycle's start is no instant of that cycle."""
+    data = loop_spec(tmp_path)
+    data["buses"][0]["ethercat"]["slaves"][1]["sync0_shift"] = "1500 us"
+    found = errors(check_data(tmp_path, data))
+    words = "its SYNC0 shift must lie inside the SYNC0 cycle (1000 us)"
+    assert [(c, words in t) for c, t, _ in found] == [("dc", True)]
+
+
+def test_a_task_instant_past_the_cycle_takes_the_next_cycle_s_frame(tmp_path: Path) -> None:
+    """The control task at offset 999 us starts up to 1,019 us after its cycle's start (J = 20 us): past the next
+    cycle's start, so the frame of that next cycle, back by ~11 us when sent early, may bring it the position. The
+    walk looks at the cycle before as well (a review found it did not, and put the best case at 970.697 us).
+
+    By hand, from the earliest read (4.303 us): the position is at the master by 7.005 us, and the previous cycle's
+    task may still start until 19 us: at best the position's own best, 2.702 us. At worst it is back at 31.006 us,
+    after that task's earliest start (-1 us), so this cycle's task takes it, starting by 1,019 us: 1,014.697 us."""
+    data = loop_spec(tmp_path, offset="999 us")
+    data["flows"] = [{"name": "read", "chain": ["d1_pos", "pc.control"]}]
+    (flow,) = check_data(tmp_path, data)["flows"]
+    assert flow["mode"] == "synchronised"
+    assert tuple(flow["latency_ns"]) == (IN_BEST, OFFSET_999 + JITTER - TAKE_LO) == (2_702, 1_014_697)
+    cfg = runtime_config_of(tmp_path / "spec.yaml", data)
+    (run,) = summary(run_once(cfg, SimOptions(duration_ns=2_000_000_000, seed=3))[1])["flows"]
+    assert run["within_analysis"] and run["latency_us"]["min"] * 1000 < 970_697
+
+
+OFFSET_999 = 999_000
+
+
+def two_cycles(tmp_path: Path, sync: bool | str) -> list[tuple[str, str, int | None]]:
+    """The master of the segment is also on a CANopen bus, whose SYNC is a second cycle for its tasks."""
+    data = loop_spec(tmp_path, sync=sync, offset="300 us")  # after CANopen's read window, as its master needs
+    data["buses"].append({"name": "co", "protocol": "canopen", "bitrate": "1 Mbit/s",
+                          "canopen": {"sync_period": "10 ms", "read_window": "200 us"}})
+    data["nodes"][0]["buses"].append("co")
+    data["nodes"][0]["node_id"] = 1
+    return errors(check_data(tmp_path, data))
+
+
+def test_a_node_with_two_cycles_names_the_bus(tmp_path: Path) -> None:
+    (found,) = two_cycles(tmp_path, True)
+    assert found[0] == "task-sync" and "(it is on 2): name the bus ('sync: ecat')" in found[1]
+    assert two_cycles(tmp_path, "ecat") == []
+    # on CANopen's 10 ms SYNC the task runs, and the loop is walked free-running (its offset is CANopen's)
+    assert two_cycles(tmp_path, "co") == []
+    (found,) = two_cycles(tmp_path, "d1")
+    assert found[0] == "task-sync" and "which has none for 'pc' (its buses with one: 'ecat', 'co')" in found[1]

@@ -175,12 +175,25 @@ def cycle_task(
         for name in r.spec_nodes[node].buses
         if (bus := r.model.buses.get(name)) is not None and (cycle := protocols.of(bus).task_cycle(bus, node))
     ]
+    named = t.sync if isinstance(t.sync, str) else None
+    if named is not None and named in (n for n, _ in cycles):
+        cycles = [c for c in cycles if c[0] == named]
+    elif named is not None:
+        r.err(
+            "task-sync",
+            f"task '{node}.{t.name}' runs on the cycle of bus '{named}', which has none for '{node}' (its buses with "
+            f"one: {', '.join(repr(n) for n, _ in cycles) or 'none'}): name one of those, or drop 'sync'",
+            (*path, "sync"),
+        )
+        return None, period, 0
     if len(cycles) != 1:
+        several = len(cycles) > 1
         r.err(
             "task-sync",
             f"task '{node}.{t.name}' runs on its bus's cycle ('sync: true'), so its node must be on exactly one bus "
             f"with a cycle for it, a CANopen bus (SYNC) or an EtherCAT bus it is the master or a DC slave of (it is on "
-            f"{len(cycles)}): drop 'sync' and give a period",
+            f"{len(cycles)}): "
+            + (f"name the bus ('sync: {cycles[0][0]}')" if several else "drop 'sync' and give a period"),
             (*path, "sync"),
         )
         return None, period, 0

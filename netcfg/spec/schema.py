@@ -188,10 +188,11 @@ class Task(SpecModel):
     period: DurationField | None = Field(None, description="activation period (omit when a trigger activates it)")
     offset: DurationField = Field(default_factory=lambda: _ns(0))
     on_message: Name | None = Field(None, description="event-driven: the task runs when this message arrives")
-    sync: Bool = Field(
+    sync: Bool | Name = Field(
         False,
         description="the task runs on its bus's cycle, `offset` after each start: every SYNC of its CANopen bus; "
-        "on an EtherCAT bus, the master's every cycle, a DC slave's every SYNC0",
+        "on an EtherCAT bus, the master's every cycle, a DC slave's every SYNC0 (`true`: its node's one bus with a "
+        "cycle; a bus name where it has several)",
     )
     wcet: DurationField = Field(description="worst-case execution time")
     bcet: DurationField | None = Field(None, description="best-case execution time (default: the WCET)")

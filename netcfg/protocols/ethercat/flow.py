@@ -93,15 +93,18 @@ def synchronised_ethercat(
         return early + task.offset_ns, late + task.offset_ns
 
     def first_cycle(r: int, at: int) -> int:
-        """The first cycle k >= 0 whose instant k * cycle + at is at or after r."""
-        return max(0, -(-(r - at) // cycle))
+        """The first cycle k whose instant k * cycle + at is at or after r: an instant may lie a cycle or more after
+        its cycle's start (an offset and the jitter, a SYNC0 shift and an offset), so the cycle before the start's
+        (which runs in the steady state the walk stands for) may be the one."""
+        return -(-(r - at) // cycle)
 
     head = flow.steps[0].refs[0]
     runs: list[Run] = []
     for k0 in range(2):
         if flow.steps[0].kind == "task":
             early, late = instants(m.task(head))
-            start, spread = k0 * cycle + early, late - early
+            # the start in [0, cycle): a SYNC0 shift and an offset may together reach past the cycle
+            start, spread = k0 * cycle + early % cycle, late - early
         else:
             first = cf.pdos[head]
             start, spread = k0 * cycle + first.take_lo, first.take_hi - first.take_lo

@@ -161,6 +161,14 @@ class EthercatRules(BusRules):
                 continue
             slave = self.resolve_slave(s, spath)
             if slave is not None:
+                own = slave.sync0_shift_ns
+                if s.sync0_shift is not None and own is not None and not 0 <= own < sync0:
+                    self.r.err(
+                        "dc",
+                        f"slave '{s.node}': its SYNC0 shift must lie inside the SYNC0 cycle ({sync0 / 1000:g} us)",
+                        (*spath, "sync0_shift"),
+                    )
+                    slave.sync0_shift_ns = shift
                 seg.slaves.append(slave)
         for n in bus.nodes:
             if n != master and n not in seen:
