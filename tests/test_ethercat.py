@@ -273,13 +273,18 @@ def test_the_defaults_are_the_sourced_delays() -> None:
 
 def test_one_full_frame_with_the_sourced_delays() -> None:
     """The sourced figures do not reproduce Beckhoff's 300 us: 1,538 bytes on the wire (123.04 us), then 1,486
-    8-channel terminals at the E-bus 310 ns make 583.70 us, and 743 16-channel ones 353.37 us (18 % over); at an
+    8-channel terminals at the E-bus 310 ns make 583.70 us, and 743 16-channel ones 353.37 us (18 % over), 334.80 us
+    at the step SOEM measured on a line of terminals (12 % over); at an
     RJ45 slave's 2 us, 3,095.04 us. Beckhoff's figure needs a terminal to forward in 119 ns (8 channels) or 238 ns
     (16), under the delays measured on real lines; the wire alone (123.04 us) is not it either."""
     t = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [EBUS_NS] * TERMINALS_FULL, [0.0] * TERMINALS_FULL)
     assert t.latency_ns == 123_040 + 1_486 * 310 == 583_700
     half = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [EBUS_NS] * (TERMINALS_FULL // 2), [0.0] * (TERMINALS_FULL // 2))
     assert half.latency_ns == 123_040 + 743 * 310 == 353_370
+    # SOEM issue #527's slaveinfo: 998 ns one way from an EK1100 to the 7th E-bus terminal behind it, 142.6 ns a
+    # terminal, 285.1 a round trip (285, rounded down): 743 16-channel terminals make 334.80 us, 11.6 % over
+    measured = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [2 * 998 // 7] * 743, [0.0] * 743)
+    assert measured.latency_ns == 123_040 + 743 * 285 == 334_795 and not within(measured.latency_ns, 300)
     rj45 = cycle_timing(link.MAX_DATAGRAM_DATA, RATE, [RJ45_NS] * TERMINALS_FULL, [0.0] * TERMINALS_FULL)
     assert rj45.latency_ns == 123_040 + 1_486 * 2_000 == 3_095_040
     assert not any(within(x, 300) for x in (t.latency_ns, half.latency_ns, rj45.latency_ns, t.wire_ns))
