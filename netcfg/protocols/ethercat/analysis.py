@@ -170,7 +170,7 @@ def pdo_rows(
 ) -> list[dict[str, Any]]:
     """Each PDO message's delivery (netcfg.protocols.ethercat.messages) for the flows, and its row: its worst case
     from the cycle's start against its deadline."""
-    from netcfg.protocols.ethercat.flow import CycleFlows, pdo_window
+    from netcfg.protocols.ethercat.flow import CycleFlows
     from netcfg.protocols.ethercat.messages import delivery, pdo_messages
     from netcfg.timing.flows import Delivery
 
@@ -180,10 +180,10 @@ def pdo_rows(
     cables = [s.cable_m for s in seg.slaves]
     for p in pdo_messages(bus, seg):
         msg = m.messages[p.name]
-        best, worst, read = delivery(t, p, position[p.slave], cables, bus.bitrate)
+        windows[msg.name] = timing = delivery(t, p, position[p.slave], cables, bus.bitrate)
+        best, worst, read = timing.best_ns, timing.worst_ns, timing.read_ns
         if acc is not None:
             acc.chained[msg.name] = acc.plain[msg.name] = Delivery(best, worst)
-            windows[msg.name] = pdo_window(t, seg, p, best, worst, read)
         row = message_head(msg, extended=False) | {
             "slave": p.slave,
             "direction": p.direction,

@@ -1,20 +1,19 @@
-"""Flows in step with an EtherCAT master's cycle: the master keeps the cycle on its own clock, so a task of its that
-runs on it (`sync: true`) starts a fixed offset after each cycle's start, and each PDO of the segment is taken by
-the cycle's frame within a fixed window of that start. A flow made of such tasks, the segment's PDOs, tasks their
-messages start and messages their tasks send as they end is walked cycle by cycle: each step takes the first cycle
-that surely (at worst) or possibly (at best) finds its data in. Both paths start at the flow's earliest start (a
-later one never ends earlier), and the windows of later steps do not move with it (the master's wake-up and its
-frame's send are drawn apart): the worst case is the latest end from the earliest start, the best case the earliest
-end less the latest start, and never less than the steps' own best times.
+"""Flows in step with an EtherCAT cycle. The master keeps the cycle on its own clock and distributed clocks fire a
+DC slave's SYNC0 on it, so a task of either that runs on it (`sync: true`) starts a fixed offset after each cycle's
+start, and the cycle's frame takes each PDO of the segment within a fixed window of that start. A flow made of
+such tasks, the segment's PDOs, tasks their messages start and messages their tasks send as they end is walked
+cycle by cycle: each step takes the first cycle that surely (at worst) or possibly (at best) finds its data in.
+Both paths start at the flow's earliest start (a later one never ends earlier), and the windows of later steps do
+not move with it (the master's wake-up and its frame's send are drawn apart): the worst case is the latest end from
+the earliest start, the best case the earliest end less the latest start, and never less than the steps' own best
+times.
 
 Per cycle k, which starts at k * cycle (its frames sent up to the master's jitter J later):
 
-- a task on the cycle starts between k * cycle + offset and J later (its node's wake-up latency, as for the frame);
-- an RxPDO (the master's outputs) is copied into the frame as the master sends it: the frame takes data ready by
-  its send, between k * cycle and J later, and delivers it to the slave by the slave's frame-passed bound;
-- a TxPDO (a slave's inputs) is read as the datagram passes the slave: at the earliest its read offset and the
-  cables to the slave after k * cycle, at the latest J and the forwarding delays up to the slave later still; it
-  is at the master by the segment's latency.
+- a task of the master's starts between k * cycle + offset and J later (its wake-up latency, as for the frame);
+- a task of a DC slave's starts at k * cycle + its SYNC0 shift + offset, within distributed clocks' precision;
+- a PDO is taken and delivered as netcfg.protocols.ethercat.messages.delivery says: an RxPDO at the master's send,
+  a TxPDO as the datagram passes its slave.
 
 A flow with a free-running task, a join, or a message with a rate of its own keeps the free-running bound
 (netcfg.timing.flows.unsynchronised): its phase against the cycle is not known.
@@ -26,7 +25,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from netcfg import model
-from netcfg.links import ethercat as link
 from netcfg.timing.flow_steps import (
     Delivery,
     Run,
@@ -40,18 +38,7 @@ from netcfg.timing.flow_steps import (
 
 if TYPE_CHECKING:
     from netcfg.bus_analysis import Analysis, FlowBounds
-    from netcfg.protocols.ethercat.cycle import CycleTiming
-    from netcfg.protocols.ethercat.messages import PdoMessage
-    from netcfg.protocols.ethercat.segment import Segment
-
-@dataclass(frozen=True)
-class PdoWindow:
-    """When a cycle's frame takes a PDO's data and when it delivers it, from the cycle's start."""
-
-    take_lo: int  # the earliest instant the frame takes the data (outputs: the send; inputs: the read at the slave)
-    take_hi: int  # the latest
-    best_ns: int  # the earliest delivery, from the take
-    worst_ns: int  # the latest delivery, from the cycle's start
+    from netcfg.protocols.ethercat.messages import PdoTiming
 
 
 @dataclass(frozen=True)
@@ -61,21 +48,10 @@ class CycleFlows:
     bus: str
     cycle_ns: int
     starts: dict[str, tuple[int, int]]  # node -> when its tasks' cycle starts, earliest and latest from k * cycle
-    pdos: dict[str, PdoWindow]
+    pdos: dict[str, PdoTiming]  # message -> when the frame takes and delivers its data
 
     def __call__(self, m: model.Model, flow: model.Flow, acc: Analysis) -> FlowBounds | None:
         return synchronised_ethercat(m, flow, self, acc.chained, acc.task_ns)
-
-
-def pdo_window(t: CycleTiming, seg: Segment, p: PdoMessage, best: int, worst: int, read: int) -> PdoWindow:
-    """A PDO's window from its delivery (netcfg.protocols.ethercat.messages.delivery: best from the take, worst from
-    the cycle's start, the read's offset from the send)."""
-    if p.direction == "outputs":
-        return PdoWindow(0, t.jitter_ns, best, worst)
-    k = next(i for i, s in enumerate(seg.slaves) if s.node == p.slave)
-    cables = round(sum(link.propagation_ns(s.cable_m) for s in seg.slaves[: k + 1]))
-    forwarding = sum(s.forwarding_ns for s in seg.slaves[: k + 1])
-    return PdoWindow(read + cables, t.jitter_ns + read + cables + forwarding, best, worst)
 
 
 def synchronised_ethercat(
@@ -120,7 +96,7 @@ def synchronised_ethercat(
         for i, step in enumerate(flow.steps):
             ref = step.refs[0]
             if step.kind == "message":
-                w: PdoWindow | None = cf.pdos.get(ref)
+                w: PdoTiming | None = cf.pdos.get(ref)
                 if w is None:  # another bus's, sent as the task before it ends
                     d, tx = chained[ref], queue_delay(m, m.messages[ref], prev)
                     assert d.worst_ns is not None  # (_in_step)

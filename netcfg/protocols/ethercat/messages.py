@@ -20,6 +20,11 @@ Its delivery, from the cycle's start (netcfg.protocols.ethercat.analysis has the
   has passed it (a sync manager's buffer is handed to the application only after the frame's check sequence is
   good: Section I, chapter 8.1): at the latest the slave's frame-passed bound; at the earliest the frames' wire
   time and the cables to it.
+
+A flow in step with the cycle (netcfg.protocols.ethercat.flow) also needs when the frame takes the data: an RxPDO
+at the master's send, between the cycle's start and the master's jitter; a TxPDO as the datagram passes the slave,
+between its read offset and the cables after the cycle's start and the jitter and the forwarding delays up to the
+slave later still.
 """
 
 from __future__ import annotations
@@ -216,14 +221,23 @@ def read_offset_ns(t: CycleTiming, logical: int, bitrate: int) -> int:
     return link.wire_ns(before, bitrate)
 
 
-def delivery(
-    t: CycleTiming, p: PdoMessage, position: int, cables_m: list[float], bitrate: int
-) -> tuple[int, int, int]:
-    """(earliest from its capture, latest from the cycle's start, the capture's offset from the master's send) of
-    one PDO message: see the module's docstring. `position`: its slave's place in the line."""
+@dataclass(frozen=True)
+class PdoTiming:
+    """When a cycle's frame takes a PDO message's data and delivers it (see the module's docstring)."""
+
+    best_ns: int  # the earliest delivery, from its take
+    worst_ns: int  # the latest delivery, from the cycle's start
+    read_ns: int  # an input's read, from the master's send (0: outputs, taken at the send)
+    take_lo: int  # the earliest take from the cycle's start: the send, or the read as the datagram passes its slave
+    take_hi: int  # the latest: the master's jitter later, and for an input the forwarding delays up to its slave
+
+
+def delivery(t: CycleTiming, p: PdoMessage, position: int, cables_m: list[float], bitrate: int) -> PdoTiming:
+    """One PDO message's timing in the cycle `t`. `position`: its slave's place in the line."""
     one_way = sum(link.propagation_ns(c) for c in cables_m[: position + 1])
     if p.direction == "inputs":
         read = read_offset_ns(t, p.logical, bitrate)
         best = int(t.wire_ns - read + one_way)  # floor: a lower bound
-        return best, t.latency_ns, read
-    return int(t.wire_ns + one_way), t.passed_ns[position], 0
+        # the frame's end has passed the slave at passed_ns: its bytes there left the master `read` after the send
+        return PdoTiming(best, t.latency_ns, read, read + round(one_way), t.passed_ns[position] - t.wire_ns + read)
+    return PdoTiming(int(t.wire_ns + one_way), t.passed_ns[position], 0, 0, t.jitter_ns)
