@@ -32,8 +32,8 @@ MessageKind = Literal["periodic", "sporadic", "on-demand"]
 class Task(TaskTiming):
     path: Path
     description: str | None = None
-    sync_bus: str | None = None  # runs on this bus's cycle (CANopen: each SYNC; EtherCAT: its master's cycle)
-    cycle_jitter_ns: int = 0  # ... whose start its node keeps up to this late (an EtherCAT master's send jitter)
+    sync_bus: str | None = None  # runs on this bus's cycle (CANopen: each SYNC; EtherCAT: the cycle, DC slaves' SYNC0)
+    cycle_jitter_ns: int = 0  # ... up to this late (an EtherCAT master's send jitter; SYNC0's precision, either way)
     priority: int | None = None  # on its node's processor, 0 the highest; None: rate-monotonic
 
 

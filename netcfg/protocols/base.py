@@ -60,7 +60,7 @@ class TaskCycle:
 
     period_ns: int
     name: str  # as messages say it: "SYNC", "EtherCAT cycle"
-    jitter_ns: int = 0  # how late the node itself may start a cycle (an EtherCAT master's send jitter)
+    jitter_ns: int = 0  # how far apart the node's tasks may start in it (a master's send jitter, SYNC0's precision)
 
 
 class Protocol:

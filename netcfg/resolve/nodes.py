@@ -168,8 +168,8 @@ def cycle_task(
     r: Resolver, node: str, t: schema.Task, path: Path, period: int | None, offset: int
 ) -> tuple[str | None, int | None, int]:
     """A task that runs on its bus's cycle (`sync: true`) takes the cycle's period from the one bus of its node that
-    has a cycle for it (its protocol's task_cycle: a CANopen bus's SYNC, an EtherCAT segment's cycle on its
-    master)."""
+    has a cycle for it, or the one its `sync` names (its protocol's task_cycle: a CANopen bus's SYNC, an EtherCAT
+    segment's cycle on its master, a DC slave's SYNC0)."""
     cycles = [
         (name, cycle)
         for name in r.spec_nodes[node].buses

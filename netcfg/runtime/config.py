@@ -205,7 +205,7 @@ class TaskTiming:
 
 @dataclass(frozen=True)
 class Task(TaskTiming):
-    sync_bus: str | None = None  # runs on this bus's cycle (CANopen: each SYNC; EtherCAT: its master's cycle)
+    sync_bus: str | None = None  # runs on this bus's cycle (CANopen: each SYNC; EtherCAT: the cycle, DC slaves' SYNC0)
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,7 @@ def task_period(m: model.Model, task: model.Task) -> int | None:
 def start_delay(m: model.Model, task: model.Task) -> int:
     """How long after the frame that starts it a task starts: its node's rx_delay after a CAN frame (its trigger
     message, a SYNC, its message), as netcfg.sim starts it; an Ethernet delivery already includes it (Tpost), and an
-    EtherCAT master's cycle is its own."""
+    EtherCAT cycle task starts on its node's own cycle or SYNC0."""
     if task.on_message is not None:
         return m.nodes[task.node].rx_delay_ns if m.buses[m.messages[task.on_message].bus].is_can else 0
     on_can = task.trigger is not None or (task.sync_bus is not None and m.buses[task.sync_bus].is_can)
@@ -78,8 +78,9 @@ def sampling(consumer_period: int | None, refresh: int | None, ppm: int, spread:
 def start_spread(m: model.Model, task: model.Task, chained: dict[str, Delivery]) -> int | None:
     """How late after its nominal instant a task that runs at its period may start: a CANopen SYNC task of the
     SYNC producer within the master's jitter (its wake-up latency), one of a drive at the SYNC frame's reception,
-    which that jitter and the frame's queueing move; one on a cycle its node keeps (an EtherCAT master's) within
-    that cycle's jitter; 0 for a task on its own clock; None when SYNC's delivery is unbounded."""
+    which that jitter and the frame's queueing move; one on an EtherCAT cycle within its cycle's jitter (the
+    master's send jitter, a DC slave's SYNC0 precision); 0 for a task on its own clock; None when SYNC's delivery
+    is unbounded."""
     bus = m.buses[task.sync_bus] if task.sync_bus is not None else None
     if bus is None:
         return 0
