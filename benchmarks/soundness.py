@@ -584,8 +584,8 @@ def _add_ecat_gateway(f: Fields, spec: dict[str, Any], slaves: list[dict[str, An
         t: dict[str, Any] = {"name": name, "wcet": f"{wcet} us", "bcet": f"{max(1, wcet // 3)} us"}
         if on is not None:
             t["on_message"] = on
-        elif on_cycle:  # the master's cycle or the slave's SYNC0, its offset after
-            t["sync"] = True
+        elif on_cycle:  # the master's cycle or the slave's SYNC0, its offset after; the bus named, or the one it has
+            t["sync"] = "ecat" if f.chance(0.3) else True
             if f.chance(0.7):
                 t["offset"] = f"{f(st.integers(0, cycle_us - 1))} us"
         else:

@@ -182,5 +182,6 @@ def test_lost_frames_and_incomplete_sync_cycles_are_violations() -> None:
 
 def test_ethercat_draws_tasks_on_the_cycle() -> None:
     """A field an older protocol already draws can gain a meaning on a new one: `sync` on an EtherCAT master's task
-    and a DC slave's is drawn by the EtherCAT strategy itself, not only by CANopen's."""
-    assert True in drawn(("ethercat",), examples=60).get("nodes[].tasks[].sync", set())
+    and a DC slave's is drawn by the EtherCAT strategy itself, not only by CANopen's, both as `true` and naming the
+    bus."""
+    assert {True, "ecat"} <= drawn(("ethercat",), examples=60).get("nodes[].tasks[].sync", set())
